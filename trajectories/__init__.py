@@ -1,0 +1,1 @@
+"""Excitation and validation trajectories for the 3PRRR, with feasibility checks."""
