@@ -1,0 +1,350 @@
+"""Maxon EPOS2 / EPOS4 drive profiles as data, and their CANopen object dictionaries.
+
+Both sides use this module: the master (``canopen.RemoteNode``) and the emulated drives of
+:mod:`drivers.sim` (``canopen.LocalNode``) build the same object dictionary with
+:func:`make_object_dictionary`, so an index, a data type or an access right can only be wrong
+in one place. A :class:`DriveProfile` names the objects the driver reads and writes; the
+object dictionary holds them with their data types, access rights, defaults and PDO-mappable
+flags, plus the CiA 301 communication objects (PDO parameters, heartbeat, EMCY, identity).
+
+Differences kept as on the real devices: the EPOS2 reports its current in ``0x6078`` (I16, mA)
+and has no ``0x30D1``, ``0x60C2`` or torque-constant object; the EPOS4 reports it in
+``0x30D1:02`` (I32, mA) and has no ``0x6078``. The EPOS2 streams positions through its maxon
+"position mode" (mode -1, set-point ``0x2062``), the EPOS4 through CSP (mode 8, ``0x607A``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Mapping, Optional
+
+from canopen.objectdictionary import ODArray, ODRecord, ODVariable, ObjectDictionary, datatypes
+
+VENDOR_ID_MAXON = 0x000000FB
+
+
+@dataclass(frozen=True)
+class ObjectRef:
+    """One object of a drive's object dictionary.
+
+    Args:
+        index: 16-bit object index.
+        subindex: sub-index (0 for a plain variable).
+        data_type: CANopen data type name as in :mod:`canopen.objectdictionary.datatypes`,
+            e.g. ``"INTEGER32"``.
+        unit: drive unit of the raw value (``"qc"`` quadrature counts, ``"rpm"``, ``"mA"``, ...).
+    """
+
+    index: int
+    subindex: int
+    data_type: str
+    unit: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(getattr(datatypes, self.data_type, None), int):
+            raise ValueError(f"unknown CANopen data type {self.data_type!r} for 0x{self.index:04X}")
+
+    @property
+    def type_code(self) -> int:
+        """The CANopen data type code (``canopen.objectdictionary.datatypes``)."""
+        return getattr(datatypes, self.data_type)
+
+    @property
+    def bits(self) -> int:
+        """Size in bits (the length used in a PDO mapping entry)."""
+        return ODVariable.STRUCT_TYPES[self.type_code].size * 8
+
+    def __str__(self) -> str:
+        return f"0x{self.index:04X}:{self.subindex:02X}"
+
+
+@dataclass(frozen=True)
+class DriveProfile:
+    """Which objects a drive generation uses for what (indices, types and units as data)."""
+
+    name: str
+    device_name: str
+    product_code: int
+    position_actual: ObjectRef
+    velocity_actual: ObjectRef
+    current_actual: ObjectRef
+    statusword: ObjectRef
+    controlword: ObjectRef
+    modes_of_operation: ObjectRef
+    modes_display: ObjectRef
+    cyclic_mode: int
+    cyclic_target: ObjectRef
+    interpolation_period: Optional[ObjectRef]
+    torque_constant: Optional[ObjectRef]
+    supported_modes: Mapping[int, str]
+    current_limit: ObjectRef
+    max_profile_velocity: ObjectRef
+    software_position_limit: tuple[ObjectRef, ObjectRef]  # (min, max)
+    following_error_window: ObjectRef
+    following_error_actual: ObjectRef
+    position_demand: ObjectRef
+    home_offset: ObjectRef
+    home_position: ObjectRef
+    homing_method: ObjectRef
+    homing_speeds: tuple[ObjectRef, ObjectRef]  # (switch search, zero search)
+    homing_acceleration: ObjectRef
+    profile_velocity: ObjectRef
+    profile_acceleration: ObjectRef
+    profile_deceleration: ObjectRef
+    quick_stop_deceleration: ObjectRef
+    target_position: ObjectRef
+    error_code: ObjectRef
+    tpdo_count: int = 4
+    rpdo_count: int = 4
+    max_tpdo_bytes: int = 8
+
+
+def _r(index: int, subindex: int, data_type: str, unit: str = "") -> ObjectRef:
+    return ObjectRef(index, subindex, data_type, unit)
+
+
+_COMMON = dict(
+    position_actual=_r(0x6064, 0, "INTEGER32", "qc"),
+    velocity_actual=_r(0x606C, 0, "INTEGER32", "rpm"),
+    statusword=_r(0x6041, 0, "UNSIGNED16"),
+    controlword=_r(0x6040, 0, "UNSIGNED16"),
+    modes_of_operation=_r(0x6060, 0, "INTEGER8"),
+    modes_display=_r(0x6061, 0, "INTEGER8"),
+    max_profile_velocity=_r(0x607F, 0, "UNSIGNED32", "rpm"),
+    software_position_limit=(_r(0x607D, 1, "INTEGER32", "qc"), _r(0x607D, 2, "INTEGER32", "qc")),
+    following_error_window=_r(0x6065, 0, "UNSIGNED32", "qc"),
+    following_error_actual=_r(0x60F4, 0, "INTEGER32", "qc"),
+    position_demand=_r(0x6062, 0, "INTEGER32", "qc"),
+    homing_method=_r(0x6098, 0, "INTEGER8"),
+    homing_speeds=(_r(0x6099, 1, "UNSIGNED32", "rpm"), _r(0x6099, 2, "UNSIGNED32", "rpm")),
+    homing_acceleration=_r(0x609A, 0, "UNSIGNED32", "rpm/s"),
+    profile_velocity=_r(0x6081, 0, "UNSIGNED32", "rpm"),
+    profile_acceleration=_r(0x6083, 0, "UNSIGNED32", "rpm/s"),
+    profile_deceleration=_r(0x6084, 0, "UNSIGNED32", "rpm/s"),
+    quick_stop_deceleration=_r(0x6085, 0, "UNSIGNED32", "rpm/s"),
+    target_position=_r(0x607A, 0, "INTEGER32", "qc"),
+    error_code=_r(0x603F, 0, "UNSIGNED16"),
+)
+
+EPOS2 = DriveProfile(
+    name="EPOS2",
+    device_name="EPOS2 70/10",
+    product_code=0x63500000,
+    current_actual=_r(0x6078, 0, "INTEGER16", "mA"),
+    cyclic_mode=-1,
+    cyclic_target=_r(0x2062, 0, "INTEGER32", "qc"),
+    interpolation_period=None,
+    torque_constant=None,
+    supported_modes=MappingProxyType(
+        {1: "PPM", 3: "PVM", 6: "HMM", 7: "IPM", -1: "position", -2: "velocity", -3: "current"}
+    ),
+    current_limit=_r(0x6410, 2, "UNSIGNED16", "mA"),
+    home_offset=_r(0x607C, 0, "INTEGER32", "qc"),
+    home_position=_r(0x2081, 0, "INTEGER32", "qc"),
+    **_COMMON,
+)
+
+EPOS4 = DriveProfile(
+    name="EPOS4",
+    device_name="EPOS4 50/5",
+    product_code=0x65500000,
+    current_actual=_r(0x30D1, 2, "INTEGER32", "mA"),
+    cyclic_mode=8,
+    cyclic_target=_r(0x607A, 0, "INTEGER32", "qc"),
+    interpolation_period=_r(0x60C2, 1, "UNSIGNED8", "ms"),
+    torque_constant=_r(0x3001, 5, "UNSIGNED32", "uNm/A"),
+    supported_modes=MappingProxyType(
+        {1: "PPM", 3: "PVM", 6: "HMM", 8: "CSP", 9: "CSV", 10: "CST"}
+    ),
+    current_limit=_r(0x3001, 2, "UNSIGNED32", "mA"),
+    home_offset=_r(0x607C, 0, "INTEGER32", "qc"),
+    home_position=_r(0x30B0, 0, "INTEGER32", "qc"),
+    **_COMMON,
+)
+
+PROFILES: Mapping[str, DriveProfile] = MappingProxyType({"epos2": EPOS2, "epos4": EPOS4})
+
+# CiA 402 0x6502 "supported drive modes" bit of each mode (maxon-specific modes in bits 16..18)
+_MODE_BITS = {1: 0, 3: 2, 6: 5, 7: 6, 8: 7, 9: 8, 10: 9, -1: 16, -2: 17, -3: 18}
+
+
+def get_profile(profile_name: str) -> DriveProfile:
+    """The profile called ``profile_name`` (``"epos2"`` or ``"epos4"``, case-insensitive)."""
+    try:
+        return PROFILES[profile_name.lower()]
+    except (KeyError, AttributeError):
+        raise ValueError(
+            f"unknown drive profile {profile_name!r}; known: {', '.join(PROFILES)}"
+        ) from None
+
+
+# --- object dictionary construction ------------------------------------------------------
+
+
+def _var(name, index, subindex, data_type, access="rw", default=None, mappable=False, unit=""):
+    var = ODVariable(name, index, subindex)
+    var.data_type = getattr(datatypes, data_type)
+    var.access_type = access
+    var.default = default
+    var.pdo_mappable = mappable
+    var.unit = unit
+    return var
+
+
+def _record(od, name, index, members, array=False):
+    """Add a record (or array) whose sub 0 is the highest sub-index; members: (sub, name, type, ...)."""
+    obj = (ODArray if array else ODRecord)(name, index)
+    highest = max(m[0] for m in members)
+    obj.add_member(_var("Highest sub-index supported", index, 0, "UNSIGNED8", "ro", highest))
+    for sub, member_name, data_type, *rest in members:
+        obj.add_member(_var(member_name, index, sub, data_type, *rest))
+    od.add_object(obj)
+
+
+def _add_communication_objects(od: ObjectDictionary, prof: DriveProfile, node_id: int) -> None:
+    od.add_object(_var("Device type", 0x1000, 0, "UNSIGNED32", "ro", 0x00020192))
+    od.add_object(_var("Error register", 0x1001, 0, "UNSIGNED8", "ro", 0, True))
+    errors = ODArray("Pre-defined error field", 0x1003)
+    # sub 0 = number of errors (write 0 to clear); sub 1 = newest error
+    errors.add_member(_var("Number of errors", 0x1003, 0, "UNSIGNED8", "rw", 0))
+    for sub in range(1, 9):
+        errors.add_member(_var(f"Standard error field {sub}", 0x1003, sub, "UNSIGNED32", "ro", 0))
+    od.add_object(errors)
+    od.add_object(_var("COB-ID SYNC", 0x1005, 0, "UNSIGNED32", "rw", 0x80))
+    od.add_object(_var("Communication cycle period", 0x1006, 0, "UNSIGNED32", "rw", 0, unit="us"))
+    od.add_object(_var("Manufacturer device name", 0x1008, 0, "VISIBLE_STRING", "const", prof.device_name))
+    od.add_object(_var("Manufacturer hardware version", 0x1009, 0, "VISIBLE_STRING", "const", "6410h"))
+    od.add_object(_var("Manufacturer software version", 0x100A, 0, "VISIBLE_STRING", "const", "2126h"))
+    od.add_object(_var("COB-ID EMCY", 0x1014, 0, "UNSIGNED32", "rw", 0x80 + node_id))
+    _record(od, "Consumer heartbeat time", 0x1016, [(1, "Consumer heartbeat time 1", "UNSIGNED32", "rw", 0)],
+            array=True)
+    od.add_object(_var("Producer heartbeat time", 0x1017, 0, "UNSIGNED16", "rw", 0, unit="ms"))
+    _record(od, "Identity object", 0x1018, [
+        (1, "Vendor-ID", "UNSIGNED32", "ro", VENDOR_ID_MAXON),
+        (2, "Product code", "UNSIGNED32", "ro", prof.product_code),
+        (3, "Revision number", "UNSIGNED32", "ro", 0x00010000),
+        (4, "Serial number", "UNSIGNED32", "ro", 0x10000000 + node_id),
+    ])
+    _record(od, "SDO server parameter", 0x1200, [
+        (1, "COB-ID client to server", "UNSIGNED32", "ro", 0x600 + node_id),
+        (2, "COB-ID server to client", "UNSIGNED32", "ro", 0x580 + node_id),
+    ])
+    # Default mapping: TPDO1 = statusword (event-driven), RPDO1 = controlword; the rest invalid.
+    for n in range(prof.rpdo_count):
+        valid = 0 if n == 0 else 1 << 31
+        _record(od, f"Receive PDO {n + 1} parameter", 0x1400 + n, [
+            (1, "COB-ID used by RPDO", "UNSIGNED32", "rw", valid | (0x200 + 0x100 * n + node_id)),
+            (2, "Transmission type", "UNSIGNED8", "rw", 255),
+        ])
+        _record(od, f"Receive PDO {n + 1} mapping", 0x1600 + n, [
+            (sub, f"Mapped object {sub}", "UNSIGNED32", "rw", 0x60400010 if (n, sub) == (0, 1) else 0)
+            for sub in range(1, 9)
+        ])
+        od[0x1600 + n][0].access_type = "rw"
+        od[0x1600 + n][0].default = 1 if n == 0 else 0
+    for n in range(prof.tpdo_count):
+        valid = 0 if n == 0 else 1 << 31
+        _record(od, f"Transmit PDO {n + 1} parameter", 0x1800 + n, [
+            (1, "COB-ID used by TPDO", "UNSIGNED32", "rw", valid | (0x180 + 0x100 * n + node_id)),
+            (2, "Transmission type", "UNSIGNED8", "rw", 255),
+            (3, "Inhibit time", "UNSIGNED16", "rw", 0, False, "100us"),
+            (5, "Event timer", "UNSIGNED16", "rw", 0, False, "ms"),
+        ])
+        _record(od, f"Transmit PDO {n + 1} mapping", 0x1A00 + n, [
+            (sub, f"Mapped object {sub}", "UNSIGNED32", "rw", 0x60410010 if (n, sub) == (0, 1) else 0)
+            for sub in range(1, 9)
+        ])
+        od[0x1A00 + n][0].access_type = "rw"
+        od[0x1A00 + n][0].default = 1 if n == 0 else 0
+
+
+def _add_drive_objects(od: ObjectDictionary, prof: DriveProfile) -> None:
+    mode_bits = sum(1 << _MODE_BITS[mode] for mode in prof.supported_modes)
+    plain = [
+        # (name, ref, access, default, pdo-mappable)
+        ("Error code", prof.error_code, "ro", 0, True),
+        ("Controlword", prof.controlword, "rw", 0, True),
+        ("Statusword", prof.statusword, "ro", 0, True),
+        ("Modes of operation", prof.modes_of_operation, "rw", 0, True),
+        ("Modes of operation display", prof.modes_display, "ro", 0, True),
+        ("Position demand value", prof.position_demand, "ro", 0, True),
+        ("Position actual value", prof.position_actual, "ro", 0, True),
+        ("Following error window", prof.following_error_window, "rw", 2000, False),
+        ("Velocity actual value", prof.velocity_actual, "ro", 0, True),
+        ("Target position", prof.target_position, "rw", 0, True),
+        ("Home offset", prof.home_offset, "rw", 0, False),
+        ("Home position", prof.home_position, "rw", 0, False),
+        ("Max profile velocity", prof.max_profile_velocity, "rw", 10000, False),
+        ("Profile velocity", prof.profile_velocity, "rw", 1000, True),
+        ("Profile acceleration", prof.profile_acceleration, "rw", 10000, True),
+        ("Profile deceleration", prof.profile_deceleration, "rw", 10000, True),
+        ("Quick stop deceleration", prof.quick_stop_deceleration, "rw", 10000, False),
+        ("Homing method", prof.homing_method, "rw", 7, False),
+        ("Homing acceleration", prof.homing_acceleration, "rw", 1000, False),
+        ("Following error actual value", prof.following_error_actual, "ro", 0, True),
+    ]
+    if prof.current_actual.subindex == 0:
+        plain.append(("Current actual value", prof.current_actual, "ro", 0, True))
+    if prof.cyclic_target != prof.target_position:
+        plain.append(("Position mode setting value", prof.cyclic_target, "rw", 0, True))
+    for name, ref, access, default, mappable in plain:
+        od.add_object(_var(name, ref.index, ref.subindex, ref.data_type, access, default, mappable, ref.unit))
+    od.add_object(_var("Quick stop option code", 0x605A, 0, "INTEGER16", "rw", 2))
+    od.add_object(_var("Motion profile type", 0x6086, 0, "INTEGER16", "rw", 0))
+    od.add_object(_var("Supported drive modes", 0x6502, 0, "UNSIGNED32", "ro", mode_bits))
+    lo, hi = prof.software_position_limit
+    _record(od, "Software position limit", lo.index, [
+        (lo.subindex, "Min position limit", lo.data_type, "rw", -2147483648, False, lo.unit),
+        (hi.subindex, "Max position limit", hi.data_type, "rw", 2147483647, False, hi.unit),
+    ], array=True)
+    search, zero = prof.homing_speeds
+    _record(od, "Homing speeds", search.index, [
+        (search.subindex, "Speed for switch search", search.data_type, "rw", 100, False, search.unit),
+        (zero.subindex, "Speed for zero search", zero.data_type, "rw", 10, False, zero.unit),
+    ], array=True)
+    if prof.name == "EPOS2":
+        _record(od, "Motor data", 0x6410, [
+            (1, "Continuous current limit", "UNSIGNED16", "rw", 5000, False, "mA"),
+            (2, "Output current limit", "UNSIGNED16", "rw", 10000, False, "mA"),
+            (3, "Pole pair number", "UNSIGNED8", "rw", 1),
+            (4, "Maximal speed in current mode", "UNSIGNED32", "rw", 25000, False, "rpm"),
+            (5, "Thermal time constant winding", "UNSIGNED16", "rw", 40, False, "0.1s"),
+        ])
+    else:
+        _record(od, "Motor data", 0x3001, [
+            (1, "Nominal current", "UNSIGNED32", "rw", 5000, False, "mA"),
+            (2, "Output current limit", "UNSIGNED32", "rw", 10000, False, "mA"),
+            (3, "Number of pole pairs", "UNSIGNED8", "rw", 1),
+            (4, "Thermal time constant winding", "UNSIGNED16", "rw", 40, False, "0.1s"),
+            (5, "Torque constant", "UNSIGNED32", "rw", 30200, False, "uNm/A"),
+        ])
+        _record(od, "Current actual values", 0x30D1, [
+            (1, "Current actual value averaged", "INTEGER32", "ro", 0, True, "mA"),
+            (2, "Current actual value", "INTEGER32", "ro", 0, True, "mA"),
+        ])
+        _record(od, "Interpolation time period", 0x60C2, [
+            (1, "Interpolation time period value", "UNSIGNED8", "rw", 1, False, "ms"),
+            (2, "Interpolation time index", "INTEGER8", "rw", -3),
+        ])
+        od.add_object(_var("Max motor speed", 0x6080, 0, "UNSIGNED32", "rw", 25000, False, "rpm"))
+
+
+def make_object_dictionary(profile_name: str, node_id: int) -> ObjectDictionary:
+    """Build the object dictionary of one EPOS2/EPOS4 drive with node-ID ``node_id`` (1..127).
+
+    Raises:
+        ValueError: unknown profile name or a node-ID out of range.
+    """
+    prof = get_profile(profile_name)
+    if not (isinstance(node_id, int) and 1 <= node_id <= 127):
+        raise ValueError(f"CANopen node-ID must be an integer in 1..127, got {node_id!r}")
+    od = ObjectDictionary()
+    od.node_id = node_id
+    od.device_information.vendor_number = VENDOR_ID_MAXON
+    od.device_information.vendor_name = "maxon motor ag"
+    od.device_information.product_name = prof.device_name
+    od.device_information.product_number = prof.product_code
+    _add_communication_objects(od, prof, node_id)
+    _add_drive_objects(od, prof)
+    return od
