@@ -1,0 +1,158 @@
+"""The public face of the model: :class:`ThreePRRR`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from . import dynamics
+from .kinematics import Kinematics, Motion, SingularityMargins, batch
+from .parameters import Geometry, InertialParams
+
+
+@dataclass
+class Simulation:
+    """Result of :meth:`ThreePRRR.simulate`: ``t`` (N,), ``Theta``/``Thetad`` (N, 6), ``X`` (N, 3)."""
+
+    t: np.ndarray
+    Theta: np.ndarray
+    Thetad: np.ndarray
+    X: np.ndarray
+
+
+class ThreePRRR:
+    """Kinematics and dynamics of the 3PRRR, vectorised over N samples.
+
+    Args:
+        geometry: the robot's :class:`Geometry`.
+        coulomb_width: velocity scale ``w`` (rad/s or m/s) of the smooth Coulomb sign ``tanh(qd / w)``.
+
+    Every method takes batches: poses ``X`` (N, 3) ``[x, y, alpha]`` in m, m, rad; carriages
+    ``zeta`` (N, 3) in m; actuated coordinates ``Theta`` (N, 6) ``[theta1..3 (rad), zeta1..3 (m)]``;
+    a single sample may be given as a 1-D array. Forces are (N, 6): N·m on the links, N on the
+    carriages.
+    """
+
+    parameter_names = InertialParams.NAMES
+    n_params = len(InertialParams.NAMES)
+
+    def __init__(self, geometry: Geometry, coulomb_width: float = 1e-3):
+        if not coulomb_width > 0:
+            raise ValueError(f"coulomb_width must be positive, got {coulomb_width}")
+        self.geometry = geometry
+        self.coulomb_width = coulomb_width
+        self.kinematics = Kinematics(geometry)
+
+    # -- kinematics ---------------------------------------------------------------------------
+    def inverse_kinematics(self, X, zeta):
+        """``theta``, ``beta`` (N, 3) in rad for poses ``X`` and carriages ``zeta``."""
+        return self.kinematics.inverse_kinematics(X, zeta)
+
+    def forward_kinematics(self, Theta, X_guess) -> np.ndarray:
+        """Pose ``X`` (N, 3) from ``Theta`` (N, 6); ``X_guess`` (3,) continues along a series, (N, 3) per sample."""
+        return self.kinematics.forward_kinematics(Theta, X_guess)
+
+    def jacobian(self, X, zeta) -> np.ndarray:
+        """``J`` (N, 3, 6) with ``Xd = J Thetad``."""
+        return self.kinematics.jacobian(X, zeta)
+
+    def singularity_margins(self, X, zeta) -> SingularityMargins:
+        """Parallel (``cond_A``) and serial (``|sin(beta_i - theta_i)|``) margins."""
+        return self.kinematics.singularity_margins(X, zeta)
+
+    def closure_residual(self, X, Theta) -> np.ndarray:
+        """Largest closure error (N,) in m of poses ``X`` with actuated coordinates ``Theta``."""
+        return self.kinematics.closure_residual(X, Theta)
+
+    def motion(self, X, Xd, Xdd, zeta, zetad, zetadd) -> Motion:
+        """Every coordinate of the closed chain with its rates, from the pose and carriage motion."""
+        return self.kinematics.motion_from_pose(X, Xd, Xdd, zeta, zetad, zetadd)
+
+    def motion_from_actuated(self, Theta, Thetad, Thetadd, X_guess) -> Motion:
+        """Every coordinate with its rates, from measured actuated motion (each (N, 6))."""
+        return self.kinematics.motion_from_actuated(Theta, Thetad, Thetadd, X_guess)
+
+    def actuated_motion(self, X, Xd, Xdd, zeta, zetad, zetadd):
+        """``Theta``, ``Thetad``, ``Thetadd`` (each (N, 6)) of a pose and carriage motion, analytically."""
+        m = self.motion(X, Xd, Xdd, zeta, zetad, zetadd)
+        return m.Theta, m.Thetad, m.Thetadd
+
+    def pose_motion(self, Theta, Thetad, Thetadd, X_guess):
+        """``X``, ``Xd``, ``Xdd`` (each (N, 3)) of an actuated motion."""
+        m = self.motion_from_actuated(Theta, Thetad, Thetadd, X_guess)
+        return m.X, m.Xd, m.Xdd
+
+    # -- dynamics -------------------------------------------------------------------------------
+    def regressor(self, X, Xd, Xdd, zeta, zetad, zetadd) -> np.ndarray:
+        """``Y`` (N, 6, 19) with ``tau = Y @ params.as_vector()``."""
+        return self.regressor_of(self.motion(X, Xd, Xdd, zeta, zetad, zetadd))
+
+    def regressor_from_actuated(self, Theta, Thetad, Thetadd, X_guess) -> np.ndarray:
+        """``Y`` (N, 6, 19) from actuated motion (forward kinematics first)."""
+        return self.regressor_of(self.motion_from_actuated(Theta, Thetad, Thetadd, X_guess))
+
+    def regressor_of(self, motion: Motion) -> np.ndarray:
+        """``Y`` (N, 6, 19) of an already computed :class:`Motion`."""
+        return dynamics.regressor(self.kinematics, motion, self.coulomb_width)
+
+    def inverse_dynamics(self, X, Xd, Xdd, zeta, zetad, zetadd, params: InertialParams) -> np.ndarray:
+        """Actuator forces (N, 6) by the Lagrange-multiplier equations (eqs. 31–35), friction included."""
+        m = self.motion(X, Xd, Xdd, zeta, zetad, zetadd)
+        return dynamics.lagrange_forces(self.kinematics, m, params, self.coulomb_width)
+
+    def kinetic_energy(self, X, Xd, zeta, zetad, params: InertialParams) -> np.ndarray:
+        """Kinetic energy ``T`` (N,) in J."""
+        return self.energy_regressor(X, Xd, zeta, zetad) @ params.as_vector()[: dynamics.N_INERTIAL]
+
+    def energy_regressor(self, X, Xd, zeta, zetad) -> np.ndarray:
+        """``H`` (N, 7) with ``T = H @ params.as_vector()[:7]``."""
+        X = batch(X, 3, "X")
+        zero = np.zeros_like(X)
+        m = self.motion(X, Xd, zero, zeta, zetad, zero)
+        return dynamics.energy_regressor(self.kinematics, m)
+
+    def forward_dynamics(self, Theta, Thetad, tau, params: InertialParams, X_guess) -> np.ndarray:
+        """Actuated accelerations ``Thetadd`` (N, 6) under actuator forces ``tau`` (N, 6).
+
+        The closed chain is reduced to the six independent actuated coordinates:
+        ``M_r(Theta) Thetadd + c(Theta, Thetad) = tau`` with ``M_r = sum_b Jac_b^T mu_b Jac_b`` and ``c``
+        the forces at zero actuated acceleration (velocity terms and friction).
+        """
+        Theta = batch(Theta, 6, "Theta")
+        tau = batch(tau, 6, "tau")
+        m0 = self.motion_from_actuated(Theta, Thetad, np.zeros_like(Theta), X_guess)
+        c = self.regressor_of(m0) @ params.as_vector()
+        M = dynamics.reduced_mass_matrix(self.kinematics, m0, params)
+        return np.linalg.solve(M, (tau - c)[..., None])[..., 0]
+
+    def simulate(self, t, Theta0, Thetad0, force, params: InertialParams, X0, rtol=1e-10, atol=1e-12) -> Simulation:
+        """Integrate the closed-chain dynamics (SciPy ``solve_ivp``, DOP853).
+
+        The state is the actuated coordinates and their rates; the pose is rebuilt by forward
+        kinematics at every evaluation, so the closure holds to Newton's tolerance at all times.
+
+        Args:
+            t: output times (N,) in s, increasing; integration from ``t[0]``.
+            Theta0, Thetad0: initial actuated state (6,).
+            force: ``force(t, Theta, Thetad) -> (6,)`` actuator forces in N·m / N.
+            params: the plant's parameters.
+            X0: initial pose guess (3,).
+        """
+        last_X = [np.asarray(X0, dtype=float)]
+
+        def rhs(time, y):
+            Theta, Thetad = y[:6], y[6:]
+            X = self.forward_kinematics(Theta, last_X[0])
+            last_X[0] = X[0]
+            Thetadd = self.forward_dynamics(Theta, Thetad, force(time, Theta, Thetad), params, X)[0]
+            return np.concatenate([Thetad, Thetadd])
+
+        t = np.asarray(t, dtype=float)
+        sol = solve_ivp(rhs, (t[0], t[-1]), np.concatenate([Theta0, Thetad0]), method="DOP853",
+                        t_eval=t, rtol=rtol, atol=atol)
+        if not sol.success:
+            raise RuntimeError(f"forward dynamics integration failed: {sol.message}")
+        Theta = sol.y[:6].T
+        return Simulation(sol.t, Theta, sol.y[6:].T, self.forward_kinematics(Theta, X0))
