@@ -1,0 +1,39 @@
+"""Config files: YAML → validated, typed, frozen dataclasses. Loading never opens a bus.
+
+    from ident_hw.config import load_config, ConfigError
+    cfg = load_config("configs/sim-3prrr.yaml")     # raises ConfigError naming file, line, key
+    cfg.robot.geometry.to_model()                    # ident_hw.model.Geometry
+    cfg.robot.actuators[3].scaling()                 # drivers.units.AxisScaling
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from .schema import ConfigError, build
+from .sections import (ActuatorConfig, BusConfig, Config, FilterConfig, GeometryConfig, HomingConfig,
+                       IdentificationConfig, InertialConfig, LimitsConfig, NoiseConfig, OnlineConfig,
+                       OutputConfig, RobotConfig, SafetyConfig, SimConfig, StepConfig, TrajectoryConfig)
+from .source import compose_file
+
+__all__ = [
+    "load_config", "resolved_yaml", "ConfigError", "Config", "RobotConfig", "GeometryConfig",
+    "InertialConfig", "ActuatorConfig", "LimitsConfig", "HomingConfig", "SafetyConfig", "BusConfig",
+    "SimConfig", "NoiseConfig", "TrajectoryConfig", "IdentificationConfig", "StepConfig",
+    "FilterConfig", "OnlineConfig", "OutputConfig",
+]
+
+
+def load_config(path: str | Path) -> Config:
+    """Read, merge (``extends:``) and validate a config file."""
+    config = build(Config, compose_file(path))
+    object.__setattr__(config, "source", str(path))
+    return config
+
+
+def resolved_yaml(path: str | Path) -> str:
+    """The config as one self-contained YAML text, with every ``extends:`` merged in
+    (what a results folder keeps as its copy of the config)."""
+    return yaml.serialize(compose_file(path), Dumper=yaml.SafeDumper)

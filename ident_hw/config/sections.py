@@ -1,0 +1,338 @@
+"""The typed sections of an ident_hw config file (SI units everywhere: m, rad, s, kg, A, N).
+
+Each section is a frozen dataclass read by :mod:`ident_hw.config.schema`; the comments in
+``configs/*.yaml`` document the keys for a user. Sections know how to turn into the objects of
+the other layers (model geometry and parameters, drive unit scaling).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Literal
+
+from drivers.units import PRISMATIC, REVOLUTE, AxisScaling
+from ident_hw.model import ACTUATOR_NAMES, Geometry, InertialParams
+from ident_hw.signal import FilterSettings
+from trajectories.feasibility import Limits as FeasibilityLimits
+
+from .schema import FieldError, in_range, non_negative, ordered_pair, positive, spec
+
+AXIS_KINDS = (REVOLUTE,) * 3 + (PRISMATIC,) * 3
+
+
+def _plus_minus_one(value) -> None:
+    if any(v not in (1, -1) for v in value):
+        raise ValueError(f"expected +1 or -1 for each chain, got {list(value)}")
+
+
+@dataclass(frozen=True)
+class GeometryConfig:
+    """Geometry of the 3PRRR, per ``shared/spec/3prrr-model.md``."""
+
+    l1: float = field(metadata=spec(positive, unit="m"))
+    l2: float = field(metadata=spec(positive, unit="m"))
+    s1: float = field(metadata=spec(non_negative, unit="m"))
+    s2: float = field(metadata=spec(non_negative, unit="m"))
+    h: float = field(metadata=spec(positive, unit="m"))
+    a: float = field(metadata=spec(positive, unit="m"))
+    gamma: tuple[float, float, float] = field(metadata=spec(unit="rad", angle=True))
+    modes: tuple[int, int, int] = field(default=(1, 1, 1), metadata=spec(_plus_minus_one))
+
+    def _check(self) -> None:
+        if self.s1 > self.l1:
+            raise FieldError("s1", f"expected s1 <= l1 = {self.l1} m, got {self.s1}")
+        if self.s2 > self.l2:
+            raise FieldError("s2", f"expected s2 <= l2 = {self.l2} m, got {self.s2}")
+
+    def to_model(self) -> Geometry:
+        return Geometry(l1=self.l1, l2=self.l2, s1=self.s1, s2=self.s2, h=self.h, a=self.a,
+                        gamma=self.gamma, modes=self.modes)
+
+
+@dataclass(frozen=True)
+class InertialConfig:
+    """Masses (kg), inertias about the centres of mass (kg·m²), friction per actuator."""
+
+    m_c: float = field(metadata=spec(non_negative, unit="kg"))
+    m_l1: float = field(metadata=spec(non_negative, unit="kg"))
+    I_l1: float = field(metadata=spec(non_negative, unit="kg m^2"))
+    m_l2: float = field(metadata=spec(non_negative, unit="kg"))
+    I_l2: float = field(metadata=spec(non_negative, unit="kg m^2"))
+    m_ee: float = field(metadata=spec(non_negative, unit="kg"))
+    I_ee: float = field(metadata=spec(non_negative, unit="kg m^2"))
+    f_v: tuple[float, float, float, float, float, float] = field(
+        default=(0.0,) * 6, metadata=spec(non_negative, unit="N m s/rad | N s/m"))
+    f_c: tuple[float, float, float, float, float, float] = field(
+        default=(0.0,) * 6, metadata=spec(non_negative, unit="N m | N"))
+
+    def to_model(self) -> InertialParams:
+        return InertialParams(m_c=self.m_c, m_l1=self.m_l1, I_l1=self.I_l1, m_l2=self.m_l2,
+                              I_l2=self.I_l2, m_ee=self.m_ee, I_ee=self.I_ee, f_v=self.f_v, f_c=self.f_c)
+
+
+@dataclass(frozen=True)
+class LimitsConfig:
+    """Joint-side limits of one actuator: rad / m, rad/s / m/s, rad/s² / m/s², motor current A."""
+
+    position: tuple[float, float] = field(metadata=spec(ordered_pair, unit="rad | m"))
+    velocity: float = field(metadata=spec(positive, unit="rad/s | m/s"))
+    acceleration: float = field(metadata=spec(positive, unit="rad/s^2 | m/s^2"))
+    current: float = field(metadata=spec(positive, unit="A"))
+
+
+@dataclass(frozen=True)
+class HomingConfig:
+    """CiA 402 homing: method number (0x6098), home offset (joint side), search speed."""
+
+    method: int = field(metadata=spec(in_range(-128, 127)))
+    offset: float = field(default=0.0, metadata=spec(unit="rad | m"))
+    speed: float = field(default=0.01, metadata=spec(positive, unit="rad/s | m/s"))
+    acceleration: float = field(default=0.1, metadata=spec(positive, unit="rad/s^2 | m/s^2"))
+
+
+@dataclass(frozen=True)
+class ActuatorConfig:
+    """One motor + drive. Actuators are listed in the order theta1..3, zeta1..3."""
+
+    name: str
+    kind: Literal["revolute", "prismatic"]
+    node_id: int = field(metadata=spec(in_range(1, 127)))
+    profile: Literal["epos2", "epos4"]
+    torque_constant: float = field(metadata=spec(positive, unit="N m/A"))
+    counts_per_turn: int = field(metadata=spec(positive, doc="quadrature counts per motor turn"))
+    limits: LimitsConfig
+    homing: HomingConfig
+    gear_ratio: float = field(default=1.0, metadata=spec(positive, doc="motor turns per joint turn"))
+    screw_lead: float | None = field(default=None, metadata=spec(positive, unit="m per motor turn"))
+
+    def _check(self) -> None:
+        if self.kind == PRISMATIC and self.screw_lead is None:
+            raise FieldError("screw_lead", "missing key: a prismatic actuator needs screw_lead (m per motor turn)")
+        if self.kind == REVOLUTE and self.screw_lead is not None:
+            raise FieldError("screw_lead", "a revolute actuator has no screw_lead")
+
+    def scaling(self) -> AxisScaling:
+        """Drive-unit ↔ SI scaling of this axis."""
+        return AxisScaling(kind=self.kind, counts_per_turn=self.counts_per_turn,
+                           torque_constant=self.torque_constant, gear_ratio=self.gear_ratio,
+                           screw_lead=self.screw_lead)
+
+
+@dataclass(frozen=True)
+class SafetyConfig:
+    """Thresholds of the feasibility check: distance to parallel and serial singularities."""
+
+    max_cond_A: float = field(default=50.0, metadata=spec(positive))
+    min_serial_margin: float = field(default=0.1, metadata=spec(in_range(0.0, 1.0),
+                                     doc="smallest |sin(beta_i - theta_i)|"))
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    """The rig: geometry, carriage stroke, CAD inertial values and the six actuators."""
+
+    geometry: GeometryConfig
+    stroke: float = field(metadata=spec(positive, unit="m", doc="carriage travel +- stroke"))
+    cad: InertialConfig
+    actuators: tuple[ActuatorConfig, ...]
+    safety: SafetyConfig = SafetyConfig()
+    coulomb_width: float = field(default=1e-3, metadata=spec(positive, unit="rad/s | m/s"))
+
+    def feasibility_limits(self) -> FeasibilityLimits:
+        """Limits for :func:`trajectories.feasibility.check_trajectory` (the tightest axis of each kind)."""
+        rev, pri = self.actuators[:3], self.actuators[3:]
+        return FeasibilityLimits(
+            carriage_stroke=self.stroke,
+            carriage_speed=min(a.limits.velocity for a in pri),
+            carriage_accel=min(a.limits.acceleration for a in pri),
+            revolute_speed=min(a.limits.velocity for a in rev),
+            revolute_accel=min(a.limits.acceleration for a in rev),
+            min_serial_margin=self.safety.min_serial_margin,
+            max_cond_A=self.safety.max_cond_A)
+
+    def _check(self) -> None:
+        if len(self.actuators) != 6:
+            raise FieldError("actuators", f"expected 6 actuators (theta1..3, zeta1..3), got {len(self.actuators)}")
+        for i, (act, kind) in enumerate(zip(self.actuators, AXIS_KINDS)):
+            if act.kind != kind:
+                raise FieldError(f"actuators[{i}].kind",
+                                 f"actuator {i} ({ACTUATOR_NAMES[i]}) must be {kind!r}, got {act.kind!r}")
+        seen: dict[int, int] = {}
+        for i, act in enumerate(self.actuators):
+            if act.node_id in seen:
+                raise FieldError(f"actuators[{i}].node_id",
+                                 f"node id {act.node_id} is already used by actuators[{seen[act.node_id]}]")
+            seen[act.node_id] = i
+
+
+@dataclass(frozen=True)
+class BusConfig:
+    """The CAN bus (python-can) and the SYNC rate of the cyclic exchange."""
+
+    interface: str
+    channel: str
+    bitrate: int = field(default=1_000_000, metadata=spec(positive, unit="bit/s"))
+    sync_rate: float = field(default=250.0, metadata=spec(in_range(1.0, 2000.0), unit="Hz"))
+    sdo_timeout: float = field(default=0.5, metadata=spec(positive, unit="s"))
+    heartbeat: float = field(default=0.1, metadata=spec(positive, unit="s"))
+
+    @property
+    def is_local(self) -> bool:
+        """True for buses that cannot reach hardware: python-can ``virtual`` or a SocketCAN ``vcan*``."""
+        return self.interface == "virtual" or (self.interface == "socketcan" and self.channel.startswith("vcan"))
+
+
+@dataclass(frozen=True)
+class NoiseConfig:
+    """Measurement imperfections of the simulated rig."""
+
+    current_std: float = field(default=0.0, metadata=spec(non_negative, unit="A"))
+    current_quantum: float = field(default=1e-3, metadata=spec(non_negative, unit="A"))
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """The simulated rig: its TRUE parameters (unknown to the identification) and noise."""
+
+    truth: InertialConfig
+    noise: NoiseConfig = NoiseConfig()
+    in_process: bool = True
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class TrajectoryConfig:
+    """One trajectory of the campaign.
+
+    ``kind`` selects the generator: ``carriage_sweep`` (rotary actuators held, each carriage
+    0 → -amplitude → +amplitude → 0), ``square`` (carriages held, side ``size``, rotated by
+    ``rotation``), ``triangle`` (the paper's validation triangle, ``size`` = circumradius,
+    end-effector at ``orientation``), ``fourier`` (optimised excitation), ``file`` (a saved one).
+    """
+
+    name: str
+    kind: Literal["carriage_sweep", "square", "triangle", "fourier", "file"]
+    duration: float = field(default=4.0, metadata=spec(positive, unit="s"))
+    cycles: int = field(default=1, metadata=spec(positive))
+    size: float | None = field(default=None, metadata=spec(positive, unit="m"))
+    rotation: float = field(default=0.0, metadata=spec(unit="rad", angle=True))
+    orientation: float = field(default=0.0, metadata=spec(unit="rad", angle=True))
+    path: str | None = None
+    seed: int = 0
+
+    def _check(self) -> None:
+        if self.kind == "file" and self.path is None:
+            raise FieldError("path", "missing key: a 'file' trajectory needs path")
+        if self.kind != "file" and self.path is not None:
+            raise FieldError("path", f"only a 'file' trajectory has a path, this one is {self.kind!r}")
+
+
+@dataclass(frozen=True)
+class FilterConfig:
+    """Data preparation: zero-phase Butterworth low-pass of the positions, parallel decimation.
+
+    Defaults follow the sample rate and the motion ``bandwidth``
+    (:meth:`ident_hw.signal.FilterSettings.for_sample_rate`); ``cutoff`` and ``decimation``
+    override them.
+    """
+
+    bandwidth: float = field(default=5.0, metadata=spec(positive, unit="Hz"))
+    order: int = field(default=4, metadata=spec(in_range(1, 12)))
+    cutoff: float | None = field(default=None, metadata=spec(positive, unit="Hz"))
+    decimation: int | None = field(default=None, metadata=spec(in_range(1, 100)))
+
+    def settings(self, sample_rate: float) -> FilterSettings:
+        """The filter settings for data sampled at ``sample_rate`` (Hz)."""
+        base = FilterSettings.for_sample_rate(sample_rate, self.bandwidth, self.order)
+        overrides = {k: v for k, v in (("cutoff_hz", self.cutoff), ("decimation", self.decimation)) if v is not None}
+        return dataclasses.replace(base, **overrides)
+
+
+@dataclass(frozen=True)
+class StepConfig:
+    """One identification step: which recorded trajectories identify which parameters."""
+
+    name: str
+    trajectories: tuple[str, ...]
+    parameters: tuple[str, ...]
+    method: Literal["sqp", "ols", "wls"] = "sqp"
+
+    def _check(self) -> None:
+        for i, p in enumerate(self.parameters):
+            if p not in InertialParams.NAMES:
+                raise FieldError(f"parameters[{i}]", f"unknown parameter {p!r}; expected one of {list(InertialParams.NAMES)}")
+
+
+@dataclass(frozen=True)
+class OnlineConfig:
+    """The SVD-DLS online estimator."""
+
+    forgetting: float = field(default=0.999, metadata=spec(in_range(0.5, 1.0)))
+    threshold: float = field(default=1e-6, metadata=spec(positive, doc="relative eigenvalue threshold"))
+
+
+@dataclass(frozen=True)
+class IdentificationConfig:
+    """Steps run in order (each fixes the parameters it identifies), validation trajectories,
+    and the SQP bounds ``[min, max]`` per parameter."""
+
+    steps: tuple[StepConfig, ...]
+    validation: tuple[str, ...] = ()
+    bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
+    filter: FilterConfig = FilterConfig()
+    online: OnlineConfig = OnlineConfig()
+
+    def _check(self) -> None:
+        for name, pair in self.bounds.items():
+            if name not in InertialParams.NAMES:
+                raise FieldError(f"bounds.{name}", f"unknown parameter; expected one of {list(InertialParams.NAMES)}")
+            if not pair[0] <= pair[1]:
+                raise FieldError(f"bounds.{name}", f"expected [min, max] with min <= max, got {list(pair)}")
+
+
+@dataclass(frozen=True)
+class OutputConfig:
+    """Where results go (relative paths are relative to the working directory)."""
+
+    dir: str = "results"
+    raw_log: Literal[".log", ".asc", ".blf"] = ".log"
+
+
+@dataclass(frozen=True)
+class Config:
+    """A whole config file. Only ``robot`` is required; a campaign also needs ``bus``,
+    ``trajectories`` and ``identification``."""
+
+    robot: RobotConfig
+    bus: BusConfig | None = None
+    sim: SimConfig | None = None
+    trajectories: tuple[TrajectoryConfig, ...] = ()
+    identification: IdentificationConfig | None = None
+    output: OutputConfig = OutputConfig()
+    source: str = field(default="", init=False, compare=False)
+
+    def _check(self) -> None:
+        names: dict[str, int] = {}
+        for i, t in enumerate(self.trajectories):
+            if t.name in names:
+                raise FieldError(f"trajectories[{i}].name", f"trajectory name {t.name!r} is used twice")
+            names[t.name] = i
+        if self.identification is not None:
+            for s, step in enumerate(self.identification.steps):
+                for j, t in enumerate(step.trajectories):
+                    if t not in names:
+                        raise FieldError(f"identification.steps[{s}].trajectories[{j}]",
+                                         f"no trajectory named {t!r}; defined: {list(names)}")
+            for j, t in enumerate(self.identification.validation):
+                if t not in names:
+                    raise FieldError(f"identification.validation[{j}]",
+                                     f"no trajectory named {t!r}; defined: {list(names)}")
+
+    @property
+    def simulated(self) -> bool:
+        """True when the bus is served by the simulated rig and cannot reach hardware."""
+        return self.sim is not None and self.bus is not None and self.bus.is_local
+
+    def trajectory(self, name: str) -> TrajectoryConfig:
+        return next(t for t in self.trajectories if t.name == name)

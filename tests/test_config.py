@@ -1,0 +1,214 @@
+"""Config loading: every shipped config is valid; every kind of mistake names file, key and line."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+import yaml
+
+from ident_hw.config import ConfigError, load_config, resolved_yaml
+from ident_hw.model import ThreePRRR
+
+CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+ROBOT_TEXT = (CONFIGS / "robot-3prrr.yaml").read_text()
+SIM_TEXT = (CONFIGS / "sim-3prrr.yaml").read_text()
+
+
+def line_of(text: str, needle: str, occurrence: int = 1) -> int:
+    """1-based line of the ``occurrence``-th line containing ``needle``."""
+    hits = [i + 1 for i, line in enumerate(text.splitlines()) if needle in line]
+    return hits[occurrence - 1]
+
+
+def write(tmp_path: Path, name: str, text: str) -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def robot_with(tmp_path: Path, old: str, new: str) -> tuple[Path, str]:
+    assert old in ROBOT_TEXT
+    text = ROBOT_TEXT.replace(old, new, 1)
+    return write(tmp_path, "robot.yaml", text), text
+
+
+def expect_error(path: Path, key: str, line: int, *words: str) -> ConfigError:
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    err = info.value
+    assert err.file == str(path)
+    assert err.key == key
+    assert err.line == line
+    message = str(err)
+    assert str(path) in message and key in message and f"line {line}" in message
+    for word in words:
+        assert word in message
+    return err
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in CONFIGS.glob("*.yaml")))
+def test_every_shipped_config_loads(name):
+    cfg = load_config(CONFIGS / name)
+    assert len(cfg.robot.actuators) == 6
+
+
+def test_robot_values_map_to_model_and_drive_scaling():
+    cfg = load_config(CONFIGS / "robot-3prrr.yaml")
+    geo = cfg.robot.geometry.to_model()
+    assert geo.gamma == pytest.approx((0.0, 2 * math.pi / 3, 4 * math.pi / 3))
+    assert (geo.l1, geo.l2, geo.s1, geo.s2, geo.h, geo.a) == (0.30, 0.30, 0.15, 0.15, 0.12, 0.40)
+    cad = cfg.robot.cad.to_model()
+    assert (cad.m_c, cad.m_l1, cad.m_l2, cad.m_ee) == (780.0, 0.30, 0.354, 0.78)
+    # slender rod and disc formulas, computed here independently of the file's numbers
+    assert cad.I_l1 == pytest.approx(0.30 * 0.30**2 / 12)
+    assert cad.I_l2 == pytest.approx(0.354 * 0.30**2 / 12)
+    assert cad.I_ee == pytest.approx(0.78 * 0.12**2 / 2)
+    carriage = cfg.robot.actuators[3].scaling()
+    assert carriage.kind == "prismatic" and carriage.screw_lead == 0.002
+    assert carriage.force_per_amp == pytest.approx(0.0603 * 2 * math.pi / 0.002)
+    assert cfg.robot.feasibility_limits().carriage_stroke == 0.10
+
+
+def test_homing_offsets_are_the_home_pose_angles():
+    cfg = load_config(CONFIGS / "robot-3prrr.yaml")
+    robot = ThreePRRR(cfg.robot.geometry.to_model())
+    theta, _ = robot.inverse_kinematics([[0.0, 0.0, 0.0]], [[0.0, 0.0, 0.0]])
+    offsets = [a.homing.offset for a in cfg.robot.actuators[:3]]
+    assert offsets == pytest.approx(theta[0], abs=1e-6)
+
+
+def test_sim_config_extends_robot_and_has_a_campaign():
+    cfg = load_config(CONFIGS / "sim-3prrr.yaml")
+    assert cfg.simulated
+    assert cfg.robot.cad.m_c == 780.0
+    truth = cfg.sim.truth
+    assert (truth.m_c, truth.m_l1, truth.m_l2, truth.m_ee) == (603.62, 0.30, 0.5723, 0.2269)
+    squares = [t for t in cfg.trajectories if t.kind == "square"]
+    assert [round(math.degrees(t.rotation)) for t in squares] == [0, 10, 20, 30, 40]
+    assert cfg.identification.validation == ("triangle",)
+    assert math.degrees(cfg.trajectory("triangle").orientation) == pytest.approx(-20)
+
+
+def test_resolved_yaml_is_self_contained_and_equivalent(tmp_path):
+    text = resolved_yaml(CONFIGS / "sim-3prrr.yaml")
+    assert "extends" not in yaml.safe_load(text)
+    copy = write(tmp_path, "copy.yaml", text)
+    assert load_config(copy) == load_config(CONFIGS / "sim-3prrr.yaml")
+
+
+def test_typo_key_is_named_with_a_suggestion(tmp_path):
+    path, text = robot_with(tmp_path, "    l2: 0.30", "    l_2: 0.30")
+    expect_error(path, "robot.geometry.l_2", line_of(text, "l_2:"), "unknown key", "'l2'")
+
+
+def test_missing_key(tmp_path):
+    path, text = robot_with(tmp_path, "    h: 0.12             # radius of the platform joints C_i, m\n", "")
+    # reported at the mapping that lacks it
+    expect_error(path, "robot.geometry.h", line_of(text, "l1: 0.30"), "missing key", "m")
+
+
+def test_negative_length(tmp_path):
+    path, text = robot_with(tmp_path, "    l1: 0.30", "    l1: -0.30")
+    expect_error(path, "robot.geometry.l1", line_of(text, "l1: -0.30"), "positive", "-0.3")
+
+
+def test_wrong_type(tmp_path):
+    path, text = robot_with(tmp_path, "    a: 0.40", "    a: far")
+    expect_error(path, "robot.geometry.a", line_of(text, "a: far"), "expected a number", "'far'")
+
+
+def test_wrong_length_of_a_list(tmp_path):
+    path, text = robot_with(tmp_path, "gamma_deg: [0, 120, 240]", "gamma_deg: [0, 120]")
+    expect_error(path, "robot.geometry.gamma_deg", line_of(text, "gamma_deg"), "list of 3")
+
+
+def test_bad_choice_inside_a_merged_list_item(tmp_path):
+    path, text = robot_with(tmp_path, "      profile: epos4\n", "      profile: epos3\n")
+    expect_error(path, "robot.actuators[0].profile", line_of(text, "profile: epos3"), "'epos2'", "'epos4'")
+
+
+def test_cross_field_rule_points_at_the_key(tmp_path):
+    path, text = robot_with(tmp_path, "      name: theta2\n      node_id: 2", "      name: theta2\n      node_id: 1")
+    expect_error(path, "robot.actuators[1].node_id", line_of(text, "node_id: 1", 2), "already used")
+
+
+def test_degrees_and_radians_both_given(tmp_path):
+    path, text = robot_with(tmp_path, "    gamma_deg: [0, 120, 240]", "    gamma_deg: [0, 120, 240]\n    gamma: [0, 1, 2]")
+    expect_error(path, "robot.geometry.gamma_deg", line_of(text, "gamma_deg"), "not both")
+
+
+def test_radians_accepted_and_exponent_floats(tmp_path):
+    path, _ = robot_with(tmp_path, "    gamma_deg: [0, 120, 240]", "    gamma: [0, 2.0943951023931953, 4.1887902047863905]")
+    path.write_text(path.read_text().replace("coulomb_width: 0.001", "coulomb_width: 1e-3"))
+    cfg = load_config(path)
+    assert cfg.robot.geometry.gamma[1] == pytest.approx(math.radians(120))
+    assert cfg.robot.coulomb_width == 1e-3
+
+
+def test_duplicate_key(tmp_path):
+    path, text = robot_with(tmp_path, "    s2: 0.15", "    s2: 0.15\n    s2: 0.16")
+    expect_error(path, "robot.geometry.s2", line_of(text, "s2: 0.16"), "duplicate")
+
+
+def test_yaml_syntax_error(tmp_path):
+    path, text = robot_with(tmp_path, "    l2: 0.30", "    l2: [0.30")
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    assert info.value.file == str(path) and "not valid YAML" in str(info.value)
+    assert info.value.line is not None
+
+
+def test_error_in_the_base_file_names_the_base(tmp_path):
+    base, text = robot_with(tmp_path, "    s1: 0.15", "    s1: 0.45")
+    child = write(tmp_path, "child.yaml", "extends: robot.yaml\nrobot:\n  stroke: 0.05\n")
+    with pytest.raises(ConfigError) as info:
+        load_config(child)
+    err = info.value
+    assert (err.file, err.key, err.line) == (str(base), "robot.geometry.s1", line_of(text, "s1: 0.45"))
+    assert "s1 <= l1" in str(err)
+
+
+def test_extends_overrides_deeply(tmp_path):
+    write(tmp_path, "robot.yaml", ROBOT_TEXT)
+    child = write(tmp_path, "child.yaml", "extends: robot.yaml\nrobot:\n  geometry:\n    a: 0.5\n  stroke: 0.05\n")
+    cfg = load_config(child)
+    assert cfg.robot.geometry.a == 0.5 and cfg.robot.geometry.l1 == 0.30 and cfg.robot.stroke == 0.05
+
+
+def test_bad_include(tmp_path):
+    child = write(tmp_path, "child.yaml", "# comment\nextends: nowhere.yaml\n")
+    expect_error(child, "extends", 2, "'nowhere.yaml' not found")
+
+
+def test_include_cycle(tmp_path):
+    write(tmp_path, "a.yaml", "extends: b.yaml\n")
+    b = write(tmp_path, "b.yaml", "extends: a.yaml\n")
+    with pytest.raises(ConfigError, match="cycle") as info:
+        load_config(tmp_path / "a.yaml")
+    assert info.value.file == str(b)
+
+
+def test_missing_file_and_empty_file(tmp_path):
+    with pytest.raises(ConfigError, match="file not found"):
+        load_config(tmp_path / "absent.yaml")
+    with pytest.raises(ConfigError, match="empty"):
+        load_config(write(tmp_path, "empty.yaml", "# nothing\n"))
+
+
+def test_campaign_references_are_checked(tmp_path):
+    write(tmp_path, "robot-3prrr.yaml", ROBOT_TEXT)
+    text = SIM_TEXT.replace("validation: [triangle]", "validation: [triangel]")
+    path = write(tmp_path, "sim.yaml", text)
+    expect_error(path, "identification.validation[0]", line_of(text, "validation: [triangel]"), "'triangel'")
+    text = SIM_TEXT.replace("parameters: [m_c,", "parameters: [m_carriage,")
+    path = write(tmp_path, "sim.yaml", text)
+    expect_error(path, "identification.steps[0].parameters[0]", line_of(text, "m_carriage"), "unknown parameter")
+
+
+def test_out_of_range_value(tmp_path):
+    write(tmp_path, "robot-3prrr.yaml", ROBOT_TEXT)
+    text = SIM_TEXT.replace("sync_rate: 250.0", "sync_rate: 25000.0")
+    path = write(tmp_path, "sim.yaml", text)
+    expect_error(path, "bus.sync_rate", line_of(text, "sync_rate: 25000.0"), "[1.0, 2000.0]", "Hz")
