@@ -84,11 +84,17 @@ def regressor(kin: Kinematics, m: Motion, coulomb_width: float) -> np.ndarray:
     return Y
 
 
-def reduced_mass_matrix(kin: Kinematics, m: Motion, params: InertialParams) -> np.ndarray:
-    """Mass matrix in the actuated coordinates, (N, 6, 6): ``sum_b p_b Jac_b^T Jac_b``."""
+def reduced_dynamics(kin: Kinematics, m: Motion, params: InertialParams, coulomb_width: float):
+    """Mass matrix ``M_r`` (N, 6, 6) and bias forces ``c`` (N, 6) in the actuated coordinates.
+
+    ``M_r = sum_b p_b Jac_b^T Jac_b``; ``c`` is the force at the motion ``m`` (evaluate it with zero
+    actuated acceleration to get the velocity terms), friction included.
+    """
     pi = params.as_vector()
-    return sum(pi[k] * np.einsum("nidj,nidk->njk", Jac, Jac)
-               for k, (Jac, _) in enumerate(body_jacobians(kin, m)))
+    bodies = body_jacobians(kin, m)
+    M = sum(pi[k] * np.einsum("nidj,nidk->njk", Jac, Jac) for k, (Jac, _) in enumerate(bodies))
+    c = sum(pi[k] * np.einsum("nidj,nid->nj", Jac, acc) for k, (Jac, acc) in enumerate(bodies))
+    return M, c + friction(m.Thetad, params, coulomb_width)
 
 
 def friction(Thetad: np.ndarray, params: InertialParams, coulomb_width: float) -> np.ndarray:

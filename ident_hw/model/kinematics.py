@@ -32,12 +32,19 @@ FK_BLOCK = 32
 
 def e(phi: np.ndarray) -> np.ndarray:
     """Unit vectors ``[cos phi, sin phi]``, shape ``phi.shape + (2,)``."""
-    return np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+    out = np.empty(np.shape(phi) + (2,))
+    np.cos(phi, out=out[..., 0])
+    np.sin(phi, out=out[..., 1])
+    return out
 
 
 def n(phi: np.ndarray) -> np.ndarray:
     """Unit normals ``[-sin phi, cos phi]``, shape ``phi.shape + (2,)``."""
-    return np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
+    out = np.empty(np.shape(phi) + (2,))
+    np.sin(phi, out=out[..., 0])
+    np.negative(out[..., 0], out=out[..., 0])
+    np.cos(phi, out=out[..., 1])
+    return out
 
 
 def dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:

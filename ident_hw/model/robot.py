@@ -123,8 +123,7 @@ class ThreePRRR:
         Theta = batch(Theta, 6, "Theta")
         tau = batch(tau, 6, "tau")
         m0 = self.motion_from_actuated(Theta, Thetad, np.zeros_like(Theta), X_guess)
-        c = self.regressor_of(m0) @ params.as_vector()
-        M = dynamics.reduced_mass_matrix(self.kinematics, m0, params)
+        M, c = dynamics.reduced_dynamics(self.kinematics, m0, params, self.coulomb_width)
         return np.linalg.solve(M, (tau - c)[..., None])[..., 0]
 
     def simulate(self, t, Theta0, Thetad0, force, params: InertialParams, X0, rtol=1e-10, atol=1e-12) -> Simulation:
