@@ -1,0 +1,443 @@
+"""The results folder of a campaign and its report (tables, PNG plots, HTML, MATLAB export).
+
+A results folder holds::
+
+    STATUS               "complete", or "partial: <why>" after a fault or Ctrl-C
+    config.yaml          the config used, with every ``extends:`` merged in
+    parameters.json/.yaml  Table-1-like rows: initial, identified, truth, sigma, %sigma, bounds, step
+    fits/<name>.npz      measured and model forces along each trajectory (t, tau, tau_model, Theta, X)
+    online.npz           estimates over time of an online run (optional)
+    data/                the recordings (raw CAN log + decoded samples), written by the runner
+    metrics.yaml         per trajectory and actuator: RMS, NRMS, d_tau, J_RMSE   (built)
+    plots/*.png          forces, residuals, trajectories, online estimates        (built)
+    report.html          everything above on one page                             (built)
+    results.mat          parameters and fits for MATLAB (scipy.io.savemat)        (built)
+
+:func:`save_results` writes the first part and calls :func:`build_report`, which reads only
+files of the folder: ``ident-hw report RESULTS`` rebuilds the built part from them.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.io
+import yaml
+from matplotlib.figure import Figure
+
+from ident_hw.identification.metrics import validation_metrics
+from ident_hw.model import ACTUATOR_NAMES
+
+FORCE_UNITS = ("N·m",) * 3 + ("N",) * 3
+POSITION_UNITS = ("rad",) * 3 + ("m",) * 3
+STATUS_FILE = "STATUS"
+#: %sigma above which a parameter is reported as poorly identified on its data (seed 004).
+POOR_REL_SIGMA = 10.0
+
+
+def parameter_unit(name: str) -> str:
+    """SI unit of a parameter of :attr:`ident_hw.model.InertialParams.NAMES`."""
+    if name.startswith("m_"):
+        return "kg"
+    if name.startswith("I_"):
+        return "kg·m²"
+    revolute = "theta" in name
+    if name.startswith("fv_"):
+        return "N·m·s/rad" if revolute else "N·s/m"
+    return "N·m" if revolute else "N"
+
+
+@dataclass
+class ParameterTable:
+    """One row per parameter (n of them), arrays of shape (n,).
+
+    ``sigma`` is NaN where no standard deviation is known; ``truth`` is None outside simulation;
+    ``step`` names the identification step that estimated the parameter ("" = held at ``initial``).
+    """
+
+    names: tuple[str, ...]
+    initial: np.ndarray
+    identified: np.ndarray
+    sigma: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    step: tuple[str, ...]
+    method: tuple[str, ...]
+    truth: np.ndarray | None = None
+
+    def rows(self) -> list[dict]:
+        out = []
+        for i, name in enumerate(self.names):
+            ident, sigma = float(self.identified[i]), float(self.sigma[i])
+            rel = 100.0 * sigma / abs(ident) if ident and math.isfinite(sigma) else None
+            row = {
+                "name": name, "unit": parameter_unit(name), "initial": float(self.initial[i]),
+                "identified": ident, "sigma": sigma if math.isfinite(sigma) else None,
+                "rel_sigma_percent": rel, "bounds": [_num(self.lower[i]), _num(self.upper[i])],
+                "step": self.step[i], "method": self.method[i],
+            }
+            if self.truth is not None:
+                true = float(self.truth[i])
+                row["truth"] = true
+                row["error_percent"] = 100.0 * (ident - true) / abs(true) if true else None
+            out.append(row)
+        return out
+
+    @classmethod
+    def from_rows(cls, rows: list[dict]) -> ParameterTable:
+        def col(key, default=math.nan):
+            return np.array([default if r.get(key) is None else r[key] for r in rows], dtype=float)
+        has_truth = all("truth" in r for r in rows)
+        return cls(names=tuple(r["name"] for r in rows), initial=col("initial"), identified=col("identified"),
+                   sigma=col("sigma"), lower=np.array([_num_in(r["bounds"][0], -np.inf) for r in rows]),
+                   upper=np.array([_num_in(r["bounds"][1], np.inf) for r in rows]),
+                   step=tuple(r["step"] for r in rows), method=tuple(r["method"] for r in rows),
+                   truth=col("truth") if has_truth else None)
+
+
+@dataclass
+class TrajectoryFit:
+    """Measured and model forces along one trajectory (SI, after filtering/decimation).
+
+    Attributes:
+        name: trajectory name; role: ``"identification"`` or ``"validation"``.
+        t: (N,) s; tau, tau_model: (N, 6) N·m / N; Theta: (N, 6) rad / m;
+        X: (N, 3) end-effector pose [x m, y m, alpha rad], or None.
+    """
+
+    name: str
+    role: str
+    t: np.ndarray
+    tau: np.ndarray
+    tau_model: np.ndarray
+    Theta: np.ndarray
+    X: np.ndarray | None = None
+
+    def save(self, path: Path) -> None:
+        arrays = {k: getattr(self, k) for k in ("t", "tau", "tau_model", "Theta")}
+        if self.X is not None:
+            arrays["X"] = self.X
+        np.savez_compressed(path, name=self.name, role=self.role, **arrays)
+
+    @classmethod
+    def load(cls, path: Path) -> TrajectoryFit:
+        with np.load(path) as f:
+            return cls(name=str(f["name"]), role=str(f["role"]), t=f["t"], tau=f["tau"],
+                       tau_model=f["tau_model"], Theta=f["Theta"], X=f["X"] if "X" in f else None)
+
+
+@dataclass
+class OnlineTrace:
+    """Estimates of an online run: t (M,) s, estimates (M, n) in the units of ``names``."""
+
+    names: tuple[str, ...]
+    t: np.ndarray
+    estimates: np.ndarray
+
+
+@dataclass
+class Results:
+    """Everything a results folder records about one campaign."""
+
+    parameters: ParameterTable
+    fits: list[TrajectoryFit] = field(default_factory=list)
+    steps: list[dict] = field(default_factory=list)
+    base_parameters: dict | None = None
+    online: OnlineTrace | None = None
+
+
+# ----------------------------------------------------------------------------- status
+def mark_status(folder: str | Path, status: str) -> None:
+    """Write STATUS: ``"running"``, ``"complete"`` or ``"partial: <reason>"``."""
+    Path(folder, STATUS_FILE).write_text(status.strip() + "\n")
+
+
+def read_status(folder: str | Path) -> str:
+    path = Path(folder, STATUS_FILE)
+    return path.read_text().strip() if path.is_file() else "unknown (no STATUS file)"
+
+
+# ----------------------------------------------------------------------------- saving
+def save_results(folder: str | Path, results: Results) -> Path:
+    """Write the parameters, fits and online trace into ``folder``, then :func:`build_report`."""
+    folder = Path(folder)
+    (folder / "fits").mkdir(parents=True, exist_ok=True)
+    doc = {"parameters": results.parameters.rows(), "steps": results.steps,
+           "base_parameters": results.base_parameters}
+    (folder / "parameters.json").write_text(json.dumps(doc, indent=2, default=_jsonable))
+    (folder / "parameters.yaml").write_text(yaml.safe_dump(json.loads(json.dumps(doc, default=_jsonable)),
+                                                           sort_keys=False))
+    for fit in results.fits:
+        fit.save(folder / "fits" / f"{fit.name}.npz")
+    if results.online is not None:
+        np.savez_compressed(folder / "online.npz", names=np.array(results.online.names),
+                            t=results.online.t, estimates=results.online.estimates)
+    return build_report(folder)
+
+
+def load_results(folder: str | Path) -> Results:
+    """Read back what :func:`save_results` wrote."""
+    folder = Path(folder)
+    path = folder / "parameters.json"
+    if not path.is_file():
+        raise FileNotFoundError(f"{folder} is not a results folder: no parameters.json")
+    doc = json.loads(path.read_text())
+    fits = [TrajectoryFit.load(p) for p in sorted((folder / "fits").glob("*.npz"))]
+    fits.sort(key=lambda f: f.role != "identification")
+    online = None
+    if (folder / "online.npz").is_file():
+        with np.load(folder / "online.npz") as f:
+            online = OnlineTrace(names=tuple(str(n) for n in f["names"]), t=f["t"], estimates=f["estimates"])
+    return Results(parameters=ParameterTable.from_rows(doc["parameters"]), fits=fits,
+                   steps=doc.get("steps") or [], base_parameters=doc.get("base_parameters"), online=online)
+
+
+# ----------------------------------------------------------------------------- building
+def metrics(results: Results) -> dict:
+    """Per trajectory: role and the validation metrics per actuator (``identification.metrics``)."""
+    out = {}
+    for fit in results.fits:
+        m = validation_metrics(fit.tau, fit.tau_model)
+        out[fit.name] = {
+            "role": fit.role,
+            "samples": int(len(fit.t)),
+            "rms": dict(zip(ACTUATOR_NAMES, m.rms.tolist())),
+            "nrms_percent": dict(zip(ACTUATOR_NAMES, m.nrms_percent.tolist())),
+            "d_tau_percent": m.d_tau_percent,
+            "j_rmse": m.j_rmse,
+        }
+    return out
+
+
+def build_report(folder: str | Path) -> Path:
+    """(Re)build metrics.yaml, plots, report.html and results.mat from the folder's files."""
+    folder = Path(folder)
+    results = load_results(folder)
+    table = metrics(results)
+    (folder / "metrics.yaml").write_text(yaml.safe_dump(table, sort_keys=False))
+    plots = folder / "plots"
+    plots.mkdir(exist_ok=True)
+    images = []
+    for fit in results.fits:
+        images.append((f"{fit.role}: {fit.name} — measured vs model", _plot_forces(fit, plots)))
+        images.append((f"{fit.name}: residuals", _plot_residuals(fit, plots)))
+        images.append((f"{fit.name}: motion", _plot_motion(fit, plots)))
+    if results.online is not None:
+        images.append(("online estimates", _plot_online(results.online, results.parameters, plots)))
+    _save_mat(folder / "results.mat", results)
+    page = folder / "report.html"
+    page.write_text(_html(folder, results, table, images))
+    return page
+
+
+def summary_lines(folder: str | Path) -> list[str]:
+    """The numbers printed at the end of a run: identified vs truth, and validation errors."""
+    results = load_results(folder)
+    lines = [f"status: {read_status(folder)}"]
+    for row in results.parameters.rows():
+        if not row["step"]:
+            continue
+        text = f"  {row['name']:>10} = {row['identified']:.6g} {row['unit']}"
+        if row["rel_sigma_percent"] is not None:
+            text += f"  (%sigma {row['rel_sigma_percent']:.2f})"
+        if row.get("error_percent") is not None:
+            text += f"  truth {row['truth']:.6g}, error {row['error_percent']:+.2f} %"
+        lines.append(text)
+    for name, m in metrics(results).items():
+        lines.append(f"  {m['role']:>14} {name}: d_tau = {m['d_tau_percent']:.2f} %, J_RMSE = {m['j_rmse']:.4g}")
+    return lines
+
+
+# ----------------------------------------------------------------------------- plots
+def _figure(height: float) -> Figure:
+    return Figure(figsize=(11, height), layout="constrained")
+
+
+def _every(n: int, at_most: int = 3000) -> slice:
+    return slice(None, None, max(1, n // at_most))
+
+
+def _plot_forces(fit: TrajectoryFit, plots: Path) -> Path:
+    fig = _figure(8)
+    axes = fig.subplots(3, 2, sharex=True)
+    s = _every(len(fit.t))
+    for j in range(6):
+        ax = axes[j % 3, j // 3]
+        ax.plot(fit.t[s], fit.tau[s, j], lw=0.8, label="measured")
+        ax.plot(fit.t[s], fit.tau_model[s, j], lw=1.0, ls="--", label="model")
+        ax.set_ylabel(f"{ACTUATOR_NAMES[j]} [{FORCE_UNITS[j]}]")
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(loc="best", fontsize=8)
+    for ax in axes[-1]:
+        ax.set_xlabel("t [s]")
+    fig.suptitle(f"{fit.name} ({fit.role}): measured vs model forces")
+    return _save(fig, plots / f"forces_{fit.name}.png")
+
+
+def _plot_residuals(fit: TrajectoryFit, plots: Path) -> Path:
+    fig = _figure(6)
+    axes = fig.subplots(3, 2, sharex=True)
+    s = _every(len(fit.t))
+    for j in range(6):
+        ax = axes[j % 3, j // 3]
+        ax.plot(fit.t[s], (fit.tau - fit.tau_model)[s, j], lw=0.6, color="C3")
+        ax.set_ylabel(f"{ACTUATOR_NAMES[j]} [{FORCE_UNITS[j]}]")
+        ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("t [s]")
+    fig.suptitle(f"{fit.name}: residual measured − model")
+    return _save(fig, plots / f"residuals_{fit.name}.png")
+
+
+def _plot_motion(fit: TrajectoryFit, plots: Path) -> Path:
+    fig = _figure(3.5)
+    ax_xy, ax_rev, ax_pri = fig.subplots(1, 3)
+    s = _every(len(fit.t))
+    if fit.X is not None:
+        ax_xy.plot(fit.X[s, 0], fit.X[s, 1], lw=1.0)
+        ax_xy.set_aspect("equal", adjustable="datalim")
+    ax_xy.set_xlabel("x [m]")
+    ax_xy.set_ylabel("y [m]")
+    ax_xy.set_title("end-effector path" if fit.X is not None else "(no pose recorded)")
+    for j in range(3):
+        ax_rev.plot(fit.t[s], fit.Theta[s, j], lw=0.8, label=ACTUATOR_NAMES[j])
+        ax_pri.plot(fit.t[s], fit.Theta[s, 3 + j], lw=0.8, label=ACTUATOR_NAMES[3 + j])
+    ax_rev.set_ylabel("theta [rad]")
+    ax_pri.set_ylabel("zeta [m]")
+    for ax in (ax_rev, ax_pri):
+        ax.set_xlabel("t [s]")
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"{fit.name}: motion")
+    return _save(fig, plots / f"motion_{fit.name}.png")
+
+
+def _plot_online(online: OnlineTrace, params: ParameterTable, plots: Path) -> Path:
+    shown = [i for i, n in enumerate(online.names) if n.startswith(("m_", "I_"))]
+    cols = 2
+    rows = math.ceil(len(shown) / cols)
+    fig = _figure(2.2 * rows)
+    axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True)).ravel()
+    truth = dict(zip(params.names, params.truth)) if params.truth is not None else {}
+    for ax, i in zip(axes, shown):
+        name = online.names[i]
+        ax.plot(online.t, online.estimates[:, i], lw=0.9)
+        if name in truth:
+            ax.axhline(truth[name], color="k", ls=":", lw=0.8, label="truth")
+            ax.legend(fontsize=7)
+        ax.set_ylabel(f"{name} [{parameter_unit(name)}]")
+        ax.grid(alpha=0.3)
+    for ax in axes[len(shown):]:
+        ax.set_visible(False)
+    fig.suptitle("online estimates over time")
+    return _save(fig, plots / "online.png")
+
+
+def _save(fig: Figure, path: Path) -> Path:
+    fig.savefig(path, dpi=90)
+    return path
+
+
+# ----------------------------------------------------------------------------- exports
+def _save_mat(path: Path, results: Results) -> None:
+    p = results.parameters
+    doc = {
+        "parameter_names": np.array(p.names, dtype=object),
+        "initial": p.initial, "identified": p.identified, "sigma": p.sigma,
+        "lower": p.lower, "upper": p.upper,
+        "fits": {f.name.replace("-", "_"): {"role": f.role, "t": f.t, "tau": f.tau, "tau_model": f.tau_model,
+                                             "Theta": f.Theta, **({"X": f.X} if f.X is not None else {})}
+                 for f in results.fits},
+    }
+    if p.truth is not None:
+        doc["truth"] = p.truth
+    if results.online is not None:
+        doc["online"] = {"names": np.array(results.online.names, dtype=object), "t": results.online.t,
+                         "estimates": results.online.estimates}
+    scipy.io.savemat(path, doc, do_compression=True, long_field_names=True)
+
+
+def _html(folder: Path, results: Results, table: dict, images: list[tuple[str, Path]]) -> str:
+    esc = html.escape
+    status = read_status(folder)
+    p = results.parameters
+    has_truth = p.truth is not None
+    head = ["parameter", "unit", "initial (CAD)", "identified", "σ", "%σ"]
+    head += ["truth", "error %"] if has_truth else []
+    head += ["bounds", "step / method"]
+    rows, poor = [], []
+    for r in p.rows():
+        rel = r["rel_sigma_percent"]
+        if r["step"] and rel is not None and rel > POOR_REL_SIGMA:
+            poor.append(r["name"])
+        cells = [r["name"], r["unit"], _fmt(r["initial"]), _fmt(r["identified"]) if r["step"] else "(held)",
+                 _fmt(r["sigma"]), _fmt(rel, ".2f")]
+        if has_truth:
+            cells += [_fmt(r.get("truth")), _fmt(r.get("error_percent"), "+.2f")]
+        cells += [f"[{_fmt(r['bounds'][0])}, {_fmt(r['bounds'][1])}]", f"{r['step']} / {r['method']}" if r["step"] else ""]
+        rows.append("<tr>" + "".join(f"<td>{esc(str(c))}</td>" for c in cells) + "</tr>")
+    metric_rows = []
+    for name, m in table.items():
+        cells = [name, m["role"], *(_fmt(m["nrms_percent"][a], ".2f") for a in ACTUATOR_NAMES),
+                 _fmt(m["d_tau_percent"], ".2f"), _fmt(m["j_rmse"], ".4g")]
+        metric_rows.append("<tr>" + "".join(f"<td>{esc(str(c))}</td>" for c in cells) + "</tr>")
+    notes = []
+    if poor:
+        notes.append(f"Poorly identified on their data (%σ > {POOR_REL_SIGMA:g} %): {', '.join(poor)}.")
+    base = results.base_parameters or {}
+    if base.get("base_parameters"):
+        items = "".join(f"<li><code>{esc(e)}</code></li>" for e in base["base_parameters"])
+        unexcited = ", ".join(base.get("unexcited") or []) or "none"
+        notes.append(f"Base parameters (rank {base.get('rank')} of {base.get('n_params')}):<ul>{items}</ul>"
+                     f"Not excited by the data: {esc(unexcited)}.")
+    steps = "".join(f"<li>{esc(s.get('name', ''))}: {esc(str(s.get('method', '')))}; "
+                    f"{esc(', '.join(s.get('free', [])))}</li>" for s in results.steps)
+    figures = "".join(f"<figure><img src='{esc(str(img.relative_to(folder)))}' alt='{esc(title)}'>"
+                      f"<figcaption>{esc(title)}</figcaption></figure>" for title, img in images)
+    status_class = "ok" if status == "complete" else "partial"
+    return f"""<!doctype html>
+<html><head><meta charset="utf-8"><title>ident_hw report</title>
+<style>body{{font-family:sans-serif;max-width:1100px;margin:auto}} table{{border-collapse:collapse}}
+td,th{{border:1px solid #bbb;padding:2px 6px;text-align:right}} td:first-child{{text-align:left}}
+.partial{{color:#b00;font-weight:bold}} .ok{{color:#070}} img{{max-width:100%}}</style></head>
+<body><h1>3PRRR dynamic identification</h1>
+<p>Status: <span class="{status_class}">{esc(status)}</span></p>
+<h2>Parameters (like the paper's Table 1)</h2>
+<table><tr>{''.join(f'<th>{esc(h)}</th>' for h in head)}</tr>{''.join(rows)}</table>
+<h2>Identification steps</h2><ul>{steps}</ul>
+{''.join(f'<p>{n}</p>' for n in notes)}
+<h2>Force prediction per trajectory</h2>
+<p>NRMS per actuator = 100·RMS(τ − τ̂)/RMS(τ); d_τ = 100·mean(‖τ − τ̂‖/‖τ‖); J_RMSE = sqrt(mean ‖τ̂ − τ‖²) (mixed units).</p>
+<table><tr><th>trajectory</th><th>role</th>{''.join(f'<th>NRMS {a} %</th>' for a in ACTUATOR_NAMES)}
+<th>d_τ %</th><th>J_RMSE</th></tr>{''.join(metric_rows)}</table>
+<h2>Plots</h2>{figures}
+<p>Files: parameters.json/.yaml, metrics.yaml, results.mat, config.yaml, data/ (raw CAN log and decoded samples).</p>
+</body></html>
+"""
+
+
+def _fmt(value, spec: str = ".5g") -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "—"
+    return format(value, spec)
+
+
+def _num(value) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+def _num_in(value, default: float) -> float:
+    return default if value is None else float(value)
+
+
+def _jsonable(obj):
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    raise TypeError(f"cannot store {type(obj).__name__} in parameters.json")

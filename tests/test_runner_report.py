@@ -1,0 +1,104 @@
+"""Results folder and report, built from synthetic results with known numbers."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import scipy.io
+import yaml
+
+from ident_hw.model import InertialParams
+from ident_hw.report import (OnlineTrace, ParameterTable, Results, TrajectoryFit, build_report, load_results,
+                             mark_status, read_status, save_results, summary_lines)
+
+NAMES = InertialParams.NAMES
+
+
+def synthetic_results(rng) -> Results:
+    n = len(NAMES)
+    truth = np.linspace(1.0, 2.0, n)
+    identified = truth * (1 + 0.01 * np.arange(n) / n)
+    sigma = np.full(n, np.nan)
+    sigma[:7] = 0.001 * np.arange(1, 8)
+    sigma[1] = 0.5  # 0.5 / 1.05... -> %sigma far above 10: flagged as poor
+    table = ParameterTable(names=NAMES, initial=truth * 1.3, identified=identified, sigma=sigma,
+                           lower=np.zeros(n), upper=np.full(n, np.inf),
+                           step=("carriages",) + ("links",) * 6 + ("",) * 12, method=("sqp",) * 7 + ("",) * 12,
+                           truth=truth)
+    fits = []
+    for name, role in (("sweep", "identification"), ("triangle", "validation")):
+        t = np.arange(500) / 250.0
+        tau_model = np.column_stack([np.sin(t * (j + 1)) * (1 + 10 * (j >= 3)) for j in range(6)])
+        tau = tau_model + 0.01 * rng.standard_normal(tau_model.shape)
+        X = np.column_stack([0.1 * np.cos(t), 0.1 * np.sin(t), 0 * t])
+        fits.append(TrajectoryFit(name, role, t, tau, tau_model, Theta=np.tile(t[:, None], (1, 6)), X=X))
+    online = OnlineTrace(names=NAMES, t=np.arange(100) * 0.01,
+                         estimates=np.outer(np.linspace(0.5, 1, 100), truth))
+    return Results(parameters=table, fits=fits, steps=[{"name": "carriages", "method": "sqp", "free": ["m_c"]}],
+                   base_parameters={"rank": 18, "n_params": 19, "base_parameters": ["I_l1 + 0.0225 m_l1"],
+                                    "unexcited": ["m_c"]}, online=online)
+
+
+def test_results_folder_round_trip_and_metrics(tmp_path):
+    results = synthetic_results(np.random.default_rng(0))
+    mark_status(tmp_path, "complete")
+    page = save_results(tmp_path, results)
+    assert page == tmp_path / "report.html"
+    for name in ("parameters.json", "parameters.yaml", "metrics.yaml", "results.mat", "online.npz",
+                 "plots/forces_sweep.png", "plots/residuals_triangle.png", "plots/motion_sweep.png",
+                 "plots/online.png"):
+        assert (tmp_path / name).is_file(), name
+    assert (tmp_path / "plots/forces_sweep.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    back = load_results(tmp_path)
+    np.testing.assert_array_equal(back.parameters.identified, results.parameters.identified)
+    np.testing.assert_array_equal(back.parameters.truth, results.parameters.truth)
+    np.testing.assert_array_equal(back.parameters.upper, results.parameters.upper)  # inf survives JSON null
+    assert [f.name for f in back.fits] == ["sweep", "triangle"]
+    np.testing.assert_array_equal(back.fits[1].tau, results.fits[1].tau)
+
+    rows = json.loads((tmp_path / "parameters.json").read_text())["parameters"]
+    assert rows[1]["rel_sigma_percent"] == pytest.approx(100 * 0.5 / results.parameters.identified[1])
+    assert rows[0]["error_percent"] == pytest.approx(100 * (results.parameters.identified[0] - 1.0))
+
+    # metrics recomputed here independently of the identification package
+    m = yaml.safe_load((tmp_path / "metrics.yaml").read_text())["triangle"]
+    fit = results.fits[1]
+    err = fit.tau_model - fit.tau
+    assert m["role"] == "validation"
+    assert m["rms"]["zeta2"] == pytest.approx(np.sqrt(np.mean(err[:, 4] ** 2)))
+    assert m["j_rmse"] == pytest.approx(np.sqrt(np.mean(np.sum(err**2, axis=1))))
+    moving = np.linalg.norm(fit.tau, axis=1) > 0
+    expected = 100 * np.mean(np.linalg.norm(err[moving], axis=1) / np.linalg.norm(fit.tau[moving], axis=1))
+    assert m["d_tau_percent"] == pytest.approx(expected)
+
+    mat = scipy.io.loadmat(tmp_path / "results.mat", simplify_cells=True)
+    np.testing.assert_allclose(mat["identified"], results.parameters.identified)
+    np.testing.assert_allclose(mat["fits"]["sweep"]["tau"], results.fits[0].tau)
+
+    text = page.read_text()
+    assert "Table 1" in text and "m_l1" in text and "Poorly identified" in text
+    assert "I_l1 + 0.0225 m_l1" in text and "plots/forces_triangle.png" in text
+    assert any("error" in line and "m_c" in line for line in summary_lines(tmp_path))
+
+
+def test_report_rebuilds_from_the_folder_alone(tmp_path):
+    save_results(tmp_path, synthetic_results(np.random.default_rng(1)))
+    mark_status(tmp_path, "partial: interrupted (SIGINT)")
+    metrics_before = (tmp_path / "metrics.yaml").read_text()
+    for built in ("report.html", "metrics.yaml", "results.mat"):
+        (tmp_path / built).unlink()
+    for png in (tmp_path / "plots").glob("*.png"):
+        png.unlink()
+    build_report(tmp_path)
+    assert (tmp_path / "metrics.yaml").read_text() == metrics_before
+    assert "partial: interrupted (SIGINT)" in (tmp_path / "report.html").read_text()
+    assert read_status(tmp_path) == "partial: interrupted (SIGINT)"
+    assert len(list((tmp_path / "plots").glob("*.png"))) == 7
+
+
+def test_not_a_results_folder(tmp_path):
+    with pytest.raises(FileNotFoundError, match="no parameters.json"):
+        build_report(tmp_path)
