@@ -11,6 +11,8 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Literal
 
+import drivers.axis
+import drivers.bus
 from drivers.units import PRISMATIC, REVOLUTE, AxisScaling
 from ident_hw.model import ACTUATOR_NAMES, Geometry, InertialParams
 from ident_hw.signal import FilterSettings
@@ -79,16 +81,22 @@ class LimitsConfig:
     velocity: float = field(metadata=spec(positive, unit="rad/s | m/s"))
     acceleration: float = field(metadata=spec(positive, unit="rad/s^2 | m/s^2"))
     current: float = field(metadata=spec(positive, unit="A"))
+    following_error: float = field(metadata=spec(positive, unit="rad | m"))
 
 
 @dataclass(frozen=True)
 class HomingConfig:
-    """CiA 402 homing: method number (0x6098), home offset (joint side), search speed."""
+    """CiA 402 homing (0x6098 method), joint side: offset = joint position at home."""
 
     method: int = field(metadata=spec(in_range(-128, 127)))
     offset: float = field(default=0.0, metadata=spec(unit="rad | m"))
-    speed: float = field(default=0.01, metadata=spec(positive, unit="rad/s | m/s"))
-    acceleration: float = field(default=0.1, metadata=spec(positive, unit="rad/s^2 | m/s^2"))
+    switch_speed: float = field(default=0.1, metadata=spec(positive, unit="rad/s | m/s"))
+    zero_speed: float = field(default=0.01, metadata=spec(positive, unit="rad/s | m/s"))
+    acceleration: float = field(default=1.0, metadata=spec(positive, unit="rad/s^2 | m/s^2"))
+    timeout: float = field(default=30.0, metadata=spec(positive, unit="s"))
+
+    def to_driver(self) -> drivers.axis.HomingConfig:
+        return drivers.axis.HomingConfig(**dataclasses.asdict(self))
 
 
 @dataclass(frozen=True)
@@ -105,6 +113,7 @@ class ActuatorConfig:
     homing: HomingConfig
     gear_ratio: float = field(default=1.0, metadata=spec(positive, doc="motor turns per joint turn"))
     screw_lead: float | None = field(default=None, metadata=spec(positive, unit="m per motor turn"))
+    product_code: int | None = field(default=None, metadata=spec(non_negative, doc="expected 0x1018:02"))
 
     def _check(self) -> None:
         if self.kind == PRISMATIC and self.screw_lead is None:
@@ -117,6 +126,15 @@ class ActuatorConfig:
         return AxisScaling(kind=self.kind, counts_per_turn=self.counts_per_turn,
                            torque_constant=self.torque_constant, gear_ratio=self.gear_ratio,
                            screw_lead=self.screw_lead)
+
+    def to_driver(self) -> drivers.axis.AxisConfig:
+        """The drive driver's axis settings (SI)."""
+        return drivers.axis.AxisConfig(
+            name=self.name, node_id=self.node_id, profile=self.profile, scaling=self.scaling(),
+            position_min=self.limits.position[0], position_max=self.limits.position[1],
+            max_velocity=self.limits.velocity, max_current=self.limits.current,
+            following_error_window=self.limits.following_error, product_code=self.product_code,
+            homing=self.homing.to_driver())
 
 
 @dataclass(frozen=True)
@@ -177,6 +195,12 @@ class BusConfig:
     sdo_timeout: float = field(default=0.5, metadata=spec(positive, unit="s"))
     heartbeat: float = field(default=0.1, metadata=spec(positive, unit="s"))
 
+    def to_driver(self, ignore_config: bool = True) -> drivers.bus.BusConfig:
+        """python-can settings of the bus (``ignore_config``: ignore the user's python-can files)."""
+        bitrate = None if self.interface == "virtual" else self.bitrate
+        return drivers.bus.BusConfig(interface=self.interface, channel=self.channel, bitrate=bitrate,
+                                     ignore_config=ignore_config)
+
     @property
     def is_local(self) -> bool:
         """True for buses that cannot reach hardware: python-can ``virtual`` or a SocketCAN ``vcan*``."""
@@ -203,29 +227,30 @@ class SimConfig:
 
 @dataclass(frozen=True)
 class TrajectoryConfig:
-    """One trajectory of the campaign.
+    """One trajectory of the campaign (generators of :mod:`trajectories`).
 
-    ``kind`` selects the generator: ``carriage_sweep`` (rotary actuators held, each carriage
-    0 → -amplitude → +amplitude → 0), ``square`` (carriages held, side ``size``, rotated by
-    ``rotation``), ``triangle`` (the paper's validation triangle, ``size`` = circumradius,
-    end-effector at ``orientation``), ``fourier`` (optimised excitation), ``file`` (a saved one).
+    ``kind``: ``carriage_sweep`` (rotary actuators held, each carriage 0 → -size → +size → 0,
+    then the three together), ``square`` (carriages held, side ``size``, rotated by
+    ``rotation``), ``triangle`` (the paper's validation triangle, carriages scheduled for
+    singularity margins), ``file`` (a saved trajectory, CSV or NPZ, ``path`` relative to the
+    config file). Timing is rest-to-rest at ``speed_scale`` × the actuator limits, with
+    ``dwell`` s at rest at each waypoint; the motion is repeated ``cycles`` times.
     """
 
     name: str
-    kind: Literal["carriage_sweep", "square", "triangle", "fourier", "file"]
-    duration: float = field(default=4.0, metadata=spec(positive, unit="s"))
-    cycles: int = field(default=1, metadata=spec(positive))
+    kind: Literal["carriage_sweep", "square", "triangle", "file"]
     size: float | None = field(default=None, metadata=spec(positive, unit="m"))
     rotation: float = field(default=0.0, metadata=spec(unit="rad", angle=True))
-    orientation: float = field(default=0.0, metadata=spec(unit="rad", angle=True))
+    speed_scale: float = field(default=1.0, metadata=spec(in_range(0.01, 1.0)))
+    dwell: float = field(default=0.0, metadata=spec(non_negative, unit="s"))
+    cycles: int = field(default=1, metadata=spec(in_range(1, 1000)))
     path: str | None = None
-    seed: int = 0
 
     def _check(self) -> None:
-        if self.kind == "file" and self.path is None:
-            raise FieldError("path", "missing key: a 'file' trajectory needs path")
-        if self.kind != "file" and self.path is not None:
-            raise FieldError("path", f"only a 'file' trajectory has a path, this one is {self.kind!r}")
+        if (self.kind == "file") != (self.path is not None):
+            raise FieldError("path", "a 'file' trajectory needs path, and only a 'file' trajectory has one")
+        if self.kind in ("carriage_sweep", "square") and self.size is None:
+            raise FieldError("size", f"missing key: a {self.kind!r} trajectory needs size (m)")
 
 
 @dataclass(frozen=True)
