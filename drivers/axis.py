@@ -1,0 +1,87 @@
+"""Configuration of one drive axis, in SI units (the experiment runner builds it from YAML)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from drivers.errors import ConfigError
+from drivers.profiles import DriveProfile, get_profile
+from drivers.units import AxisScaling
+
+
+@dataclass(frozen=True)
+class HomingConfig:
+    """CiA 402 homing of one axis.
+
+    Args:
+        method: homing method (0x6098), e.g. 35/37 "actual position", 17/18 limit switches.
+        offset: home offset in rad or m (written to 0x607C through the axis scaling).
+        switch_speed: speed of the switch search in rad/s or m/s.
+        zero_speed: speed of the zero search in rad/s or m/s.
+        acceleration: homing acceleration in rad/s² or m/s².
+        timeout: s to wait for "homing attained".
+    """
+
+    method: int
+    offset: float = 0.0
+    switch_speed: float = 0.1
+    zero_speed: float = 0.01
+    acceleration: float = 1.0
+    timeout: float = 30.0
+
+
+@dataclass(frozen=True)
+class AxisConfig:
+    """One drive: where it is on the bus, what it is, how it scales and its limits (SI).
+
+    Args:
+        name: axis name used in messages and recordings (``"theta1"``, ``"zeta2"``, ...).
+        node_id: CANopen node-ID 1..127.
+        profile: drive generation, ``"epos2"`` or ``"epos4"``.
+        scaling: drive units <-> SI of this axis.
+        position_min, position_max: software position limits in rad or m.
+        max_velocity: max profile velocity in rad/s or m/s.
+        max_current: output current limit in A.
+        following_error_window: max following error in rad or m.
+        product_code: expected 0x1018:02; ``None`` accepts any maxon product of the generation.
+        homing: homing settings, ``None`` if the axis is not homed.
+    """
+
+    name: str
+    node_id: int
+    profile: str
+    scaling: AxisScaling
+    position_min: float
+    position_max: float
+    max_velocity: float
+    max_current: float
+    following_error_window: float
+    product_code: int | None = None
+    homing: HomingConfig | None = None
+
+    def __post_init__(self) -> None:
+        where = f"axis {self.name!r}"
+        if not (isinstance(self.node_id, int) and 1 <= self.node_id <= 127):
+            raise ConfigError(f"{where}: node_id must be an integer in 1..127, got {self.node_id!r}")
+        try:
+            get_profile(self.profile)
+        except ValueError as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+        if not (math.isfinite(self.position_min) and math.isfinite(self.position_max)
+                and self.position_min < self.position_max):
+            raise ConfigError(f"{where}: need position_min < position_max, got "
+                              f"{self.position_min!r}, {self.position_max!r}")
+        for key in ("max_velocity", "max_current", "following_error_window"):
+            value = getattr(self, key)
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"{where}: {key} must be positive, got {value!r}")
+
+    @property
+    def drive_profile(self) -> DriveProfile:
+        return get_profile(self.profile)
+
+    @property
+    def label(self) -> str:
+        """``"node 3 (theta1)"``: how messages name this drive."""
+        return f"node {self.node_id} ({self.name})"

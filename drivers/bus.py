@@ -1,0 +1,132 @@
+"""Opening the CAN bus and the CANopen network, and the bus-load budget of a run.
+
+Everything else in :mod:`drivers` receives a :class:`canopen.Network`; nothing below this module
+knows which python-can interface is underneath (``socketcan`` on ``vcan0``/``can0``, any other
+adapter, or the in-process ``virtual`` bus).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Mapping
+
+import can
+import canopen
+
+from drivers.errors import BusLoadError, ConfigError
+
+SYNC_COB_ID = 0x080
+
+
+@dataclass(frozen=True)
+class BusConfig:
+    """Plain settings of one CAN bus.
+
+    Args:
+        interface: python-can interface name (``"socketcan"``, ``"virtual"``, ``"pcan"``, ...).
+        channel: interface channel (``"vcan0"``, ``"can0"``, a virtual channel name, ...).
+        bitrate: nominal bitrate in bit/s; ``None`` for a bus without one (``virtual``, or an
+            interface configured outside Python) — the bus-load check is then skipped.
+        receive_own_messages: deliver the frames this process sends back to its own listeners.
+            The acquisition needs it (the SYNC frames are the cycle boundaries and the RPDO
+            echoes are the recorded targets); SocketCAN loops back frames sent by the kernel BCM
+            regardless.
+        ignore_config: ignore the user's python-can configuration files and environment
+            (tests set it so that nothing leaks in).
+        options: further keyword arguments for :class:`can.Bus`.
+    """
+
+    interface: str
+    channel: str | int
+    bitrate: int | None = None
+    receive_own_messages: bool = True
+    ignore_config: bool = False
+    options: Mapping[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_mapping(cls, settings: Mapping[str, Any], where: str = "bus") -> "BusConfig":
+        """Build from a plain mapping (e.g. a YAML section); unknown keys go to ``options``."""
+        settings = dict(settings)
+        for key in ("interface", "channel"):
+            if key not in settings:
+                raise ConfigError(f"{where}: missing key {key!r}")
+        known = {k: settings.pop(k) for k in
+                 ("interface", "channel", "bitrate", "receive_own_messages", "ignore_config")
+                 if k in settings}
+        bitrate = known.get("bitrate")
+        if bitrate is not None and (not isinstance(bitrate, int) or bitrate <= 0):
+            raise ConfigError(f"{where}.bitrate: a positive integer in bit/s, got {bitrate!r}")
+        return cls(**known, options=settings)
+
+
+def open_bus(config: BusConfig) -> can.BusABC:
+    """Open the python-can bus described by ``config``."""
+    kwargs = dict(config.options)
+    if config.bitrate is not None and config.interface != "virtual":
+        kwargs["bitrate"] = config.bitrate
+    try:
+        return can.Bus(interface=config.interface, channel=config.channel,
+                       receive_own_messages=config.receive_own_messages,
+                       ignore_config=config.ignore_config, **kwargs)
+    except (can.CanError, OSError, ValueError, ImportError) as exc:
+        raise ConfigError(
+            f"cannot open CAN bus interface={config.interface!r} channel={config.channel!r}: {exc}"
+        ) from exc
+
+
+def open_network(config: BusConfig) -> canopen.Network:
+    """Open the bus and connect a :class:`canopen.Network` (with its notifier thread) to it."""
+    network = canopen.Network(open_bus(config))
+    network.connect()
+    return network
+
+
+def frame_bits(n_bytes: int) -> int:
+    """Worst-case length in bits of a classic CAN frame with an 11-bit identifier.
+
+    47 bits of frame overhead (incl. 3 bits interframe space) plus the data, plus one stuff bit
+    per 4 bits of the 34 + 8n stuffable bits: 135 bits for 8 data bytes, 55 for a SYNC.
+    """
+    if not 0 <= n_bytes <= 8:
+        raise ValueError(f"a classic CAN frame holds 0..8 data bytes, got {n_bytes}")
+    stuffable = 34 + 8 * n_bytes
+    return 47 + 8 * n_bytes + (stuffable - 1) // 4
+
+
+def cycle_bits(frame_sizes: Iterable[int]) -> int:
+    """Worst-case bits on the bus for the frames of one SYNC cycle (sizes in bytes)."""
+    return sum(frame_bits(n) for n in frame_sizes)
+
+
+def check_bus_load(cycle_frame_sizes: Iterable[int], period: float, bitrate: int | None,
+                   background_bits_per_s: float = 0.0, max_load: float = 1.0) -> float:
+    """Refuse a run whose worst-case traffic does not fit the bitrate.
+
+    Args:
+        cycle_frame_sizes: data length in bytes of every frame sent once per SYNC cycle
+            (the SYNC itself included).
+        period: SYNC period in s.
+        bitrate: bus bitrate in bit/s; ``None`` skips the check (returns 0).
+        background_bits_per_s: traffic that is not per cycle (heartbeats, event-driven PDOs).
+        max_load: accepted fraction of the bitrate.
+
+    Returns:
+        The worst-case bus load as a fraction of the bitrate.
+
+    Raises:
+        BusLoadError: the load exceeds ``max_load``; the message gives the numbers.
+    """
+    sizes = list(cycle_frame_sizes)
+    if period <= 0:
+        raise ConfigError(f"SYNC period must be positive, got {period!r} s")
+    if bitrate is None:
+        return 0.0
+    bits = cycle_bits(sizes)
+    load = (bits / period + background_bits_per_s) / bitrate
+    if load > max_load:
+        fastest = bits / (max_load * bitrate - background_bits_per_s)
+        raise BusLoadError(
+            f"bus load {load:.0%} of {bitrate} bit/s: {len(sizes)} frames = {bits} bits per SYNC "
+            f"cycle (worst-case stuffing) every {period * 1e3:g} ms; the shortest SYNC period this "
+            f"bus can carry is {fastest * 1e3:.2f} ms ({1 / fastest:.0f} Hz)")
+    return load

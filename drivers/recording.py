@@ -1,0 +1,301 @@
+"""Recording a streaming run: raw CAN traffic and decoded samples in SI units.
+
+* Raw traffic: python-can's :class:`can.Logger` (``.log`` candump, ``.asc``, ``.blf``, chosen by
+  the file suffix) fed by the same listener as the decoder, flushed periodically.
+* Samples: :class:`Recording`, saved as NPZ with arrays ``t`` (s, from the first SYNC),
+  ``cycle``, ``position`` (N, n_axes) rad|m, ``velocity`` rad/s|m/s, ``current`` A (motor
+  current), ``statusword`` (-1 = none received yet), ``target`` rad|m, ``valid`` (N, n_axes) and
+  ``metadata`` (a JSON string: axes, units, scalings, node-IDs, profiles, SYNC period, counts of
+  missing cycles / late frames / buffer overflows, the caller's config). Invalid values are NaN.
+* :class:`SampleRecorder` drains the bounded queue the assembler writes into, in its own thread,
+  and rewrites the NPZ atomically at least every ``checkpoint_interval`` s, so a crash or Ctrl-C
+  keeps what was recorded.
+* :func:`decode_log` replays a raw log through the same :class:`~drivers.acquisition.CycleAssembler`
+  and conversion and gives the same samples (timestamps to the log's 1 µs resolution).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import os
+import queue
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+import can
+import numpy as np
+
+from drivers.acquisition import AxisLayout, CycleAssembler, Row, pdo_layout
+from drivers.axis import AxisConfig
+from drivers.errors import ConfigError
+from drivers.units import REVOLUTE
+
+logger = logging.getLogger(__name__)
+
+RAW_LOG_SUFFIXES = (".log", ".asc", ".blf")
+ARRAYS = ("t", "cycle", "position", "velocity", "current", "statusword", "target", "valid")
+FORMAT_VERSION = 1
+
+
+def axis_units(axis: AxisConfig) -> dict[str, str]:
+    rev = axis.scaling.kind == REVOLUTE
+    return {"position": "rad" if rev else "m", "velocity": "rad/s" if rev else "m/s",
+            "current": "A", "target": "rad" if rev else "m"}
+
+
+def axes_metadata(axes: Sequence[AxisConfig]) -> list[dict[str, Any]]:
+    """JSON-able description of the axes (names, node-IDs, profiles, scalings, units)."""
+    return [{"name": a.name, "node_id": a.node_id, "profile": a.drive_profile.name,
+             "scaling": dataclasses.asdict(a.scaling), "units": axis_units(a)} for a in axes]
+
+
+def rows_to_arrays(rows: Sequence[Row], axes: Sequence[AxisConfig]) -> dict[str, np.ndarray]:
+    """Convert rows (drive units, ``None`` = missing) to the SI arrays of a :class:`Recording`.
+
+    ``t`` is left absolute here (bus time of each SYNC, s).
+    """
+    n = len(axes)
+
+    def column(name: str, missing: float, dtype) -> np.ndarray:
+        data = [[missing if v is None else v for v in getattr(r, name)] for r in rows]
+        return np.array(data, dtype=dtype).reshape(len(rows), n)
+
+    counts_per_unit = np.array([a.scaling.counts_per_unit for a in axes])
+    rpm_per_unit = np.array([a.scaling.rpm_per_unit_velocity for a in axes])
+    return {
+        "t": np.array([r.timestamp for r in rows], dtype=float),
+        "cycle": np.array([r.cycle for r in rows], dtype=np.int64),
+        "position": column("position", np.nan, float) / counts_per_unit,
+        "velocity": column("velocity", np.nan, float) / rpm_per_unit,
+        "current": column("current", np.nan, float) * 1e-3,
+        "statusword": column("statusword", -1, np.int32),
+        "target": column("target", np.nan, float) / counts_per_unit,
+        "valid": column("valid", False, bool),
+    }
+
+
+@dataclass
+class Recording:
+    """Decoded samples of a run (arrays as described in the module docstring)."""
+
+    t: np.ndarray
+    cycle: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    current: np.ndarray
+    statusword: np.ndarray
+    target: np.ndarray
+    valid: np.ndarray
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_chunks(cls, chunks: Sequence[dict[str, np.ndarray]], n_axes: int,
+                    metadata: dict[str, Any]) -> "Recording":
+        """Concatenate converted chunks; ``t`` becomes relative to the first SYNC (µs grid)."""
+        if chunks:
+            arrays = {k: np.concatenate([c[k] for c in chunks]) for k in ARRAYS}
+        else:
+            arrays = {k: np.zeros((0,) if k in ("t", "cycle") else (0, n_axes),
+                                  dtype=bool if k == "valid" else np.int32 if k == "statusword"
+                                  else np.int64 if k == "cycle" else float) for k in ARRAYS}
+        metadata = dict(metadata)
+        if len(arrays["t"]):
+            t0 = float(arrays["t"][0])
+            metadata["t0"] = t0
+            arrays["t"] = np.round((arrays["t"] - t0) * 1e6) * 1e-6
+        metadata["n_cycles"] = int(len(arrays["t"]))
+        metadata["invalid_cycles"] = int(np.count_nonzero(~arrays["valid"].all(axis=1)))
+        return cls(**arrays, metadata=metadata)
+
+    @property
+    def n_invalid(self) -> int:
+        """Cycles in which at least one axis is missing a frame."""
+        return int(np.count_nonzero(~self.valid.all(axis=1)))
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the NPZ atomically (temporary file, then rename)."""
+        path = Path(path)
+        tmp = path.with_name(path.name + ".tmp")
+        with open(tmp, "wb") as f:
+            np.savez(f, **{k: getattr(self, k) for k in ARRAYS},
+                     metadata=np.array(json.dumps(self.metadata, default=_json_default)))
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "Recording":
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                missing = [k for k in (*ARRAYS, "metadata") if k not in data]
+                if missing:
+                    raise ConfigError(f"{path}: not a recording, missing arrays {missing}")
+                return cls(**{k: data[k] for k in ARRAYS}, metadata=json.loads(str(data["metadata"])))
+        except (OSError, ValueError) as exc:
+            raise ConfigError(f"{path}: cannot read recording: {exc}") from exc
+
+
+def _json_default(obj):
+    if dataclasses.is_dataclass(obj):
+        return dataclasses.asdict(obj)
+    if isinstance(obj, (np.integer, np.floating)):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+class SampleRecorder:
+    """Bounded queue of rows drained by a recorder thread into checkpointed NPZ files.
+
+    Args:
+        axes: the axes, in sample order.
+        path: NPZ file to write (``None``: keep in memory only).
+        metadata: JSON-able metadata stored with the samples.
+        maxsize: capacity of the queue in rows; a row that does not fit is counted in
+            :attr:`overflows` (and in the metadata), never silently dropped.
+        checkpoint_interval: s between rewrites of the NPZ while running (grows to 10× the time
+            a write takes, so that long runs do not spend their time writing).
+    """
+
+    def __init__(self, axes: Sequence[AxisConfig], path: str | os.PathLike | None = None,
+                 metadata: dict[str, Any] | None = None, maxsize: int = 100_000,
+                 checkpoint_interval: float = 1.0):
+        self.axes = list(axes)
+        self.path = Path(path) if path is not None else None
+        self.metadata = dict(metadata or {})
+        self.metadata.setdefault("axes", axes_metadata(self.axes))
+        self.metadata["format_version"] = FORMAT_VERSION
+        self.queue: queue.Queue[Row] = queue.Queue(maxsize)
+        self.overflows = 0
+        self.checkpoint_interval = checkpoint_interval
+        self._chunks: list[dict[str, np.ndarray]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="sample-recorder", daemon=True)
+        self._error: BaseException | None = None
+
+    def put(self, row: Row) -> None:
+        """Enqueue a row without blocking (called from the notifier thread)."""
+        try:
+            self.queue.put_nowait(row)
+        except queue.Full:
+            self.overflows += 1
+
+    def start(self) -> "SampleRecorder":
+        self._thread.start()
+        return self
+
+    def _drain(self) -> int:
+        rows = []
+        while True:
+            try:
+                rows.append(self.queue.get_nowait())
+            except queue.Empty:
+                break
+        if rows:
+            self._chunks.append(rows_to_arrays(rows, self.axes))
+        return len(rows)
+
+    def _run(self) -> None:
+        interval = self.checkpoint_interval
+        last = time.monotonic()
+        try:
+            while not self._stop.wait(0.05):
+                self._drain()
+                if self.path is not None and time.monotonic() - last > interval:
+                    started = time.monotonic()
+                    self.recording("running (checkpoint)").save(self.path)
+                    last = time.monotonic()
+                    interval = max(self.checkpoint_interval, 10 * (last - started))
+        except BaseException as exc:  # reported by close()
+            self._error = exc
+
+    def recording(self, status: str) -> Recording:
+        """The samples drained so far."""
+        meta = dict(self.metadata, status=status, buffer_overflows=self.overflows)
+        return Recording.from_chunks(self._chunks, len(self.axes), meta)
+
+    def close(self, status: str = "complete", **extra_metadata) -> Recording:
+        """Stop the thread, drain the queue, write the final NPZ and return the recording."""
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join()
+        self._drain()
+        self.metadata.update(extra_metadata)
+        rec = self.recording(status)
+        if self.path is not None:
+            rec.save(self.path)
+        if self._error is not None:
+            raise RuntimeError(f"recorder thread failed: {self._error!r}") from self._error
+        return rec
+
+
+class FlushingLogger(can.Listener):
+    """python-can's :class:`can.Logger` for ``path``, flushed to disk every ``interval`` s.
+
+    The flush happens in the thread that delivers the messages, so the writer is never used
+    from two threads at once.
+    """
+
+    def __init__(self, path: str | os.PathLike, interval: float = 0.5):
+        suffix = Path(path).suffix.lower()
+        if suffix not in RAW_LOG_SUFFIXES:
+            raise ConfigError(f"raw CAN log {path}: suffix must be one of {RAW_LOG_SUFFIXES}, "
+                              f"got {suffix!r}")
+        self.path = Path(path)
+        self.writer = can.Logger(path)
+        self.interval = interval
+        self._last = time.monotonic()
+
+    def on_message_received(self, msg: can.Message) -> None:
+        self.writer.on_message_received(msg)
+        now = time.monotonic()
+        if now - self._last > self.interval:
+            self._last = now
+            file = getattr(self.writer, "file", None)
+            if file is not None and not file.closed and not self.path.suffix.lower() == ".blf":
+                file.flush()
+
+    def on_error(self, exc: Exception) -> None:
+        pass  # reported by the assembler
+
+    def stop(self) -> None:
+        self.writer.stop()
+
+
+def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocity: bool = True,
+               max_cycles: int | None = None, status_event_timer_ms: int = 50,
+               metadata: dict[str, Any] | None = None) -> Recording:
+    """Replay a raw CAN log through the acquisition decoder.
+
+    Args:
+        path: ``.log``/``.asc``/``.blf`` file written during a run.
+        axes: the axes of the run, in sample order (node-IDs, profiles, scalings).
+        with_velocity: whether the run mapped the velocity TPDO.
+        max_cycles: stop after this many cycles (the run's ``n_cycles``; ``None``: all).
+        status_event_timer_ms: the statusword event timer of the run (EPOS4).
+        metadata: extra metadata for the result.
+    """
+    if not Path(path).exists():
+        raise ConfigError(f"raw CAN log {path}: no such file")
+    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity,
+                                                 status_event_timer_ms)) for a in axes]
+    rows: list[Row] = []
+    assembler = CycleAssembler(layouts, rows.append, max_cycles=max_cycles)
+    with can.LogReader(path) as reader:
+        for msg in reader:
+            assembler.on_message_received(msg)
+            if assembler.done:
+                break
+    meta = dict(metadata or {}, axes=axes_metadata(axes), source=str(path), status="decoded",
+                late_frames=assembler.late_frames, format_version=FORMAT_VERSION)
+    chunks = [rows_to_arrays(rows, axes)] if rows else []
+    return Recording.from_chunks(chunks, len(axes), meta)
