@@ -1,0 +1,289 @@
+"""The simulated rig: six emulated EPOS drives on one CANopen network, driving one plant.
+
+One SYNC callback does the whole cycle for all drives: apply the synchronous RPDOs, plan each
+drive's demand, sample the sensors (positions in counts, velocities in rpm, currents in mA),
+send every SYNC-triggered TPDO, then integrate the plant over the period. A clock thread sends
+the event-driven TPDOs, releases delayed frames and keeps the plant moving when no SYNC comes
+(homing and profile moves before the cyclic phase).
+
+Fault injection (for tests and demos): :meth:`SimulatedRig.silence`, :meth:`~SimulatedRig.emcy`,
+:meth:`~SimulatedRig.sdo_abort`, :meth:`~SimulatedRig.frame_faults` and ``initial_states``.
+"""
+
+from __future__ import annotations
+
+import heapq
+import logging
+import threading
+import time
+
+import canopen
+import numpy as np
+
+from drivers.sim.drive import FAULT, EmulatedDrive
+from drivers.sim.plant import Plant
+from drivers.units import AxisScaling
+
+logger = logging.getLogger(__name__)
+
+SYNC_COB_ID = 0x80
+IDLE_AFTER = 0.05      # s without SYNC after which the clock thread moves the plant
+IDLE_STEP = 0.005      # s, plant step of the clock thread
+CLOCK_TICK = 0.001     # s
+MAX_PERIOD = 0.02      # s, longest plant step taken from a measured SYNC interval
+
+
+class _RigNetwork(canopen.Network):
+    """A ``canopen.Network`` whose PDO frames can be dropped or delayed (fault injection)."""
+
+    def __init__(self, bus=None):
+        super().__init__(bus)
+        self.drop_probability = 0.0
+        self.delay = 0.0
+        self.faulty_nodes = None   # None = all
+        self.dropped = 0
+        self._rng = np.random.default_rng()
+        self._delayed: list = []
+        self._seq = 0
+
+    def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
+        if ((self.drop_probability or self.delay) and 0x180 <= can_id < 0x580
+                and (self.faulty_nodes is None or can_id & 0x7F in self.faulty_nodes)):
+            if self.drop_probability and self._rng.random() < self.drop_probability:
+                self.dropped += 1
+                return
+            if self.delay:
+                self._seq += 1
+                heapq.heappush(self._delayed, (time.monotonic() + self.delay, self._seq, can_id, bytes(data)))
+                return
+        super().send_message(can_id, data, remote)
+
+    def release_delayed(self, now: float) -> None:
+        while self._delayed and self._delayed[0][0] <= now:
+            _, _, can_id, data = heapq.heappop(self._delayed)
+            super().send_message(can_id, data)
+
+
+class SimulatedRig:
+    """Six emulated EPOS drives (one per actuator) and the simulated 3PRRR behind them.
+
+    Args:
+        nodes: six ``(node_id, profile_name, AxisScaling)``, in the actuator order
+            ``theta1, theta2, theta3, zeta1, zeta2, zeta3``.
+        plant: the :class:`Plant` (robot, true parameters, position loops).
+        bus: an open python-can bus to use (left open on :meth:`stop`); otherwise one is opened
+            from ``bus_kwargs`` (e.g. ``interface="virtual", channel="rig", ignore_config=True``).
+        sync_period: plant step per SYNC in s. Default: ``0x1006`` of the first drive when the
+            master wrote it, else the measured SYNC interval.
+        current_noise_ma: standard deviation of the Gaussian current noise, mA.
+        seed: seed of the current noise and of the frame-loss draws.
+        initial_states: ``{node_id: "FAULT" | "STOPPED"}``: drives in the wrong state at start.
+    """
+
+    def __init__(self, nodes, plant: Plant, *, bus=None, sync_period=None, current_noise_ma: float = 0.0,
+                 seed=None, initial_states=None, **bus_kwargs):
+        nodes = list(nodes)
+        if len(nodes) != 6:
+            raise ValueError(f"the rig needs six drives (theta1..3, zeta1..3), got {len(nodes)}")
+        ids = [n[0] for n in nodes]
+        if len(set(ids)) != 6:
+            raise ValueError(f"node-IDs must be distinct, got {ids}")
+        for node_id, _, scaling in nodes:
+            if not isinstance(scaling, AxisScaling):
+                raise ValueError(f"node {node_id}: the third item must be an AxisScaling, got {scaling!r}")
+        self.initial_states = dict(initial_states or {})
+        for node_id, state in self.initial_states.items():
+            if node_id not in ids or state not in ("FAULT", "STOPPED"):
+                raise ValueError(f"initial_states: {node_id}: {state!r} (node-IDs {ids}; FAULT or STOPPED)")
+        if sync_period is not None and not sync_period > 0:
+            raise ValueError(f"sync_period must be positive, got {sync_period}")
+        self.plant = plant
+        self.sync_period = sync_period
+        self.current_noise_ma = float(current_noise_ma)
+        self._rng = np.random.default_rng(seed)
+        self._own_bus = bus is None
+        self._bus_kwargs = bus_kwargs
+        self.network = _RigNetwork(bus)
+        self.network._rng = np.random.default_rng(None if seed is None else seed + 1)
+        self._lock = threading.RLock()
+        self.drives = [EmulatedDrive(node_id, profile, scaling, self.network, self._lock, time.monotonic)
+                       for node_id, profile, scaling in nodes]
+        self._by_id = {d.id: d for d in self.drives}
+        scalings = [n[2] for n in nodes]
+        self._counts_per_unit = np.array([s.counts_per_unit for s in scalings])
+        self._rpm_per_unit = np.array([s.rpm_per_unit_velocity for s in scalings])
+        self._force_per_amp = np.array([s.force_per_amp for s in scalings])
+        self.sync_count = 0
+        self.step_seconds: list[float] = []   # duration of each SYNC cycle (s), for benchmarks
+        self._last_sync = None
+        self._last_sync_stamp = None
+        self._last_step = time.monotonic()
+        self._stop = threading.Event()
+        self._clock_thread = None
+
+    # -- life cycle ----------------------------------------------------------------------------------
+    def start(self) -> SimulatedRig:
+        """Connect, boot every drive (boot-up frames) and start serving."""
+        if self._own_bus:
+            self.network.connect(**self._bus_kwargs)
+        else:
+            self.network.connect()
+        counts = np.rint(self.plant.Theta * self._counts_per_unit).astype(np.int64)
+        with self._lock:
+            for drive, c in zip(self.drives, counts):
+                drive.offset = int(c)   # incremental encoders read 0 at power-up
+                drive.boot()
+                state = self.initial_states.get(drive.id)
+                if state == "STOPPED":
+                    drive.node.nmt.send_command(0x02)
+                elif state == "FAULT":
+                    drive.emcy(0x1000)
+            self.network.subscribe(SYNC_COB_ID, self._on_sync)
+        self._stop.clear()
+        self._last_step = time.monotonic()
+        self._clock_thread = threading.Thread(target=self._clock, name="sim-rig-clock", daemon=True)
+        self._clock_thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Stop serving: heartbeats, clock thread, notifier (and the bus if the rig opened it)."""
+        self._stop.set()
+        if self._clock_thread is not None:
+            self._clock_thread.join()
+            self._clock_thread = None
+        for drive in self.drives:
+            drive.node.nmt.stop_heartbeat()
+        if self._own_bus:
+            self.network.disconnect()
+        elif self.network.notifier is not None:
+            self.network.notifier.stop(self.network.NOTIFIER_SHUTDOWN_TIMEOUT)
+
+    def __enter__(self) -> SimulatedRig:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    # -- the cycle ------------------------------------------------------------------------------------
+    def _period(self, timestamp: float) -> float:
+        if self.sync_period is not None:
+            return self.sync_period
+        cycle_us = self.drives[0].get(0x1006)
+        if cycle_us:
+            return cycle_us * 1e-6
+        last, self._last_sync_stamp = self._last_sync_stamp, timestamp
+        return 0.0 if last is None else min(max(timestamp - last, 0.0), MAX_PERIOD)
+
+    def _on_sync(self, can_id, data, timestamp) -> None:
+        started = time.perf_counter()
+        with self._lock:
+            self.sync_count += 1
+            self._last_sync = time.monotonic()
+            self._cycle(self._period(timestamp), self.sync_count)
+        self.step_seconds.append(time.perf_counter() - started)
+
+    def _cycle(self, period: float, sync_count=None) -> None:
+        """One period: RPDOs, demands, sensor sampling, TPDOs (if ``sync_count``), plant step."""
+        demand = np.empty(6)
+        velocity = np.empty(6)
+        for j, drive in enumerate(self.drives):
+            drive.apply_pending_rpdos()
+            demand[j], velocity[j] = drive.plan(period)
+        offsets = np.array([d.offset for d in self.drives], dtype=float)
+        demand = (demand + offsets) / self._counts_per_unit
+        velocity = velocity / self._counts_per_unit
+        enabled = np.array([d.powered for d in self.drives])
+        limit_ma = [d.get(d.profile.current_limit.index, d.profile.current_limit.subindex) for d in self.drives]
+        limit = np.array(limit_ma, dtype=float) * 1e-3 * self._force_per_amp
+        plant = self.plant
+        force = plant.control(demand, velocity, enabled, limit)
+        milliamps = force / self._force_per_amp * 1e3
+        if self.current_noise_ma:
+            milliamps += self._rng.normal(0.0, self.current_noise_ma, 6)
+        counts = np.rint(plant.Theta * self._counts_per_unit).astype(np.int64) - offsets.astype(np.int64)
+        rpm = np.rint(plant.Thetad * self._rpm_per_unit).astype(np.int64)
+        milliamps = np.rint(milliamps).astype(np.int64)
+        for j, drive in enumerate(self.drives):
+            drive.update(int(counts[j]), int(rpm[j]), int(milliamps[j]), period)
+        if sync_count is not None:
+            for drive in self.drives:
+                drive.send_sync_tpdos(sync_count)
+        if period > 0:
+            plant.step(period, demand, velocity, enabled, limit)
+        self._last_step = time.monotonic()
+
+    def _clock(self) -> None:
+        while not self._stop.wait(CLOCK_TICK):
+            now = time.monotonic()
+            try:
+                with self._lock:
+                    self.network.release_delayed(now)
+                    for drive in self.drives:
+                        drive.send_event_tpdos(now)
+                    idle = self._last_sync is None or now - self._last_sync > IDLE_AFTER
+                    if idle and now - self._last_step >= IDLE_STEP:
+                        self._cycle(min(now - self._last_step, MAX_PERIOD))
+            except Exception:  # keep serving; a broken bus shows up in the notifier too
+                logger.exception("simulated rig clock")
+
+    # -- inspection and payload -------------------------------------------------------------------------
+    def drive(self, node_id: int) -> EmulatedDrive:
+        """The emulated drive with this node-ID."""
+        try:
+            return self._by_id[node_id]
+        except KeyError:
+            raise KeyError(f"no emulated drive with node-ID {node_id} (have {sorted(self._by_id)})") from None
+
+    def set_payload(self, mass: float, inertia: float = 0.0) -> None:
+        """Add a payload to the end-effector from now on (see :meth:`Plant.set_payload`)."""
+        with self._lock:
+            self.plant.set_payload(mass, inertia)
+
+    def set_external_force(self, forces) -> None:
+        """Disturbance forces (6,) on the actuated joints (N·m, N), e.g. a hand pushing a carriage."""
+        with self._lock:
+            self.plant.external_force = np.array(forces, dtype=float).reshape(6)
+
+    @property
+    def true_forces(self) -> np.ndarray:
+        """Actuator forces (N, 6) at each logged period start (N·m, N), without sensor noise."""
+        return self.plant.truth()["force"]
+
+    # -- fault injection ------------------------------------------------------------------------------
+    def silence(self, node_id: int, silent: bool = True) -> None:
+        """The drive stops answering: no heartbeat, PDO, SDO, EMCY or NMT (``silent=False`` revives it)."""
+        drive = self.drive(node_id)
+        with self._lock:
+            drive.silent = silent
+            if silent:
+                drive.node.nmt.stop_heartbeat()
+            else:
+                drive.node.nmt.start_heartbeat(drive.get(0x1017))
+
+    def emcy(self, node_id: int, code: int = 0x2310) -> None:
+        """The drive signals error ``code`` (EMCY frame) and goes to FAULT (e.g. 0x2310 overcurrent)."""
+        drive = self.drive(node_id)
+        with self._lock:
+            drive.emcy(code)
+
+    def sdo_abort(self, node_id: int, index: int, subindex: int = 0, code=0x08000020) -> None:
+        """SDO requests on ``index:subindex`` abort with ``code`` (``None`` removes the fault)."""
+        drive = self.drive(node_id)
+        with self._lock:
+            if code is None:
+                drive.sdo_aborts.pop((index, subindex), None)
+            else:
+                drive.sdo_aborts[(index, subindex)] = code
+
+    def frame_faults(self, drop_probability: float = 0.0, delay: float = 0.0, node_ids=None) -> None:
+        """Drop (probability) or delay (s) the PDO frames of ``node_ids`` (default: all drives)."""
+        if not 0.0 <= drop_probability <= 1.0 or delay < 0:
+            raise ValueError(f"drop_probability in [0, 1] and delay >= 0, got {drop_probability}, {delay}")
+        with self._lock:
+            self.network.drop_probability = drop_probability
+            self.network.delay = delay
+            self.network.faulty_nodes = None if node_ids is None else set(node_ids)
+
+    def faulted(self) -> list[int]:
+        """Node-IDs of the drives in FAULT."""
+        return [d.id for d in self.drives if d.state == FAULT]

@@ -1,0 +1,126 @@
+"""The simulated rig against a REAL canopen master on python-can's virtual bus."""
+
+import itertools
+import math
+import time
+
+import canopen
+import numpy as np
+import pytest
+from canopen.profiles.p402 import BaseNode402
+from canopen.sdo import SdoAbortedError
+
+from drivers.profiles import make_object_dictionary
+from drivers.sim import Plant, SimulatedRig
+from drivers.units import AxisScaling
+from ident_hw.model import Geometry, InertialParams, ThreePRRR
+
+_channels = itertools.count()
+REV = AxisScaling("revolute", 2048, 0.0369, gear_ratio=26.0)
+PRI = AxisScaling("prismatic", 2048, 0.0603, screw_lead=0.002)
+GEO = Geometry(l1=0.30, l2=0.30, s1=0.15, s2=0.15, h=0.12, a=0.40, gamma=(0, 2 * math.pi / 3, 4 * math.pi / 3))
+TRUE = InertialParams(m_c=603.62, m_l1=0.30, I_l1=0.00225, m_l2=0.5723, I_l2=0.0043, m_ee=0.2269, I_ee=0.0016,
+                      f_v=(0.01,) * 3 + (20.0,) * 3)
+
+
+class Bench:
+    """A rig and a canopen master on one fresh virtual channel."""
+
+    def __init__(self, profiles=("epos4",) * 6, node_class=canopen.RemoteNode, **rig_kwargs):
+        channel = f"sim-rig-test-{next(_channels)}"
+        nodes = [(i + 1, profiles[i], REV if i < 3 else PRI) for i in range(6)]
+        self.rig = SimulatedRig(nodes, Plant(ThreePRRR(GEO), TRUE), interface="virtual", channel=channel,
+                                ignore_config=True, **rig_kwargs)
+        self.master = canopen.Network()
+        self.master.connect(interface="virtual", channel=channel, ignore_config=True)
+        self.nodes = []
+        self.boot_states = {}
+        for d in self.rig.drives:
+            node = node_class(d.id, make_object_dictionary(d.profile.name, d.id))
+            self.master.add_node(node)
+            node.nmt.add_heartbeat_callback(lambda state, i=d.id: self.boot_states.setdefault(i, state))
+            self.nodes.append(node)
+
+    def close(self):
+        self.master.sync.stop()
+        self.master.disconnect()
+        self.rig.stop()
+
+
+@pytest.fixture
+def bench():
+    b = Bench()
+    yield b
+    b.close()
+
+
+def wait_until(predicate, timeout=2.0):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(0.005)
+    return predicate()
+
+
+def test_bootup_heartbeat_identity_and_sdo_errors(bench):
+    bench.rig.start()
+    assert wait_until(lambda: len(bench.boot_states) == 6)
+    assert set(bench.boot_states.values()) == {0}          # boot-up frames
+    node = bench.nodes[0]
+    node.sdo[0x1017].raw = 20                                # heartbeat producer, 20 ms
+    stamp = node.nmt.timestamp
+    assert wait_until(lambda: node.nmt.timestamp != stamp) and node.nmt.state == "PRE-OPERATIONAL"
+    assert node.sdo[0x1018][1].raw == 0xFB
+    assert node.sdo[0x1008].raw == "EPOS4 50/5"
+    with pytest.raises(SdoAbortedError) as err:
+        node.sdo[0x6064].raw = 5                             # read-only
+    assert err.value.code == 0x06010002
+    with pytest.raises(SdoAbortedError) as err:
+        node.sdo.upload(0x6078, 0)                           # EPOS4 has no 0x6078
+    assert err.value.code == 0x06020000
+    node.nmt.state = "STOPPED"
+    assert wait_until(lambda: node.nmt.state == "STOPPED")
+
+
+def test_epos2_has_no_30d1():
+    b = Bench(profiles=("epos2",) * 6)
+    try:
+        b.rig.start()
+        with pytest.raises(SdoAbortedError) as err:
+            b.nodes[2].sdo.upload(0x30D1, 2)
+        assert err.value.code == 0x06020000
+        assert b.nodes[2].sdo[0x1008].raw == "EPOS2 70/10"
+    finally:
+        b.close()
+
+
+def configure_pdos(node, profile_name):
+    """TPDO1 = position + current (+ statusword on EPOS2), SYNC; EPOS4 statusword in TPDO2 (event)."""
+    node.tpdo.read()
+    node.rpdo.read()
+    for pdo in node.tpdo.values():
+        pdo.enabled = False
+    t1 = node.tpdo[1]
+    t1.clear()
+    t1.add_variable(0x6064)
+    if profile_name == "EPOS2":
+        t1.add_variable(0x6078)
+        t1.add_variable(0x6041)
+    else:
+        t1.add_variable(0x30D1, 2)
+        t2 = node.tpdo[2]
+        t2.clear()
+        t2.add_variable(0x6041)
+        t2.trans_type, t2.event_timer, t2.enabled = 255, 50, True
+    t1.trans_type, t1.enabled = 1, True
+    r1 = node.rpdo[1]
+    r1.clear()
+    r1.add_variable(0x607A if profile_name == "EPOS4" else 0x2062)
+    r1.add_variable(0x6040)
+    r1.trans_type, r1.enabled = 1, True
+    for pdo in node.rpdo.values():
+        if pdo is not r1:
+            pdo.enabled = False
+    node.tpdo.save()
+    node.rpdo.save()
