@@ -16,7 +16,8 @@ class HomingConfig:
 
     Args:
         method: homing method (0x6098), e.g. 35/37 "actual position", 17/18 limit switches.
-        offset: home offset in rad or m (written to 0x607C through the axis scaling).
+        offset: joint position at home in rad or m (the maxon "home position", 0x2081 on
+            the EPOS2, 0x30B0 on the EPOS4, which the drive assigns when homing completes).
         switch_speed: speed of the switch search in rad/s or m/s.
         zero_speed: speed of the zero search in rad/s or m/s.
         acceleration: homing acceleration in rad/s² or m/s².

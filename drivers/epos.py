@@ -1,0 +1,596 @@
+"""Master-side driver of maxon EPOS2/EPOS4 drives on canopen: one :class:`EposDrive` per node,
+:class:`DriveGroup` for the six drives of the rig.
+
+Everything that talks SDO (bring-up, limits, modes, the CiA 402 power state machine, homing,
+point-to-point moves, stopping after a fault) runs in the calling thread. The streaming run
+(:meth:`DriveGroup.run_cyclic`) sends SYNC with python-can's periodic send
+(``canopen.SyncProducer`` -> ``bus.send_periodic``, the kernel BCM on SocketCAN) and, from the
+notifier thread, answers each SYNC with the next set-points as RPDO frames; it never calls SDO
+there. State machine transitions use canopen's CiA 402 tables (:class:`canopen.profiles.p402.State402`)
+over SDO, which also covers the EPOS2's maxon-specific negative modes (canopen's ``op_mode``
+property does not know them).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from typing import Any, Sequence
+
+import canopen
+import numpy as np
+from canopen.profiles.p402 import Homing, State402
+from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
+
+from drivers.acquisition import (STATUS_FAULT, STATUS_FOLLOWING_ERROR, AxisLayout, CycleAssembler,
+                                 PdoFrame, cycle_frame_sizes, event_bits_per_s, pdo_layout)
+from drivers.axis import AxisConfig
+from drivers.bus import check_bus_load, frame_bits
+from drivers.emcy import describe
+from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, NodeError
+from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, make_object_dictionary
+from drivers.recording import FlushingLogger, Recording, SampleRecorder
+from drivers.supervision import Supervisor
+
+logger = logging.getLogger(__name__)
+
+CW_ENABLE_OPERATION = State402.CW_OPERATION_ENABLED  # 0x000F
+CW_NEW_SETPOINT = 0x0010  # PPM bit 4; HMM "homing operation start"
+CW_CHANGE_IMMEDIATELY = 0x0020  # PPM bit 5
+CW_FAULT_RESET = 0x0080
+SW_TARGET_REACHED = 0x0400  # bit 10
+SW_SETPOINT_ACK = 0x1000  # bit 12 (PPM set-point acknowledge, HMM homing attained)
+MODE_PPM, MODE_HMM = 1, 6
+
+
+def _state_of(statusword: int) -> str:
+    for state, (mask, value) in State402.SW_MASK.items():
+        if statusword & mask == value:
+            return state
+    return "UNKNOWN"
+
+
+class EposDrive:
+    """One EPOS2/EPOS4 node seen from the master.
+
+    Args:
+        network: the connected :class:`canopen.Network`.
+        axis: the axis settings (node-ID, profile, scaling, limits, homing).
+        supervisor: where EMCY and heartbeat faults of this node are reported.
+        sdo_timeout: SDO response timeout in s.
+    """
+
+    def __init__(self, network: canopen.Network, axis: AxisConfig, supervisor: Supervisor,
+                 sdo_timeout: float = 0.5):
+        self.axis = axis
+        self.profile = axis.drive_profile
+        self.label = axis.label
+        self.supervisor = supervisor
+        self.node = canopen.RemoteNode(axis.node_id, make_object_dictionary(axis.profile, axis.node_id))
+        self.node.sdo.RESPONSE_TIMEOUT = sdo_timeout
+        network.add_node(self.node)
+        self.node.emcy.add_callback(supervisor.emcy_callback(self.label, self.profile.name))
+        self.frames: tuple[PdoFrame, ...] = ()
+
+    # -- SDO access, errors naming node and object ---------------------------------------------
+    def _var(self, ref: ObjectRef | tuple[int, int]) -> SdoVariable:
+        index, subindex = (ref.index, ref.subindex) if isinstance(ref, ObjectRef) else ref
+        entry = self.node.sdo[index]
+        return entry if isinstance(entry, SdoVariable) else entry[subindex]
+
+    def read(self, ref: ObjectRef | tuple[int, int]) -> Any:
+        """Read an object by SDO (raw drive units)."""
+        try:
+            return self._var(ref).raw
+        except (SdoAbortedError, SdoCommunicationError, KeyError) as exc:
+            raise NodeError(self.label, f"reading {_name(ref)}: {exc}") from exc
+
+    def write(self, ref: ObjectRef | tuple[int, int], value: Any) -> None:
+        """Write an object by SDO (raw drive units)."""
+        try:
+            self._var(ref).raw = value
+        except (SdoAbortedError, SdoCommunicationError, KeyError, ValueError) as exc:
+            raise NodeError(self.label, f"writing {value!r} to {_name(ref)}: {exc}") from exc
+
+    # -- bring-up ---------------------------------------------------------------------------------
+    def wait_present(self, timeout: float) -> None:
+        """Wait until the node answers (boot-up/heartbeat seen, or an SDO answer)."""
+        deadline = time.monotonic() + timeout
+        while True:
+            if self.node.nmt.timestamp is not None:
+                return
+            try:
+                self._var((0x1000, 0)).raw
+                return
+            except SdoCommunicationError:
+                pass
+            except SdoAbortedError:
+                return  # it answered
+            if time.monotonic() > deadline:
+                raise BringUpError(self.label, f"no boot-up, heartbeat or SDO answer within {timeout:g} s")
+
+    def check_identity(self) -> None:
+        """Compare 0x1018 (vendor, product) and 0x1008 (device name) with the configuration."""
+        vendor = self.read((0x1018, 1))
+        if vendor != VENDOR_ID_MAXON:
+            raise BringUpError(self.label, f"vendor-ID 0x{vendor:08X} is not maxon (0x{VENDOR_ID_MAXON:08X})")
+        product = self.read((0x1018, 2))
+        expected = self.axis.product_code
+        if expected is not None and product != expected:
+            raise BringUpError(self.label, f"product code 0x{product:08X}, configured 0x{expected:08X}")
+        name = self.read((0x1008, 0))
+        if not str(name).startswith(self.profile.name):
+            raise BringUpError(self.label, f"device name {name!r} is not an {self.profile.name} "
+                               f"(profile {self.axis.profile!r} in the configuration)")
+
+    def write_limits(self) -> None:
+        """Software position limits, current limit, max profile velocity, following-error window."""
+        s, a, p = self.axis.scaling, self.axis, self.profile
+        lo, hi = p.software_position_limit
+        self.write(lo, s.counts_from_position(a.position_min))
+        self.write(hi, s.counts_from_position(a.position_max))
+        self.write(p.current_limit, s.ma_from_current(a.max_current))
+        self.write(p.max_profile_velocity, s.rpm_from_velocity(a.max_velocity))
+        self.write(p.following_error_window, s.counts_from_position(a.following_error_window))
+
+    def configure_pdos(self, frames: Sequence[PdoFrame]) -> None:
+        """Write the PDO mapping over SDO (PRE-OPERATIONAL); unused PDOs are disabled."""
+        by_key = {(f.direction, f.number): f for f in frames}
+        for direction, maps in (("tpdo", self.node.tpdo), ("rpdo", self.node.rpdo)):
+            count = self.profile.tpdo_count if direction == "tpdo" else self.profile.rpdo_count
+            for number in range(1, count + 1):
+                pdo = maps[number]
+                frame = by_key.get((direction, number))
+                pdo.clear()
+                pdo.cob_id = (frame or PdoFrame(direction, number, (), 255)).cob_id(self.axis.node_id)
+                pdo.enabled = frame is not None
+                if frame is not None:
+                    for _, ref in frame.entries:
+                        pdo.add_variable(ref.index, ref.subindex)
+                    pdo.trans_type = frame.trans_type
+                    pdo.event_timer = frame.event_timer
+                try:
+                    pdo.save()
+                except (SdoAbortedError, SdoCommunicationError) as exc:
+                    raise NodeError(self.label, f"configuring {direction.upper()}{number}: {exc}") from exc
+        self.frames = tuple(frames)
+
+    def bring_up(self, frames: Sequence[PdoFrame], heartbeat_ms: int, timeout: float) -> None:
+        """Presence, PRE-OPERATIONAL, identity, fault reset, limits, PDOs, heartbeat producer."""
+        self.wait_present(timeout)
+        try:
+            self.node.nmt.state = "PRE-OPERATIONAL"
+            self.check_identity()
+            self.reset_fault()
+            self.disable()
+            self.write_limits()
+            self.configure_pdos(frames)
+            self.write((0x1017, 0), heartbeat_ms)
+        except BringUpError:
+            raise
+        except NodeError as exc:
+            raise BringUpError(self.label, f"bring-up failed: {str(exc).split(': ', 1)[-1]}") from exc
+
+    # -- CiA 402 power state machine (SDO) ---------------------------------------------------------
+    @property
+    def statusword(self) -> int:
+        return self.read(self.profile.statusword)
+
+    @property
+    def state(self) -> str:
+        """CiA 402 state name, from the statusword read by SDO."""
+        return _state_of(self.statusword)
+
+    def _controlword(self, value: int) -> None:
+        self.write(self.profile.controlword, value)
+
+    def error_text(self) -> str:
+        """The drive's current error (0x603F) as text."""
+        try:
+            code = self.read(self.profile.error_code)
+        except NodeError as exc:
+            return f"error code unreadable ({exc})"
+        return f"0x{code:04X} {describe(code, self.profile.name)}" if code else "no error code"
+
+    def reset_fault(self, timeout: float = 1.0) -> None:
+        """Clear a FAULT (rising edge of controlword bit 7)."""
+        if self.state not in ("FAULT", "FAULT REACTION ACTIVE"):
+            return
+        logger.warning("%s: in FAULT at start (%s), resetting", self.label, self.error_text())
+        self._controlword(State402.CW_DISABLE_VOLTAGE)
+        self._controlword(CW_FAULT_RESET)
+        deadline = time.monotonic() + timeout
+        while self.state in ("FAULT", "FAULT REACTION ACTIVE"):
+            if time.monotonic() > deadline:
+                raise NodeError(self.label, f"still in FAULT after a fault reset ({self.error_text()})")
+            time.sleep(0.005)
+
+    def set_state(self, target: str, timeout: float = 1.0) -> None:
+        """Walk the CiA 402 state machine to ``target`` (one transition per controlword write)."""
+        deadline = time.monotonic() + timeout
+        state = self.state
+        while state != target:
+            if state in ("FAULT", "FAULT REACTION ACTIVE"):
+                raise DriveFault(self.label, None, f"in {state} while switching to {target} "
+                                 f"({self.error_text()})")
+            step = target if (state, target) in State402.TRANSITIONTABLE else \
+                State402.next_state_indirect(state)
+            if (state, step) not in State402.TRANSITIONTABLE:
+                raise NodeError(self.label, f"no transition from {state} towards {target}")
+            self._controlword(State402.TRANSITIONTABLE[(state, step)])
+            while True:
+                state = self.state
+                if state == step or state in ("FAULT", "FAULT REACTION ACTIVE"):
+                    break
+                if time.monotonic() > deadline:
+                    raise NodeError(self.label, f"stays in {state}, expected {step} on the way to "
+                                    f"{target} (statusword 0x{self.statusword:04X})")
+                time.sleep(0.002)
+
+    def enable(self) -> None:
+        self.set_state("OPERATION ENABLED")
+
+    def disable(self) -> None:
+        """Disable voltage: SWITCH ON DISABLED (the motor is not powered)."""
+        if self.state not in ("SWITCH ON DISABLED", "FAULT", "FAULT REACTION ACTIVE",
+                              "NOT READY TO SWITCH ON"):
+            self.set_state("SWITCH ON DISABLED")
+
+    def quick_stop(self, timeout: float = 1.0) -> None:
+        """Quick stop (decelerate with 0x6085), then disable."""
+        if self.state == "OPERATION ENABLED":
+            self._controlword(State402.CW_QUICK_STOP)
+            deadline = time.monotonic() + timeout
+            while self.state == "OPERATION ENABLED" and time.monotonic() < deadline:
+                time.sleep(0.002)
+        self.disable()
+
+    # -- modes -------------------------------------------------------------------------------------
+    def set_mode(self, mode: int, timeout: float = 0.5) -> None:
+        """Write 0x6060 and wait until 0x6061 shows it (works for the EPOS2's negative modes)."""
+        if mode not in self.profile.supported_modes:
+            raise NodeError(self.label, f"mode {mode} is not supported by an {self.profile.name} "
+                            f"(supported: {dict(self.profile.supported_modes)})")
+        self.write(self.profile.modes_of_operation, mode)
+        deadline = time.monotonic() + timeout
+        while (shown := self.read(self.profile.modes_display)) != mode:
+            if time.monotonic() > deadline:
+                raise NodeError(self.label, f"mode display shows {shown}, expected {mode}")
+            time.sleep(0.002)
+
+    def prepare_cyclic(self, period: float) -> None:
+        """Select the cyclic position mode (EPOS4: CSP with 0x60C2 = SYNC period; EPOS2: mode -1)."""
+        ip = self.profile.interpolation_period
+        if ip is not None:
+            ms = period * 1e3
+            if abs(ms - round(ms)) > 1e-9 or not 1 <= round(ms) <= 255:
+                raise ConfigError(f"{self.label}: an {self.profile.name} needs a SYNC period of "
+                                  f"1..255 whole ms (0x60C2), got {ms:g} ms")
+            self.write(ip, int(round(ms)))
+            self.write((ip.index, ip.subindex + 1), -3)
+        self.set_mode(self.profile.cyclic_mode)
+
+    # -- positions (SI) ----------------------------------------------------------------------------
+    def position(self) -> float:
+        """Actual position in rad or m (SDO)."""
+        return float(self.axis.scaling.position_from_counts(self.read(self.profile.position_actual)))
+
+    def start_homing(self) -> None:
+        h = self.axis.homing
+        if h is None:
+            raise ConfigError(f"{self.label}: no homing configured")
+        s, p = self.axis.scaling, self.profile
+        self.set_mode(MODE_HMM)
+        self.write(p.homing_method, h.method)
+        self.write(p.home_position, s.counts_from_position(h.offset))
+        self.write(p.homing_speeds[0], s.rpm_from_velocity(h.switch_speed))
+        self.write(p.homing_speeds[1], s.rpm_from_velocity(h.zero_speed))
+        self.write(p.homing_acceleration, s.rpm_from_velocity(h.acceleration))
+        self.enable()
+        self._controlword(CW_ENABLE_OPERATION | CW_NEW_SETPOINT)
+
+    def homing_done(self) -> bool:
+        """True when homing is attained; raises on a homing error."""
+        sw = self.statusword
+        if sw & STATUS_FAULT:
+            raise DriveFault(self.label, None, f"fault during homing ({self.error_text()})")
+        for name, (mask, value) in Homing.STATES.items():
+            if sw & mask == value:
+                if name.startswith("ERROR") or name == "INTERRUPTED":
+                    raise DriveFault(self.label, None, f"homing failed: {name.lower()}")
+                return name in ("ATTAINED", "TARGET REACHED") and bool(sw & SW_TARGET_REACHED)
+        return False
+
+    def start_move(self, position: float, velocity: float, acceleration: float) -> None:
+        """Start a profile-position move to ``position`` (rad or m)."""
+        s, p = self.axis.scaling, self.profile
+        self.set_mode(MODE_PPM)
+        self.write(p.profile_velocity, max(1, s.rpm_from_velocity(velocity)))
+        self.write(p.profile_acceleration, max(1, s.rpm_from_velocity(acceleration)))
+        self.write(p.profile_deceleration, max(1, s.rpm_from_velocity(acceleration)))
+        self.write(p.target_position, s.counts_from_position(position))
+        self.enable()
+        self._controlword(CW_ENABLE_OPERATION | CW_NEW_SETPOINT | CW_CHANGE_IMMEDIATELY)
+
+    def move_done(self) -> bool:
+        sw = self.statusword
+        if sw & (STATUS_FAULT | STATUS_FOLLOWING_ERROR):
+            raise DriveFault(self.label, None, f"fault during the move, statusword 0x{sw:04X} "
+                             f"({self.error_text()})")
+        if sw & SW_SETPOINT_ACK:
+            self._controlword(CW_ENABLE_OPERATION)  # release the new-set-point handshake
+            return False
+        return bool(sw & SW_TARGET_REACHED)
+
+
+def _name(ref) -> str:
+    if isinstance(ref, ObjectRef):
+        return str(ref)
+    return f"0x{ref[0]:04X}:{ref[1]:02X}"
+
+
+class _TargetStreamer:
+    """Sends the set-points of cycle k+1 as RPDO frames when SYNC k is seen (notifier thread)."""
+
+    def __init__(self, network: canopen.Network, drives: Sequence[EposDrive], counts: np.ndarray,
+                 supervisor: Supervisor):
+        self.network = network
+        self.counts = counts.tolist()
+        self.supervisor = supervisor
+        self.rpdos = []
+        for drive in drives:
+            frame = next(f for f in drive.frames if f.direction == "rpdo")
+            self.rpdos.append((frame.cob_id(drive.axis.node_id), frame.struct.pack))
+        self.failed = False
+
+    def send(self, k: int) -> None:
+        if k >= len(self.counts) or self.failed:
+            return
+        try:
+            for (cob_id, pack), value in zip(self.rpdos, self.counts[k]):
+                self.network.send_message(cob_id, pack(value, CW_ENABLE_OPERATION))
+        except Exception as exc:  # noqa: BLE001 - any send failure stops the run
+            self.failed = True
+            self.supervisor.bus_error(f"sending the set-points of cycle {k} failed: {exc!r}")
+
+    def on_sync(self, k: int) -> None:
+        self.send(k + 1)
+
+
+class DriveGroup:
+    """The drives of the rig, brought up, commanded and streamed together.
+
+    Args:
+        network: connected :class:`canopen.Network` (see :func:`drivers.bus.open_network`).
+        axes: the axes in sample order (theta1..3, zeta1..3 on the rig).
+        bitrate: bus bitrate in bit/s for the bus-load check (``None`` skips it).
+        heartbeat_period: producer heartbeat time written to every drive (s).
+        heartbeat_timeout: master's consumer timeout (s); default 3.5 periods.
+        with_velocity: map velocity actual (TPDO3) too.
+        status_event_timer_ms: event timer of the EPOS4 statusword TPDO.
+        sdo_timeout: SDO response timeout (s).
+
+    Use as a context manager: on exit every drive is quick-stopped/disabled.
+    """
+
+    def __init__(self, network: canopen.Network, axes: Sequence[AxisConfig], bitrate: int | None = None,
+                 heartbeat_period: float = 0.1, heartbeat_timeout: float | None = None,
+                 with_velocity: bool = True, status_event_timer_ms: int = 50, sdo_timeout: float = 0.5):
+        if not axes:
+            raise ConfigError("a drive group needs at least one axis")
+        seen: dict[int, str] = {}
+        for axis in axes:
+            if axis.node_id in seen:
+                raise ConfigError(f"axis {axis.name!r}: node_id {axis.node_id} already used by "
+                                  f"axis {seen[axis.node_id]!r}")
+            seen[axis.node_id] = axis.name
+        self.network = network
+        self.axes = list(axes)
+        self.bitrate = bitrate
+        self.heartbeat_period = heartbeat_period
+        self.heartbeat_timeout = heartbeat_timeout or 3.5 * heartbeat_period
+        self.with_velocity = with_velocity
+        self.status_event_timer_ms = status_event_timer_ms
+        self.supervisor = Supervisor()
+        self.drives = [EposDrive(network, a, self.supervisor, sdo_timeout) for a in self.axes]
+        for drive in self.drives:
+            self.supervisor.watch_heartbeat(drive.label, drive.node.nmt, self.heartbeat_timeout)
+        self.layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity,
+                                                          status_event_timer_ms)) for a in self.axes]
+
+    def __enter__(self) -> "DriveGroup":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.stop_motion()
+
+    # -- set-up ------------------------------------------------------------------------------------
+    def bring_up(self, timeout: float = 5.0) -> None:
+        """Bring every drive up, then start them (NMT OPERATIONAL) and watch their heartbeats."""
+        for drive, layout in zip(self.drives, self.layouts):
+            drive.bring_up(layout.frames, round(self.heartbeat_period * 1e3), timeout)
+        for drive in self.drives:
+            drive.node.nmt.state = "OPERATIONAL"
+        self.supervisor.start_heartbeat_monitoring()
+        self.supervisor.raise_if_fault()
+
+    def check_bus_load(self, period: float) -> float:
+        """Worst-case bus load of a run at SYNC ``period`` (raises :class:`BusLoadError`)."""
+        hb_bits = frame_bits(1) * len(self.drives) / self.heartbeat_period
+        return check_bus_load(cycle_frame_sizes(self.layouts), period, self.bitrate,
+                              hb_bits + event_bits_per_s(self.layouts))
+
+    # -- commanding (calling thread) -------------------------------------------------------------
+    def _wait_all(self, done, timeout: float, what: str) -> None:
+        pending = list(self.drives)
+        deadline = time.monotonic() + timeout
+        while pending:
+            self.supervisor.raise_if_fault()
+            pending = [d for d in pending if not done(d)]
+            if pending and time.monotonic() > deadline:
+                raise NodeError(pending[0].label, f"{what} not finished within {timeout:g} s")
+            time.sleep(0.01)
+
+    def _guarded(self, action):
+        try:
+            return action()
+        except BaseException:
+            self.stop_motion()
+            raise
+
+    def positions(self) -> np.ndarray:
+        """Actual positions (n_axes,) in rad|m, read by SDO."""
+        return np.array([d.position() for d in self.drives])
+
+    def enable(self) -> None:
+        self._guarded(lambda: [d.enable() for d in self.drives])
+
+    def disable(self) -> None:
+        for d in self.drives:
+            d.disable()
+
+    def home(self) -> None:
+        """Home every axis that has a homing configuration, all at once."""
+        drives = [d for d in self.drives if d.axis.homing is not None]
+
+        def run():
+            for d in drives:
+                d.start_homing()
+            timeout = max(d.axis.homing.timeout for d in drives) if drives else 0
+            self._wait_all(lambda d: d not in drives or d.homing_done(), timeout, "homing")
+            for d in drives:
+                d._controlword(CW_ENABLE_OPERATION)
+        self._guarded(run)
+
+    def move_to(self, positions: Sequence[float], speed_fraction: float = 0.2,
+                timeout: float | None = None) -> None:
+        """Slow point-to-point move (profile position) of all axes to ``positions`` (rad|m).
+
+        Each axis moves at ``speed_fraction`` of its ``max_velocity``, accelerating in 0.5 s.
+        """
+        positions = np.asarray(positions, dtype=float)
+        self._check_positions(positions[None, :], "move_to target")
+        start = self.positions()
+        speeds = [speed_fraction * a.max_velocity for a in self.axes]
+        durations = [abs(p - s) / v + 1.0 for p, s, v in zip(positions, start, speeds)]
+
+        def run():
+            for d, p, v in zip(self.drives, positions, speeds):
+                d.start_move(float(p), v, v / 0.5)
+            self._wait_all(EposDrive.move_done, timeout or 2 * max(durations) + 2.0, "move")
+        self._guarded(run)
+
+    def stop_motion(self) -> None:
+        """Quick stop and disable every drive, best effort (errors are logged, not raised)."""
+        for d in self.drives:
+            try:
+                d.quick_stop()
+            except DriveError as exc:
+                logger.error("%s: could not quick-stop/disable: %s", d.label, exc)
+
+    def _check_positions(self, targets: np.ndarray, what: str) -> None:
+        if targets.ndim != 2 or targets.shape[1] != len(self.axes) or len(targets) == 0:
+            raise ConfigError(f"{what}: expected shape (n, {len(self.axes)}), got {targets.shape}")
+        if not np.all(np.isfinite(targets)):
+            row, col = np.argwhere(~np.isfinite(targets))[0]
+            raise ConfigError(f"{what}: non-finite value at sample {row}, axis {self.axes[col].name!r}")
+        for i, a in enumerate(self.axes):
+            bad = np.flatnonzero((targets[:, i] < a.position_min) | (targets[:, i] > a.position_max))
+            if bad.size:
+                raise ConfigError(f"{what}: axis {a.name!r} sample {bad[0]} = {targets[bad[0], i]:.6g} "
+                                  f"outside its limits [{a.position_min:g}, {a.position_max:g}]")
+
+    # -- streaming ---------------------------------------------------------------------------------
+    def run_cyclic(self, targets: np.ndarray, period: float, output: str | None = None,
+                   raw_log: str | None = None, metadata: dict | None = None,
+                   queue_size: int = 100_000, sync_timeout: float | None = None) -> Recording:
+        """Stream ``targets`` (n_cycles, n_axes) in rad|m, one row per SYNC, and record.
+
+        The drives must stand at ``targets[0]`` (within their following-error window), e.g. after
+        :meth:`move_to`. Row k of the result holds the state the drives reported at SYNC k and
+        ``target[k]``, the set-point in force from SYNC k on. On a fault (EMCY, heartbeat,
+        statusword fault/following-error bit, bus error) or any exception (Ctrl-C included) the
+        SYNC stops, the drives are quick-stopped and disabled, the samples so far are saved and
+        the error is raised (a :class:`DriveFault` carries ``recording``, the NPZ path).
+
+        Args:
+            targets: set-points, shape (n_cycles, n_axes), rad or m.
+            period: SYNC period in s.
+            output: NPZ file for the samples (``None``: memory only).
+            raw_log: raw CAN log (``.log``/``.asc``/``.blf``), ``None`` for none.
+            metadata: JSON-able extra metadata (e.g. the configuration).
+            queue_size: bounded buffer between the notifier and the recorder thread (rows).
+            sync_timeout: s without a SYNC before the run is declared stalled
+                (default: max(0.5 s, 50 periods)).
+        """
+        targets = np.asarray(targets, dtype=float)
+        self._check_positions(targets, "run_cyclic targets")
+        self.supervisor.raise_if_fault()
+        load = self.check_bus_load(period)
+        counts = np.column_stack([np.rint(targets[:, i] * a.scaling.counts_per_unit)
+                                  for i, a in enumerate(self.axes)]).astype(np.int64)
+        if np.abs(counts).max() >= 2**31:
+            raise ConfigError("run_cyclic targets: beyond the I32 range of the drives' counts")
+        sync_timeout = sync_timeout or max(0.5, 50 * period)
+
+        for d in self.drives:
+            d.prepare_cyclic(period)
+        actual = self.positions()
+        for i, a in enumerate(self.axes):
+            if abs(actual[i] - targets[0, i]) > a.following_error_window:
+                raise ConfigError(f"{a.label} is at {actual[i]:.6g}, the trajectory starts at "
+                                  f"{targets[0, i]:.6g}: move_to() the start first")
+        for d, c in zip(self.drives, counts[0]):
+            d.write(d.profile.cyclic_target, int(c))
+        self.enable()
+
+        meta = dict(metadata or {}, sync_period=period, with_velocity=self.with_velocity,
+                    status_event_timer_ms=self.status_event_timer_ms, bus_load=load,
+                    bitrate=self.bitrate, n_targets=len(targets))
+        recorder = SampleRecorder(self.axes, output, meta, maxsize=queue_size).start()
+        raw = FlushingLogger(raw_log) if raw_log else None
+        streamer = _TargetStreamer(self.network, self.drives, counts, self.supervisor)
+        assembler = CycleAssembler(
+            self.layouts, recorder.put, on_sync=streamer.on_sync,
+            on_status=lambda i, sw: self.supervisor.report(DriveFault(
+                self.drives[i].label, None, f"statusword 0x{sw:04X}: " +
+                ("fault bit" if sw & STATUS_FAULT else "following error bit"))),
+            on_bus_error=self.supervisor.bus_error, max_cycles=len(targets),
+            forward=[raw] if raw else [])
+        self.network.notifier.add_listener(assembler)
+        error: BaseException | None = None
+        try:
+            streamer.send(0)
+            self.network.sync.start(period)
+            last_count, last_progress = -1, time.monotonic()
+            while not assembler.done:
+                if self.supervisor.fault_event.wait(min(0.05, 10 * period)):
+                    break
+                self.supervisor.check_heartbeats()
+                progress = assembler.cycles + (assembler._open is not None)
+                now = time.monotonic()
+                if progress != last_count:
+                    last_count, last_progress = progress, now
+                elif now - last_progress > sync_timeout:
+                    hint = " (is the bus opened with receive_own_messages=True?)" if progress == 0 else ""
+                    raise DriveError(f"no SYNC cycle seen for {now - last_progress:.2f} s{hint}")
+            self.supervisor.raise_if_fault()
+        except BaseException as exc:
+            error = exc
+        finally:
+            self.network.sync.stop()
+            if error is not None:
+                self.stop_motion()
+            self.network.notifier.remove_listener(assembler)
+            if raw is not None:
+                raw.stop()
+            status = "complete" if error is None else f"stopped: {error}"
+            recording = recorder.close(status, late_frames=assembler.late_frames,
+                                       error_frames=assembler.error_frames,
+                                       raw_log=str(raw_log) if raw_log else None)
+        if error is not None:
+            if isinstance(error, DriveFault):
+                error.recording = output
+            raise error
+        return recording

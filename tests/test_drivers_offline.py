@@ -1,0 +1,151 @@
+"""Master-side pieces that need no drive: bus-load budget, EMCY texts, the SYNC-cycle assembler
+fed with hand-made frames, recordings on disk and the raw-log decoder."""
+
+import struct
+
+import can
+import numpy as np
+import pytest
+
+from drivers.acquisition import AxisLayout, CycleAssembler, pdo_layout
+from drivers.axis import AxisConfig
+from drivers.bus import BusConfig, check_bus_load, frame_bits
+from drivers.emcy import describe
+from drivers.errors import BusLoadError, ConfigError
+from drivers.profiles import PROFILES
+from drivers.recording import FlushingLogger, Recording, decode_log, rows_to_arrays
+from drivers.units import AxisScaling
+
+
+def test_frame_bits_match_worst_case_stuffing_formula():
+    # 8 data bytes: 47 + 64 + floor((34 + 64 - 1) / 4) = 135 bits; SYNC (no data): 55 bits
+    assert frame_bits(8) == 135 and frame_bits(0) == 55
+    assert [frame_bits(n) for n in range(9)] == [47 + 8 * n + (33 + 8 * n) // 4 for n in range(9)]
+
+
+def test_bus_load_refuses_six_drives_at_1khz_on_1mbit():
+    sizes = [0] + [8, 6] * 6  # SYNC + TPDO1 + RPDO1 per drive
+    with pytest.raises(BusLoadError, match=r"156%.*643 Hz"):
+        check_bus_load(sizes, 1e-3, 1_000_000)
+    assert check_bus_load(sizes, 4e-3, 1_000_000) == pytest.approx(1555 * 250 / 1e6)
+    assert check_bus_load(sizes, 1e-3, None) == 0.0
+
+
+def test_bus_config_from_mapping_names_bad_key():
+    cfg = BusConfig.from_mapping({"interface": "virtual", "channel": "x", "fd": False})
+    assert cfg.options == {"fd": False}
+    with pytest.raises(ConfigError, match="bus: missing key 'channel'"):
+        BusConfig.from_mapping({"interface": "virtual"})
+    with pytest.raises(ConfigError, match="bus.bitrate"):
+        BusConfig.from_mapping({"interface": "virtual", "channel": "x", "bitrate": -1})
+
+
+def test_emcy_texts_per_generation():
+    assert describe(0x8611) == "Following error"
+    assert describe(0x2310, "EPOS4") == "Overcurrent error"
+    assert describe(0xFF01, "EPOS2") == "Hall sensor error"
+    assert describe(0xFF01, "epos4") == "System overloaded error"
+    assert describe(0x2399) == "unknown Current code"
+
+
+def _axes(profile="epos4", n=2):
+    scaling = AxisScaling("revolute", 2048, 0.0369, gear_ratio=26.0)
+    return [AxisConfig(f"a{i}", i + 1, profile, scaling, -6.0, 6.0, 3.0, 4.0, 0.05) for i in range(n)]
+
+
+def _frames(axes, k, counts, ma, sw=0x0237, drop=()):
+    """Frames of cycle k as the drives and the master send them (SYNC, TPDOs, RPDO echo)."""
+    msgs = [can.Message(arbitration_id=0x80, data=b"", is_extended_id=False, timestamp=k * 0.004)]
+    for i, a in enumerate(axes):
+        for f in pdo_layout(a.drive_profile):
+            if (i, f.direction, f.number) in drop:
+                continue
+            values = {"position": counts[i], "current": ma[i], "statusword": sw, "velocity": 7,
+                      "target": counts[i] + 1, "controlword": 0x0F}
+            data = f.struct.pack(*[values[name] for name, _ in f.entries])
+            msgs.append(can.Message(arbitration_id=f.cob_id(a.node_id), data=data, is_extended_id=False,
+                                    timestamp=k * 0.004 + 1e-4 * (i + 1)))
+    return msgs
+
+
+@pytest.mark.parametrize("profile", ["epos2", "epos4"])
+def test_assembler_flags_missing_and_late_frames_never_fills(profile):
+    axes = _axes(profile)
+    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes]
+    rows = []
+    asm = CycleAssembler(layouts, rows.append)
+    msgs = []
+    for k in range(5):
+        drop = {(1, "tpdo", 1)} if k == 2 else set()
+        msgs += _frames(axes, k, [100 * k, -100 * k], [10 * k, -10 * k], drop=drop)
+    # a late TPDO1 of axis 0 from cycle 3 arrives in cycle 4
+    late = [m for m in msgs if m.arbitration_id == 0x181 and m.timestamp == pytest.approx(3 * 0.004 + 1e-4)]
+    msgs.insert(msgs.index(_sync_at(msgs, 4)) + 1, late[0])
+    for m in msgs + [_frames(axes, 5, [0, 0], [0, 0])[0]]:
+        asm.on_message_received(m)
+    assert [r.cycle for r in rows] == [0, 1, 2, 3, 4]
+    assert rows[1].position == [100, -100] and rows[1].current == [10, -10] and rows[1].valid == [True, True]
+    assert rows[2].valid == [True, False] and rows[2].position == [200, None]
+    assert rows[4].valid == [False, True] and rows[4].position[0] is None
+    assert asm.late_frames == 1 and asm.invalid_cycles == 2
+    # the RPDO echoes seen in cycle k are the set-points of cycle k+1
+    assert rows[0].target == [None, None] and rows[3].target == [201, -199]
+
+
+def _sync_at(msgs, k):
+    return next(m for m in msgs if m.arbitration_id == 0x80 and m.timestamp == pytest.approx(k * 0.004))
+
+
+def test_assembler_reports_statusword_fault_once():
+    axes = _axes("epos2")
+    seen = []
+    asm = CycleAssembler([AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes],
+                         lambda r: None, on_status=lambda i, sw: seen.append((i, sw)))
+    for k in range(3):
+        for m in _frames(axes, k, [0, 0], [0, 0], sw=0x0237 if k == 0 else 0x2237):
+            asm.on_message_received(m)
+    assert seen == [(0, 0x2237), (1, 0x2237)]
+
+
+@pytest.mark.parametrize("suffix", [".log", ".asc", ".blf"])
+def test_decode_log_reproduces_rows_from_hand_made_traffic(tmp_path, suffix):
+    axes = _axes("epos4", 3)
+    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes]
+    rows = []
+    logger = FlushingLogger(tmp_path / f"raw{suffix}")
+    asm = CycleAssembler(layouts, rows.append, forward=[logger], max_cycles=40)
+    rng = np.random.default_rng(0)
+    for k in range(45):
+        counts = rng.integers(-2**31, 2**31, 3)
+        ma = rng.integers(-2**31, 2**31, 3)
+        for m in _frames(axes, k, counts.tolist(), ma.tolist()):
+            m.timestamp += 1.7e9
+            asm.on_message_received(m)
+    logger.stop()
+    live = Recording.from_chunks([rows_to_arrays(rows, axes)], 3, {})
+    replay = decode_log(tmp_path / f"raw{suffix}", axes, max_cycles=40)
+    assert live.metadata["n_cycles"] == replay.metadata["n_cycles"] == 40
+    for name in ("cycle", "position", "velocity", "current", "statusword", "target", "valid"):
+        np.testing.assert_array_equal(getattr(live, name), getattr(replay, name), err_msg=name)
+    np.testing.assert_allclose(live.t, replay.t, rtol=0, atol=1.01e-6)
+
+
+def test_recording_round_trip_and_bad_files(tmp_path):
+    axes = _axes()
+    rows = []
+    asm = CycleAssembler([AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes], rows.append)
+    for k in range(4):
+        for m in _frames(axes, k, [4096 * k, 0], [1500, -20]):
+            asm.on_message_received(m)
+    rec = Recording.from_chunks([rows_to_arrays(rows, axes)], 2, {"note": "x"})
+    # 4096 counts = 2 motor turns = 2/26 joint turns
+    np.testing.assert_allclose(rec.position[1], [2 * 2 * np.pi / 26, 0.0])
+    np.testing.assert_array_equal(rec.current[1], [1.5, -0.02])
+    back = Recording.load(rec.save(tmp_path / "r.npz"))
+    np.testing.assert_array_equal(back.position, rec.position)
+    assert back.metadata["note"] == "x" and back.metadata["n_cycles"] == 3
+    np.save(tmp_path / "other.npy", np.zeros(3))
+    with pytest.raises(ConfigError, match="other.npy"):
+        Recording.load(tmp_path / "other.npy")
+    with pytest.raises(ConfigError, match="suffix"):
+        FlushingLogger(tmp_path / "raw.txt")
