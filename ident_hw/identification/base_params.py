@@ -1,0 +1,150 @@
+"""Base parameters by SVD (seed 000, sec. 6.1, eqs. 66 and 78–80).
+
+From the stacked regressor ``W`` (r, n): ``W D = U S Vᵀ`` with ``D = diag(scale)`` (columns
+expressed as torque contributions of parameters of the given typical size), rank = number of
+singular values above ``rtol × s_max``. The null space of ``W`` is ``N = D V_nul``. QR with
+column pivoting on ``V_nulᵀ`` picks the ``n − rank`` parameters to eliminate (their rows
+``N2`` of ``N`` are then best conditioned); with ``N1`` the rows of the kept ones,
+
+    W pi = W1 (pi1 − N1 N2⁻¹ pi2),   base parameters  pi_b = H pi,  H = [I, −N1 N2⁻¹]
+
+(columns of ``H`` in the original parameter order). ``H`` does not depend on the basis chosen
+for the null space.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg
+
+from .least_squares import LeastSquaresResult, check_regression_data, ols, stack, wls
+
+#: Default rank tolerance, relative to the largest singular value of the scaled regressor.
+DEFAULT_RTOL = 1e-8
+
+
+@dataclass(frozen=True)
+class BaseParameters:
+    """Result of :func:`base_parameters`.
+
+    Attributes:
+        names: the n physical parameter names.
+        rank: numerical rank of the regressor.
+        rtol: rank tolerance used, relative to the largest singular value.
+        singular_values: of the column-scaled regressor (n,), descending.
+        kept: names of the parameters that carry a base parameter (rank).
+        eliminated: names regrouped into the kept ones, or not excited at all (n − rank).
+        H: (rank, n) base parameters ``pi_b = H @ pi``; row i has 1 at ``kept[i]``.
+        null_space: (n, n − rank) basis of the null space of ``W`` in physical units.
+    """
+
+    names: tuple[str, ...]
+    rank: int
+    rtol: float
+    singular_values: np.ndarray
+    kept: tuple[str, ...]
+    eliminated: tuple[str, ...]
+    H: np.ndarray
+    null_space: np.ndarray
+
+    @property
+    def expressions(self) -> tuple[str, ...]:
+        """Each base parameter as a readable combination, e.g. ``"I_l1 + 0.0225 m_l1"``."""
+        return tuple(format_combination(row, self.names) for row in self.H)
+
+    @property
+    def unexcited(self) -> tuple[str, ...]:
+        """Eliminated parameters that appear in no base parameter: the data says nothing of them."""
+        scale = np.max(np.abs(self.H), axis=0) if self.rank else np.zeros(len(self.names))
+        return tuple(nm for nm in self.eliminated if scale[self.names.index(nm)] <= 1e-10)
+
+    def reduce(self, pi: np.ndarray) -> np.ndarray:
+        """Base-parameter values ``H @ pi`` of a physical parameter vector (n,) → (rank,)."""
+        return self.H @ np.asarray(pi, dtype=float)
+
+    def to_dict(self) -> dict:
+        return {
+            "rank": self.rank,
+            "n_params": len(self.names),
+            "rtol": self.rtol,
+            "singular_values": self.singular_values.tolist(),
+            "base_parameters": list(self.expressions),
+            "eliminated": list(self.eliminated),
+            "unexcited": list(self.unexcited),
+        }
+
+
+def format_combination(row: np.ndarray, names, digits: int = 4) -> str:
+    """``[1, 0.25]``, ``["m_l1", "m_l2"]`` → ``"m_l1 + 0.25 m_l2"`` (terms below 1e-10 dropped)."""
+    terms = []
+    big = np.max(np.abs(row))
+    for c, nm in zip(row, names):
+        if abs(c) <= 1e-10 * big:
+            continue
+        mag = abs(c)
+        text = nm if np.isclose(mag, 1.0, rtol=10.0 ** -(digits + 1), atol=0) else f"{mag:.{digits}g} {nm}"
+        terms.append((" - " if c < 0 else " + ") + text if terms else ("-" if c < 0 else "") + text)
+    return "".join(terms) if terms else "0"
+
+
+def base_parameters(W: np.ndarray, names, rtol: float = DEFAULT_RTOL, scale=None) -> BaseParameters:
+    """Rank, null space and base parameters of a stacked regressor ``W`` (r, n).
+
+    Args:
+        W: stacked regressor (r, n) (:func:`~ident_hw.identification.least_squares.stack`),
+            or a per-sample regressor (N, k, n), which is stacked here.
+        names: the n parameter names.
+        rtol: singular values below ``rtol × s_max`` count as zero.
+        scale: (n,) typical magnitude of each parameter (e.g. the CAD values), so that the
+            rank decision compares torque contributions, not raw units; default ones.
+    """
+    W = np.asarray(W, dtype=float)
+    if W.ndim == 3:
+        W = W.reshape(-1, W.shape[2])
+    names = tuple(names)
+    n = W.shape[1]
+    if len(names) != n:
+        raise ValueError(f"{len(names)} names for a regressor with {n} columns")
+    scale = np.ones(n) if scale is None else np.abs(np.asarray(scale, dtype=float))
+    if scale.shape != (n,) or np.any(scale == 0):
+        raise ValueError(f"scale must be {n} non-zero magnitudes, got {scale}")
+    # QR first: the SVD of the small triangle R has the singular values and V of W.
+    R = np.linalg.qr(W * scale, mode="r")
+    _, s, Vt = linalg.svd(R, full_matrices=True)
+    s = np.concatenate([s, np.zeros(n - s.size)])
+    rank = int(np.sum(s > rtol * s[0])) if s[0] > 0 else 0
+    V_nul = Vt[rank:].T  # (n, n_w), scaled coordinates
+    if rank == n:
+        piv = np.arange(n)
+    else:
+        _, _, piv = linalg.qr(V_nul.T, pivoting=True, mode="economic")
+    n_w = n - rank
+    eliminated_idx = np.sort(piv[:n_w])
+    kept_idx = np.array([i for i in range(n) if i not in set(eliminated_idx)], dtype=int)
+    N = V_nul * scale[:, None]  # null space of W in physical units
+    H = np.zeros((rank, n))
+    H[np.arange(rank), kept_idx] = 1.0
+    if n_w:
+        H[:, eliminated_idx] = -N[kept_idx] @ np.linalg.inv(N[eliminated_idx])
+    return BaseParameters(
+        names=names, rank=rank, rtol=rtol, singular_values=s, kept=tuple(names[i] for i in kept_idx),
+        eliminated=tuple(names[i] for i in eliminated_idx), H=H, null_space=N,
+    )
+
+
+def identify_base(
+    Y: np.ndarray, tau: np.ndarray, names, rtol: float = DEFAULT_RTOL, scale=None, weighted: bool = False
+) -> tuple[BaseParameters, LeastSquaresResult]:
+    """Base parameters of the data and their OLS (or WLS) estimate with statistics.
+
+    ``W pi = W1 pi_b`` with ``W1`` the columns of the kept parameters, so the estimate of
+    ``pi_b`` is the least-squares fit on those columns. The result's names are the readable
+    expressions of the base parameters.
+    """
+    Y, tau = check_regression_data(Y, tau, names)
+    base = base_parameters(stack(Y, tau)[0], names, rtol=rtol, scale=scale)
+    cols = [base.names.index(k) for k in base.kept]
+    fit = (wls if weighted else ols)(Y[:, :, cols], tau, base.expressions)
+    return base, fit

@@ -1,0 +1,169 @@
+"""The SQP mass fit of seed 001 (eq. 39), cross-checked by a bounded linear solver.
+
+    pi* = argmin sum_t || (tau(t) − Y(t) pi) / sigma ||²   subject to  lo <= pi <= hi
+
+over a subset of the parameters (the others held at given values), solved with SciPy's
+SLSQP started from the CAD values. The problem is linear in ``pi``, so
+``scipy.optimize.lsq_linear`` (BVLS) solves the same weighted problem exactly: both answers
+are returned and must agree.
+
+Both solvers work on columns scaled to unit norm and a unit right-hand side
+(``z_j = ||W_j|| pi_j / ||b||``) so that kilograms of carriage and kg·m² of link inertia share
+one scale of order one; the answer is mapped back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg, optimize
+
+from .least_squares import check_regression_data, output_noise_std, stack
+
+
+@dataclass(frozen=True)
+class MassFitResult:
+    """Result of :func:`sqp_fit`.
+
+    Attributes:
+        names: all parameter names (n).
+        free: names of the fitted parameters.
+        coef: SLSQP estimate, full vector (n,) (held parameters at their given values).
+        coef_lsq: ``lsq_linear`` estimate of the same problem, full vector (n,).
+        max_rel_difference: ``max |coef − coef_lsq| / max(|coef_lsq|, tiny)`` over the free ones.
+        cost: weighted residual ``sum ||(tau − Y pi)/sigma||²`` at the SLSQP estimate.
+        residual_rms: unweighted residual RMS of each output (k,).
+        output_std: per-output weights used (k,).
+        iterations: SLSQP iterations; ``success`` / ``message`` from SLSQP.
+        at_bounds: free parameters on a bound at the optimum (``lsq_linear`` active set).
+    """
+
+    names: tuple[str, ...]
+    free: tuple[str, ...]
+    coef: np.ndarray
+    coef_lsq: np.ndarray
+    max_rel_difference: float
+    cost: float
+    residual_rms: np.ndarray
+    output_std: np.ndarray
+    iterations: int
+    success: bool
+    message: str
+    at_bounds: tuple[str, ...]
+
+    def to_dict(self) -> dict:
+        return {
+            "method": "SQP (SLSQP) mass fit, checked by lsq_linear",
+            "free": list(self.free),
+            "parameters": {nm: float(v) for nm, v in zip(self.names, self.coef)},
+            "parameters_lsq_linear": {nm: float(v) for nm, v in zip(self.names, self.coef_lsq)},
+            "max_rel_difference": float(self.max_rel_difference),
+            "cost": float(self.cost),
+            "residual_rms": self.residual_rms.tolist(),
+            "output_std": self.output_std.tolist(),
+            "iterations": int(self.iterations),
+            "success": bool(self.success),
+            "message": self.message,
+            "at_bounds": list(self.at_bounds),
+        }
+
+
+def sqp_fit(
+    Y: np.ndarray,
+    tau: np.ndarray,
+    names,
+    initial,
+    free=None,
+    bounds: dict | None = None,
+    output_std=None,
+    ftol: float = 1e-14,
+    maxiter: int = 500,
+) -> MassFitResult:
+    """Bounded weighted least-squares fit of a parameter subset by SLSQP.
+
+    Args:
+        Y, tau: regressor (N, k, n) and outputs (N, k).
+        names: the n parameter names (e.g. ``robot.parameter_names``).
+        initial: (n,) start values (CAD); the parameters not in ``free`` are held at them.
+        free: names to fit (default all), e.g. ``["m_c"]`` for the carriage sweep.
+        bounds: ``{name: (lo, hi)}`` for free parameters; default ``(0, inf)`` (all
+            parameters of the model are non-negative); ``None`` as a bound means unbounded.
+        output_std: per-output noise std (k,) used as weights; default from each output's
+            OLS residual (:func:`~ident_hw.identification.least_squares.output_noise_std`).
+        ftol: SLSQP tolerance on the scaled cost (scaled to 1 at the start).
+    """
+    Y, tau = check_regression_data(Y, tau, names)
+    names = tuple(names)
+    initial = np.asarray(initial, dtype=float)
+    if initial.shape != (len(names),):
+        raise ValueError(f"initial must have {len(names)} values, got shape {initial.shape}")
+    free = names if free is None else tuple(free)
+    unknown = [f for f in free if f not in names]
+    if unknown or not free:
+        raise ValueError(f"free parameters {unknown or free} not among the parameter names {list(names)}")
+    idx = np.array([names.index(f) for f in free])
+    bounds = dict(bounds or {})
+    bad = [b for b in bounds if b not in free]
+    if bad:
+        raise ValueError(f"bounds given for {bad}, which are not free parameters {list(free)}")
+    lo = np.array([_bound(bounds.get(f, (0.0, None))[0], -np.inf) for f in free])
+    hi = np.array([_bound(bounds.get(f, (0.0, None))[1], np.inf) for f in free])
+    if np.any(lo > hi):
+        raise ValueError(f"lower bound above upper bound for {[f for f, a, b in zip(free, lo, hi) if a > b]}")
+
+    sigma = output_noise_std(Y, tau) if output_std is None else np.asarray(output_std, dtype=float)
+    if sigma.shape != (Y.shape[1],) or np.any(sigma <= 0):
+        raise ValueError(f"output_std must be {Y.shape[1]} positive values, got {sigma}")
+    W, y = stack(Y / sigma[None, :, None], tau / sigma)
+    held = np.setdiff1d(np.arange(len(names)), idx)
+    b = y - W[:, held] @ initial[held]
+    A = W[:, idx]
+    scale = np.linalg.norm(A, axis=0)
+    if np.any(scale == 0):
+        raise ValueError(f"free parameters {[free[i] for i in np.flatnonzero(scale == 0)]} are not excited by the data")
+    # z = scale · pi / ||b||: unit-norm columns and a unit right-hand side make z of order one.
+    bnorm = float(np.linalg.norm(b)) or 1.0
+    scale = scale / bnorm
+    A = A / (scale * bnorm)
+    b = b / bnorm
+
+    # lsq_linear reference
+    ref = optimize.lsq_linear(A, b, bounds=(lo * scale, hi * scale), method="bvls", tol=1e-14)
+    z_lsq = ref.x
+
+    # SLSQP on the QR-reduced cost ||R z − Qᵀb||² (same minimiser, n_free rows, no squaring of
+    # cond(A)), scaled to 1 at the start so that ftol is relative.
+    Q, R = linalg.qr(A, mode="economic")
+    c = Q.T @ b
+    z0 = np.clip(initial[idx] * scale, lo * scale, hi * scale)
+    r0 = R @ z0 - c
+    c0 = max(float(r0 @ r0), np.finfo(float).tiny)
+
+    def cost(z):
+        r = R @ z - c
+        return float(r @ r) / c0
+
+    def grad(z):
+        return 2.0 * (R.T @ (R @ z - c)) / c0
+
+    res = optimize.minimize(
+        cost, z0, jac=grad, method="SLSQP", bounds=list(zip(lo * scale, hi * scale)),
+        options={"ftol": ftol, "maxiter": maxiter},
+    )
+    coef = initial.copy()
+    coef[idx] = res.x / scale
+    coef_lsq = initial.copy()
+    coef_lsq[idx] = z_lsq / scale
+    diff = np.abs(coef[idx] - coef_lsq[idx]) / np.maximum(np.abs(coef_lsq[idx]), np.finfo(float).tiny)
+    r = y - W @ coef
+    at_bounds = tuple(f for f, active in zip(free, ref.active_mask) if active != 0)
+    return MassFitResult(
+        names=names, free=free, coef=coef, coef_lsq=coef_lsq, max_rel_difference=float(diff.max()),
+        cost=float(r @ r), residual_rms=np.sqrt(np.mean((tau - Y @ coef) ** 2, axis=0)), output_std=sigma,
+        iterations=int(res.nit), success=bool(res.success), message=str(res.message), at_bounds=at_bounds,
+    )
+
+
+def _bound(value, default: float) -> float:
+    return default if value is None else float(value)

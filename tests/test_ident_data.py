@@ -1,0 +1,121 @@
+"""Synthetic identification data with known truth, shared by the test_ident_* modules.
+
+Motion: sums of sines on the pose ``X`` and the carriages ``zeta`` inside the workspace
+(|x|, |y| <= 0.06 m, |alpha| <= 0.3 rad, |zeta| <= 0.05 m), evaluated analytically, mapped to
+the actuators by the model. Measurements: currents from the model forces through the drive
+scaling of the nominal rig, optionally with noise and quantisation (1 mA, encoder counts).
+The tests at the bottom check the generator itself.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from drivers.units import AxisScaling
+from ident_hw.model import Geometry, InertialParams, ThreePRRR
+
+GEOMETRY = Geometry(l1=0.30, l2=0.30, s1=0.15, s2=0.15, h=0.12, a=0.40, gamma=(0.0, 2 * math.pi / 3, 4 * math.pi / 3))
+ROBOT = ThreePRRR(GEOMETRY, coulomb_width=1e-3)
+NAMES = ROBOT.parameter_names
+
+# Nominal drives: EC 45 flat + 26:1 gearhead on the links, EC 40 on a 2 mm screw for the carriages.
+AXES = [AxisScaling("revolute", 2048, 0.0369, gear_ratio=26.0)] * 3 + [
+    AxisScaling("prismatic", 2048, 0.0603, screw_lead=0.002)
+] * 3
+FORCE_PER_AMP = np.array([ax.force_per_amp for ax in AXES])
+COUNTS_PER_UNIT = np.array([ax.counts_per_unit for ax in AXES])
+
+# Truth: the paper's identified masses (m_l1 = 0.30 instead of its degenerate 0), slender-rod
+# and disc inertias, friction of our choosing.
+TRUE = InertialParams(
+    m_c=603.62, m_l1=0.30, I_l1=0.30 * 0.30**2 / 12, m_l2=0.5723, I_l2=0.5723 * 0.30**2 / 12,
+    m_ee=0.2269, I_ee=0.2269 * 0.12**2 / 2,
+    f_v=(0.02, 0.02, 0.02, 250.0, 250.0, 250.0), f_c=(0.03, 0.03, 0.03, 40.0, 40.0, 40.0),
+)
+CAD = InertialParams(
+    m_c=780.0, m_l1=0.30, I_l1=0.00225, m_l2=0.354, I_l2=0.002655, m_ee=0.78, I_ee=0.005616,
+    f_v=(0.01,) * 3 + (100.0,) * 3, f_c=(0.01,) * 3 + (10.0,) * 3,
+)
+
+# (amplitude, frequency Hz, phase) of each sine, per coordinate [x, y, alpha, zeta1, zeta2, zeta3].
+RICH = [
+    [(0.03, 0.40, 0.0), (0.02, 1.10, 1.0)],
+    [(0.03, 0.55, 0.5), (0.02, 0.90, 2.0)],
+    [(0.15, 0.35, 0.3), (0.10, 1.30, 1.5)],
+    [(0.03, 0.45, 0.2), (0.015, 1.00, 0.7)],
+    [(0.03, 0.60, 1.2), (0.015, 0.80, 2.5)],
+    [(0.03, 0.50, 2.2), (0.015, 1.20, 0.4)],
+]
+
+
+def sines(spec, t):
+    """Sum of sines (N, len(spec)) and its two derivatives; ``spec[j]`` lists (amp, Hz, phase)."""
+    q = np.zeros((t.size, len(spec)))
+    qd, qdd = q.copy(), q.copy()
+    for j, terms in enumerate(spec):
+        for amp, f, ph in terms:
+            w = 2 * math.pi * f
+            q[:, j] += amp * np.sin(w * t + ph)
+            qd[:, j] += amp * w * np.cos(w * t + ph)
+            qdd[:, j] -= amp * w * w * np.sin(w * t + ph)
+    return q, qd, qdd
+
+
+@dataclass
+class Motion:
+    """Analytic motion: pose and carriages, their actuator image, regressor and true forces."""
+
+    t: np.ndarray
+    X: np.ndarray
+    Xd: np.ndarray
+    zeta: np.ndarray
+    zetad: np.ndarray
+    Theta: np.ndarray
+    Thetad: np.ndarray
+    Thetadd: np.ndarray
+    Y: np.ndarray
+    tau: np.ndarray
+
+
+def make_motion(spec=RICH, rate=1000.0, duration=10.0, t0=0.0) -> Motion:
+    t = t0 + np.arange(int(round(duration * rate))) / rate
+    q, qd, qdd = sines(spec, t)
+    args = (q[:, :3], qd[:, :3], qdd[:, :3], q[:, 3:], qd[:, 3:], qdd[:, 3:])
+    Theta, Thetad, Thetadd = ROBOT.actuated_motion(*args)
+    Y = ROBOT.regressor(*args)
+    return Motion(t, q[:, :3], qd[:, :3], q[:, 3:], qd[:, 3:], Theta, Thetad, Thetadd, Y, Y @ TRUE.as_vector())
+
+
+def measure(motion: Motion, rng: np.random.Generator, noise: float = 0.03):
+    """Quantised encoder positions (N, 6) and noisy currents (N, 6) in A (1 mA steps).
+
+    Gaussian current noise of ``noise`` × each axis' RMS current, then rounding to 1 mA.
+    """
+    counts = np.round(motion.Theta * COUNTS_PER_UNIT)
+    current = motion.tau / FORCE_PER_AMP
+    current = current + rng.normal(size=current.shape) * noise * np.sqrt(np.mean(current**2, axis=0))
+    return counts / COUNTS_PER_UNIT, np.round(current * 1e3) * 1e-3
+
+
+def test_motion_stays_in_the_workspace_and_regressor_matches_inverse_dynamics():
+    m = make_motion(duration=4.0, rate=200.0)
+    assert np.all(np.abs(m.X[:, :2]) <= 0.06) and np.all(np.abs(m.X[:, 2]) <= 0.3) and np.all(np.abs(m.zeta) <= 0.05)
+    margins = ROBOT.singularity_margins(m.X, m.zeta)
+    assert margins.cond_A.max() < 50 and margins.serial.min() > 0.1
+    q, qd, qdd = sines(RICH, m.t)
+    tau = ROBOT.inverse_dynamics(q[:, :3], qd[:, :3], qdd[:, :3], q[:, 3:], qd[:, 3:], qdd[:, 3:], TRUE)
+    np.testing.assert_allclose(m.tau, tau, rtol=1e-9, atol=1e-9 * np.abs(tau).max())
+
+
+def test_measurement_is_quantised():
+    m = make_motion(duration=1.0, rate=100.0)
+    Theta, current = measure(m, np.random.default_rng(0))
+    np.testing.assert_allclose(Theta * COUNTS_PER_UNIT, np.round(Theta * COUNTS_PER_UNIT), atol=1e-6)
+    np.testing.assert_allclose(current * 1e3, np.round(current * 1e3), atol=1e-9)
+    assert np.abs(Theta - m.Theta).max() <= 0.5 / COUNTS_PER_UNIT.min() + 1e-12
+    with pytest.raises(AssertionError):  # the noise is really there
+        np.testing.assert_allclose(current, m.tau / FORCE_PER_AMP, atol=2e-3)
