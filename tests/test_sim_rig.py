@@ -124,3 +124,45 @@ def configure_pdos(node, profile_name):
             pdo.enabled = False
     node.tpdo.save()
     node.rpdo.save()
+
+
+@pytest.mark.parametrize("profile", ["EPOS2", "EPOS4"])
+def test_pdo_mapping_cia402_and_cyclic_following(profile):
+    b = Bench(profiles=(profile.lower(),) * 6, node_class=BaseNode402)
+    try:
+        b.rig.start()
+        prof = b.rig.drives[0].profile
+        for node in b.nodes:
+            configure_pdos(node, profile)
+            node.sdo[0x6060].raw = prof.cyclic_mode
+            node.setup_402_state_machine(read_pdos=False)
+        received = []
+        b.nodes[3].tpdo[1].add_callback(lambda m: received.append(m[0x6064].raw))
+        b.master.nmt.state = "OPERATIONAL"
+        b.master.sync.start(0.004)
+        for node in b.nodes:
+            node.rpdo[1].start(0.004)
+            node.state = "OPERATION ENABLED"
+        assert [d.state for d in b.rig.drives] == ["OPERATION ENABLED"] * 6
+        assert wait_until(lambda: len(received) > 5)
+        # carriage 1 follows a 1 mm step sent as RPDO target
+        node, scaling = b.nodes[3], PRI
+        target = scaling.counts_from_position(0.001)
+        target_var = node.rpdo[1][0]
+        for k in range(1, 101):   # ramp over 0.4 s
+            target_var.raw = round(target * k / 100)
+            time.sleep(0.004)
+        assert wait_until(lambda: abs(received[-1] - target) < 0.02 * target, timeout=1.0), received[-5:]
+        # the others held their home position (encoders read 0 at power-up)
+        assert abs(b.nodes[4].sdo[0x6064].raw) < 0.02 * target
+        # fault: EMCY seen by the master with its code, statusword FAULT, fault reset
+        b.rig.emcy(4, 0x2310)
+        emcy = node.emcy.wait(0x2310, timeout=1.0)
+        assert emcy is not None and emcy.register & 0x02
+        assert wait_until(lambda: node.state == "FAULT")
+        assert node.sdo[0x1003][1].raw == 0x2310 and node.sdo[0x603F].raw == 0x2310
+        node.state = "OPERATION ENABLED"        # canopen: fault reset (0x80 edge) then enable
+        assert b.rig.drive(4).state == "OPERATION ENABLED"
+        assert node.sdo[0x1001].raw == 0
+    finally:
+        b.close()
