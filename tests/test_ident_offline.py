@@ -125,12 +125,12 @@ def test_sqp_rejects_bad_names(rich):
 def test_statistics_against_monte_carlo():
     """sigma from (W^T W)^-1 sigma² matches the spread of estimates over noise draws."""
     rng = np.random.default_rng(7)
-    m = make_motion(duration=4.0, rate=100.0)
+    m = make_motion(duration=2.0, rate=100.0)
     cols = [NAMES.index(n) for n in NAMES if n != "I_l2"]
     Y = m.Y[:, :, cols]
     sigma = np.array([0.01] * 3 + [5.0] * 3)
     draws = [wls(Y, m.tau + rng.normal(size=m.tau.shape) * sigma, [NAMES[c] for c in cols], sigma)
-             for _ in range(200)]
+             for _ in range(100)]
     spread = np.std([d.coef for d in draws], axis=0)
     predicted = draws[0].std / np.sqrt(draws[0].sigma2)  # known sigma: covariance (W^T W)^-1
-    np.testing.assert_allclose(spread, predicted, rtol=0.2)
+    np.testing.assert_allclose(spread, predicted, rtol=0.3)  # 100 draws: ~7 % sampling error on a std

@@ -1,0 +1,57 @@
+"""Power and energy models (seed 004): identification without accelerations.
+
+Actuated power equals the rate of change of the kinetic energy plus the friction losses:
+
+    Thetadᵀ tau = dT/dt + sum_j (f_vj qd_j² + f_cj qd_j tanh(qd_j / w)),   T = h(q, qd) pi[:7]
+
+Power model: one scalar row per sample, ``dh/dt`` by central differences (error O(h²)).
+Energy model: the same integrated between sample times ``t_a = t_i``, ``t_b = t_{i+window}``
+(trapezoid rule, error O(h²)): ``∫ Pdt = h(t_b) − h(t_a) + friction work``.
+
+Inputs are sampled (N,) time-major: ``t`` (N,), energy regressor ``H`` (N, 7) from
+``robot.energy_regressor``, ``Thetad`` (N, 6), ``tau`` (N, 6). The parameter vector is
+``[inertial (7), f_v (6), f_c (6)]``, the order of ``robot.parameter_names``. The rows
+are a regressor with one output: ``identify_base(W[:, None], y[:, None], names)`` fits them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import integrate
+
+
+
+def _friction_power(Thetad: np.ndarray, coulomb_width: float) -> np.ndarray:
+    """Friction power regressor (N, 12): ``[qd², qd tanh(qd / w)]``."""
+    return np.concatenate([Thetad**2, Thetad * np.tanh(Thetad / coulomb_width)], axis=1)
+
+
+def _check(t, H, Thetad, tau):
+    t, H, Thetad, tau = (np.asarray(a, dtype=float) for a in (t, H, Thetad, tau))
+    if t.ndim != 1 or H.shape[0] != t.size or Thetad.shape != tau.shape or Thetad.shape[0] != t.size:
+        raise ValueError(f"expected t (N,), H (N, p), Thetad and tau (N, k); got {t.shape}, {H.shape}, "
+                         f"{Thetad.shape}, {tau.shape}")
+    return t, H, Thetad, tau
+
+
+def power_rows(t, H, Thetad, tau, coulomb_width: float) -> tuple[np.ndarray, np.ndarray]:
+    """Power-model equations: ``W`` (N, p + 2k) and ``y`` (N,) = actuated power, W."""
+    t, H, Thetad, tau = _check(t, H, Thetad, tau)
+    dH = np.gradient(H, t, axis=0, edge_order=2)
+    return np.concatenate([dH, _friction_power(Thetad, coulomb_width)], axis=1), np.sum(Thetad * tau, axis=1)
+
+
+def energy_rows(t, H, Thetad, tau, coulomb_width: float, window: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """Energy-model equations over consecutive windows of ``window`` samples.
+
+    Returns ``W`` (M, p + 2k) and ``y`` (M,) = work of the actuators over each window, J.
+    """
+    t, H, Thetad, tau = _check(t, H, Thetad, tau)
+    if window < 1 or window >= t.size:
+        raise ValueError(f"window must lie in [1, {t.size - 1}] samples, got {window}")
+    cum_power = integrate.cumulative_trapezoid(np.sum(Thetad * tau, axis=1), t, initial=0.0)
+    cum_friction = integrate.cumulative_trapezoid(_friction_power(Thetad, coulomb_width), t, axis=0, initial=0.0)
+    ends = np.arange(0, t.size, window)
+    a, b = ends[:-1], ends[1:]
+    W = np.concatenate([H[b] - H[a], cum_friction[b] - cum_friction[a]], axis=1)
+    return W, cum_power[b] - cum_power[a]
