@@ -122,6 +122,7 @@ def test_sqp_rejects_bad_names(rich):
         sqp_fit(rich.Y, rich.tau, NAMES, TRUTH, free=["m_c"], bounds={"I_ee": (0, 1)})
 
 
+@pytest.mark.slow
 def test_statistics_against_monte_carlo():
     """sigma from (W^T W)^-1 sigma² matches the spread of estimates over noise draws."""
     rng = np.random.default_rng(7)
