@@ -14,14 +14,14 @@ import yaml
 
 from .schema import ConfigError, build
 from .sections import (ActuatorConfig, BusConfig, Config, FilterConfig, GeometryConfig, HomingConfig,
-                       IdentificationConfig, InertialConfig, LimitsConfig, NoiseConfig, OnlineConfig,
+                       IdentificationConfig, InertialConfig, LimitsConfig, OnlineConfig,
                        OutputConfig, RobotConfig, SafetyConfig, SimConfig, StepConfig, TrajectoryConfig)
 from .source import compose_file
 
 __all__ = [
     "load_config", "resolved_yaml", "ConfigError", "Config", "RobotConfig", "GeometryConfig",
     "InertialConfig", "ActuatorConfig", "LimitsConfig", "HomingConfig", "SafetyConfig", "BusConfig",
-    "SimConfig", "NoiseConfig", "TrajectoryConfig", "IdentificationConfig", "StepConfig",
+    "SimConfig", "TrajectoryConfig", "IdentificationConfig", "StepConfig",
     "FilterConfig", "OnlineConfig", "OutputConfig",
 ]
 

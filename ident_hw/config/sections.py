@@ -208,19 +208,15 @@ class BusConfig:
 
 
 @dataclass(frozen=True)
-class NoiseConfig:
-    """Measurement imperfections of the simulated rig."""
-
-    current_std: float = field(default=0.0, metadata=spec(non_negative, unit="A"))
-    current_quantum: float = field(default=1e-3, metadata=spec(non_negative, unit="A"))
-
-
-@dataclass(frozen=True)
 class SimConfig:
-    """The simulated rig: its TRUE parameters (unknown to the identification) and noise."""
+    """The simulated rig: its TRUE parameters (unknown to the identification), its drives'
+    position loops and the measurement noise (currents are reported in whole mA, positions in
+    encoder counts, as by the real drives)."""
 
     truth: InertialConfig
-    noise: NoiseConfig = NoiseConfig()
+    current_noise: float = field(default=0.0, metadata=spec(non_negative, unit="A", doc="Gaussian std"))
+    bandwidth: float = field(default=20.0, metadata=spec(positive, unit="Hz", doc="position loops"))
+    damping: float = field(default=1.0, metadata=spec(positive))
     in_process: bool = True
     seed: int = 0
 

@@ -1,0 +1,149 @@
+"""Identification from recorded samples: the config's steps, then validation (no bus involved).
+
+Each recording (positions and motor currents of the six axes at the SYNC rate, SI) goes through
+the same preparation (:func:`ident_hw.signal.prepare_actuated`, then the parallel filter and
+decimation of forces and regressor). The steps of ``identification.steps`` run in order, each
+an SQP fit of its parameters with the others held at their current values (CAD at the start),
+so the sweep's ``m_c`` is used by the squares' step. The result is a
+:class:`ident_hw.report.Results` with standard deviations from the weighted least-squares
+statistics of each step and a base-parameter analysis of all identification data.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Mapping
+
+import numpy as np
+
+from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log
+from ident_hw.config import Config
+from ident_hw.identification.base_params import base_parameters
+from ident_hw.identification.least_squares import stack, wls
+from ident_hw.identification.mass_fit import sqp_fit
+from ident_hw.model import InertialParams, ThreePRRR
+from ident_hw.report import ParameterTable, Results, TrajectoryFit
+from ident_hw.signal import kept_samples, parallel_decimate, prepare_actuated
+
+from .plan import robot_model
+
+NAMES = InertialParams.NAMES
+
+
+@dataclass
+class Prepared:
+    """One trajectory after preparation and decimation: t (M,), Theta (M, 6), X (M, 3),
+    regressor Y (M, 6, n), forces tau (M, 6)."""
+
+    name: str
+    t: np.ndarray
+    Theta: np.ndarray
+    X: np.ndarray
+    Y: np.ndarray
+    tau: np.ndarray
+
+
+def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
+    """A recording from a decoded ``.npz`` or a raw CAN log (``.log``/``.asc``/``.blf``).
+
+    The trajectory name is the recording's ``trajectory`` metadata, else the file stem.
+    """
+    path = Path(path)
+    if path.suffix in RAW_LOG_SUFFIXES:
+        rec = decode_log(path, [a.to_driver() for a in config.robot.actuators])
+    else:
+        rec = Recording.load(path)
+    return str(rec.metadata.get("trajectory", path.stem)), rec
+
+
+def fill_gaps(t: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Linear interpolation over NaN samples (cycles in which a frame was missing), per column."""
+    out = np.array(values, dtype=float)
+    for j in range(out.shape[1]):
+        bad = ~np.isfinite(out[:, j])
+        if bad.all():
+            raise ValueError(f"axis {j} has no valid sample")
+        if bad.any():
+            out[bad, j] = np.interp(t[bad], t[~bad], out[~bad, j])
+    return out
+
+
+def prepare(config: Config, robot: ThreePRRR, name: str, rec: Recording) -> Prepared:
+    """Recording → filtered motion, regressor and forces, decimated in parallel."""
+    t = np.asarray(rec.t, dtype=float)
+    if len(t) < 3:
+        raise ValueError(f"recording of {name!r} has {len(t)} samples: too few to identify from")
+    rate = 1.0 / float(np.median(np.diff(t)))
+    settings = config.identification.filter.settings(rate)
+    force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
+    samples = prepare_actuated(t, fill_gaps(t, rec.position), fill_gaps(t, rec.current), force_per_amp, settings)
+    X = robot.forward_kinematics(samples.Theta, np.zeros(3))
+    Y = robot.regressor_from_actuated(samples.Theta, samples.Thetad, samples.Thetadd, np.zeros(3))
+    Y, tau = parallel_decimate(settings, Y, samples.tau)
+    kept = kept_samples(settings, len(t))
+    return Prepared(name, t[kept], samples.Theta[kept], X[kept], Y, tau)
+
+
+def identify(config: Config, recordings: Mapping[str, Recording],
+             progress: Callable[[str], None] | None = None) -> Results:
+    """Run the config's identification steps and validation on ``recordings`` (name → samples)."""
+    ident = config.identification
+    if ident is None:
+        raise ValueError(f"{config.source}: identification: missing section")
+    robot = robot_model(config)
+    needed = [n for s in ident.steps for n in s.trajectories] + list(ident.validation)
+    missing = [n for n in dict.fromkeys(needed) if n not in recordings]
+    if missing:
+        raise ValueError(f"no recording for trajectories {missing} (have {sorted(recordings)})")
+    prepared: dict[str, Prepared] = {}
+    for name in dict.fromkeys(needed):
+        if progress:
+            progress(f"preparing {name}")
+        prepared[name] = prepare(config, robot, name, recordings[name])
+
+    n = len(NAMES)
+    initial = config.robot.cad.to_model().as_vector()
+    coef = initial.copy()
+    sigma = np.full(n, np.nan)
+    lower, upper = np.full(n, -np.inf), np.full(n, np.inf)
+    step_of, method_of = [""] * n, [""] * n
+    steps = []
+    for step in ident.steps:
+        if progress:
+            progress(f"step {step.name}: fitting {', '.join(step.parameters)}")
+        Y = np.concatenate([prepared[t].Y for t in step.trajectories])
+        tau = np.concatenate([prepared[t].tau for t in step.trajectories])
+        bounds = {p: ident.bounds[p] for p in step.parameters if p in ident.bounds}
+        fit = sqp_fit(Y, tau, NAMES, coef, free=step.parameters, bounds=bounds)
+        coef = fit.coef
+        idx = [NAMES.index(p) for p in step.parameters]
+        held = [i for i in range(n) if i not in idx]
+        # sigma of the free parameters: WLS statistics of the same weighted problem
+        record = {"name": step.name, "trajectories": list(step.trajectories), **fit.to_dict()}
+        try:
+            stats = wls(Y[:, :, idx], tau - Y[:, :, held] @ coef[held], step.parameters, output_std=fit.output_std)
+        except ValueError as exc:  # rank deficient: the fit is bounded, but has no covariance
+            record["statistics"] = str(exc)
+        else:
+            sigma[idx] = stats.std
+            record["cond_W"] = stats.cond
+        for i, p in zip(idx, step.parameters):
+            lo, hi = bounds.get(p, (0.0, np.inf))
+            lower[i], upper[i] = lo, hi
+            step_of[i], method_of[i] = step.name, step.method
+        steps.append(record)
+
+    id_names = list(dict.fromkeys(t for s in ident.steps for t in s.trajectories))
+    W, _ = stack(np.concatenate([prepared[t].Y for t in id_names]),
+                 np.concatenate([prepared[t].tau for t in id_names]))
+    base = base_parameters(W, NAMES, scale=np.maximum(np.abs(initial), 1e-3)).to_dict()
+
+    fits = []
+    for name, p in prepared.items():
+        role = "validation" if name in ident.validation and name not in id_names else "identification"
+        fits.append(TrajectoryFit(name, role, p.t, p.tau, p.Y @ coef, p.Theta, p.X))
+    truth = config.sim.truth.to_model().as_vector() if config.sim is not None else None
+    table = ParameterTable(names=NAMES, initial=initial, identified=coef, sigma=sigma, lower=lower, upper=upper,
+                           step=tuple(step_of), method=tuple(method_of), truth=truth)
+    return Results(parameters=table, fits=fits, steps=steps, base_parameters=base)

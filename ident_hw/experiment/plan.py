@@ -1,0 +1,111 @@
+"""The campaign's trajectories from a config, and the checks run before any bus is opened."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+import trajectories
+from ident_hw.config import Config, TrajectoryConfig
+from ident_hw.model import KinematicsError, ThreePRRR
+
+
+@dataclass
+class PlannedTrajectory:
+    """One trajectory of the campaign, sampled at the SYNC rate, with its feasibility report."""
+
+    config: TrajectoryConfig
+    trajectory: trajectories.Trajectory | None
+    report: trajectories.Report | None
+    error: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.trajectory is not None and self.report is not None and self.report.ok
+
+    def describe(self) -> str:
+        if self.error:
+            return f"{self.config.name}: cannot build: {self.error}"
+        if not self.report.ok:
+            return f"{self.config.name}: INFEASIBLE: {self.report.first}"
+        t = self.trajectory
+        return f"{self.config.name}: ok ({t.duration:.1f} s, {len(t.t)} samples)"
+
+
+def robot_model(config: Config) -> ThreePRRR:
+    return ThreePRRR(config.robot.geometry.to_model(), coulomb_width=config.robot.coulomb_width)
+
+
+def sample_rate(config: Config) -> float:
+    """Trajectory sample rate = the SYNC rate of the bus (250 Hz without a bus section)."""
+    return config.bus.sync_rate if config.bus is not None else 250.0
+
+
+def build(config: Config, tcfg: TrajectoryConfig, robot: ThreePRRR) -> trajectories.Trajectory:
+    """Generate one trajectory (all cycles) at the SYNC rate."""
+    rate = sample_rate(config)
+    limits = config.robot.feasibility_limits()
+    k = tcfg.speed_scale
+    timing = dataclasses.replace(limits, carriage_speed=limits.carriage_speed * k,
+                                 carriage_accel=limits.carriage_accel * k * k,
+                                 revolute_speed=limits.revolute_speed * k,
+                                 revolute_accel=limits.revolute_accel * k * k)
+    if tcfg.kind == "carriage_sweep":
+        traj = trajectories.carriage_sweep(robot, timing, amplitude=tcfg.size, rate=rate, dwell=tcfg.dwell)
+    elif tcfg.kind == "square":
+        traj = trajectories.square(robot, timing, tcfg.rotation, side=tcfg.size, rate=rate, dwell=tcfg.dwell,
+                                   name=tcfg.name)
+    elif tcfg.kind == "triangle":
+        traj = trajectories.validation_triangle(robot, timing, rate=rate, dwell=tcfg.dwell)
+    else:
+        path = Path(config.source).parent / tcfg.path
+        traj = trajectories.load(path).resample(rate)
+    traj = repeat(traj, tcfg.cycles)
+    traj.name = tcfg.name
+    return traj
+
+
+def repeat(traj: trajectories.Trajectory, cycles: int) -> trajectories.Trajectory:
+    """The trajectory ``cycles`` times back to back (it must end where it starts, at rest)."""
+    if cycles == 1:
+        return traj
+    ends = np.concatenate([traj.Theta[-1] - traj.Theta[0], traj.Thetad[[0, -1]].ravel()])
+    if np.max(np.abs(ends)) > 1e-9:
+        raise ValueError(f"trajectory {traj.name!r} does not end where it starts at rest: cannot repeat it")
+    period = traj.duration + float(traj.t[1] - traj.t[0])
+    t = np.concatenate([traj.t + i * period for i in range(cycles)])
+    arrays = {k: np.tile(getattr(traj, k), (cycles, 1)) for k in ("X", "Xd", "Xdd", "Theta", "Thetad", "Thetadd")}
+    return trajectories.Trajectory(traj.name, t, metadata={**traj.metadata, "cycles": cycles}, **arrays)
+
+
+def plan(config: Config, names: list[str] | None = None) -> list[PlannedTrajectory]:
+    """Build and check the config's trajectories (``names``: a subset, in campaign order)."""
+    robot = robot_model(config)
+    limits = config.robot.feasibility_limits()
+    out = []
+    for tcfg in config.trajectories:
+        if names is not None and tcfg.name not in names:
+            continue
+        try:
+            traj = build(config, tcfg, robot)
+        except (ValueError, KinematicsError, trajectories.TrajectoryFileError, OSError) as exc:
+            out.append(PlannedTrajectory(tcfg, None, None, error=str(exc)))
+            continue
+        out.append(PlannedTrajectory(tcfg, traj, trajectories.check_trajectory(traj, robot, limits)))
+    return out
+
+
+def check_campaign(config: Config) -> list[str]:
+    """Everything that would stop a run, as messages; empty when the campaign can run."""
+    problems = []
+    if config.bus is None:
+        problems.append(f"{config.source}: bus: missing section (needed to run)")
+    if not config.trajectories:
+        problems.append(f"{config.source}: trajectories: none defined")
+    for planned in plan(config):
+        if not planned.ok:
+            problems.append(planned.describe())
+    return problems

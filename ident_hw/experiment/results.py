@@ -1,0 +1,25 @@
+"""Creating a results folder: a fresh timestamped directory with STATUS and the config copy."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from ident_hw.config import Config, resolved_yaml
+from ident_hw.report import mark_status
+
+
+def new_results_folder(config: Config, out: str | Path | None, label: str) -> Path:
+    """``out`` if given (must not hold results already), else ``<output.dir>/<label>-<timestamp>``.
+
+    Writes STATUS ``running`` and ``config.yaml`` (the config with its bases merged in).
+    """
+    if out is None:
+        out = Path(config.output.dir) / f"{label}-{time.strftime('%Y%m%d-%H%M%S')}"
+    folder = Path(out)
+    if (folder / "STATUS").exists():
+        raise FileExistsError(f"{folder} already holds results; choose another --out")
+    (folder / "data").mkdir(parents=True, exist_ok=True)
+    mark_status(folder, "running")
+    (folder / "config.yaml").write_text(resolved_yaml(config.source))
+    return folder

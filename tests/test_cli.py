@@ -1,0 +1,116 @@
+"""The ident-hw command line, driven as a user would (subprocess)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drivers.recording import Recording
+from ident_hw.config import load_config
+from ident_hw.experiment.offline import identify
+from ident_hw.experiment.plan import plan, robot_model
+
+ROOT = Path(__file__).resolve().parent.parent
+CONFIGS = ROOT / "configs"
+
+
+def ident_hw(*args, cwd=None):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "ident_hw.cli", *map(str, args)], capture_output=True,
+                          text=True, cwd=cwd, env=env, timeout=120)
+
+
+def test_help_lists_the_commands():
+    out = ident_hw("--help")
+    assert out.returncode == 0
+    for name in ("check", "run", "identify", "report"):
+        assert name in out.stdout
+    assert "--arm" in ident_hw("run", "--help").stdout
+
+
+def test_check_accepts_the_sim_campaign():
+    out = ident_hw("check", CONFIGS / "sim-3prrr.yaml")
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "triangle: ok" in out.stdout and "everything would run" in out.stdout
+
+
+def test_check_rejects_an_infeasible_trajectory(tmp_path):
+    (tmp_path / "bad.yaml").write_text(
+        f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n"
+        "trajectories:\n  - {name: big, kind: square, size: 0.9}\n"
+        "identification:\n  steps: [{name: s, trajectories: [big], parameters: [m_ee]}]\n  validation: []\n")
+    out = ident_hw("check", tmp_path / "bad.yaml")
+    assert out.returncode == 1
+    assert "big:" in out.stdout and "NOT runnable" in out.stdout
+    assert "INFEASIBLE" in out.stdout or "cannot build" in out.stdout
+
+
+def test_bad_config_names_file_key_and_line(tmp_path):
+    text = (CONFIGS / "robot-3prrr.yaml").read_text().replace("    l1: 0.30", "    l1: -0.30")
+    (tmp_path / "robot.yaml").write_text(text)
+    out = ident_hw("check", tmp_path / "robot.yaml")
+    assert out.returncode == 2
+    line = 1 + text.splitlines().index(next(s for s in text.splitlines() if "l1: -0.30" in s))
+    assert f"robot.yaml, line {line}: robot.geometry.l1" in out.stderr and "positive" in out.stderr
+
+
+def test_run_refuses_hardware_without_arm(tmp_path):
+    out = ident_hw("run", CONFIGS / "hil-3prrr-epos4.yaml", "--out", tmp_path / "r")
+    assert out.returncode == 1
+    assert "--arm" in out.stderr and "can0" in out.stderr
+    assert not (tmp_path / "r").exists()
+
+
+def synthetic_recordings(config, folder: Path) -> list[Path]:
+    """Recordings of the campaign as the drives would report them for a perfectly tracked motion:
+    true-parameter forces as whole mA plus noise, positions in encoder counts (model-made data)."""
+    robot = robot_model(config)
+    scal = [a.scaling() for a in config.robot.actuators]
+    fpa = np.array([s.force_per_amp for s in scal])
+    cpu = np.array([s.counts_per_unit for s in scal])
+    truth = config.sim.truth.to_model()
+    rng = np.random.default_rng(3)
+    paths = []
+    for planned in plan(config):
+        tr = planned.trajectory
+        tau = robot.inverse_dynamics(tr.X, tr.Xd, tr.Xdd, tr.zeta, tr.zetad, tr.zetadd, truth)
+        ma = np.rint(tau / fpa * 1e3 + rng.normal(0.0, config.sim.current_noise * 1e3, tau.shape))
+        n = len(tr.t)
+        rec = Recording(t=tr.t - tr.t[0], cycle=np.arange(n), position=np.rint(tr.Theta * cpu) / cpu,
+                        velocity=tr.Thetad, current=ma * 1e-3, statusword=np.zeros((n, 6), np.int32),
+                        target=tr.Theta, valid=np.ones((n, 6), bool), metadata={"trajectory": tr.name})
+        paths.append(rec.save(folder / f"{tr.name}.npz"))
+    return paths
+
+
+def test_identify_and_report_from_recordings(tmp_path):
+    config = load_config(CONFIGS / "vcan-3prrr.yaml")   # one short sweep, m_c only
+    paths = synthetic_recordings(config, tmp_path)
+    out = ident_hw("identify", CONFIGS / "vcan-3prrr.yaml", *paths, "--out", tmp_path / "res", "--quiet")
+    assert out.returncode == 0, out.stderr
+    assert "m_c" in out.stdout and "truth 603.62" in out.stdout
+    res = tmp_path / "res"
+    assert (res / "STATUS").read_text().strip() == "complete"
+    assert load_config(res / "config.yaml") == config
+    rows = {r["name"]: r for r in json.loads((res / "parameters.json").read_text())["parameters"]}
+    assert rows["m_c"]["identified"] == pytest.approx(603.62, rel=0.01)
+    assert rows["m_c"]["step"] == "carriages" and rows["m_l2"]["step"] == ""
+
+    # the same recordings through the library give the same numbers
+    direct = identify(config, {p.stem: Recording.load(p) for p in paths})
+    assert rows["m_c"]["identified"] == pytest.approx(direct.parameters.identified[0], rel=1e-12)
+
+    (res / "report.html").unlink()
+    out = ident_hw("report", res)
+    assert out.returncode == 0 and (res / "report.html").is_file()
+
+
+def test_identify_with_a_missing_trajectory_fails_clearly(tmp_path):
+    out = ident_hw("identify", CONFIGS / "sim-3prrr.yaml", tmp_path / "absent.npz", "--out", tmp_path / "res")
+    assert out.returncode == 1 and "absent.npz" in out.stderr
