@@ -136,6 +136,9 @@ def test_pdo_mapping_cia402_and_cyclic_following(profile):
             configure_pdos(node, profile)
             node.sdo[0x6060].raw = prof.cyclic_mode
             node.setup_402_state_machine(read_pdos=False)
+            # the rig and the master share this process (and the GIL): canopen's 0.2-0.8 s defaults
+            # are tight for a loaded CI machine
+            node.TIMEOUT_CHECK_TPDO, node.TIMEOUT_SWITCH_STATE_SINGLE, node.TIMEOUT_SWITCH_STATE_FINAL = 1.0, 2.0, 4.0
         received = []
         b.nodes[3].tpdo[1].add_callback(lambda m: received.append(m[0x6064].raw))
         b.master.nmt.state = "OPERATIONAL"
