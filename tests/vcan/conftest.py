@@ -1,0 +1,123 @@
+"""Fixtures of the vcan tests: other processes on the SocketCAN bus, and a ``candump -L`` recording.
+
+Everything here runs inside the emulated guest of ``tools/vcan-vm``, where Python is ~25 times
+slower than on a host (``import can, canopen`` ~7 s, ``numpy``+``scipy`` ~25 s): hence the generous
+time limits below. They bound a hang, they do not judge speed.
+"""
+
+import select
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import can
+import pytest
+
+VCAN_CHANNEL = "vcan0"
+PEERS = Path(__file__).with_name("peers.py")
+START_TIMEOUT = 120.0  # s until a started process is listening on the bus
+STOP_TIMEOUT = 30.0  # s for a process to end once asked to
+MARKER_ID = 0x7FF  # frame the candump fixture sends until it sees it, to know candump is listening
+
+
+def wait_for_line(proc: subprocess.Popen, expected: str, timeout: float) -> None:
+    """Read ``proc``'s stdout lines until one equals ``expected``; fail with its stderr otherwise."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        readable, _, _ = select.select([proc.stdout], [], [], 0.2)
+        if readable:
+            line = proc.stdout.readline()
+            if line.strip() == expected:
+                return
+            if not line:  # EOF: the process ended
+                break
+    proc.kill()
+    _, err = proc.communicate()
+    pytest.fail(f"{proc.args} did not print {expected!r} within {timeout} s (exit code {proc.returncode}); "
+                f"stderr:\n{err}")
+
+
+def stop_process(proc: subprocess.Popen) -> None:
+    """Close ``proc``'s stdin (the peers' signal to end), wait, and kill it if it does not end."""
+    if proc.poll() is None:
+        try:
+            proc.communicate(timeout=STOP_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.communicate()
+
+
+@pytest.fixture
+def peer():
+    """Start ``peers.py MODE ARGS...`` as another process; returns once it listens on the bus."""
+    procs = []
+
+    def start(*args: str) -> subprocess.Popen:
+        proc = subprocess.Popen([sys.executable, str(PEERS), *args], stdin=subprocess.PIPE,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        procs.append(proc)
+        wait_for_line(proc, "ready", START_TIMEOUT)
+        return proc
+
+    yield start
+    for proc in procs:
+        stop_process(proc)
+
+
+class CandumpLog:
+    """``candump -L`` of ``vcan0`` running into a file, read back with python-can's log reader."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self._file = open(path, "w")
+        self._proc = subprocess.Popen(["candump", "-L", VCAN_CHANNEL], stdout=self._file,
+                                      stderr=subprocess.PIPE, text=True)
+
+    def messages(self) -> list:
+        """The frames logged so far (``can.Message``, ``channel`` = interface name), marker frames left out."""
+        return [msg for msg in can.CanutilsLogReader(self.path) if msg.arbitration_id != MARKER_ID]
+
+    def lines(self) -> list:
+        """The raw lines logged so far."""
+        return self.path.read_text().splitlines()
+
+    def wait_for(self, predicate, timeout: float) -> can.Message:
+        """The first logged frame for which ``predicate(msg)`` holds, waiting up to ``timeout`` s for it."""
+        deadline = time.monotonic() + timeout
+        while True:
+            found = [msg for msg in self.messages() if predicate(msg)]
+            if found:
+                return found[0]
+            if time.monotonic() > deadline:
+                pytest.fail(f"no such frame in candump's log within {timeout} s; log:\n" + "\n".join(self.lines()))
+            time.sleep(0.2)
+
+    def wait_listening(self, timeout: float) -> None:
+        """Send marker frames until candump has logged one (it is then listening)."""
+        deadline = time.monotonic() + timeout
+        with can.Bus(interface="socketcan", channel=VCAN_CHANNEL) as bus:
+            while f"{MARKER_ID:03X}#" not in self.path.read_text():
+                if self._proc.poll() is not None or time.monotonic() > deadline:
+                    self.stop()
+                    pytest.fail(f"candump did not log on {VCAN_CHANNEL} within {timeout} s "
+                                f"(exit code {self._proc.returncode}): {self._proc.stderr.read()}")
+                bus.send(can.Message(arbitration_id=MARKER_ID, is_extended_id=False, data=b""))
+                time.sleep(0.2)
+
+    def stop(self) -> None:
+        if self._proc.poll() is None:
+            self._proc.terminate()
+            self._proc.wait(STOP_TIMEOUT)
+        self._file.close()
+
+
+@pytest.fixture
+def candump(tmp_path):
+    """A running ``candump -L vcan0`` (started before the test's other processes) and its log."""
+    log = CandumpLog(tmp_path / "candump.log")
+    try:
+        log.wait_listening(START_TIMEOUT)
+        yield log
+    finally:
+        log.stop()
