@@ -198,3 +198,27 @@ def test_bad_input_shapes_and_nan():
         robot.inverse_kinematics(np.full(3, np.nan), np.zeros(3))
     with pytest.raises(ValueError, match="l2 must be positive"):
         Geometry(l1=0.3, l2=-0.3, s1=0.1, s2=0.1, h=0.1, a=0.4, gamma=(0, 2, 4))
+
+
+def test_reduced_mass_matrix_gives_the_kinetic_energy(robot):
+    """T = 1/2 Thetad^T M_r Thetad, with T from the body velocities (eqs. 17-20)."""
+    t = np.linspace(0, 3, 50)
+    X, Xd, Xdd, z, zd, zdd = smooth_motion(t, seed=13)
+    Theta, Thetad, _ = robot.actuated_motion(X, Xd, Xdd, z, zd, zdd)
+    M, c = robot.reduced_dynamics(Theta, Thetad, TRUE, X)
+    assert np.allclose(M, np.swapaxes(M, 1, 2), rtol=0, atol=1e-12 * np.abs(M).max())
+    assert np.all(np.linalg.eigvalsh(M) > 0)
+    T = robot.kinetic_energy(X, Xd, z, zd, TRUE)
+    assert np.allclose(0.5 * np.einsum("ni,nij,nj->n", Thetad, M, Thetad), T, rtol=1e-12, atol=0)
+    # at rest, the bias forces vanish (no gravity, friction zero at zero velocity)
+    _, c0 = robot.reduced_dynamics(Theta, np.zeros_like(Thetad), TRUE, X)
+    assert np.abs(c0).max() < 1e-12
+
+
+def test_forward_kinematics_refuses_another_working_mode(robot):
+    X, zeta = random_poses(5, seed=21)
+    other = ThreePRRR(Geometry(**{**GEO.__dict__, "modes": (1, -1, 1)}))
+    theta_other, _ = other.inverse_kinematics(X, zeta)
+    with pytest.raises(KinematicsError, match="working mode") as err:
+        robot.forward_kinematics(np.c_[theta_other, zeta], X)
+    assert err.value.chain == 2

@@ -251,10 +251,9 @@ class Kinematics:
         """All coordinates and rates from the actuated motion (each (N, 6)); pose by forward kinematics."""
         Theta, Thetad, Thetadd = (batch(v, 6, name) for v, name in
                                   ((Theta, "Theta"), (Thetad, "Thetad"), (Thetadd, "Thetadd")))
-        X = self.forward_kinematics(Theta, X_guess)
+        X, beta = self._forward_kinematics(Theta, X_guess)
         theta, zeta = Theta[:, :3], Theta[:, 3:]
         thetad, zetad = Thetad[:, :3], Thetad[:, 3:]
-        _, beta = self._raw_ik(X, zeta)
         A, B = self.velocity_matrices(X, theta, beta)
         J = self._jacobian_from(X, A, B)
         Xd = np.einsum("nij,nj->ni", J, Thetad)
@@ -322,7 +321,10 @@ class Kinematics:
         block's last pose), which suits a time series. The result is checked to lie in the
         configured working modes; otherwise :class:`KinematicsError` names the sample.
         """
-        Theta = batch(Theta, 6, "Theta")
+        return self._forward_kinematics(batch(Theta, 6, "Theta"), X_guess)[0]
+
+    def _forward_kinematics(self, Theta, X_guess):
+        """Pose ``X`` (N, 3) and passive angles ``beta`` (N, 3) of a batch ``Theta``."""
         theta, zeta = Theta[:, :3], Theta[:, 3:]
         guess = np.asarray(X_guess, dtype=float)
         if guess.ndim == 2:
@@ -336,8 +338,11 @@ class Kinematics:
                 X[sl], ok[sl] = self._newton(np.repeat(start[None], len(Theta[sl]), 0), theta[sl], zeta[sl])
                 start = X[sl][-1] if ok[sl][-1] else start
         raise_at_first(~ok, KinematicsError, "forward kinematics did not converge")
-        theta_back, _ = self._raw_ik(X, zeta)
-        wrong_mode = np.abs(wrap(theta_back - theta)) > 1e-6
-        raise_at_first(wrong_mode, KinematicsError,
+        # Working mode m_i of eq. 6: theta_i = psi_i + m_i acos(...), so sin(theta_i - psi_i) has the sign m_i.
+        rho = self.platform_points(X) - self.base_points(zeta)
+        side = rho[..., 0] * np.sin(theta) - rho[..., 1] * np.cos(theta)
+        raise_at_first(side * self.modes <= 0, KinematicsError,
                        "forward kinematics reached another working mode (give a closer X_guess)", X)
-        return X
+        d = rho - self.geometry.l1 * e(theta)
+        beta = self._beta_ref + wrap(np.arctan2(d[..., 1], d[..., 0]) - self._beta_ref)
+        return X, beta

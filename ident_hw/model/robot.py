@@ -113,6 +113,20 @@ class ThreePRRR:
         m = self.motion(X, Xd, zero, zeta, zetad, zero)
         return dynamics.energy_regressor(self.kinematics, m)
 
+    def reduced_dynamics(self, Theta, Thetad, params: InertialParams, X_guess):
+        """Dynamics in the actuated coordinates: ``M_r(Theta) Thetadd + c(Theta, Thetad) = tau``.
+
+        Returns the mass matrix ``M_r`` (N, 6, 6) (kg, kg·m, kg·m² blocks) and the bias forces ``c``
+        (N, 6): velocity terms and friction. ``M_r = sum_b Jac_b^T mu_b Jac_b`` over the bodies.
+        """
+        Theta = batch(Theta, 6, "Theta")
+        m0 = self.motion_from_actuated(Theta, Thetad, np.zeros_like(Theta), X_guess)
+        return dynamics.reduced_dynamics(self.kinematics, m0, params, self.coulomb_width)
+
+    def friction(self, Thetad, params: InertialParams) -> np.ndarray:
+        """Friction forces (N, 6): ``f_v Thetad + f_c tanh(Thetad / coulomb_width)``."""
+        return dynamics.friction(batch(Thetad, 6, "Thetad"), params, self.coulomb_width)
+
     def forward_dynamics(self, Theta, Thetad, tau, params: InertialParams, X_guess) -> np.ndarray:
         """Actuated accelerations ``Thetadd`` (N, 6) under actuator forces ``tau`` (N, 6).
 
@@ -120,10 +134,8 @@ class ThreePRRR:
         ``M_r(Theta) Thetadd + c(Theta, Thetad) = tau`` with ``M_r = sum_b Jac_b^T mu_b Jac_b`` and ``c``
         the forces at zero actuated acceleration (velocity terms and friction).
         """
-        Theta = batch(Theta, 6, "Theta")
+        M, c = self.reduced_dynamics(Theta, Thetad, params, X_guess)
         tau = batch(tau, 6, "tau")
-        m0 = self.motion_from_actuated(Theta, Thetad, np.zeros_like(Theta), X_guess)
-        M, c = dynamics.reduced_dynamics(self.kinematics, m0, params, self.coulomb_width)
         return np.linalg.solve(M, (tau - c)[..., None])[..., 0]
 
     def simulate(self, t, Theta0, Thetad0, force, params: InertialParams, X0, rtol=1e-10, atol=1e-12) -> Simulation:
