@@ -100,6 +100,7 @@ class EposDrive:
         while True:
             if self.node.nmt.timestamp is not None:
                 return
+            self.node.nmt.send_command(0x80)  # enter PRE-OPERATIONAL: a STOPPED node answers no SDO
             try:
                 self._var((0x1000, 0)).raw
                 return
@@ -501,6 +502,21 @@ class DriveGroup:
                 raise ConfigError(f"{what}: axis {a.name!r} sample {bad[0]} = {targets[bad[0], i]:.6g} "
                                   f"outside its limits [{a.position_min:g}, {a.position_max:g}]")
 
+    def _with_error_code(self, error: BaseException) -> BaseException:
+        """A statusword fault has no code: complete it with the drive's 0x603F (over SDO)."""
+        if not isinstance(error, DriveFault) or error.code is not None:
+            return error
+        drive = next((d for d in self.drives if d.label == error.node), None)
+        if drive is None:
+            return error
+        try:
+            code = drive.read(drive.profile.error_code)
+        except NodeError:
+            return error
+        if not code:
+            return error
+        return DriveFault(error.node, code, f"{describe(code, drive.profile.name)} ({error.text})")
+
     # -- streaming ---------------------------------------------------------------------------------
     def run_cyclic(self, targets: np.ndarray, period: float, output: str | None = None,
                    raw_log: str | None = None, metadata: dict | None = None,
@@ -534,15 +550,15 @@ class DriveGroup:
             raise ConfigError("run_cyclic targets: beyond the I32 range of the drives' counts")
         sync_timeout = sync_timeout or max(0.5, 50 * period)
 
-        for d in self.drives:
-            d.prepare_cyclic(period)
         actual = self.positions()
         for i, a in enumerate(self.axes):
             if abs(actual[i] - targets[0, i]) > a.following_error_window:
                 raise ConfigError(f"{a.label} is at {actual[i]:.6g}, the trajectory starts at "
                                   f"{targets[0, i]:.6g}: move_to() the start first")
+        # set-point first, so that the drive holds its position when the cyclic mode starts
         for d, c in zip(self.drives, counts[0]):
             d.write(d.profile.cyclic_target, int(c))
+        self._guarded(lambda: [d.prepare_cyclic(period) for d in self.drives])
         self.enable()
 
         meta = dict(metadata or {}, sync_period=period, with_velocity=self.with_velocity,
@@ -581,6 +597,7 @@ class DriveGroup:
         finally:
             self.network.sync.stop()
             if error is not None:
+                error = self._with_error_code(error)
                 self.stop_motion()
             self.network.notifier.remove_listener(assembler)
             if raw is not None:
@@ -589,6 +606,11 @@ class DriveGroup:
             recording = recorder.close(status, late_frames=assembler.late_frames,
                                        error_frames=assembler.error_frames,
                                        raw_log=str(raw_log) if raw_log else None)
+        if len(recording.t):
+            sent = counts[: len(recording.t)] / [a.scaling.counts_per_unit for a in self.axes]
+            late = np.any(np.abs(recording.target - sent) > 0.5 / np.array(
+                [a.scaling.counts_per_unit for a in self.axes]), axis=1)
+            recording.metadata["late_setpoints"] = int(np.count_nonzero(late))
         if error is not None:
             if isinstance(error, DriveFault):
                 error.recording = output

@@ -131,14 +131,18 @@ class Recording:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Recording":
+        """Read a recording written by :meth:`save`."""
         try:
-            with np.load(path, allow_pickle=False) as data:
-                missing = [k for k in (*ARRAYS, "metadata") if k not in data]
-                if missing:
-                    raise ConfigError(f"{path}: not a recording, missing arrays {missing}")
-                return cls(**{k: data[k] for k in ARRAYS}, metadata=json.loads(str(data["metadata"])))
+            data = np.load(path, allow_pickle=False)
         except (OSError, ValueError) as exc:
             raise ConfigError(f"{path}: cannot read recording: {exc}") from exc
+        if not isinstance(data, np.lib.npyio.NpzFile):
+            raise ConfigError(f"{path}: not a recording (an NPZ file with arrays {ARRAYS})")
+        with data:
+            missing = [k for k in (*ARRAYS, "metadata") if k not in data]
+            if missing:
+                raise ConfigError(f"{path}: not a recording, missing arrays {missing}")
+            return cls(**{k: data[k] for k in ARRAYS}, metadata=json.loads(str(data["metadata"])))
 
 
 def _json_default(obj):
