@@ -171,9 +171,9 @@ def check_trajectory(traj: Trajectory, robot: ThreePRRR, limits: Limits) -> Repo
         names = [n for n, _ in COLUMNS[derivative]]
         value = np.abs(getattr(traj, derivative))
         first(quantity, value > limit, value, limit, names, UNITS[derivative], chains6)
-        # Mean rate over each step (finite difference): exceeds the limit only if the true rate does
-        # somewhere in the step, or if the positions jump (a file edited by hand).
-        step = np.vstack([np.abs(np.diff(getattr(traj, position), axis=0)) / dt, np.zeros((1, 6))])
+        # Mean rate over each step (finite difference), reported at the step's end: exceeds the
+        # limit only if the true rate does within the step, or if the positions jump (hand edit).
+        step = np.vstack([np.zeros((1, 6)), np.abs(np.diff(getattr(traj, position), axis=0)) / dt])
         first(quantity, step > limit, step, limit, [f"{n} (finite difference)" for n in names],
               UNITS[derivative], chains6)
     found.sort(key=lambda v: v.sample)

@@ -24,8 +24,17 @@ from .trajectory import Trajectory
 if TYPE_CHECKING:
     from ident_hw.model import ThreePRRR
 
-TRIANGLE_VERTICES = np.array([[0.0, 0.12], [-0.1039, -0.06], [0.1039, -0.06]])
+TRIANGLE_CIRCUMRADIUS = 0.12
 TRIANGLE_ALPHA = np.radians(-20.0)
+
+
+def triangle_vertices(circumradius: float = TRIANGLE_CIRCUMRADIUS) -> np.ndarray:
+    """``(3, 2)`` vertices (m) of the equilateral triangle centred at the origin, first vertex on +y.
+
+    With the paper's circumradius 0.12 m: (0, 0.12), (-0.1039, -0.06), (0.1039, -0.06).
+    """
+    angles = np.radians([90.0, 210.0, 330.0])
+    return circumradius * np.column_stack([np.cos(angles), np.sin(angles)])
 
 
 def carriage_sweep(robot: ThreePRRR, limits: Limits, amplitude: float = 0.06, rate: float = 250.0,
@@ -69,14 +78,17 @@ def five_squares(robot: ThreePRRR, limits: Limits, side: float = 0.12, step: flo
 
 
 def validation_triangle(robot: ThreePRRR, limits: Limits, rate: float = 250.0, dwell: float = 0.0,
-                        carriages: np.ndarray | str = "optimise") -> Trajectory:
-    """Home -> the triangle (closed) -> home at ``alpha = -20 deg``, carriages as ``carriages``.
+                        carriages: np.ndarray | str = "optimise", circumradius: float = TRIANGLE_CIRCUMRADIUS,
+                        orientation: float = TRIANGLE_ALPHA) -> Trajectory:
+    """Home -> the triangle (closed) -> home at ``orientation`` (rad, -20 deg), carriages as ``carriages``.
 
     ``carriages`` is ``"optimise"`` (default: schedule maximising the singularity margins) or a
     user-given ``(6, 3)`` array at the waypoints home, v1, v2, v3, v1, home.
     """
-    xy = np.vstack([HOME_POSE[:2], TRIANGLE_VERTICES, TRIANGLE_VERTICES[:1], HOME_POSE[:2]])
-    alpha = np.r_[0.0, np.full(4, TRIANGLE_ALPHA), 0.0]
+    vertices = triangle_vertices(circumradius)
+    xy = np.vstack([HOME_POSE[:2], vertices, vertices[:1], HOME_POSE[:2]])
+    alpha = np.r_[0.0, np.full(4, orientation), 0.0]
     poses = np.column_stack([xy, alpha])
-    meta = {"experiment": "validation triangle"}
+    meta = {"experiment": "validation triangle", "circumradius_m": circumradius,
+            "orientation_deg": float(np.degrees(orientation))}
     return pose_trajectory(robot, "triangle", poses, limits, rate, carriages, dwell, meta)

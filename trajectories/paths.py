@@ -14,7 +14,7 @@ import numpy as np
 
 from .feasibility import Limits
 from .redundancy import CarriageSchedule, carriage_schedule
-from .timing import PiecewisePath, rest_to_rest_path, time_grid
+from .timing import rest_to_rest_path, time_grid
 from .trajectory import Trajectory, actuator_map
 
 if TYPE_CHECKING:
@@ -37,7 +37,7 @@ def _identity(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray):
 def pose_trajectory(robot: ThreePRRR, name: str, poses: np.ndarray, limits: Limits, rate: float = 250.0,
                     carriages: np.ndarray | str = "blocked", dwell: float = 0.0,
                     metadata: dict | None = None) -> Trajectory:
-    """Trajectory through pose waypoints, at rest at each.
+    """Trajectory through pose waypoints, at rest at each (segment durations are whole sample periods).
 
     Args:
         robot: the model.
@@ -68,7 +68,8 @@ def pose_trajectory(robot: ThreePRRR, name: str, poses: np.ndarray, limits: Limi
     segments = schedule.segments(poses)
     waypoints = np.vstack([segments[0].start] + [seg.end for seg in segments])
     shapes = [seg.shape if seg.shape is not None and seg.shape.size else None for seg in segments]
-    path = rest_to_rest_path(waypoints, actuator_map(robot), limits.max_speed, limits.max_accel, shapes, dwell)
+    path = rest_to_rest_path(waypoints, actuator_map(robot), limits.max_speed, limits.max_accel, shapes, dwell,
+                             time_step=1.0 / rate)
     meta = {"generator": "pose_trajectory", "waypoints": poses.tolist(), "carriages": schedule.zeta.tolist(),
             "carriage_bends": schedule.bends.tolist(), "rate_hz": rate, **(metadata or {})}
     t = time_grid(path.duration, rate)
@@ -82,7 +83,7 @@ def actuator_trajectory(robot: ThreePRRR, name: str, waypoints: np.ndarray, limi
     The pose follows from the model's forward kinematics, continued from home.
     """
     waypoints = np.asarray(waypoints, dtype=float)
-    path: PiecewisePath = rest_to_rest_path(waypoints, _identity, limits.max_speed, limits.max_accel, dwell=dwell)
+    path = rest_to_rest_path(waypoints, _identity, limits.max_speed, limits.max_accel, dwell=dwell, time_step=1.0 / rate)
     t = time_grid(path.duration, rate)
     meta = {"generator": "actuator_trajectory", "waypoints": waypoints.tolist(), "rate_hz": rate,
             **(metadata or {})}

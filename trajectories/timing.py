@@ -167,6 +167,7 @@ def rest_to_rest_path(
     shapes: list[np.ndarray | None] | None = None,
     dwell: float = 0.0,
     utilisation: float = 0.9,
+    time_step: float = 0.0,
 ) -> PiecewisePath:
     """Path through ``waypoints`` (``(M, d)``), at rest at each, timed by the actuator limits.
 
@@ -177,7 +178,14 @@ def rest_to_rest_path(
         shapes: optional per-segment sine amplitudes (see :class:`Segment`), ``M - 1`` entries.
         dwell: time (s) held at rest at each vertex, start and end included (0 for none).
         utilisation: fraction of the limits aimed at.
+        time_step: if positive, every duration (and the dwell) is rounded up to a multiple of it,
+            so that a grid of this step samples every vertex exactly.
     """
+
+    def quantise(duration: float) -> float:
+        return float(np.ceil(duration / time_step - 1e-9) * time_step) if time_step > 0 else duration
+
+    dwell = quantise(dwell) if dwell > 0 else 0.0
     waypoints = np.asarray(waypoints, dtype=float)
     if waypoints.ndim != 2 or len(waypoints) < 2:
         raise ValueError(f"waypoints must be (M, d) with M >= 2, got shape {waypoints.shape}")
@@ -193,7 +201,7 @@ def rest_to_rest_path(
         probe = Segment(a, b, 1.0, shape)
         if np.allclose(a, b) and shape is None:
             continue
-        duration = segment_duration(probe.geometry, to_actuators, max_speed, max_accel, utilisation)
+        duration = quantise(segment_duration(probe.geometry, to_actuators, max_speed, max_accel, utilisation))
         segments.append(Segment(a, b, duration, shape))
         hold(b)
     return PiecewisePath(segments)
