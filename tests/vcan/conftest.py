@@ -21,26 +21,27 @@ STOP_TIMEOUT = 30.0  # s for a process to end once asked to
 MARKER_ID = 0x7FF  # frame the candump fixture sends until it sees it, to know candump is listening
 
 
-def wait_for_line(proc: subprocess.Popen, expected: str, timeout: float) -> None:
-    """Read ``proc``'s stdout lines until one equals ``expected``; fail with its stderr otherwise."""
+def wait_for_line(proc: subprocess.Popen, prefix: str, timeout: float) -> None:
+    """Read ``proc``'s stdout lines until one starts with ``prefix``; fail with its stderr otherwise."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         readable, _, _ = select.select([proc.stdout], [], [], 0.2)
         if readable:
             line = proc.stdout.readline()
-            if line.strip() == expected:
+            if line.startswith(prefix):
                 return
             if not line:  # EOF: the process ended
                 break
     proc.kill()
     _, err = proc.communicate()
-    pytest.fail(f"{proc.args} did not print {expected!r} within {timeout} s (exit code {proc.returncode}); "
+    pytest.fail(f"{proc.args} did not print {prefix!r} within {timeout} s (exit code {proc.returncode}); "
                 f"stderr:\n{err}")
 
 
 def stop_process(proc: subprocess.Popen) -> None:
-    """Close ``proc``'s stdin (the peers' signal to end), wait, and kill it if it does not end."""
+    """End ``proc`` with SIGTERM (killing it if it does not end within STOP_TIMEOUT) and reap it."""
     if proc.poll() is None:
+        proc.terminate()
         try:
             proc.communicate(timeout=STOP_TIMEOUT)
         except subprocess.TimeoutExpired:
@@ -49,20 +50,26 @@ def stop_process(proc: subprocess.Popen) -> None:
 
 
 @pytest.fixture
-def peer():
-    """Start ``peers.py MODE ARGS...`` as another process; returns once it listens on the bus."""
+def start_process():
+    """``start(argv, ready)`` runs ``argv`` as another process and returns it once it printed a line
+    starting with ``ready`` (it is then on the bus); all are stopped after the test."""
     procs = []
 
-    def start(*args: str) -> subprocess.Popen:
-        proc = subprocess.Popen([sys.executable, str(PEERS), *args], stdin=subprocess.PIPE,
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    def start(argv: list, ready: str) -> subprocess.Popen:
+        proc = subprocess.Popen([str(arg) for arg in argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
         procs.append(proc)
-        wait_for_line(proc, "ready", START_TIMEOUT)
+        wait_for_line(proc, ready, START_TIMEOUT)
         return proc
 
     yield start
     for proc in procs:
         stop_process(proc)
+
+
+def start_peer(start_process, *args: str) -> subprocess.Popen:
+    """Start ``peers.py ARGS...`` with ``start_process``."""
+    return start_process([sys.executable, PEERS, *args], "ready")
 
 
 class CandumpLog:

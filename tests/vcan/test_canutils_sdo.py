@@ -1,6 +1,7 @@
-"""can-utils against an emulated drive: a raw SDO upload of the identity object's vendor ID."""
+"""can-utils against the simulated rig: a raw SDO upload of a drive's identity vendor ID."""
 
 import subprocess
+import sys
 
 import pytest
 
@@ -8,12 +9,13 @@ from .conftest import VCAN_CHANNEL
 
 pytestmark = pytest.mark.vcan
 
-NODE_ID = 1
+NODE_ID = 1  # the first of the rig's six drives
 SDO_TIMEOUT = 30.0  # s; the emulated drive answers from a Python thread in a slow guest
 
 
-def test_cansend_sdo_upload_of_vendor_id(peer, candump):
-    peer("node", VCAN_CHANNEL, str(NODE_ID), "epos4")
+def test_cansend_sdo_upload_of_vendor_id(start_process, candump):
+    start_process([sys.executable, "-m", "drivers.sim", "--interface", "socketcan", "--channel", VCAN_CHANNEL,
+                   "--profile", "epos4"], ready="simulated rig:")
     # CiA 301 SDO initiate upload request (ccs=2 -> 0x40) for index 0x1018 (little endian), subindex 1
     subprocess.run(["cansend", VCAN_CHANNEL, f"{0x600 + NODE_ID:03X}#4018100100000000"], check=True, timeout=30)
 

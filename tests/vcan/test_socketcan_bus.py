@@ -8,15 +8,15 @@ import can
 import pytest
 from can.interfaces.socketcan import CyclicSendTask
 
-from .conftest import VCAN_CHANNEL
+from .conftest import VCAN_CHANNEL, start_peer
 
 pytestmark = pytest.mark.vcan
 
 REPLY_TIMEOUT = 10.0  # s; a busy emulated guest can stall a process for seconds, this only bounds a hang
 
 
-def test_two_processes_exchange_frames(peer):
-    peer("echo", VCAN_CHANNEL)
+def test_two_processes_exchange_frames(start_process):
+    start_peer(start_process, "echo", VCAN_CHANNEL)
     round_trips = []
     with can.Bus(interface="socketcan", channel=VCAN_CHANNEL) as bus:
         for i in range(40):  # one frame at a time: the echo process is paced by its replies
@@ -44,11 +44,11 @@ SYNC_RATE = 100.0  # Hz
 SYNC_COUNT = 300
 
 
-def test_sync_from_kernel_broadcast_manager(peer):
+def test_sync_from_kernel_broadcast_manager(start_process):
     """SYNC sent by python-can's ``send_periodic`` on socketcan (the kernel's BCM), received by another
     process; the period jitter comes from the receiver's kernel timestamps, so a slow Python
     receiver does not distort it."""
-    recorder = peer("record", VCAN_CHANNEL, hex(SYNC_ID), str(SYNC_COUNT))
+    recorder = start_peer(start_process, "record", VCAN_CHANNEL, hex(SYNC_ID), str(SYNC_COUNT))
     period = 1.0 / SYNC_RATE
     with can.Bus(interface="socketcan", channel=VCAN_CHANNEL) as bus:
         task = bus.send_periodic(can.Message(arbitration_id=SYNC_ID, is_extended_id=False, data=b""), period)
