@@ -8,6 +8,7 @@ Public API::
 
 from .feasibility import InfeasibleTrajectory, Limits, Report, Violation, check_trajectory
 from .files import TrajectoryFileError, load, save
+from .fourier import FourierExcitation, optimise_excitation
 from .paper import carriage_sweep, five_squares, square, validation_triangle
 from .paths import actuator_trajectory, pose_trajectory
 from .redundancy import CarriageSchedule, carriage_schedule
@@ -15,6 +16,7 @@ from .trajectory import Trajectory
 
 __all__ = [
     "CarriageSchedule",
+    "FourierExcitation",
     "InfeasibleTrajectory",
     "Limits",
     "Report",
@@ -27,6 +29,7 @@ __all__ = [
     "check_trajectory",
     "five_squares",
     "load",
+    "optimise_excitation",
     "pose_trajectory",
     "save",
     "square",
