@@ -49,7 +49,7 @@ def cmd_identify(args) -> int:
     config = _load(args.config)
     recordings = dict(load_recording(path, config) for path in args.data)
     folder = new_results_folder(config, args.out, "identify")
-    results = identify(config, recordings, progress=None if args.quiet else (lambda m: print(m, file=sys.stderr)))
+    results = identify(config, recordings, progress=_logger(args))
     mark_status(folder, "complete")
     page = save_results(folder, results)
     print("\n".join(summary_lines(folder)))
@@ -76,11 +76,29 @@ def cmd_run(args) -> int:
         print(f"checks passed. {config.bus.interface}:{config.bus.channel} is not the simulated rig's bus: "
               "nothing moves without --arm", file=sys.stderr)
         return EXIT_FAIL
-    # TODO(integration): the bus campaign (drives bring-up, streaming, recording) waits for the
-    # drivers' master and simulated rig; until then, run stops after the checks.
-    print("checks passed; the bus campaign is not integrated in this build yet "
-          "(use `ident-hw identify` on recordings)", file=sys.stderr)
-    return EXIT_FAIL
+    from ident_hw.experiment.results import new_results_folder
+    from ident_hw.experiment.runner import CampaignStopped, run_campaign
+    from ident_hw.report import summary_lines
+    folder = new_results_folder(config, args.out, "run")
+    print(f"results folder: {folder}", file=sys.stderr)
+    try:
+        run_campaign(config, folder, show_progress=_progress_bars(args), log=_logger(args))
+    except CampaignStopped as exc:
+        print(f"STOPPED: {exc.reason}\nmotion stopped, drives disabled; recordings kept in {folder / 'data'}",
+              file=sys.stderr)
+        return EXIT_INTERRUPTED if exc.interrupted else EXIT_FAIL
+    print("\n".join(summary_lines(folder)))
+    print(f"results: {folder}  (report: {folder / 'report.html'})")
+    return EXIT_OK
+
+
+def _progress_bars(args) -> bool:
+    """tqdm bars only on a terminal and without --quiet."""
+    return not args.quiet and sys.stderr.isatty()
+
+
+def _logger(args):
+    return None if args.quiet else (lambda message: print(message, file=sys.stderr, flush=True))
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -15,13 +15,13 @@ import yaml
 from .schema import ConfigError, build
 from .sections import (ActuatorConfig, BusConfig, Config, FilterConfig, GeometryConfig, HomingConfig,
                        IdentificationConfig, InertialConfig, LimitsConfig, OnlineConfig,
-                       OutputConfig, RobotConfig, SafetyConfig, SimConfig, StepConfig, TrajectoryConfig)
+                       OutputConfig, RobotConfig, SafetyConfig, SimConfig, SimFaultConfig, StepConfig, TrajectoryConfig)
 from .source import compose_file
 
 __all__ = [
     "load_config", "resolved_yaml", "ConfigError", "Config", "RobotConfig", "GeometryConfig",
     "InertialConfig", "ActuatorConfig", "LimitsConfig", "HomingConfig", "SafetyConfig", "BusConfig",
-    "SimConfig", "TrajectoryConfig", "IdentificationConfig", "StepConfig",
+    "SimConfig", "SimFaultConfig", "TrajectoryConfig", "IdentificationConfig", "StepConfig",
     "FilterConfig", "OnlineConfig", "OutputConfig",
 ]
 

@@ -208,6 +208,17 @@ class BusConfig:
 
 
 @dataclass(frozen=True)
+class SimFaultConfig:
+    """A drive fault the in-process simulated rig raises during a run (tests, demos): drive
+    ``node_id`` sends EMCY ``code`` and goes to FAULT ``after`` s into trajectory ``trajectory``."""
+
+    trajectory: str
+    after: float = field(metadata=spec(non_negative, unit="s"))
+    node_id: int = field(metadata=spec(in_range(1, 127)))
+    code: int = field(default=0x2310, metadata=spec(in_range(0x1000, 0xFFFF), doc="EMCY error code"))
+
+
+@dataclass(frozen=True)
 class SimConfig:
     """The simulated rig: its TRUE parameters (unknown to the identification), its drives'
     position loops and the measurement noise (currents are reported in whole mA, positions in
@@ -219,6 +230,7 @@ class SimConfig:
     damping: float = field(default=1.0, metadata=spec(positive))
     in_process: bool = True
     seed: int = 0
+    fault: SimFaultConfig | None = None
 
 
 @dataclass(frozen=True)
@@ -349,6 +361,15 @@ class Config:
                 if t not in names:
                     raise FieldError(f"identification.validation[{j}]",
                                      f"no trajectory named {t!r}; defined: {list(names)}")
+        fault = self.sim.fault if self.sim is not None else None
+        if fault is not None:
+            if fault.trajectory not in names:
+                raise FieldError("sim.fault.trajectory", f"no trajectory named {fault.trajectory!r}; "
+                                 f"defined: {list(names)}")
+            if fault.node_id not in [a.node_id for a in self.robot.actuators]:
+                raise FieldError("sim.fault.node_id", f"no actuator with node id {fault.node_id}")
+            if not self.sim.in_process:
+                raise FieldError("sim.fault", "fault injection needs the in-process rig (sim.in_process: true)")
 
     @property
     def simulated(self) -> bool:

@@ -51,7 +51,8 @@ def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
     """
     path = Path(path)
     if path.suffix in RAW_LOG_SUFFIXES:
-        rec = decode_log(path, [a.to_driver() for a in config.robot.actuators])
+        meta = {"sync_period": 1.0 / config.bus.sync_rate} if config.bus is not None else {}
+        rec = decode_log(path, [a.to_driver() for a in config.robot.actuators], metadata=meta)
     else:
         rec = Recording.load(path)
     return str(rec.metadata.get("trajectory", path.stem)), rec
@@ -69,9 +70,19 @@ def fill_gaps(t: np.ndarray, values: np.ndarray) -> np.ndarray:
     return out
 
 
+def sample_times(rec: Recording) -> np.ndarray:
+    """Sample times (s) of a recording: the SYNC grid ``cycle × sync_period`` when the
+    recording knows its SYNC period (the drives sample on SYNC; the host's reception times
+    carry its scheduling jitter), else the recorded ``t``."""
+    period = rec.metadata.get("sync_period")
+    if period:
+        return (np.asarray(rec.cycle) - rec.cycle[0]) * float(period)
+    return np.asarray(rec.t, dtype=float)
+
+
 def prepare(config: Config, robot: ThreePRRR, name: str, rec: Recording) -> Prepared:
     """Recording → filtered motion, regressor and forces, decimated in parallel."""
-    t = np.asarray(rec.t, dtype=float)
+    t = sample_times(rec)
     if len(t) < 3:
         raise ValueError(f"recording of {name!r} has {len(t)} samples: too few to identify from")
     rate = 1.0 / float(np.median(np.diff(t)))

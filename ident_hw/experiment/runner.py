@@ -1,0 +1,194 @@
+"""The campaign on the bus: the one place that wires bus, rig, drives, trajectories, recording
+and identification together.
+
+    folder = new_results_folder(config, None, "run")
+    results = run_campaign(config, folder)        # raises CampaignStopped on Ctrl-C or a fault
+
+:func:`run_campaign` brings the drives up (homes them on the simulated rig, which powers up at
+the home pose; on hardware ``ident-hw home`` does that first), and for each trajectory moves
+slowly to its start, streams it at the SYNC rate and records it (``data/<name>.npz`` decoded,
+``data/<name><raw_log>`` raw CAN log). Then it identifies and validates
+(:func:`ident_hw.experiment.offline.identify`) and writes the results folder
+(:func:`ident_hw.report.save_results`). On Ctrl-C or a drive fault the drives are stopped and
+disabled by the driver, the recordings so far stay on disk, STATUS says ``partial: <why>`` and
+:class:`CampaignStopped` is raised. ``data/drives.json`` holds the CiA 402 state of every drive
+after the run, as the master read it (and as the in-process rig holds it).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import threading
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Callable, Iterator
+
+import can
+from tqdm import tqdm
+
+from drivers.bus import SYNC_COB_ID
+from drivers.epos import DriveGroup
+from drivers.errors import DriveError, NodeError
+from drivers.recording import Recording
+from ident_hw.config import Config
+from ident_hw.report import Results, mark_status, save_results
+
+from .offline import identify
+from .plan import PlannedTrajectory, plan, sample_rate
+from .session import Session, open_session
+
+#: profile-position moves to a trajectory's start run at this fraction of each axis' speed limit
+APPROACH_SPEED = 0.2
+
+
+class CampaignStopped(Exception):
+    """The campaign ended early (Ctrl-C or a fault); the results folder is marked partial.
+
+    ``interrupted`` is True for Ctrl-C; ``cause`` is the original exception.
+    """
+
+    def __init__(self, folder: Path, reason: str, cause: BaseException):
+        super().__init__(f"{reason} (partial results in {folder})")
+        self.folder, self.reason, self.cause = folder, reason, cause
+        self.interrupted = isinstance(cause, KeyboardInterrupt)
+
+
+class _SyncCounter(can.Listener):
+    """Counts the SYNC frames seen on the bus (notifier thread): the progress of a stream."""
+
+    def __init__(self) -> None:
+        self.count = 0
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.arbitration_id == SYNC_COB_ID and not msg.is_error_frame:
+            self.count += 1
+
+
+@contextmanager
+def _progress(network, name: str, cycles: int, enabled: bool) -> Iterator[None]:
+    """A tqdm bar of the SYNC cycles of one stream, refreshed from its own thread."""
+    if not enabled:
+        yield
+        return
+    counter = _SyncCounter()
+    network.notifier.add_listener(counter)
+    bar = tqdm(total=cycles, desc=f"{name:>10}", unit="cycle", file=sys.stderr, leave=True)
+    done = threading.Event()
+
+    def refresh() -> None:
+        while not done.wait(0.2):
+            bar.n = min(counter.count, cycles)
+            bar.refresh()
+    thread = threading.Thread(target=refresh, name="progress", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()
+        bar.n = min(counter.count, cycles)
+        bar.close()
+        network.notifier.remove_listener(counter)
+
+
+@contextmanager
+def _injected_fault(session: Session, name: str) -> Iterator[None]:
+    """Arm the config's ``sim.fault`` when trajectory ``name`` starts streaming."""
+    fault = session.config.sim.fault if session.config.sim is not None else None
+    if fault is None or fault.trajectory != name or session.rig is None:
+        yield
+        return
+    timer = threading.Timer(fault.after, session.rig.emcy, (fault.node_id, fault.code))
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()
+
+
+def _drive_states(session: Session, group: DriveGroup) -> dict:
+    """CiA 402 state of every drive: read by the master over SDO, and the in-process rig's own."""
+    master = {}
+    for drive in group.drives:
+        try:
+            master[drive.label] = drive.state
+        except NodeError as exc:
+            master[drive.label] = f"unknown ({exc})"
+    states = {"master": master}
+    if session.rig is not None:
+        states["rig"] = {f"node {d.id}": d.state for d in session.rig.drives}
+    return states
+
+
+def stream(session: Session, group: DriveGroup, planned: PlannedTrajectory, data: Path,
+           show_progress: bool) -> Recording:
+    """Move to the trajectory's start, stream it and record it into ``data``."""
+    config, traj = session.config, planned.trajectory
+    group.move_to(traj.Theta[0], speed_fraction=APPROACH_SPEED)
+    with _progress(session.network, traj.name, len(traj.t), show_progress), _injected_fault(session, traj.name):
+        return group.run_cyclic(traj.Theta, 1.0 / sample_rate(config), output=data / f"{traj.name}.npz",
+                                raw_log=data / f"{traj.name}{config.output.raw_log}",
+                                metadata={"trajectory": traj.name, "config": Path(config.source).name})
+
+
+def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = True,
+                 log: Callable[[str], None] | None = None,
+                 on_recording: Callable[[str, Recording], None] | None = None) -> Results:
+    """Record every trajectory of ``config`` on its bus, identify, validate, save into ``folder``.
+
+    Args:
+        config: a config whose :func:`ident_hw.experiment.plan.check_campaign` passed.
+        folder: a results folder from :func:`ident_hw.experiment.results.new_results_folder`.
+        show_progress: tqdm bars on stderr (the caller turns them off for --quiet / non-TTY).
+        log: where progress messages go (``None``: nowhere).
+        on_recording: called with each finished recording (e.g. an online estimator).
+
+    Raises:
+        CampaignStopped: Ctrl-C or a fault; the folder is marked ``partial: <reason>``.
+    """
+    folder = Path(folder)
+    data = folder / "data"
+    say = log or (lambda _message: None)
+    planned = plan(config)
+    recordings: dict[str, Recording] = {}
+    states: dict = {}
+    try:
+        with open_session(config) as session:
+            group = session.drive_group()
+            try:
+                say(f"bringing up {len(group.drives)} drives on {config.bus.interface}:{config.bus.channel}")
+                group.bring_up()
+                if config.simulated:
+                    say("homing (the simulated rig powers up at the home pose)")
+                    group.home()
+                for i, p in enumerate(planned, 1):
+                    say(f"[{i}/{len(planned)}] {p.describe()}")
+                    rec = stream(session, group, p, data, show_progress)
+                    recordings[p.config.name] = rec
+                    say(f"    recorded {rec.metadata['n_cycles']} cycles, {rec.n_invalid} incomplete")
+                    if on_recording is not None:
+                        on_recording(p.config.name, rec)
+            finally:
+                group.stop_motion()
+                states = _drive_states(session, group)
+                (data / "drives.json").write_text(json.dumps(states, indent=2))
+        mark_status(folder, "identifying")
+        results = identify(config, recordings, progress=say)
+        save_results(folder, results)
+    except BaseException as exc:
+        if isinstance(exc, KeyboardInterrupt):
+            reason = "interrupted (Ctrl-C)"
+        elif isinstance(exc, DriveError):
+            reason = f"drive fault: {exc}"
+        else:
+            reason = f"{type(exc).__name__}: {exc}"
+        drives = ", ".join(f"{k} {v}" for k, v in states.get("master", {}).items())
+        mark_status(folder, f"partial: {reason}; complete recordings: {', '.join(recordings) or 'none'}"
+                    + (f"; drives after the stop: {drives}" if drives else ""))
+        if isinstance(exc, (KeyboardInterrupt, DriveError)):
+            raise CampaignStopped(folder, reason, exc) from exc
+        raise
+    mark_status(folder, "complete")
+    return results

@@ -1,0 +1,83 @@
+"""The configured bus, opened: the master's canopen network and, for an in-process simulated
+config, the simulated rig serving the same python-can bus.
+
+    with open_session(config) as session:
+        group = session.drive_group()        # drivers.epos.DriveGroup of the six actuators
+        ...
+"""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Iterator
+
+import canopen
+
+from drivers.bus import open_network
+from drivers.epos import DriveGroup
+from drivers.sim import Plant, SimulatedRig
+from ident_hw.config import Config
+
+from .plan import robot_model
+
+
+def simulated_rig(config: Config) -> SimulatedRig:
+    """The simulated rig of ``config`` (truth, noise, position loops) on the config's bus (not started).
+
+    The plant starts at the home pose (``x = y = alpha = 0``, carriages at 0), where the
+    actuators' homing offsets put it; currents get ``sim.current_noise`` (A) of Gaussian noise.
+    Each SYNC advances the plant by exactly one SYNC period, as drives sampling on SYNC see
+    it, however irregularly a loaded host delivers the frames.
+    """
+    if config.sim is None:
+        raise ValueError(f"{config.source}: sim: missing section (the simulated rig's truth and noise)")
+    if config.bus is None:
+        raise ValueError(f"{config.source}: bus: missing section")
+    sim = config.sim
+    plant = Plant(robot_model(config), sim.truth.to_model(), bandwidth_hz=sim.bandwidth, damping=sim.damping)
+    nodes = [(a.node_id, a.profile, a.scaling()) for a in config.robot.actuators]
+    return SimulatedRig(nodes, plant, sync_period=1.0 / config.bus.sync_rate,
+                        current_noise_ma=sim.current_noise * 1e3, seed=sim.seed,
+                        interface=config.bus.interface, channel=config.bus.channel, ignore_config=True)
+
+
+@dataclass
+class Session:
+    """An open bus: ``network`` (the master), ``rig`` (the in-process simulated rig, or None)."""
+
+    config: Config
+    network: canopen.Network
+    rig: SimulatedRig | None
+
+    def drive_group(self) -> DriveGroup:
+        """The six actuators' drives (theta1..3, zeta1..3) with the bus settings of the config."""
+        bus = self.config.bus
+        return DriveGroup(self.network, [a.to_driver() for a in self.config.robot.actuators],
+                          bitrate=bus.to_driver().bitrate, heartbeat_period=bus.heartbeat,
+                          sdo_timeout=bus.sdo_timeout)
+
+
+@contextmanager
+def open_session(config: Config) -> Iterator[Session]:
+    """Open the config's bus (and start the in-process rig first when ``sim.in_process``)."""
+    if config.bus is None:
+        raise ValueError(f"{config.source}: bus: missing section (needed to open the bus)")
+    rig = None
+    if config.sim is not None and config.sim.in_process:
+        if not config.simulated:
+            raise ValueError(f"{config.source}: sim.in_process: the simulated rig only serves a virtual "
+                             f"or vcan bus, not {config.bus.interface}:{config.bus.channel}")
+        rig = simulated_rig(config).start()
+    try:
+        network = open_network(config.bus.to_driver())
+    except BaseException:
+        if rig is not None:
+            rig.stop()
+        raise
+    try:
+        yield Session(config, network, rig)
+    finally:
+        network.disconnect()
+        if rig is not None:
+            rig.stop()
