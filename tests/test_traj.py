@@ -262,3 +262,11 @@ def test_malformed_files_give_clear_errors(tmp_path, paper_set):
         load(tmp_path / "bad.npz")
     with pytest.raises(TrajectoryFileError, match="no such trajectory file"):
         load(tmp_path / "absent.csv")
+
+
+def test_plot_writes_a_png(tmp_path, rig, paper_set):
+    from trajectories.plot import plot_trajectory
+
+    robot, _ = rig
+    out = plot_trajectory(paper_set["triangle"], robot, tmp_path / "tri.png")
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 10_000

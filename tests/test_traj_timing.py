@@ -29,7 +29,7 @@ def test_piecewise_path_is_c2_and_derivatives_match_finite_differences():
     points = rng.normal(size=(5, 6)) * 0.05
     shapes = [None, rng.normal(size=(2, 6)) * 0.01, None, rng.normal(size=(1, 6)) * 0.01]
     path = rest_to_rest_path(points, identity, np.full(6, 0.1), np.full(6, 1.0), shapes, dwell=0.2)
-    dt = 1e-5
+    dt = 2e-5
     t = np.arange(0, path.duration, dt)
     q, qd, qdd = path.evaluate(t)
     # no jumps: the largest step of each signal is bounded by its derivative's bound times dt
