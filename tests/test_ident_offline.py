@@ -124,14 +124,19 @@ def test_sqp_rejects_bad_names(rich):
 
 @pytest.mark.slow
 def test_statistics_against_monte_carlo():
-    """sigma from (W^T W)^-1 sigma² matches the spread of estimates over noise draws."""
+    """On white noise, both covariances match the spread of the estimates over noise draws:
+    seed 004's sigma² (WᵀW)⁻¹ (lags=0) and the default HAC sandwich."""
     rng = np.random.default_rng(7)
     m = make_motion(duration=2.0, rate=100.0)
     cols = [NAMES.index(n) for n in NAMES if n != "I_l2"]
+    names = [NAMES[c] for c in cols]
     Y = m.Y[:, :, cols]
     sigma = np.array([0.01] * 3 + [5.0] * 3)
-    draws = [wls(Y, m.tau + rng.normal(size=m.tau.shape) * sigma, [NAMES[c] for c in cols], sigma)
-             for _ in range(100)]
-    spread = np.std([d.coef for d in draws], axis=0)
-    predicted = draws[0].std / np.sqrt(draws[0].sigma2)  # known sigma: covariance (W^T W)^-1
+    noisy = [m.tau + rng.normal(size=m.tau.shape) * sigma for _ in range(100)]
+    white = [wls(Y, tau, names, sigma, lags=0) for tau in noisy]
+    spread = np.std([d.coef for d in white], axis=0)
+    predicted = white[0].std / np.sqrt(white[0].sigma2)  # known sigma: covariance (W^T W)^-1
     np.testing.assert_allclose(spread, predicted, rtol=0.3)  # 100 draws: ~7 % sampling error on a std
+    hac = [wls(Y, tau, names, sigma) for tau in noisy[:20]]
+    assert hac[0].lags == 4
+    np.testing.assert_allclose(np.sqrt(np.mean([d.std**2 for d in hac], axis=0)), predicted, rtol=0.3)

@@ -4,6 +4,23 @@ Data convention (the whole package): a regressor ``Y`` of shape (N, k, n) — N 
 k outputs (actuator torques/forces), n parameters — and outputs ``tau`` (N, k) with
 ``tau ≈ Y @ pi``. :func:`stack` turns them into ``W`` (k·N, n) and ``y`` (k·N,), with the
 rows of one output kept together (output-major), as seed 004 arranges them.
+
+Covariance of the estimate. Seed 004's ``C = sigma² (WᵀW)⁻¹`` assumes white residuals. On
+measured data they are not: the parallel low-pass leaves the current noise correlated over
+a few decimated samples, and the noise of positions differentiated twice (encoder
+quantisation) enters the regressor with a spectrum rising as f⁴ up to the cut-off, so most
+of the residual variance sits at high frequency, where the (low-frequency) regressor columns
+do not pick it up. ``sigma² (WᵀW)⁻¹`` then errs both ways (too small for the carriage
+terms, several times too large for the link terms, in our tests). The default is therefore
+the heteroscedasticity and autocorrelation consistent (HAC) sandwich of Newey & West (1987):
+
+    C = (WᵀW)⁻¹ S (WᵀW)⁻¹ · r/(r − n),   S = Γ₀ + Σ_{l=1..L} (1 − l/(L+1)) (Γ_l + Γ_lᵀ),
+    Γ_l = Σ_t g_t g_{t−l}ᵀ,   g_t = Σ_j Y_tjᵀ rho_tj  (the score of sample t, all outputs)
+
+with the rule-of-thumb bandwidth ``L = floor(4 (N/100)^(2/9))`` (Newey & West 1994): it
+weighs the residual at the frequencies of the regressor, which is what the estimate's error
+is made of (checked against Monte Carlo spreads in ``tests/test_ident_noise.py``). ``lags=0``
+gives back the white-residual formula of seed 004.
 """
 
 from __future__ import annotations
@@ -36,19 +53,26 @@ def stack(Y: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return Y.transpose(1, 0, 2).reshape(k * N, n), tau.T.reshape(k * N)
 
 
-def output_noise_std(Y: np.ndarray, tau: np.ndarray) -> np.ndarray:
-    """Noise standard deviation of each output (k,), from its ordinary-least-squares residual.
+def newey_west_lags(n_samples: int) -> int:
+    """Rule-of-thumb HAC bandwidth ``floor(4 (N/100)^(2/9))`` (Newey & West 1994) for N samples."""
+    return int(np.floor(4.0 * (n_samples / 100.0) ** (2.0 / 9.0)))
 
-    ``sigma_j² = ||rho_j||² / (N - n/k)`` (the n degrees of freedom shared out over the k
-    outputs). On noise-free data the residual is at rounding level; each sigma_j is then
-    floored at ``1e-9 × RMS(tau_j)`` so that weights stay finite and comparable.
+
+def output_noise_std(Y: np.ndarray, tau: np.ndarray, coef: np.ndarray | None = None) -> np.ndarray:
+    """Noise standard deviation of each output (k,), from its residual at ``coef``.
+
+    ``sigma_j² = ||rho_j||² / (N − n/k)`` (the n degrees of freedom shared out over the k
+    outputs); ``coef`` defaults to the ordinary-least-squares estimate. On noise-free data the
+    residual is at rounding level; each sigma_j is then floored at ``1e-9 × RMS(tau_j)`` so
+    that weights stay finite and comparable.
     """
     Y, tau = check_regression_data(Y, tau)
     N, k, n = Y.shape
-    W, y = stack(Y, tau)
-    coef = linalg.lstsq(W, y, lapack_driver="gelsd")[0]
-    rho = (y - W @ coef).reshape(k, N)
-    sigma = np.sqrt(np.sum(rho**2, axis=1) / max(N - n / k, 1.0))
+    if coef is None:
+        W, y = stack(Y, tau)
+        coef = linalg.lstsq(W, y, lapack_driver="gelsd")[0]
+    rho = tau - Y @ coef
+    sigma = np.sqrt(np.sum(rho**2, axis=0) / max(N - n / k, 1.0))
     floor = 1e-9 * np.sqrt(np.mean(tau**2, axis=0))
     sigma = np.maximum(sigma, floor)
     if np.any(sigma == 0):
@@ -63,12 +87,14 @@ class LeastSquaresResult:
     Attributes:
         names: parameter names (n).
         coef: estimate (n,).
-        covariance: ``sigma² (WᵀW)⁻¹`` of the (weighted) problem (n, n).
+        covariance: covariance of the estimate (n, n): the HAC sandwich with ``lags`` lags,
+            or ``sigma² (WᵀW)⁻¹`` of the (weighted) problem when ``lags == 0``.
         sigma2: residual variance of the (weighted) rows, ``||y − W pi||² / (r − n)``.
         cond: condition number of the (weighted) ``W``.
         residual_rms: RMS of the unweighted residual of each output (k,), output units.
         output_std: per-output standard deviations used as weights (k,), None for OLS.
         method: "OLS" or "WLS".
+        lags: bandwidth of the HAC covariance (0: white-residual formula).
     """
 
     names: tuple[str, ...]
@@ -79,6 +105,7 @@ class LeastSquaresResult:
     residual_rms: np.ndarray
     output_std: np.ndarray | None = None
     method: str = "OLS"
+    lags: int = 0
     poorly_identified_percent: float = field(default=POORLY_IDENTIFIED_PERCENT)
 
     @property
@@ -106,15 +133,18 @@ class LeastSquaresResult:
             },
             "sigma2": float(self.sigma2),
             "cond": float(self.cond),
+            "covariance": f"Newey-West HAC, {self.lags} lags" if self.lags else "sigma2 (W^T W)^-1 (white residuals)",
             "residual_rms": self.residual_rms.tolist(),
             "output_std": None if self.output_std is None else self.output_std.tolist(),
             "poorly_identified": list(self.poorly_identified),
         }
 
 
-def _solve_with_statistics(W: np.ndarray, y: np.ndarray, names) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """QR solution of ``min ||y − W pi||`` and its covariance, sigma², cond(W)."""
-    r, n = W.shape
+def _fit(Y: np.ndarray, tau: np.ndarray, names, lags: int | None) -> tuple[np.ndarray, np.ndarray, float, float, int]:
+    """QR solution of ``min sum_t ||tau_t − Y_t pi||²``; its covariance, sigma², cond(W), lags."""
+    N, k, n = Y.shape
+    W, y = stack(Y, tau)
+    r = W.shape[0]
     if r <= n:
         raise ValueError(f"{r} equations for {n} parameters: need more equations than parameters")
     Q, R = linalg.qr(W, mode="economic")
@@ -126,37 +156,73 @@ def _solve_with_statistics(W: np.ndarray, y: np.ndarray, names) -> tuple[np.ndar
             f"{list(names)}): identify the base parameters instead (base_parameters / identify_base)"
         )
     coef = linalg.solve_triangular(R, Q.T @ y)
-    rho = y - W @ coef
-    sigma2 = float(rho @ rho) / (r - n)
+    rho = tau - Y @ coef
+    sigma2 = float(np.sum(rho**2)) / (r - n)
     Rinv = linalg.solve_triangular(R, np.eye(n))
-    return coef, sigma2 * (Rinv @ Rinv.T), sigma2, float(s[0] / s[-1])
+    bread = Rinv @ Rinv.T  # (WᵀW)⁻¹
+    lags = min(newey_west_lags(N) if lags is None else int(lags), N - 1)
+    if lags < 0:
+        raise ValueError(f"lags must be >= 0, got {lags}")
+    if lags == 0:
+        cov = sigma2 * bread
+    else:
+        g = np.einsum("tjn,tj->tn", Y, rho)  # per-sample scores
+        meat = g.T @ g
+        for lag in range(1, lags + 1):
+            gamma = g[lag:].T @ g[:-lag]
+            meat += (1.0 - lag / (lags + 1.0)) * (gamma + gamma.T)
+        cov = bread @ meat @ bread * (r / (r - n))
+    return coef, 0.5 * (cov + cov.T), sigma2, float(s[0] / s[-1]), lags
 
 
-def ols(Y: np.ndarray, tau: np.ndarray, names) -> LeastSquaresResult:
-    """Ordinary least squares on ``Y`` (N, k, n), ``tau`` (N, k), solved by QR."""
+def ols(Y: np.ndarray, tau: np.ndarray, names, lags: int | None = None) -> LeastSquaresResult:
+    """Ordinary least squares on ``Y`` (N, k, n), ``tau`` (N, k), solved by QR.
+
+    ``lags``: HAC bandwidth (module docstring); default the Newey–West rule, 0 for white residuals.
+    """
     Y, tau = check_regression_data(Y, tau, names)
-    W, y = stack(Y, tau)
-    coef, cov, sigma2, cond = _solve_with_statistics(W, y, names)
+    coef, cov, sigma2, cond, lags = _fit(Y, tau, names, lags)
     return LeastSquaresResult(
         names=tuple(names), coef=coef, covariance=cov, sigma2=sigma2, cond=cond,
-        residual_rms=_residual_rms(Y, tau, coef), method="OLS",
+        residual_rms=_residual_rms(Y, tau, coef), method="OLS", lags=lags,
     )
 
 
-def wls(Y: np.ndarray, tau: np.ndarray, names, output_std: np.ndarray | None = None) -> LeastSquaresResult:
+def wls(Y: np.ndarray, tau: np.ndarray, names, output_std: np.ndarray | None = None,
+        lags: int | None = None, max_iterations: int = 10, rtol: float = 1e-3) -> LeastSquaresResult:
     """Weighted least squares: each output's rows divided by its noise std.
 
-    ``output_std`` (k,) defaults to :func:`output_noise_std` (each output's OLS residual).
+    ``output_std`` (k,): known noise std of each output. By default it is estimated from
+    the residuals, iteratively (feasible generalised least squares): start from the OLS
+    residual, refit with those weights, re-estimate each output's std from the new residual,
+    until the weights change by less than ``rtol`` (at most ``max_iterations`` refits).
+    One step from OLS is not enough: the OLS estimate is dominated by the largest outputs
+    (newtons on the carriages), so the residual of the small ones (newton-metres on the
+    links) is mostly misfit, their weight comes out far too small and sigma² too small.
+    ``lags``: HAC bandwidth of the covariance (module docstring).
     """
     Y, tau = check_regression_data(Y, tau, names)
-    sigma = output_noise_std(Y, tau) if output_std is None else np.asarray(output_std, dtype=float)
-    if sigma.shape != (Y.shape[1],) or np.any(sigma <= 0):
-        raise ValueError(f"output_std must be {Y.shape[1]} positive values, got {sigma}")
-    W, y = stack(Y / sigma[None, :, None], tau / sigma)
-    coef, cov, sigma2, cond = _solve_with_statistics(W, y, names)
+    if output_std is not None:
+        sigma = np.asarray(output_std, dtype=float)
+        if sigma.shape != (Y.shape[1],) or np.any(sigma <= 0):
+            raise ValueError(f"output_std must be {Y.shape[1]} positive values, got {sigma}")
+        iterations = 1
+    else:
+        sigma = output_noise_std(Y, tau)
+        iterations = max_iterations
+    for _ in range(iterations):
+        w = 1.0 / sigma
+        coef, cov, sigma2, cond, used_lags = _fit(Y * w[None, :, None], tau * w, names, lags)
+        if output_std is not None:
+            break
+        new_sigma = output_noise_std(Y, tau, coef)
+        converged = np.all(np.abs(new_sigma / sigma - 1.0) < rtol)
+        sigma = new_sigma
+        if converged:
+            break
     return LeastSquaresResult(
         names=tuple(names), coef=coef, covariance=cov, sigma2=sigma2, cond=cond,
-        residual_rms=_residual_rms(Y, tau, coef), output_std=sigma, method="WLS",
+        residual_rms=_residual_rms(Y, tau, coef), output_std=1.0 / w, method="WLS", lags=used_lags,
     )
 
 
