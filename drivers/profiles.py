@@ -7,6 +7,21 @@ in one place. A :class:`DriveProfile` names the objects the driver reads and wri
 object dictionary holds them with their data types, access rights, defaults and PDO-mappable
 flags, plus the CiA 301 communication objects (PDO parameters, heartbeat, EMCY, identity).
 
+Facts checked against public EPOS drivers that reproduce maxon's firmware specifications
+(no maxon document was in reach; re-check against the "EPOS4 Firmware Specification" and
+"EPOS2 Firmware Specification" when one is):
+
+* Homing: the EPOS2 has the CiA 402 "home offset" ``0x607C`` and the maxon "home position"
+  ``0x2081``; the EPOS4 has no ``0x607C`` but "home position" ``0x30B0`` and "home offset move
+  distance" ``0x30B1`` (INTEGER32, qc; EPOS4 firmware specification section 6.2.67 as cited by
+  those drivers). Both generations assign the home position when homing completes.
+* Software position limits ``0x607D``: a position outside them faults the drive with
+  "software position limit error", ``0xFF09`` on the EPOS2 and ``0x8A82`` on the EPOS4 (their
+  EMCY tables; ``0x8611`` is the following error on both). Targets are limited to the range
+  (CiA 402).
+* EMCY COB-ID ``0x1014``: read-write with CiA 301 semantics (bit 31 = no EMCY; the CAN-ID may
+  only change while invalid).
+
 Differences kept as on the real devices: the EPOS2 reports its current in ``0x6078`` (I16, mA)
 and has no ``0x30D1``, ``0x60C2`` or torque-constant object; the EPOS4 reports it in
 ``0x30D1:02`` (I32, mA) and has no ``0x6078``. The EPOS2 streams positions through its maxon
@@ -95,6 +110,7 @@ class DriveProfile:
     quick_stop_deceleration: ObjectRef
     target_position: ObjectRef
     error_code: ObjectRef
+    software_limit_error: int
     tpdo_count: int = 4
     rpdo_count: int = 4
     max_tpdo_bytes: int = 8
@@ -142,6 +158,7 @@ EPOS2 = DriveProfile(
     current_limit=_r(0x6410, 2, "UNSIGNED16", "mA"),
     home_offset=_r(0x607C, 0, "INTEGER32", "qc"),
     home_position=_r(0x2081, 0, "INTEGER32", "qc"),
+    software_limit_error=0xFF09,
     **_COMMON,
 )
 
@@ -158,8 +175,9 @@ EPOS4 = DriveProfile(
         {1: "PPM", 3: "PVM", 6: "HMM", 8: "CSP", 9: "CSV", 10: "CST"}
     ),
     current_limit=_r(0x3001, 2, "UNSIGNED32", "mA"),
-    home_offset=_r(0x607C, 0, "INTEGER32", "qc"),
+    home_offset=_r(0x30B1, 0, "INTEGER32", "qc"),   # "Home offset move distance"; no 0x607C
     home_position=_r(0x30B0, 0, "INTEGER32", "qc"),
+    software_limit_error=0x8A82,
     **_COMMON,
 )
 
@@ -273,7 +291,7 @@ def _add_drive_objects(od: ObjectDictionary, prof: DriveProfile) -> None:
         ("Following error window", prof.following_error_window, "rw", 2000, False),
         ("Velocity actual value", prof.velocity_actual, "ro", 0, True),
         ("Target position", prof.target_position, "rw", 0, True),
-        ("Home offset", prof.home_offset, "rw", 0, False),
+        ("Home offset" if prof.name == "EPOS2" else "Home offset move distance", prof.home_offset, "rw", 0, False),
         ("Home position", prof.home_position, "rw", 0, False),
         ("Max profile velocity", prof.max_profile_velocity, "rw", 10000, False),
         ("Profile velocity", prof.profile_velocity, "rw", 1000, True),

@@ -1,22 +1,90 @@
-"""Physics of the simulated rig: units end to end, consistency with the model, payload."""
+"""Physics of the simulated rig: consistency with the model, energy balance, jam, units, payload."""
 
 import math
 
 import numpy as np
+import pytest
 
-from drivers.sim import Plant
+from drivers.sim import Plant, PlantJammed, nominal
 from ident_hw.model import ThreePRRR
+from ident_hw.model.dynamics import friction
 
-from test_sim_rig import GEO, PRI, TRUE, Bench, configure_pdos, wait_until  # noqa: F401
+from test_sim_rig import PRI, Bench, configure_pdos, wait_until
+
+ROBOT = ThreePRRR(nominal.GEOMETRY)
+TRUE = nominal.TRUE_PARAMS
+
+
+def task_space_demand(t):
+    """A large motion inside the workspace (cond_A < 11): x, y +-5/4 cm, alpha +-0.25 rad, carriages +-3 cm."""
+    t = np.atleast_1d(t)
+    X = np.stack([0.05 * np.sin(2 * np.pi * 2 * t), 0.04 * np.sin(2 * np.pi * 3 * t + 1),
+                  0.25 * np.sin(2 * np.pi * 1.5 * t)], -1)
+    zeta = np.stack([0.03 * np.sin(2 * np.pi * t + k) for k in range(3)], -1)
+    theta, _ = ROBOT.inverse_kinematics(X, zeta)
+    return np.concatenate([theta, zeta], -1)
 
 
 def run_plant(plant, seconds, period, demand_fn):
     enabled = np.ones(6, bool)
     limit = np.full(6, 1e6)
     for k in range(int(round(seconds / period))):
-        t = k * period
-        d0, d1 = demand_fn(t), demand_fn(t + period)
+        d0, d1 = demand_fn(np.array([k * period, (k + 1) * period]))
         plant.step(period, d0, (d1 - d0) / period, enabled, limit)
+    return plant.truth()
+
+
+def lagrange_forces(tr, params):
+    X, Xd, Xdd = ROBOT.pose_motion(tr["Theta"], tr["Thetad"], tr["Thetadd"], tr["X"])
+    return ROBOT.inverse_dynamics(X, Xd, Xdd, tr["Theta"][:, 3:], tr["Thetad"][:, 3:], tr["Thetadd"][:, 3:], params)
+
+
+def test_large_motion_logged_forces_equal_the_lagrange_inverse_dynamics_of_the_logged_motion():
+    plant = Plant(ROBOT, TRUE, Theta0=task_space_demand(0.0)[0])
+    tr = run_plant(plant, 1.0, 0.002, task_space_demand)
+    assert np.ptp(tr["Theta"][:, :3], axis=0).min() > 0.4          # links sweep > 0.4 rad
+    assert np.ptp(tr["X"][:, 2]) > 0.45                             # platform turns by ~0.5 rad
+    tau = lagrange_forces(tr, TRUE)
+    scale = np.abs(tr["force"]).max(axis=0)
+    assert np.all(np.abs(tau - tr["force"]).max(axis=0) / scale < 1e-9)
+    # the plant's pose is the model's forward kinematics of its joints (same assembly mode throughout)
+    assert np.abs(ROBOT.forward_kinematics(tr["Theta"], tr["X"]) - tr["X"]).max() < 1e-12
+    # the robot followed the demand after the start transient
+    late = tr["t"] > 0.2
+    err = np.abs(tr["Theta"] - task_space_demand(tr["t"]))[late].max(axis=0)
+    assert np.all(err[:3] < 0.01) and np.all(err[3:] < 1e-4), err
+
+
+def test_energy_balance_of_the_integrated_motion_closes_at_second_order():
+    """Work of actuators and friction = change of the model's kinetic energy (independent route),
+    up to the trapezoid rule on the logged samples, whose error falls as period^2."""
+    misfit = []
+    for period in (0.001, 0.002):
+        tr = run_plant(Plant(ROBOT, TRUE, Theta0=task_space_demand(0.0)[0]), 0.5, period, task_space_demand)
+        X, Xd, _ = ROBOT.pose_motion(tr["Theta"], tr["Thetad"], tr["Thetadd"], tr["X"])
+        energy = ROBOT.kinetic_energy(X, Xd, tr["Theta"][:, 3:], tr["Thetad"][:, 3:], TRUE)
+        power = np.einsum("nj,nj->n", tr["force"] - friction(tr["Thetad"], TRUE, ROBOT.coulomb_width), tr["Thetad"])
+        work = np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * period)])
+        misfit.append(np.abs(energy - energy[0] - work).max())
+        assert misfit[-1] < 0.05 * energy.max()
+    assert 3.0 < misfit[1] / misfit[0] < 5.0, misfit
+
+
+def test_commanding_the_robot_through_its_parallel_singularity_jams_it_at_rest():
+    """All three links turned together turn the platform until a type II singularity (~0.175 rad
+    on the nominal rig); beyond it no pose closes the chains."""
+    plant = Plant(ROBOT, TRUE)
+    home = plant.Theta.copy()
+    push = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0]) * 0.3
+    with pytest.raises(PlantJammed, match="jammed"):
+        run_plant(plant, 2.0, 0.004, lambda t: home + push * np.minimum(t / 0.5, 1.0)[:, None])
+    assert np.all(plant.Thetad == 0)
+    # it stays at the last pose that closed the chains, on the way to the singularity
+    cond = [ROBOT.singularity_margins(X[None], Th[None, 3:]).cond_A[0]
+            for X, Th in ((np.zeros(3), home), (plant.X, plant.Theta))]
+    assert cond[1] > 2 * cond[0]
+    assert np.all(plant.Theta[:3] - home[:3] > 0.1)
+    assert ROBOT.closure_residual(plant.X[None], plant.Theta[None])[0] < 1e-9
 
 
 def test_held_carriage_against_a_known_force_reports_the_hand_computed_current():
@@ -43,34 +111,12 @@ def test_held_carriage_against_a_known_force_reports_the_hand_computed_current()
         b.close()
 
 
-def test_logged_forces_equal_the_lagrange_inverse_dynamics_of_the_logged_motion():
-    robot = ThreePRRR(GEO)
-    plant = Plant(robot, TRUE)
-    home = plant.Theta.copy()
-    amp = np.array([0.1, -0.1, 0.05, 0.01, -0.01, 0.005])
-    run_plant(plant, 0.5, 0.002, lambda t: home + amp * np.sin(2 * np.pi * 2 * t))
-    tr = plant.truth()
-    X, Xd, Xdd = robot.pose_motion(tr["Theta"], tr["Thetad"], tr["Thetadd"], np.zeros(3))
-    tau = robot.inverse_dynamics(X, Xd, Xdd, tr["Theta"][:, 3:], tr["Thetad"][:, 3:], tr["Thetadd"][:, 3:], TRUE)
-    scale = np.abs(tr["force"]).max(axis=0)
-    assert np.all(scale > 0)
-    assert np.all(np.abs(tau - tr["force"]).max(axis=0) / scale < 1e-9)
-    # the robot followed the demand (position loop works)
-    assert np.abs(tr["Theta"][-1] - (home + amp * np.sin(2 * np.pi * 2 * tr["t"][-1]))).max() < 0.2 * amp.max()
-
-
 def test_payload_changes_the_forces_as_the_model_predicts():
-    robot = ThreePRRR(GEO)
-    plant = Plant(robot, TRUE)
+    plant = Plant(ROBOT, TRUE, Theta0=task_space_demand(0.0)[0])
     plant.set_payload(0.5, 0.002)
-    home = plant.Theta.copy()
-    amp = np.array([0.1, -0.1, 0.05, 0.0, 0.0, 0.0])
-    run_plant(plant, 0.3, 0.002, lambda t: home + amp * np.sin(2 * np.pi * 2 * t))
-    tr = plant.truth()
-    X, Xd, Xdd = robot.pose_motion(tr["Theta"], tr["Thetad"], tr["Thetadd"], np.zeros(3))
-    args = (X, Xd, Xdd, tr["Theta"][:, 3:], tr["Thetad"][:, 3:], tr["Thetadd"][:, 3:])
+    tr = run_plant(plant, 0.3, 0.002, task_space_demand)
     heavy = TRUE.replace(m_ee=TRUE.m_ee + 0.5, I_ee=TRUE.I_ee + 0.002)
-    err_heavy = np.abs(robot.inverse_dynamics(*args, heavy) - tr["force"]).max()
-    err_nominal = np.abs(robot.inverse_dynamics(*args, TRUE) - tr["force"]).max()
+    err_heavy = np.abs(lagrange_forces(tr, heavy) - tr["force"]).max()
+    err_nominal = np.abs(lagrange_forces(tr, TRUE) - tr["force"]).max()
     assert err_heavy < 1e-9 * np.abs(tr["force"]).max()
     assert err_nominal > 1e3 * err_heavy

@@ -112,7 +112,12 @@ class EmulatedDrive:
         self.state = DISABLED
         self._cw = 0
         self._mode_bits = 0           # statusword bits 10, 12, 13, 15 of the mode logic
-        self.offset = None            # counts: plant counts - reported counts (set by the rig)
+        # offset, counts: plant counts - reported counts (set by the rig at power-up); a reset
+        # re-zeroes the incremental encoder where the axis stands, as at power-up
+        if getattr(self, "offset", None) is not None:
+            self.offset += self.actual
+        else:
+            self.offset = None
         self.actual = 0               # reported position, counts
         self.demand = 0.0             # position demand, counts
         self.demand_velocity = 0.0    # counts/s
@@ -148,6 +153,8 @@ class EmulatedDrive:
         if index in _PDO_PARAMS:
             self._check_pdo_write(index, subindex, value)
             self._pdos_dirty = True
+        elif index == 0x1014:
+            self._check_emcy_cob_id(value)
         elif index == 0x1003:
             if value != 0:
                 raise SdoAbortedError(ABORT_VALUE_RANGE)
@@ -162,6 +169,19 @@ class EmulatedDrive:
         self.values[(index, subindex)] = value
         if index == prof.controlword.index:
             self._on_controlword(value)
+
+    def _check_emcy_cob_id(self, value: int) -> None:
+        """CiA 301 (object 0x1014): bit 31 set = no EMCY; bit 29 (29-bit frame) is refused; the
+        CAN-ID may only change while bit 31 is set (old or new value) - SDO abort 0x06090030."""
+        old = self.get(0x1014)
+        if value & (1 << 29) or (value & 0x7FF != old & 0x7FF and not (value | old) & (1 << 31)):
+            raise SdoAbortedError(ABORT_VALUE_RANGE)
+        self.node.emcy.cob_id = value & 0x7FF
+
+    @property
+    def emcy_enabled(self) -> bool:
+        """False when the master invalidated the EMCY COB-ID (0x1014 bit 31)."""
+        return not self.get(0x1014) >> 31 and not self.silent
 
     def _check_pdo_write(self, index, subindex, value) -> None:
         od = self.node.object_dictionary
@@ -301,6 +321,7 @@ class EmulatedDrive:
 
     def boot(self) -> None:
         """Boot-up message, then PRE-OPERATIONAL with the heartbeat of ``0x1017``."""
+        self.node.emcy.cob_id = self.get(0x1014) & 0x7FF
         self.node.nmt.send_command(0x81)   # -> INITIALISING, sends the boot-up frame
         self.node.nmt.send_command(0x80)   # -> PRE-OPERATIONAL, starts the heartbeat
 
@@ -316,14 +337,14 @@ class EmulatedDrive:
         if fault:
             self._set(self.profile.error_code, code)
             self._enter(FAULT)
-        if not self.silent:
+        if self.emcy_enabled:
             self.node.emcy.send(code, register)
 
     def _fault_reset(self) -> None:
         self._set(self.profile.error_code, 0)
         self.values[(0x1001, 0)] = 0
         self._enter(DISABLED)
-        if not self.silent:
+        if self.emcy_enabled:
             self.node.emcy.reset()
 
     # -- CiA 402 ----------------------------------------------------------------------------------
@@ -483,8 +504,11 @@ class EmulatedDrive:
         error = int(round(self.demand - counts)) if self.powered else 0
         self._set(self.profile.following_error_actual, error)
         window = self.get(0x6065)
+        lo, hi = self.profile.software_position_limit
         if self.state == ENABLED and 0 < window < 0xFFFFFFFF and abs(error) > window:
             self.emcy(EMCY_FOLLOWING_ERROR)
+        elif self.powered and not self.get(lo.index, lo.subindex) <= counts <= self.get(hi.index, hi.subindex):
+            self.emcy(self.profile.software_limit_error)
         if self.state == QUICK_STOP and rpm == 0 and self.get(0x605A) <= 4:
             self._enter(DISABLED)
         if self._next_demand is not None:

@@ -3,10 +3,19 @@
 Each actuator is driven by a drive-side position controller, PD plus velocity feed-forward,
 ``F = Kp (q_d - q) + Kd (qd_d - qd)``, clipped to the drive's current limit. The plant moves by
 the closed-chain forward dynamics of :class:`ident_hw.model.ThreePRRR` with the *true*
-parameters (friction included), integrated by semi-implicit Euler in substeps of at most
-``max_substep``. The reduced mass matrix and the velocity terms are evaluated once per period
-(the expensive part, one model evaluation); the controller and the friction are re-evaluated
-at every substep.
+parameters (friction included). The reduced mass matrix ``M`` and the velocity terms are
+evaluated once per period (the expensive part, one model evaluation); within the period the
+controller and the friction are re-evaluated at every substep of at most ``max_substep``, and
+the state advances by Heun's method (second order: the position loops and the smoothed Coulomb
+friction are the stiff part, and first-order Euler at 0.5 ms left force errors of a few percent).
+
+The log holds, at each period start, the state, the actuator forces and the *exact*
+acceleration ``M^-1 (F - c)`` of that state: the logged forces are the model's inverse dynamics
+of the logged motion to rounding, whatever the integration error.
+
+If the commanded motion drives the robot into a parallel (type II) singularity, the forward
+kinematics has no solution any more: :meth:`Plant.step` raises :class:`PlantJammed` and
+the plant stays at its last valid pose, at rest (the rig reports it as a following error).
 
 Everything here is SI: rad, m, N·m, N, s; the drive units (counts, rpm, mA) belong to the rig.
 """
@@ -18,15 +27,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ident_hw.model import InertialParams, ThreePRRR
+from ident_hw.model import InertialParams, KinematicsError, ThreePRRR
 from ident_hw.model.dynamics import friction, reduced_dynamics
+
+
+class PlantJammed(RuntimeError):
+    """The mechanism cannot follow: its forward kinematics failed (parallel singularity crossed)."""
 
 
 @dataclass(frozen=True)
 class TruthSample:
-    """One logged plant state at a period start: ``t`` (s), each other field (6,) in SI."""
+    """One logged plant state at a period start: ``t`` (s), ``X`` (3,) pose, each other field (6,) in SI."""
 
     t: float
+    X: np.ndarray
     Theta: np.ndarray
     Thetad: np.ndarray
     Thetadd: np.ndarray
@@ -52,6 +66,8 @@ class Plant:
                  max_substep: float = 5e-4, log_length: int = 600_000):
         if not max_substep > 0:
             raise ValueError(f"max_substep must be positive, got {max_substep}")
+        if gains is None and not (bandwidth_hz > 0 and damping > 0):
+            raise ValueError(f"bandwidth_hz and damping must be positive, got {bandwidth_hz}, {damping}")
         self.robot = robot
         self._base_params = params
         self.params = params
@@ -61,6 +77,7 @@ class Plant:
         self.Theta = np.array(Theta0, dtype=float).reshape(6)
         self.Thetad = np.zeros(6)
         self.X = robot.forward_kinematics(self.Theta[None], np.zeros(3))[0]
+        self._last_valid = (self.Theta, self.X)
         self.force = np.zeros(6)
         self.external_force = np.zeros(6)
         self.t = 0.0
@@ -86,42 +103,70 @@ class Plant:
 
     # -- dynamics --------------------------------------------------------------------------------
     def _dynamics(self):
-        """Reduced mass matrix (6, 6) and velocity terms without friction (6,) at the current state."""
-        motion = self.robot.motion_from_actuated(self.Theta[None], self.Thetad[None], np.zeros((1, 6)), self.X)
+        """Reduced mass matrix (6, 6) and velocity terms without friction (6,) at the current state.
+
+        Raises:
+            PlantJammed: no pose closes the chains at ``Theta``; the plant goes back to the last
+                pose that closed them, at rest.
+        """
+        try:
+            motion = self.robot.motion_from_actuated(self.Theta[None], self.Thetad[None], np.zeros((1, 6)), self.X)
+        except KinematicsError as exc:
+            message = f"the simulated robot jammed at Theta = {np.round(self.Theta, 5).tolist()}: {exc}"
+            self.Theta, self.X = self._last_valid
+            self.Thetad = np.zeros(6)
+            raise PlantJammed(message) from exc
         self.X = motion.X[0]
+        self._last_valid = (self.Theta, self.X)
         M, c = reduced_dynamics(self.robot.kinematics, motion, self.params, self.robot.coulomb_width)
         return M[0], c[0] - friction(self.Thetad, self.params, self.robot.coulomb_width)
 
+    def _loop_force(self, Theta, Thetad, demand, demand_velocity, enabled, force_limit) -> np.ndarray:
+        F = self.Kp * (demand - Theta) + self.Kd * (demand_velocity - Thetad)
+        return np.where(enabled, np.clip(F, -force_limit, force_limit), 0.0)
+
     def control(self, demand, demand_velocity, enabled, force_limit) -> np.ndarray:
         """Actuator forces (6,) of the position loops at the current state (0 where disabled)."""
-        F = self.Kp * (demand - self.Theta) + self.Kd * (demand_velocity - self.Thetad)
-        return np.where(enabled, np.clip(F, -force_limit, force_limit), 0.0)
+        return self._loop_force(self.Theta, self.Thetad, demand, demand_velocity, enabled, force_limit)
 
     def step(self, period, demand, demand_velocity, enabled, force_limit) -> None:
         """Advance one period (s). The demand ramps from ``demand`` at ``demand_velocity`` (each (6,)).
 
         ``enabled`` (6,) bool: axes whose loop is closed (others are free); ``force_limit`` (6,)
         the drive's current limit as a force. The force at the period start is :attr:`force`.
+
+        Raises:
+            PlantJammed: the robot cannot move any more (see the module docstring).
         """
+        M, bias = self._dynamics()
+        Theta0, Thetad0, X0 = self.Theta, self.Thetad, self.X
+        M_inv = np.linalg.inv(M)
+        params, width = self.params, self.robot.coulomb_width
+        external = self.external_force - bias
+
+        def acceleration(Theta, Thetad, t):
+            F = self._loop_force(Theta, Thetad, demand + demand_velocity * t, demand_velocity, enabled, force_limit)
+            return F, M_inv @ (F + external - friction(Thetad, params, width))
+
+        self.force, a1 = acceleration(Theta0, Thetad0, 0.0)
+        self.log.append(TruthSample(self.t, X0.copy(), Theta0.copy(), Thetad0.copy(), a1, self.force))
         n_sub = max(1, int(np.ceil(period / self.max_substep - 1e-9)))
         dt = period / n_sub
-        M, bias = self._dynamics()
-        M_inv = np.linalg.inv(M)
-        width = self.robot.coulomb_width
-        for k in range(n_sub):
-            F = self.control(demand + demand_velocity * (k * dt), demand_velocity, enabled, force_limit)
-            acc = M_inv @ (F + self.external_force - bias - friction(self.Thetad, self.params, width))
-            if k == 0:
-                self.force = F
-                self.log.append(TruthSample(self.t, self.Theta.copy(), self.Thetad.copy(), acc, F))
-            self.Thetad = self.Thetad + dt * acc
-            self.Theta = self.Theta + dt * self.Thetad
+        Theta, Thetad = Theta0, Thetad0
+        for k in range(n_sub):                                    # Heun: Euler predictor, trapezoid corrector
+            if k:
+                a1 = acceleration(Theta, Thetad, k * dt)[1]
+            Thetad_p = Thetad + dt * a1
+            a2 = acceleration(Theta + dt * Thetad, Thetad_p, (k + 1) * dt)[1]
+            Theta = Theta + 0.5 * dt * (Thetad + Thetad_p)
+            Thetad = Thetad + 0.5 * dt * (a1 + a2)
+        self.Theta, self.Thetad = Theta, Thetad
         self.t += period
 
     def truth(self) -> dict[str, np.ndarray]:
-        """The logged states as arrays: ``t`` (N,), ``Theta``, ``Thetad``, ``Thetadd``, ``force`` (N, 6)."""
+        """The logged states as arrays: ``t`` (N,), ``X`` (N, 3), ``Theta``, ``Thetad``, ``Thetadd``, ``force`` (N, 6)."""
         samples = list(self.log)
-        fields = ("t", "Theta", "Thetad", "Thetadd", "force")
+        fields = ("t", "X", "Theta", "Thetad", "Thetadd", "force")
         if not samples:
-            return {f: np.zeros((0,) if f == "t" else (0, 6)) for f in fields}
+            return {f: np.zeros((0,) if f == "t" else (0, 3 if f == "X" else 6)) for f in fields}
         return {f: np.array([getattr(s, f) for s in samples]) for f in fields}

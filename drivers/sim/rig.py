@@ -20,9 +20,11 @@ import time
 import canopen
 import numpy as np
 
-from drivers.sim.drive import FAULT, EmulatedDrive
-from drivers.sim.plant import Plant
+from drivers.axis import AxisConfig
+from drivers.sim.drive import EMCY_FOLLOWING_ERROR, FAULT, EmulatedDrive
+from drivers.sim.plant import Plant, PlantJammed
 from drivers.units import AxisScaling
+from ident_hw.model import Geometry, InertialParams, ThreePRRR
 
 logger = logging.getLogger(__name__)
 
@@ -68,8 +70,8 @@ class SimulatedRig:
     """Six emulated EPOS drives (one per actuator) and the simulated 3PRRR behind them.
 
     Args:
-        nodes: six ``(node_id, profile_name, AxisScaling)``, in the actuator order
-            ``theta1, theta2, theta3, zeta1, zeta2, zeta3``.
+        nodes: six ``(node_id, profile_name, AxisScaling)`` or :class:`drivers.axis.AxisConfig`,
+            in the actuator order ``theta1, theta2, theta3, zeta1, zeta2, zeta3``.
         plant: the :class:`Plant` (robot, true parameters, position loops).
         bus: an open python-can bus to use (left open on :meth:`stop`); otherwise one is opened
             from ``bus_kwargs`` (e.g. ``interface="virtual", channel="rig", ignore_config=True``).
@@ -82,7 +84,7 @@ class SimulatedRig:
 
     def __init__(self, nodes, plant: Plant, *, bus=None, sync_period=None, current_noise_ma: float = 0.0,
                  seed=None, initial_states=None, **bus_kwargs):
-        nodes = list(nodes)
+        nodes = [(n.node_id, n.profile, n.scaling) if isinstance(n, AxisConfig) else tuple(n) for n in nodes]
         if len(nodes) != 6:
             raise ValueError(f"the rig needs six drives (theta1..3, zeta1..3), got {len(nodes)}")
         ids = [n[0] for n in nodes]
@@ -114,12 +116,31 @@ class SimulatedRig:
         self._rpm_per_unit = np.array([s.rpm_per_unit_velocity for s in scalings])
         self._force_per_amp = np.array([s.force_per_amp for s in scalings])
         self.sync_count = 0
+        self.jammed: str | None = None        # why the plant stopped moving, if it did
         self.step_seconds: list[float] = []   # duration of each SYNC cycle (s), for benchmarks
         self._last_sync = None
         self._last_sync_stamp = None
         self._last_step = time.monotonic()
         self._stop = threading.Event()
         self._clock_thread = None
+
+    @classmethod
+    def build(cls, geometry: Geometry, truth: InertialParams, axes, *, coulomb_width: float = 1e-3,
+              bandwidth_hz: float = 20.0, damping: float = 1.0, Theta0=None, **rig_kwargs) -> SimulatedRig:
+        """A rig from plain settings (what a config file holds); not started.
+
+        Args:
+            geometry: the robot's geometry.
+            truth: the plant's TRUE parameters.
+            axes: the six drives, as for ``nodes`` of the constructor.
+            coulomb_width: smoothing of the Coulomb friction (rad/s, m/s).
+            bandwidth_hz, damping, Theta0: the position loops and initial pose of the :class:`Plant`.
+            rig_kwargs: ``sync_period``, ``current_noise_ma``, ``seed``, ``initial_states``, ``bus``
+                or the python-can bus settings (``interface``, ``channel``, ...).
+        """
+        plant = Plant(ThreePRRR(geometry, coulomb_width=coulomb_width), truth, Theta0,
+                      bandwidth_hz=bandwidth_hz, damping=damping)
+        return cls(axes, plant, **rig_kwargs)
 
     # -- life cycle ----------------------------------------------------------------------------------
     def start(self) -> SimulatedRig:
@@ -209,7 +230,15 @@ class SimulatedRig:
             for drive in self.drives:
                 drive.send_sync_tpdos(sync_count)
         if period > 0:
-            plant.step(period, demand, velocity, enabled, limit)
+            try:
+                plant.step(period, demand, velocity, enabled, limit)
+            except PlantJammed as exc:   # what a real drive sees: the axis does not follow
+                if self.jammed is None:
+                    logger.error("%s", exc)
+                self.jammed = str(exc)
+                for drive in self.drives:
+                    if drive.powered:
+                        drive.emcy(EMCY_FOLLOWING_ERROR)
         self._last_step = time.monotonic()
 
     def _clock(self) -> None:
