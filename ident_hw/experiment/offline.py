@@ -26,7 +26,7 @@ from ident_hw.model import InertialParams, ThreePRRR
 from ident_hw.report import ParameterTable, Results, TrajectoryFit
 from ident_hw.signal import kept_samples, parallel_decimate, prepare_actuated
 
-from .plan import robot_model
+from .plan import plan, robot_model
 
 NAMES = InertialParams.NAMES
 
@@ -34,7 +34,7 @@ NAMES = InertialParams.NAMES
 @dataclass
 class Prepared:
     """One trajectory after preparation and decimation: t (M,), Theta (M, 6), X (M, 3),
-    regressor Y (M, 6, n), forces tau (M, 6)."""
+    regressor Y (M, 6, n), forces tau (M, 6); ``excluded`` decimated samples were left out."""
 
     name: str
     t: np.ndarray
@@ -42,17 +42,25 @@ class Prepared:
     X: np.ndarray
     Y: np.ndarray
     tau: np.ndarray
+    excluded: int = 0
 
 
 def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
     """A recording from a decoded ``.npz`` or a raw CAN log (``.log``/``.asc``/``.blf``).
 
-    The trajectory name is the recording's ``trajectory`` metadata, else the file stem.
+    The trajectory name is the recording's ``trajectory`` metadata, else the file stem. A raw
+    log is decoded up to the length of the config's trajectory of that name (the SYNC keeps
+    running for a few cycles after the last set-point), on the config's SYNC period.
     """
     path = Path(path)
     if path.suffix in RAW_LOG_SUFFIXES:
-        meta = {"sync_period": 1.0 / config.bus.sync_rate} if config.bus is not None else {}
-        rec = decode_log(path, [a.to_driver() for a in config.robot.actuators], metadata=meta)
+        name = path.stem
+        meta = {"trajectory": name}
+        if config.bus is not None:
+            meta["sync_period"] = 1.0 / config.bus.sync_rate
+        planned = plan(config, [name])
+        cycles = len(planned[0].trajectory.t) if planned and planned[0].trajectory is not None else None
+        rec = decode_log(path, [a.to_driver() for a in config.robot.actuators], max_cycles=cycles, metadata=meta)
     else:
         rec = Recording.load(path)
     return str(rec.metadata.get("trajectory", path.stem)), rec
@@ -80,8 +88,36 @@ def sample_times(rec: Recording) -> np.ndarray:
     return np.asarray(rec.t, dtype=float)
 
 
+#: a set-point sequence accelerating faster than this many times the axis limit was not
+#: delivered on time (the drive held a stale set-point, then jumped)
+SETPOINT_JUMP = 5.0
+#: a current within this fraction of the drive's limit is clipped, not a measurement
+SATURATION = 0.98
+
+
+def disturbed_samples(config: Config, rec: Recording, t: np.ndarray, reach: float) -> np.ndarray:
+    """Samples (N,) bool near a disturbance the model cannot explain: a current at the drive's
+    limit, or a set-point that arrived late (its second difference implies more than
+    ``SETPOINT_JUMP`` × the axis' acceleration limit). Each is widened by ``reach`` s on both
+    sides (the support of the filters that spread it)."""
+    acts = config.robot.actuators
+    limit = np.array([a.limits.current for a in acts])
+    bad = np.any(np.abs(np.nan_to_num(rec.current)) >= SATURATION * limit, axis=1)
+    if len(t) > 2:
+        dt = float(np.median(np.diff(t)))
+        counts = np.array([a.scaling().counts_per_unit for a in acts])
+        jump = np.abs(np.diff(np.nan_to_num(rec.target), 2, axis=0))
+        allowed = SETPOINT_JUMP * np.array([a.limits.acceleration for a in acts]) * dt**2 + 2.0 / counts
+        bad[1:-1] |= np.any(jump > allowed, axis=1)
+    width = int(np.ceil(reach / float(np.median(np.diff(t))))) if len(t) > 1 else 0
+    if bad.any() and width:
+        bad = np.convolve(bad, np.ones(2 * width + 1), mode="same") > 0
+    return bad
+
+
 def prepare(config: Config, robot: ThreePRRR, name: str, rec: Recording) -> Prepared:
-    """Recording → filtered motion, regressor and forces, decimated in parallel."""
+    """Recording → filtered motion, regressor and forces, decimated in parallel; decimated
+    samples near a disturbance (:func:`disturbed_samples`) are left out."""
     t = sample_times(rec)
     if len(t) < 3:
         raise ValueError(f"recording of {name!r} has {len(t)} samples: too few to identify from")
@@ -92,8 +128,10 @@ def prepare(config: Config, robot: ThreePRRR, name: str, rec: Recording) -> Prep
     X = robot.forward_kinematics(samples.Theta, np.zeros(3))
     Y = robot.regressor_from_actuated(samples.Theta, samples.Thetad, samples.Thetadd, np.zeros(3))
     Y, tau = parallel_decimate(settings, Y, samples.tau)
-    kept = kept_samples(settings, len(t))
-    return Prepared(name, t[kept], samples.Theta[kept], X[kept], Y, tau)
+    kept = np.arange(len(t))[kept_samples(settings, len(t))]
+    good = ~disturbed_samples(config, rec, t, 2.0 / settings.decimation_cutoff_hz)[kept]
+    kept = kept[good]
+    return Prepared(name, t[kept], samples.Theta[kept], X[kept], Y[good], tau[good], excluded=int((~good).sum()))
 
 
 def identify(config: Config, recordings: Mapping[str, Recording],
@@ -112,6 +150,9 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         if progress:
             progress(f"preparing {name}")
         prepared[name] = prepare(config, robot, name, recordings[name])
+        if progress and prepared[name].excluded:
+            progress(f"  {name}: {prepared[name].excluded} of {prepared[name].excluded + len(prepared[name].t)} "
+                     "samples left out (current at its limit or late set-point nearby)")
 
     n = len(NAMES)
     initial = config.robot.cad.to_model().as_vector()
@@ -131,7 +172,8 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         idx = [NAMES.index(p) for p in step.parameters]
         held = [i for i in range(n) if i not in idx]
         # sigma of the free parameters: WLS statistics of the same weighted problem
-        record = {"name": step.name, "trajectories": list(step.trajectories), **fit.to_dict()}
+        record = {"name": step.name, "trajectories": list(step.trajectories), **fit.to_dict(),
+                  "samples_left_out": {t: prepared[t].excluded for t in step.trajectories}}
         try:
             stats = wls(Y[:, :, idx], tau - Y[:, :, held] @ coef[held], step.parameters, output_std=fit.output_std)
         except ValueError as exc:  # rank deficient: the fit is bounded, but has no covariance

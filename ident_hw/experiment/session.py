@@ -54,8 +54,7 @@ class Session:
         """The six actuators' drives (theta1..3, zeta1..3) with the bus settings of the config."""
         bus = self.config.bus
         return DriveGroup(self.network, [a.to_driver() for a in self.config.robot.actuators],
-                          bitrate=bus.to_driver().bitrate, heartbeat_period=bus.heartbeat,
-                          sdo_timeout=bus.sdo_timeout)
+                          heartbeat_period=bus.heartbeat, sdo_timeout=bus.sdo_timeout)
 
 
 @contextmanager

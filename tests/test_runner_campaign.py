@@ -1,0 +1,130 @@
+"""``ident-hw run`` on the in-process simulated rig, driven as a user would (subprocess): a short
+campaign (one small square at 100 Hz SYNC), Ctrl-C in the middle of a trajectory, a drive fault
+injected by the rig, and offline identification from the raw CAN log of a run."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from drivers.recording import Recording, decode_log
+from ident_hw.config import load_config
+
+ROOT = Path(__file__).resolve().parent.parent
+SIM = ROOT / "configs" / "sim-3prrr.yaml"
+
+
+def short_config(folder: Path, cycles: int = 1, extra: str = "") -> Path:
+    """One 6 cm square (1.6 s per cycle) at 100 Hz SYNC, m_l2 / m_ee / I_l1 fitted on it."""
+    path = folder / "short.yaml"
+    path.write_text(
+        f"extends: {SIM}\n"
+        f"bus: {{interface: virtual, channel: test-{os.getpid()}-{time.monotonic_ns()}, sync_rate: 100.0}}\n"
+        f"trajectories:\n  - {{name: square, kind: square, size: 0.06, cycles: {cycles}}}\n"
+        "identification:\n"
+        "  steps: [{name: links, trajectories: [square], parameters: [m_l2, m_ee, I_l1]}]\n"
+        "  validation: []\n" + extra)
+    return path
+
+
+def ident_hw(*args, cwd):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "ident_hw.cli", *map(str, args)], capture_output=True,
+                          text=True, cwd=cwd, env=env, timeout=120)
+
+
+def rig_states(folder: Path) -> list[str]:
+    """The CiA 402 states the in-process rig's emulated drives hold after the run."""
+    return list(json.loads((folder / "data" / "drives.json").read_text())["rig"].values())
+
+
+def test_run_then_identify_from_its_raw_can_log_gives_the_same_result(tmp_path):
+    config = short_config(tmp_path)
+    run = ident_hw("run", config, "--out", tmp_path / "run", "--quiet", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    res = tmp_path / "run"
+    assert (res / "STATUS").read_text().strip() == "complete"
+    for name in ("config.yaml", "parameters.json", "metrics.yaml", "report.html", "results.mat",
+                 "data/square.npz", "data/square.log", "plots/forces_square.png"):
+        assert (res / name).is_file(), name
+    assert "m_l2" in run.stdout and "truth 0.5723" in run.stdout
+    assert "bringing up" not in run.stderr and "cycle/s" not in run.stderr   # --quiet
+    assert set(rig_states(res)) == {"SWITCH ON DISABLED"}
+
+    # the decoded recording is the raw log, replayed
+    axes = [a.to_driver() for a in load_config(config).robot.actuators]
+    rec = Recording.load(res / "data" / "square.npz")
+    replay = decode_log(res / "data" / "square.log", axes, max_cycles=162)
+    assert rec.metadata["status"] == "complete" and len(rec.t) == 162
+    np.testing.assert_array_equal(replay.cycle, rec.cycle)
+    np.testing.assert_array_equal(replay.current, rec.current)
+
+    # identification from the raw log, with the run's copy of the config, gives the run's numbers
+    again = ident_hw("identify", res / "config.yaml", res / "data" / "square.log", "--out", tmp_path / "again",
+                     "--quiet", cwd=tmp_path)
+    assert again.returncode == 0, again.stderr
+    first, second = (json.loads((tmp_path / d / "parameters.json").read_text())["parameters"]
+                     for d in ("run", "again"))
+    assert [r["name"] for r in first] == [r["name"] for r in second]
+    np.testing.assert_allclose([r["identified"] for r in second], [r["identified"] for r in first],
+                               rtol=1e-9, atol=0)
+
+
+def test_ctrl_c_mid_trajectory_stops_disables_and_keeps_the_data(tmp_path):
+    config = short_config(tmp_path, cycles=4)   # 6.4 s of streaming
+    res = tmp_path / "run"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.Popen([sys.executable, "-m", "ident_hw.cli", "run", str(config), "--out", str(res)],
+                            cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (res / "data" / "square.npz").exists():   # first checkpoint: streaming for ~1 s
+            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+            time.sleep(0.05)
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert "interrupted" in err and "drives disabled" in err
+    status = (res / "STATUS").read_text()
+    assert status.startswith("partial: interrupted (Ctrl-C)"), status
+    assert set(rig_states(res)) == {"SWITCH ON DISABLED"}
+
+    rec = Recording.load(res / "data" / "square.npz")
+    assert rec.metadata["status"].startswith("stopped")
+    assert 100 < len(rec.t) < 4 * 162 and np.isfinite(rec.position[rec.valid]).all()
+    # the raw log holds the same cycles
+    axes = [a.to_driver() for a in load_config(config).robot.actuators]
+    replay = decode_log(res / "data" / "square.log", axes, max_cycles=len(rec.t))
+    np.testing.assert_array_equal(replay.position, rec.position)
+
+
+def test_a_drive_fault_ends_the_run_with_the_fault_in_message_and_folder(tmp_path):
+    config = short_config(tmp_path, cycles=2, extra=(
+        "sim:\n  fault: {trajectory: square, after: 1.0, node_id: 5, code: 0x2310}\n"))
+    res = tmp_path / "run"
+    out = ident_hw("run", config, "--out", res, "--quiet", cwd=tmp_path)
+    assert out.returncode == 1, out.stderr
+    assert "node 5 (zeta2)" in out.stderr and "0x2310" in out.stderr
+    status = (res / "STATUS").read_text()
+    assert status.startswith("partial: drive fault: node 5 (zeta2)") and "0x2310" in status
+    states = rig_states(res)
+    assert states[4] == "FAULT" and set(states[:4] + states[5:]) == {"SWITCH ON DISABLED"}
+    rec = Recording.load(res / "data" / "square.npz")
+    assert rec.metadata["status"].startswith("stopped") and 50 < len(rec.t) < 2 * 162
+
+
+def test_a_fault_injection_on_an_unknown_trajectory_is_a_config_error(tmp_path):
+    config = short_config(tmp_path, extra="sim:\n  fault: {trajectory: nope, after: 1.0, node_id: 5}\n")
+    out = ident_hw("check", config, cwd=tmp_path)
+    assert out.returncode == 2
+    assert "sim.fault.trajectory" in out.stderr and "'nope'" in out.stderr
