@@ -1,1 +1,47 @@
-"""Identification of the dynamic parameters from a regressor ``Y`` (N, k, n) and forces ``tau`` (N, k)."""
+"""Identification of the dynamic parameters from a regressor ``Y`` (N, k, n) and forces ``tau`` (N, k).
+
+Public API::
+
+    from ident_hw.identification import build_dataset, ols, wls, identify_base, sqp_fit
+    from ident_hw.identification import SVDDLS, RLS, DampedRLS, validation_metrics
+
+- :func:`build_dataset`: measured positions and currents → filtered, decimated regressor and forces.
+- :func:`ols`, :func:`wls`: least squares with the statistics of seed 004 (HAC covariance).
+- :func:`base_parameters`, :func:`identify_base`: rank, null space and base parameters (seed 000).
+- :func:`sqp_fit`: bounded SQP mass fit of seed 001, cross-checked by ``lsq_linear``.
+- :class:`SVDDLS`, :class:`RLS`, :class:`DampedRLS`: online estimators (``partial_fit``).
+- :func:`power_rows`, :func:`energy_rows`: power and energy models (no accelerations).
+- :func:`validation_metrics`: RMS, NRMS, d_tau and J_RMSE on held-out data.
+
+Every result has ``to_dict()``.
+"""
+
+from .base_params import BaseParameters, base_parameters, identify_base
+from .dataset import Dataset, build_dataset
+from .least_squares import LeastSquaresResult, ols, stack, wls
+from .mass_fit import MassFitResult, sqp_fit
+from .metrics import ValidationMetrics, validation_metrics
+from .online import RLS, SVDDLS, DampedRLS, offline_information
+from .power import energy_rows, power_rows
+
+__all__ = [
+    "RLS",
+    "SVDDLS",
+    "BaseParameters",
+    "Dataset",
+    "DampedRLS",
+    "LeastSquaresResult",
+    "MassFitResult",
+    "ValidationMetrics",
+    "base_parameters",
+    "build_dataset",
+    "energy_rows",
+    "identify_base",
+    "offline_information",
+    "ols",
+    "power_rows",
+    "sqp_fit",
+    "stack",
+    "validation_metrics",
+    "wls",
+]
