@@ -74,9 +74,21 @@ def open_bus(config: BusConfig) -> can.BusABC:
         ) from exc
 
 
-def open_network(config: BusConfig) -> canopen.Network:
-    """Open the bus and connect a :class:`canopen.Network` (with its notifier thread) to it."""
-    network = canopen.Network(open_bus(config))
+class BusNetwork(canopen.Network):
+    """A :class:`canopen.Network` that keeps the :class:`BusConfig` it was opened from.
+
+    The bus settings (bitrate for the bus-load budget, interface) then have one source: the
+    drive layer reads them from ``network.config`` instead of taking them a second time.
+    """
+
+    def __init__(self, bus: can.BusABC, config: BusConfig):
+        super().__init__(bus)
+        self.config = config
+
+
+def open_network(config: BusConfig) -> BusNetwork:
+    """Open the bus and connect a :class:`BusNetwork` (with its notifier thread) to it."""
+    network = BusNetwork(open_bus(config), config)
     network.connect()
     return network
 
@@ -124,9 +136,17 @@ def check_bus_load(cycle_frame_sizes: Iterable[int], period: float, bitrate: int
     bits = cycle_bits(sizes)
     load = (bits / period + background_bits_per_s) / bitrate
     if load > max_load:
-        fastest = bits / (max_load * bitrate - background_bits_per_s)
+        ceiling = max_sync_rate(sizes, bitrate, background_bits_per_s, max_load)
         raise BusLoadError(
             f"bus load {load:.0%} of {bitrate} bit/s: {len(sizes)} frames = {bits} bits per SYNC "
             f"cycle (worst-case stuffing) every {period * 1e3:g} ms; the shortest SYNC period this "
-            f"bus can carry is {fastest * 1e3:.2f} ms ({1 / fastest:.0f} Hz)")
+            f"bus can carry is {1e3 / ceiling:.2f} ms ({ceiling:.0f} Hz)")
     return load
+
+
+def max_sync_rate(cycle_frame_sizes: Iterable[int], bitrate: int,
+                  background_bits_per_s: float = 0.0, max_load: float = 1.0) -> float:
+    """Highest SYNC rate in Hz whose worst-case traffic fits ``max_load`` of ``bitrate``
+    (arguments as for :func:`check_bus_load`); 0 when the background alone does not fit."""
+    spare = max_load * bitrate - background_bits_per_s
+    return max(spare, 0.0) / cycle_bits(cycle_frame_sizes)

