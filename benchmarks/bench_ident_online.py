@@ -1,17 +1,44 @@
-"""Per-sample update cost of the online estimators (n = 19 parameters, k = 6 outputs)."""
+"""Online estimators: per-sample update cost (n = 19, k = 6) and the J_RMSE table of the
+SVD-DLS / RLS / damped-RLS comparison of ``tests/test_ident_online.py`` (same stream).
 
+Run from the repository root: ``python benchmarks/bench_ident_online.py``.
+"""
+
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 from ident_hw.identification.online import RLS, SVDDLS, DampedRLS
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from test_ident_data import PAYLOAD_KG, TRUE, online_scenario  # noqa: E402
+from test_ident_online import j_rmse_table, run_all  # noqa: E402
+
 N, K, SAMPLES = 19, 6, 5000
 rng = np.random.default_rng(0)
 Y = rng.normal(size=(SAMPLES, K, N))
 tau = Y @ rng.normal(size=N)
-for est in (RLS(N), DampedRLS(N), SVDDLS(N)):
+print("update cost, random data, n = 19, k = 6:")
+for est in (RLS(N), DampedRLS(N), SVDDLS(N, threshold=1e-6)):
     start = time.perf_counter()
     est.partial_fit(Y, tau)
     per_sample = (time.perf_counter() - start) / SAMPLES
-    print(f"{type(est).__name__:10s} {per_sample * 1e6:7.1f} us/sample  ({1e-3 / per_sample:5.1f} x real time at 1 kHz)")
+    print(f"  {type(est).__name__:10s} {per_sample * 1e6:7.1f} us/sample  ({1e-3 / per_sample:5.1f} x real time at 1 kHz)")
+
+sc = online_scenario()
+traces = run_all(sc)
+names = ("rich 20 s", "slow circle 20 s", f"rich + {PAYLOAD_KG} kg 20 s")
+print("\nJ_RMSE of the a-priori force predictions (N and N·m mixed, seed 000 eq. 87), lambda = 0.998 at 200 Hz:")
+print(f"  {'method':10s}" + "".join(f"{n:>22s}" for n in names) + f"{'cov. growth in circle':>24s}{'m_ee 5 % after':>16s}")
+i_ee = sc.names.index("m_ee")
+target = TRUE.m_ee + PAYLOAD_KG
+a_end, b_end = np.flatnonzero(sc.phase == 0)[-1], np.flatnonzero(sc.phase == 1)[-1]
+c = sc.phase == 2
+for name, j in j_rmse_table(sc, traces).items():
+    tr = traces[name]
+    outside = np.flatnonzero(np.abs(tr.coef[c, i_ee] / target - 1) >= 0.05)
+    settle = (sc.t[c][outside[-1] + 1] - sc.t[c][0]) if outside.size else 0.0
+    growth = tr.covariance_trace[b_end] / tr.covariance_trace[a_end]
+    print(f"  {name:10s}" + "".join(f"{v:22.4g}" for v in j) + f"{growth:23.3g}x{settle:15.2f}s")

@@ -9,7 +9,8 @@ Public API::
 - :func:`ols`, :func:`wls`: least squares with the statistics of seed 004 (HAC covariance).
 - :func:`base_parameters`, :func:`identify_base`: rank, null space and base parameters (seed 000).
 - :func:`sqp_fit`: bounded SQP mass fit of seed 001, cross-checked by ``lsq_linear``.
-- :class:`SVDDLS`, :class:`RLS`, :class:`DampedRLS`: online estimators (``partial_fit``).
+- :class:`SVDDLS`, :class:`RLS`, :class:`DampedRLS`: online estimators (``partial_fit``);
+  :func:`run_stream` records what one does on a stream.
 - :func:`power_rows`, :func:`energy_rows`: power and energy models (no accelerations).
 - :func:`validation_metrics`: RMS, NRMS, d_tau and J_RMSE on held-out data.
 
@@ -21,7 +22,7 @@ from .dataset import Dataset, build_dataset
 from .least_squares import LeastSquaresResult, ols, stack, wls
 from .mass_fit import MassFitResult, sqp_fit
 from .metrics import ValidationMetrics, validation_metrics
-from .online import RLS, SVDDLS, DampedRLS, offline_information
+from .online import RLS, SVDDLS, DampedRLS, StreamTrace, offline_information, run_stream
 from .power import energy_rows, power_rows
 
 __all__ = [
@@ -32,6 +33,7 @@ __all__ = [
     "DampedRLS",
     "LeastSquaresResult",
     "MassFitResult",
+    "StreamTrace",
     "ValidationMetrics",
     "base_parameters",
     "build_dataset",
@@ -40,6 +42,7 @@ __all__ = [
     "offline_information",
     "ols",
     "power_rows",
+    "run_stream",
     "sqp_fit",
     "stack",
     "validation_metrics",

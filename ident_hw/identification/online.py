@@ -49,6 +49,9 @@ Information matrix with forgetting ``lambda`` (eq. 65): ``R_t = lambda R_{t−1}
 
 from __future__ import annotations
 
+import time
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.linalg import lapack, solve
 
@@ -268,3 +271,44 @@ class SVDDLS(_RecursiveEstimator):
         if lam.size:
             g = D @ (s - D.T @ self._theta)
             self._theta = self._theta + Vp @ ((Vp.T @ g) / lam)
+
+
+@dataclass(frozen=True)
+class StreamTrace:
+    """What an online estimator did on a stream (:func:`run_stream`).
+
+    Attributes:
+        predictions: (N, k) a-priori predictions ``Y_t @ coef_{t−1}`` (before sample t is used).
+        coef: (N, n) estimate after each sample, physical units.
+        covariance_trace: (N,) trace of the scaled covariance (``R_t⁻¹``, or its pseudo-inverse
+            on the excited subspace for SVD-DLS) after each sample.
+        rank: (N,) excited directions after each sample (n for the RLS variants).
+        seconds_per_sample: wall time of one update (prediction and bookkeeping included).
+    """
+
+    predictions: np.ndarray
+    coef: np.ndarray
+    covariance_trace: np.ndarray
+    rank: np.ndarray
+    seconds_per_sample: float
+
+
+def run_stream(estimator: _RecursiveEstimator, Y: np.ndarray, tau: np.ndarray) -> StreamTrace:
+    """Feed ``Y`` (N, k, n), ``tau`` (N, k) to ``estimator`` one sample at a time, recording
+    the a-priori prediction, the estimate and the covariance after each sample."""
+    Y = np.asarray(Y, dtype=float)
+    tau = np.asarray(tau, dtype=float)
+    N = len(Y)
+    pred = np.empty(tau.shape)
+    coef = np.empty((N, estimator.n_params))
+    trace = np.empty(N)
+    rank = np.full(N, estimator.n_params)
+    unit = np.outer(estimator.scale, estimator.scale)
+    start = time.perf_counter()
+    for i in range(N):
+        pred[i] = estimator.predict(Y[i])
+        estimator.partial_fit(Y[i], tau[i])
+        coef[i] = estimator.coef_
+        trace[i] = np.trace(estimator.covariance_ / unit)
+        rank[i] = getattr(estimator, "rank_", estimator.n_params)
+    return StreamTrace(pred, coef, trace, rank, (time.perf_counter() - start) / max(N, 1))
