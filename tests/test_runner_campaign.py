@@ -19,15 +19,16 @@ from ident_hw.config import load_config
 
 ROOT = Path(__file__).resolve().parent.parent
 SIM = ROOT / "configs" / "sim-3prrr.yaml"
+CYCLE = 266   # samples of one cycle of the short config's square
 
 
 def short_config(folder: Path, cycles: int = 1, extra: str = "") -> Path:
-    """One 6 cm square (1.6 s per cycle) at 100 Hz SYNC, m_l2 / m_ee / I_l1 fitted on it."""
+    """One 6 cm square (2.6 s, 266 samples per cycle) at 100 Hz SYNC, m_l2 / m_ee / I_l1 fitted on it."""
     path = folder / "short.yaml"
     path.write_text(
         f"extends: {SIM}\n"
         f"bus: {{interface: virtual, channel: test-{os.getpid()}-{time.monotonic_ns()}, sync_rate: 100.0}}\n"
-        f"trajectories:\n  - {{name: square, kind: square, size: 0.06, cycles: {cycles}}}\n"
+        f"trajectories:\n  - {{name: square, kind: square, size: 0.06, cycles: {cycles}, speed_scale: 0.6}}\n"
         "identification:\n"
         "  steps: [{name: links, trajectories: [square], parameters: [m_l2, m_ee, I_l1]}]\n"
         "  validation: []\n" + extra)
@@ -61,8 +62,8 @@ def test_run_then_identify_from_its_raw_can_log_gives_the_same_result(tmp_path):
     # the decoded recording is the raw log, replayed
     axes = [a.to_driver() for a in load_config(config).robot.actuators]
     rec = Recording.load(res / "data" / "square.npz")
-    replay = decode_log(res / "data" / "square.log", axes, max_cycles=162)
-    assert rec.metadata["status"] == "complete" and len(rec.t) == 162
+    replay = decode_log(res / "data" / "square.log", axes, max_cycles=CYCLE)
+    assert rec.metadata["status"] == "complete" and len(rec.t) == CYCLE
     np.testing.assert_array_equal(replay.cycle, rec.cycle)
     np.testing.assert_array_equal(replay.current, rec.current)
 
@@ -78,7 +79,7 @@ def test_run_then_identify_from_its_raw_can_log_gives_the_same_result(tmp_path):
 
 
 def test_ctrl_c_mid_trajectory_stops_disables_and_keeps_the_data(tmp_path):
-    config = short_config(tmp_path, cycles=4)   # 6.4 s of streaming
+    config = short_config(tmp_path, cycles=3)   # 8 s of streaming
     res = tmp_path / "run"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     proc = subprocess.Popen([sys.executable, "-m", "ident_hw.cli", "run", str(config), "--out", str(res)],
@@ -101,7 +102,7 @@ def test_ctrl_c_mid_trajectory_stops_disables_and_keeps_the_data(tmp_path):
 
     rec = Recording.load(res / "data" / "square.npz")
     assert rec.metadata["status"].startswith("stopped")
-    assert 100 < len(rec.t) < 4 * 162 and np.isfinite(rec.position[rec.valid]).all()
+    assert 100 < len(rec.t) < 3 * CYCLE and np.isfinite(rec.position[rec.valid]).all()
     # the raw log holds the same cycles
     axes = [a.to_driver() for a in load_config(config).robot.actuators]
     replay = decode_log(res / "data" / "square.log", axes, max_cycles=len(rec.t))
@@ -120,7 +121,7 @@ def test_a_drive_fault_ends_the_run_with_the_fault_in_message_and_folder(tmp_pat
     states = rig_states(res)
     assert states[4] == "FAULT" and set(states[:4] + states[5:]) == {"SWITCH ON DISABLED"}
     rec = Recording.load(res / "data" / "square.npz")
-    assert rec.metadata["status"].startswith("stopped") and 50 < len(rec.t) < 2 * 162
+    assert rec.metadata["status"].startswith("stopped") and 50 < len(rec.t) < 2 * CYCLE
 
 
 def test_a_fault_injection_on_an_unknown_trajectory_is_a_config_error(tmp_path):
@@ -128,3 +129,24 @@ def test_a_fault_injection_on_an_unknown_trajectory_is_a_config_error(tmp_path):
     out = ident_hw("check", config, cwd=tmp_path)
     assert out.returncode == 2
     assert "sim.fault.trajectory" in out.stderr and "'nope'" in out.stderr
+
+
+def test_scan_monitor_home_and_online_on_the_simulated_rig(tmp_path):
+    config = short_config(tmp_path)
+    scan = ident_hw("scan", config, "--wait", "0.5", cwd=tmp_path)
+    assert scan.returncode == 0, scan.stderr
+    assert "6 node(s)" in scan.stdout and "matches the config" in scan.stdout
+    assert "node   4: EPOS4" in scan.stdout and "firmware" in scan.stdout and "SWITCH ON DISABLED" in scan.stdout
+
+    monitor = ident_hw("monitor", config, "--once", cwd=tmp_path)
+    assert monitor.returncode == 0, monitor.stderr
+    assert "read-only" in monitor.stdout and monitor.stdout.count("SWITCH ON DISABLED") == 6
+
+    home = ident_hw("home", config, cwd=tmp_path)
+    assert home.returncode == 0, home.stderr
+    assert "theta2: homed at 1.6089" in home.stdout and "drives disabled" in home.stdout
+
+    online = ident_hw("online", config, "--out", tmp_path / "online", "--quiet", cwd=tmp_path)
+    assert online.returncode == 0, online.stderr
+    assert "SVD-DLS estimates after square" in online.stdout
+    assert (tmp_path / "online" / "online.npz").is_file() and (tmp_path / "online" / "plots" / "online.png").is_file()

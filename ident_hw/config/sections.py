@@ -302,7 +302,8 @@ class OnlineConfig:
     """The SVD-DLS online estimator."""
 
     forgetting: float = field(default=0.999, metadata=spec(in_range(0.5, 1.0)))
-    threshold: float = field(default=1e-6, metadata=spec(positive, doc="relative eigenvalue threshold"))
+    threshold: float = field(default=100.0, metadata=spec(
+        positive, doc="eigenvalue threshold of the scaled information matrix: 100 = 10 % relative std"))
 
 
 @dataclass(frozen=True)

@@ -35,6 +35,7 @@ from ident_hw.config import Config
 from ident_hw.report import Results, mark_status, save_results
 
 from .offline import identify
+from .online import CampaignEstimator
 from .plan import PlannedTrajectory, plan, sample_rate
 from .session import Session, open_session
 
@@ -135,7 +136,7 @@ def stream(session: Session, group: DriveGroup, planned: PlannedTrajectory, data
 
 def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = True,
                  log: Callable[[str], None] | None = None,
-                 on_recording: Callable[[str, Recording], None] | None = None) -> Results:
+                 online: CampaignEstimator | None = None) -> Results:
     """Record every trajectory of ``config`` on its bus, identify, validate, save into ``folder``.
 
     Args:
@@ -143,7 +144,7 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
         folder: a results folder from :func:`ident_hw.experiment.results.new_results_folder`.
         show_progress: tqdm bars on stderr (the caller turns them off for --quiet / non-TTY).
         log: where progress messages go (``None``: nowhere).
-        on_recording: called with each finished recording (e.g. an online estimator).
+        online: an SVD-DLS estimator fed with each recording as it is made; its trace is saved.
 
     Raises:
         CampaignStopped: Ctrl-C or a fault; the folder is marked ``partial: <reason>``.
@@ -168,14 +169,16 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
                     rec = stream(session, group, p, data, show_progress)
                     recordings[p.config.name] = rec
                     say(f"    recorded {rec.metadata['n_cycles']} cycles, {rec.n_invalid} incomplete")
-                    if on_recording is not None:
-                        on_recording(p.config.name, rec)
+                    if online is not None:
+                        online.update(p.config.name, rec)
             finally:
                 group.stop_motion()
                 states = _drive_states(session, group)
                 (data / "drives.json").write_text(json.dumps(states, indent=2))
         mark_status(folder, "identifying")
         results = identify(config, recordings, progress=say)
+        if online is not None:
+            results.online = online.trace()
         save_results(folder, results)
     except BaseException as exc:
         if isinstance(exc, KeyboardInterrupt):
