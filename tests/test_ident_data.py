@@ -160,6 +160,47 @@ def online_scenario(rate: float = 200.0, durations=(20.0, 20.0, 20.0), seed: int
     )
 
 
+#: The paper's identification steps on its campaign, with m_l2 held at its known value (it breaks
+#: the structural null direction): the squares (carriages blocked, orientation held, so m_c,
+#: I_ee and the carriage friction are unexcited) give the link and end-effector mass terms,
+#: then the carriage sweep gives m_c, I_ee and the carriage friction with those held.
+HELD_KNOWN = "m_l2"
+PAPER_STEPS = (
+    ("squares", tuple(f"square-{i}" for i in range(1, 6)),
+     ("m_l1", "I_l1", "I_l2", "m_ee") + tuple(n for n in NAMES if n.startswith(("fv_theta", "fc_theta")))),
+    ("sweep", ("carriage-sweep",), ("m_c", "I_ee") + tuple(n for n in NAMES if n.startswith(("fv_zeta", "fc_zeta")))),
+)
+
+
+def paper_campaign(rate: float, dwell: float = 0.0) -> dict:
+    """The paper's trajectories (``trajectories`` package, nominal limits) by name."""
+    from trajectories import Limits, carriage_sweep, five_squares, validation_triangle
+
+    limits = Limits()
+    trajs = [carriage_sweep(ROBOT, limits, rate=rate, dwell=dwell), *five_squares(ROBOT, limits, rate=rate, dwell=dwell),
+             validation_triangle(ROBOT, limits, rate=rate, dwell=dwell)]
+    return {tr.name: tr for tr in trajs}
+
+
+def exact_regressor(tr) -> np.ndarray:
+    """Regressor (N, 6, 19) of a trajectory from its exact pose and carriage motion."""
+    return ROBOT.regressor(tr.X, tr.Xd, tr.Xdd, tr.zeta, tr.zetad, tr.zetadd)
+
+
+def identify_paper_steps(data: dict, initial: np.ndarray) -> list:
+    """Run :data:`PAPER_STEPS` on ``data`` (name → (Y, tau)) from ``initial`` (19,), which
+    must hold the known value of :data:`HELD_KNOWN`. Returns the steps' ``MassFitResult``."""
+    from ident_hw.identification import sqp_fit
+
+    fits, coef = [], np.asarray(initial, dtype=float)
+    for _, names, free in PAPER_STEPS:
+        Y = np.concatenate([data[n][0] for n in names])
+        tau = np.concatenate([data[n][1] for n in names])
+        fits.append(sqp_fit(Y, tau, NAMES, coef, free=free))
+        coef = fits[-1].coef
+    return fits
+
+
 def test_motion_stays_in_the_workspace_and_regressor_matches_inverse_dynamics():
     m = make_motion(duration=4.0, rate=200.0)
     assert np.all(np.abs(m.X[:, :2]) <= 0.06) and np.all(np.abs(m.X[:, 2]) <= 0.3) and np.all(np.abs(m.zeta) <= 0.05)
