@@ -1,26 +1,18 @@
 """The simulated rig against a REAL canopen master on python-can's virtual bus."""
 
 import itertools
-import math
 import time
 
 import canopen
-import numpy as np
 import pytest
 from canopen.profiles.p402 import BaseNode402
 from canopen.sdo import SdoAbortedError
 
 from drivers.profiles import make_object_dictionary
-from drivers.sim import Plant, SimulatedRig
-from drivers.units import AxisScaling
-from ident_hw.model import Geometry, InertialParams, ThreePRRR
+from drivers.sim import SimulatedRig, nominal
 
 _channels = itertools.count()
-REV = AxisScaling("revolute", 2048, 0.0369, gear_ratio=26.0)
-PRI = AxisScaling("prismatic", 2048, 0.0603, screw_lead=0.002)
-GEO = Geometry(l1=0.30, l2=0.30, s1=0.15, s2=0.15, h=0.12, a=0.40, gamma=(0, 2 * math.pi / 3, 4 * math.pi / 3))
-TRUE = InertialParams(m_c=603.62, m_l1=0.30, I_l1=0.00225, m_l2=0.5723, I_l2=0.0043, m_ee=0.2269, I_ee=0.0016,
-                      f_v=(0.01,) * 3 + (20.0,) * 3)
+REV, PRI = nominal.REVOLUTE, nominal.PRISMATIC
 
 
 class Bench:
@@ -29,8 +21,8 @@ class Bench:
     def __init__(self, profiles=("epos4",) * 6, node_class=canopen.RemoteNode, **rig_kwargs):
         channel = f"sim-rig-test-{next(_channels)}"
         nodes = [(i + 1, profiles[i], REV if i < 3 else PRI) for i in range(6)]
-        self.rig = SimulatedRig(nodes, Plant(ThreePRRR(GEO), TRUE), interface="virtual", channel=channel,
-                                ignore_config=True, **rig_kwargs)
+        self.rig = SimulatedRig.build(nominal.GEOMETRY, nominal.TRUE_PARAMS, nodes, interface="virtual",
+                                      channel=channel, ignore_config=True, **rig_kwargs)
         self.master = canopen.Network()
         self.master.connect(interface="virtual", channel=channel, ignore_config=True)
         self.nodes = []

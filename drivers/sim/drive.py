@@ -420,9 +420,14 @@ class EmulatedDrive:
                 self._mode_bits = 0
 
     def _finish_homing(self) -> None:
-        shift = self.actual - self.get(self.profile.home_position.index)
+        # methods 35/37 home on the actual position; a search move ends on the reference it found,
+        # where the demand stops (the axis settles onto it)
+        end = self.demand if self._next_demand is None else self._next_demand
+        reference = self.actual if self._homing_phase is None else round(end)
+        shift = reference - self.get(self.profile.home_position.index)
         self.offset += shift
         self.actual -= shift
+        self._set(self.profile.position_actual, self.actual)
         self.demand -= shift
         if self._next_demand is not None:
             self._next_demand -= shift
