@@ -236,18 +236,28 @@ def build_report(folder: str | Path) -> Path:
 
 
 def summary_lines(folder: str | Path) -> list[str]:
-    """The numbers printed at the end of a run: identified vs truth, and validation errors."""
+    """The numbers printed at the end of a run: a Table-1-like table of the fitted parameters
+    (initial, identified, truth, %sigma, error vs truth), the held ones, the validation errors."""
     results = load_results(folder)
-    lines = [f"status: {read_status(folder)}"]
-    for row in results.parameters.rows():
+    rows = results.parameters.rows()
+    truth = results.parameters.truth is not None
+    head = f"  {'parameter':>10} {'unit':>9} {'initial':>11} {'identified':>11} {'%sigma':>7}"
+    if truth:
+        head += f" {'truth':>11} {'error %':>8}"
+    lines = [f"status: {read_status(folder)}", head + "  step"]
+    for row in rows:
         if not row["step"]:
             continue
-        text = f"  {row['name']:>10} = {row['identified']:.6g} {row['unit']}"
-        if row["rel_sigma_percent"] is not None:
-            text += f"  (%sigma {row['rel_sigma_percent']:.2f})"
-        if row.get("error_percent") is not None:
-            text += f"  truth {row['truth']:.6g}, error {row['error_percent']:+.2f} %"
-        lines.append(text)
+        sig = row["rel_sigma_percent"]
+        text = (f"  {row['name']:>10} {row['unit']:>9} {row['initial']:>11.5g} {row['identified']:>11.5g} "
+                f"{sig if sig is not None else float('nan'):>7.2f}")
+        if truth:
+            err = row.get("error_percent")
+            text += f" {row['truth']:>11.5g} {err if err is not None else float('nan'):>+8.2f}"
+        lines.append(text + f"  {row['step']}")
+    held = [r["name"] for r in rows if not r["step"]]
+    if held:
+        lines.append(f"  held at their initial values (not fitted by any step): {', '.join(held)}")
     for name, m in metrics(results).items():
         lines.append(f"  {m['role']:>14} {name}: d_tau = {m['d_tau_percent']:.2f} %, J_RMSE = {m['j_rmse']:.4g}")
     return lines

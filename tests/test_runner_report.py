@@ -81,7 +81,11 @@ def test_results_folder_round_trip_and_metrics(tmp_path):
     text = page.read_text()
     assert "Table 1" in text and "m_l1" in text and "Poorly identified" in text
     assert "I_l1 + 0.0225 m_l1" in text and "plots/forces_triangle.png" in text
-    assert any("error" in line and "m_c" in line for line in summary_lines(tmp_path))
+    lines = summary_lines(tmp_path)
+    assert "error %" in lines[1] and "initial" in lines[1]
+    m_c = next(line.split() for line in lines if line.split()[:1] == ["m_c"])
+    # m_c: initial 1.3, identified 1.0, truth 1.0 (error +0.00 %), step carriages
+    assert [float(v) for v in m_c[2:4]] == pytest.approx([1.3, 1.0]) and m_c[-1] == "carriages"
 
 
 def test_report_rebuilds_from_the_folder_alone(tmp_path):
