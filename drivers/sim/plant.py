@@ -28,7 +28,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ident_hw.model import InertialParams, KinematicsError, ThreePRRR
-from ident_hw.model.dynamics import friction, reduced_dynamics
 
 
 class PlantJammed(RuntimeError):
@@ -109,17 +108,20 @@ class Plant:
             PlantJammed: no pose closes the chains at ``Theta``; the plant goes back to the last
                 pose that closed them, at rest.
         """
+        robot, Theta = self.robot, self.Theta[None]
         try:
-            motion = self.robot.motion_from_actuated(self.Theta[None], self.Thetad[None], np.zeros((1, 6)), self.X)
+            self.X = robot.forward_kinematics(Theta, self.X)[0]
         except KinematicsError as exc:
             message = f"the simulated robot jammed at Theta = {np.round(self.Theta, 5).tolist()}: {exc}"
             self.Theta, self.X = self._last_valid
             self.Thetad = np.zeros(6)
             raise PlantJammed(message) from exc
-        self.X = motion.X[0]
         self._last_valid = (self.Theta, self.X)
-        M, c = reduced_dynamics(self.robot.kinematics, motion, self.params, self.robot.coulomb_width)
-        return M[0], c[0] - friction(self.Thetad, self.params, self.robot.coulomb_width)
+        M, c = robot.reduced_dynamics(Theta, self.Thetad[None], self.params, self.X)
+        return M[0], c[0] - self._friction(self.Thetad)
+
+    def _friction(self, Thetad) -> np.ndarray:
+        return self.robot.friction(Thetad[None], self.params)[0]
 
     def _loop_force(self, Theta, Thetad, demand, demand_velocity, enabled, force_limit) -> np.ndarray:
         F = self.Kp * (demand - Theta) + self.Kd * (demand_velocity - Thetad)
@@ -141,12 +143,11 @@ class Plant:
         M, bias = self._dynamics()
         Theta0, Thetad0, X0 = self.Theta, self.Thetad, self.X
         M_inv = np.linalg.inv(M)
-        params, width = self.params, self.robot.coulomb_width
         external = self.external_force - bias
 
         def acceleration(Theta, Thetad, t):
             F = self._loop_force(Theta, Thetad, demand + demand_velocity * t, demand_velocity, enabled, force_limit)
-            return F, M_inv @ (F + external - friction(Thetad, params, width))
+            return F, M_inv @ (F + external - self._friction(Thetad))
 
         self.force, a1 = acceleration(Theta0, Thetad0, 0.0)
         self.log.append(TruthSample(self.t, X0.copy(), Theta0.copy(), Thetad0.copy(), a1, self.force))
