@@ -9,6 +9,8 @@ Per rate it prints
 * SYNC-to-sample latency, from the raw log: the j-th SYNC-triggered TPDO1 of a node answers the
   j-th SYNC (the rig answers every SYNC in order), so latency = its timestamp - that SYNC's; and
   how many arrived after the next SYNC (the assembler then counts them in a later cycle);
+  and *stale valid* cells: a sample of an earlier SYNC that filled a later cycle flagged valid
+  (the master cannot tell: TPDOs carry no SYNC counter; a real drive answers within its period);
 * SYNC-to-set-point latency: master's RPDO after the SYNC echo;
 * the rig's own per-SYNC cost (plant + six drives), the reason the in-process rig falls behind;
 * the bus-load budget of this PDO layout on a 1 Mbit/s bus (the virtual bus has no bitrate).
@@ -55,8 +57,8 @@ def bus_budget(group: DriveGroup) -> None:
               f"{check_bus_load(frames, 0.004, BITRATE, bg):.0%}; ceiling {rate:.0f} Hz")
 
 
-def raw_latencies(path: Path, node_ids: list[int], n_sync: int):
-    """SYNC timestamps, per-node TPDO1 latencies (s) by ordinal matching, RPDO latencies (s)."""
+def raw_timing(path: Path, node_ids: list[int]):
+    """From the raw log: SYNC timestamps, per-node TPDO1 timestamps, SYNC->first RPDO latencies (s)."""
     syncs, tpdo = [], {n: [] for n in node_ids}
     rpdo_first = {}
     with can.LogReader(path) as reader:
@@ -69,16 +71,24 @@ def raw_latencies(path: Path, node_ids: list[int], n_sync: int):
             elif 0x201 <= cob <= 0x27F and syncs:
                 rpdo_first.setdefault(len(syncs) - 1, msg.timestamp)
     syncs = np.array(syncs)
-    lat, after_next, unanswered = [], 0, 0
-    for stamps in tpdo.values():
+    return syncs, {n: np.array(v) for n, v in tpdo.items()}, np.array([t - syncs[k] for k, t in rpdo_first.items()])
+
+
+def sample_timing(syncs: np.ndarray, tpdo: dict, valid: np.ndarray):
+    """The j-th TPDO1 of a node answers the j-th SYNC (the rig answers every SYNC, in order):
+    latencies (s), samples that came after the next SYNC, SYNCs unanswered when the log closed,
+    and *stale valid* cells: a row flagged valid whose sample answered an earlier SYNC."""
+    lat, after_next, unanswered, stale = [], 0, 0, 0
+    n = len(valid)
+    for axis, stamps in enumerate(tpdo.values()):
         m = min(len(stamps), len(syncs))
-        d = np.array(stamps[:m]) - syncs[:m]
-        lat.append(d)
-        nxt = np.append(syncs[1:m + 1], np.inf)[:m] if m else np.zeros(0)
-        after_next += int(np.count_nonzero(np.array(stamps[:m]) > nxt))
-        unanswered += max(0, min(n_sync, len(syncs)) - len(stamps))
-    rp = np.array([t - syncs[k] for k, t in rpdo_first.items()])
-    return syncs, np.concatenate(lat), after_next, unanswered, rp
+        lat.append(stamps[:m] - syncs[:m])
+        cycle = np.searchsorted(syncs, stamps[:m], side="right") - 1  # the cycle it was counted in
+        after_next += int(np.count_nonzero(cycle > np.arange(m)))
+        unanswered += max(0, min(n, len(syncs)) - len(stamps))
+        shifted = (cycle != np.arange(m)) & (cycle < n)
+        stale += int(np.count_nonzero(valid[cycle[shifted], axis]))
+    return np.concatenate(lat), after_next, unanswered, stale
 
 
 def stats_us(x: np.ndarray) -> str:
@@ -113,9 +123,8 @@ def run(rate_hz: float, seconds: float, index: int) -> dict:
             wall = time.perf_counter()
             rec = group.run_cyclic(targets, period, output=Path(tmp) / "run.npz", raw_log=raw)
             wall = time.perf_counter() - wall
-            sent_syncs = rec.metadata["n_cycles"]
-            syncs, lat, after_next, unanswered, rp = raw_latencies(raw, [a.node_id for a in AXES],
-                                                                   sent_syncs)
+            syncs, tpdo, rp = raw_timing(raw, [a.node_id for a in AXES])
+            lat, after_next, unanswered, stale = sample_timing(syncs, tpdo, rec.valid)
         deadline = time.monotonic() + DRAIN_TIMEOUT
         while rig.sync_count < len(syncs) and time.monotonic() < deadline:
             time.sleep(0.1)
@@ -136,7 +145,7 @@ def run(rate_hz: float, seconds: float, index: int) -> dict:
           f"max {np.abs(dev).max() * 1e6:.0f} us")
     print(f"  SYNC->TPDO1 latency (6 nodes, ordinal match): {stats_us(lat)}")
     print(f"    samples arriving after the next SYNC: {after_next} of {len(lat)}; SYNCs never answered "
-          f"before the log closed: {unanswered}")
+          f"before the log closed: {unanswered}; stale samples in cells flagged valid: {stale}")
     print(f"  SYNC->set-point (RPDO) latency: {stats_us(rp)}")
     print(f"  rig per-SYNC cost: {stats_us(cost)} (budget {period * 1e6:.0f} us)")
     return {"rate": rate_hz, "invalid": rec.n_invalid, "rows": len(rec.t)}
