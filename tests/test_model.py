@@ -222,3 +222,18 @@ def test_forward_kinematics_refuses_another_working_mode(robot):
     with pytest.raises(KinematicsError, match="working mode") as err:
         robot.forward_kinematics(np.c_[theta_other, zeta], X)
     assert err.value.chain == 2
+
+
+def test_forward_kinematics_refuses_another_assembly_mode(robot):
+    """At home the platform has a second assembly (same elbows, rotated about -91 deg): Newton started
+    next to it converges there, and the det(A) sign check refuses it."""
+    theta, _ = robot.inverse_kinematics(np.zeros(3), np.zeros(3))
+    Theta = np.r_[theta[0], 0.0, 0.0, 0.0]
+    # the other solution satisfies every closure constraint, so only the assembly check can tell
+    other = np.array([0.0, 0.0, np.radians(-91.1626)])
+    X_other, ok = robot.kinematics._newton(other[None], theta, np.zeros((1, 3)))
+    assert ok[0] and abs(X_other[0, 2] - other[2]) < 1e-3
+    assert robot.closure_residual(X_other, Theta).max() < 1e-12
+    with pytest.raises(KinematicsError, match="assembly mode"):
+        robot.forward_kinematics(Theta, other)
+    assert np.abs(robot.forward_kinematics(Theta, np.array([0.01, -0.01, 0.1]))).max() < 1e-12

@@ -136,6 +136,8 @@ class Kinematics:
         self._beta_ref = np.zeros(3)
         theta, beta = self._raw_ik(np.zeros((1, 3)), np.zeros((1, 3)))
         self._theta_ref, self._beta_ref = theta[0], beta[0]
+        A_home, _ = self.velocity_matrices(np.zeros((1, 3)), theta, beta)
+        self._assembly_sign = np.sign(np.linalg.det(A_home[0]))
 
     # -- points -------------------------------------------------------------------------------
     def base_points(self, zeta: np.ndarray) -> np.ndarray:
@@ -345,4 +347,10 @@ class Kinematics:
                        "forward kinematics reached another working mode (give a closer X_guess)", X)
         d = rho - self.geometry.l1 * e(theta)
         beta = self._beta_ref + wrap(np.arctan2(d[..., 1], d[..., 0]) - self._beta_ref)
+        X[:, 2] = wrap(X[:, 2])
+        # Assembly mode of the platform: det(A) changes sign only across a parallel singularity.
+        A, _ = self.velocity_matrices(X, theta, beta)
+        raise_at_first(np.linalg.det(A) * self._assembly_sign <= 0, KinematicsError,
+                       "forward kinematics reached another assembly mode (across a parallel singularity; "
+                       "give a closer X_guess)", X)
         return X, beta
