@@ -16,10 +16,8 @@ import canopen
 
 from drivers.bus import open_network
 from drivers.epos import DriveGroup
-from drivers.sim import Plant, SimulatedRig
+from drivers.sim import SimulatedRig
 from ident_hw.config import Config
-
-from .plan import robot_model
 
 
 def simulated_rig(config: Config) -> SimulatedRig:
@@ -34,12 +32,13 @@ def simulated_rig(config: Config) -> SimulatedRig:
         raise ValueError(f"{config.source}: sim: missing section (the simulated rig's truth and noise)")
     if config.bus is None:
         raise ValueError(f"{config.source}: bus: missing section")
-    sim = config.sim
-    plant = Plant(robot_model(config), sim.truth.to_model(), bandwidth_hz=sim.bandwidth, damping=sim.damping)
-    nodes = [(a.node_id, a.profile, a.scaling()) for a in config.robot.actuators]
-    return SimulatedRig(nodes, plant, sync_period=1.0 / config.bus.sync_rate,
-                        current_noise_ma=sim.current_noise * 1e3, seed=sim.seed,
-                        interface=config.bus.interface, channel=config.bus.channel, ignore_config=True)
+    sim, robot = config.sim, config.robot
+    axes = [(a.node_id, a.profile, a.scaling()) for a in robot.actuators]
+    return SimulatedRig.build(robot.geometry.to_model(), sim.truth.to_model(), axes,
+                              coulomb_width=robot.coulomb_width, bandwidth_hz=sim.bandwidth, damping=sim.damping,
+                              sync_period=1.0 / config.bus.sync_rate, current_noise_ma=sim.current_noise * 1e3,
+                              seed=sim.seed, interface=config.bus.interface, channel=config.bus.channel,
+                              ignore_config=True)
 
 
 @dataclass
