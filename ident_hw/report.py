@@ -4,8 +4,10 @@ A results folder holds::
 
     STATUS               "complete", or "partial: <why>" after a fault or Ctrl-C
     config.yaml          the config used, with every ``extends:`` merged in
-    parameters.json/.yaml  Table-1-like rows: initial, identified, truth, sigma, %sigma, bounds, step
-    fits/<name>.npz      measured and model forces along each trajectory (t, tau, tau_model, Theta, X)
+    parameters.json/.yaml  Table-1-like rows: initial, identified, truth, sigma, %sigma, bounds, step;
+                         the base-parameter least-squares fit (``base_fit``) when a step made one
+    fits/<name>.npz      measured and model forces along each trajectory (t, tau, tau_model, Theta, X,
+                         tau_base = the base fit's prediction)
     online.npz           estimates over time of an online run (optional)
     data/                the recordings (raw CAN log + decoded samples), written by the runner
     metrics.yaml         per trajectory and actuator: RMS, NRMS, d_tau, J_RMSE   (built)
@@ -36,7 +38,7 @@ from ident_hw.model import ACTUATOR_NAMES
 FORCE_UNITS = ("N·m",) * 3 + ("N",) * 3
 POSITION_UNITS = ("rad",) * 3 + ("m",) * 3
 STATUS_FILE = "STATUS"
-#: %sigma above which a parameter is reported as poorly identified on its data (seed 004).
+#: default %sigma above which a parameter is reported as poorly identified on its data (seed 004)
 POOR_REL_SIGMA = 10.0
 
 
@@ -101,6 +103,73 @@ class ParameterTable:
 
 
 @dataclass
+class BaseFit:
+    """Least-squares estimate of base parameters (seed 000) with statistics (seed 004).
+
+    ``r`` base parameters ``pi_b = H pi`` of the ``n`` physical ones: ``expressions`` (r,) read
+    them (e.g. ``"m_c + 0.5 m_l2"``); ``coef``, ``sigma`` (r,) estimate and standard deviation;
+    ``initial``, ``truth`` (r,) the same combinations of the CAD and true values (truth None
+    outside simulation). ``held``: physical parameters held at known values during the fit;
+    ``unexcited``: free ones the data says nothing of. A base parameter whose %σ exceeds
+    ``threshold`` is poorly identified on its data.
+    """
+
+    step: str
+    method: str
+    trajectories: tuple[str, ...]
+    expressions: tuple[str, ...]
+    H: np.ndarray
+    coef: np.ndarray
+    sigma: np.ndarray
+    initial: np.ndarray
+    truth: np.ndarray | None
+    held: tuple[str, ...]
+    unexcited: tuple[str, ...]
+    threshold: float
+
+    @property
+    def rel_sigma_percent(self) -> np.ndarray:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return 100.0 * self.sigma / np.abs(self.coef)
+
+    @property
+    def identified(self) -> np.ndarray:
+        """(r,) bool: %σ at most ``threshold``."""
+        return self.rel_sigma_percent <= self.threshold
+
+    def rows(self) -> list[dict]:
+        out = []
+        for i, expr in enumerate(self.expressions):
+            rel = float(self.rel_sigma_percent[i])
+            row = {"base_parameter": expr, "initial": float(self.initial[i]), "identified": float(self.coef[i]),
+                   "sigma": float(self.sigma[i]), "rel_sigma_percent": rel if math.isfinite(rel) else None,
+                   "well_identified": bool(self.identified[i])}
+            if self.truth is not None:
+                true = float(self.truth[i])
+                row["truth"] = true
+                row["error_percent"] = 100.0 * (self.coef[i] - true) / abs(true) if true else None
+            out.append(row)
+        return out
+
+    def to_dict(self) -> dict:
+        return {"step": self.step, "method": self.method, "trajectories": list(self.trajectories),
+                "threshold_rel_sigma_percent": self.threshold, "held": list(self.held),
+                "unexcited": list(self.unexcited), "H": self.H.tolist(), "rows": self.rows()}
+
+    @classmethod
+    def from_dict(cls, doc: dict) -> BaseFit:
+        rows = doc["rows"]
+        def col(key):
+            return np.array([math.nan if r.get(key) is None else r[key] for r in rows], dtype=float)
+        has_truth = all("truth" in r for r in rows)
+        return cls(step=doc["step"], method=doc["method"], trajectories=tuple(doc["trajectories"]),
+                   expressions=tuple(r["base_parameter"] for r in rows), H=np.array(doc["H"], dtype=float),
+                   coef=col("identified"), sigma=col("sigma"), initial=col("initial"),
+                   truth=col("truth") if has_truth else None, held=tuple(doc["held"]),
+                   unexcited=tuple(doc["unexcited"]), threshold=float(doc["threshold_rel_sigma_percent"]))
+
+
+@dataclass
 class TrajectoryFit:
     """Measured and model forces along one trajectory (SI, after filtering/decimation).
 
@@ -108,6 +177,7 @@ class TrajectoryFit:
         name: trajectory name; role: ``"identification"`` or ``"validation"``.
         t: (N,) s; tau, tau_model: (N, 6) N·m / N; Theta: (N, 6) rad / m;
         X: (N, 3) end-effector pose [x m, y m, alpha rad], or None.
+        tau_base: (N, 6) the forces the base-parameter fit (:class:`BaseFit`) predicts, or None.
     """
 
     name: str
@@ -117,18 +187,19 @@ class TrajectoryFit:
     tau_model: np.ndarray
     Theta: np.ndarray
     X: np.ndarray | None = None
+    tau_base: np.ndarray | None = None
 
     def save(self, path: Path) -> None:
-        arrays = {k: getattr(self, k) for k in ("t", "tau", "tau_model", "Theta")}
-        if self.X is not None:
-            arrays["X"] = self.X
+        arrays = {k: getattr(self, k) for k in ("t", "tau", "tau_model", "Theta", "X", "tau_base")
+                  if getattr(self, k) is not None}
         np.savez_compressed(path, name=self.name, role=self.role, **arrays)
 
     @classmethod
     def load(cls, path: Path) -> TrajectoryFit:
         with np.load(path) as f:
             return cls(name=str(f["name"]), role=str(f["role"]), t=f["t"], tau=f["tau"],
-                       tau_model=f["tau_model"], Theta=f["Theta"], X=f["X"] if "X" in f else None)
+                       tau_model=f["tau_model"], Theta=f["Theta"], X=f["X"] if "X" in f else None,
+                       tau_base=f["tau_base"] if "tau_base" in f else None)
 
 
 @dataclass
@@ -149,6 +220,8 @@ class Results:
     steps: list[dict] = field(default_factory=list)
     base_parameters: dict | None = None
     online: OnlineTrace | None = None
+    base_fit: BaseFit | None = None
+    rel_sigma_threshold: float = POOR_REL_SIGMA
 
 
 # ----------------------------------------------------------------------------- status
@@ -167,8 +240,9 @@ def save_results(folder: str | Path, results: Results) -> Path:
     """Write the parameters, fits and online trace into ``folder``, then :func:`build_report`."""
     folder = Path(folder)
     (folder / "fits").mkdir(parents=True, exist_ok=True)
-    doc = {"parameters": results.parameters.rows(), "steps": results.steps,
-           "base_parameters": results.base_parameters}
+    doc = {"parameters": results.parameters.rows(), "rel_sigma_threshold_percent": results.rel_sigma_threshold,
+           "base_fit": None if results.base_fit is None else results.base_fit.to_dict(),
+           "steps": results.steps, "base_parameters": results.base_parameters}
     (folder / "parameters.json").write_text(json.dumps(doc, indent=2, default=_jsonable))
     (folder / "parameters.yaml").write_text(yaml.safe_dump(json.loads(json.dumps(doc, default=_jsonable)),
                                                            sort_keys=False))
@@ -193,25 +267,29 @@ def load_results(folder: str | Path) -> Results:
     if (folder / "online.npz").is_file():
         with np.load(folder / "online.npz") as f:
             online = OnlineTrace(names=tuple(str(n) for n in f["names"]), t=f["t"], estimates=f["estimates"])
+    base_fit = BaseFit.from_dict(doc["base_fit"]) if doc.get("base_fit") else None
     return Results(parameters=ParameterTable.from_rows(doc["parameters"]), fits=fits,
-                   steps=doc.get("steps") or [], base_parameters=doc.get("base_parameters"), online=online)
+                   steps=doc.get("steps") or [], base_parameters=doc.get("base_parameters"), online=online,
+                   base_fit=base_fit, rel_sigma_threshold=doc.get("rel_sigma_threshold_percent", POOR_REL_SIGMA))
 
 
 # ----------------------------------------------------------------------------- building
 def metrics(results: Results) -> dict:
-    """Per trajectory: role and the validation metrics per actuator (``identification.metrics``)."""
+    """Per trajectory: role and the validation metrics per actuator (``identification.metrics``)
+    of the physical parameters, and under ``base_fit`` those of the base-parameter fit."""
     out = {}
     for fit in results.fits:
-        m = validation_metrics(fit.tau, fit.tau_model)
-        out[fit.name] = {
-            "role": fit.role,
-            "samples": int(len(fit.t)),
-            "rms": dict(zip(ACTUATOR_NAMES, m.rms.tolist())),
-            "nrms_percent": dict(zip(ACTUATOR_NAMES, m.nrms_percent.tolist())),
-            "d_tau_percent": m.d_tau_percent,
-            "j_rmse": m.j_rmse,
-        }
+        out[fit.name] = {"role": fit.role, "samples": int(len(fit.t)), **_metrics(fit.tau, fit.tau_model)}
+        if fit.tau_base is not None:
+            out[fit.name]["base_fit"] = _metrics(fit.tau, fit.tau_base)
     return out
+
+
+def _metrics(tau: np.ndarray, tau_model: np.ndarray) -> dict:
+    m = validation_metrics(tau, tau_model)
+    return {"rms": dict(zip(ACTUATOR_NAMES, m.rms.tolist())),
+            "nrms_percent": dict(zip(ACTUATOR_NAMES, m.nrms_percent.tolist())),
+            "d_tau_percent": m.d_tau_percent, "j_rmse": m.j_rmse}
 
 
 def build_report(folder: str | Path) -> Path:
@@ -244,7 +322,10 @@ def summary_lines(folder: str | Path) -> list[str]:
     head = f"  {'parameter':>10} {'unit':>9} {'initial':>11} {'identified':>11} {'%sigma':>7}"
     if truth:
         head += f" {'truth':>11} {'error %':>8}"
-    lines = [f"status: {read_status(folder)}", head + "  step"]
+    lines = [f"status: {read_status(folder)}"]
+    if any(r["step"] for r in rows):
+        lines.append("physical parameters, step by step (seed 001):")
+    lines.append(head + "  step")
     for row in rows:
         if not row["step"]:
             continue
@@ -258,8 +339,35 @@ def summary_lines(folder: str | Path) -> list[str]:
     held = [r["name"] for r in rows if not r["step"]]
     if held:
         lines.append(f"  held at their initial values (not fitted by any step): {', '.join(held)}")
+    if results.base_fit is not None:
+        lines += _base_fit_lines(results.base_fit)
     for name, m in metrics(results).items():
-        lines.append(f"  {m['role']:>14} {name}: d_tau = {m['d_tau_percent']:.2f} %, J_RMSE = {m['j_rmse']:.4g}")
+        text = f"  {m['role']:>14} {name}: d_tau = {m['d_tau_percent']:.2f} %, J_RMSE = {m['j_rmse']:.4g}"
+        if "base_fit" in m:
+            text += f"; base fit: d_tau = {m['base_fit']['d_tau_percent']:.2f} %"
+        lines.append(text)
+    return lines
+
+
+def _base_fit_lines(fit: BaseFit) -> list[str]:
+    """The base-parameter table of :func:`summary_lines`."""
+    lines = [f"base parameters, {fit.method} on {', '.join(fit.trajectories)} (step {fit.step}; "
+             f"well identified: %sigma <= {fit.threshold:g}):"]
+    width = max(len(e) for e in fit.expressions) if fit.expressions else 10
+    head = f"  {'base parameter':<{width}} {'initial':>11} {'identified':>11} {'%sigma':>7}"
+    lines.append(head + (f" {'truth':>11} {'error %':>8}" if fit.truth is not None else ""))
+    for row in fit.rows():
+        sig = row["rel_sigma_percent"]
+        text = (f"  {row['base_parameter']:<{width}} {row['initial']:>11.5g} {row['identified']:>11.5g} "
+                f"{sig if sig is not None else float('inf'):>7.2f}")
+        if fit.truth is not None:
+            err = row.get("error_percent")
+            text += f" {row['truth']:>11.5g} {err if err is not None else float('nan'):>+8.2f}"
+        lines.append(text + ("" if row["well_identified"] else "  poorly identified"))
+    if fit.held:
+        lines.append(f"  held at known values during this fit: {', '.join(fit.held)}")
+    if fit.unexcited:
+        lines.append(f"  not excited by {', '.join(fit.trajectories)}: {', '.join(fit.unexcited)}")
     return lines
 
 
@@ -280,6 +388,8 @@ def _plot_forces(fit: TrajectoryFit, plots: Path) -> Path:
         ax = axes[j % 3, j // 3]
         ax.plot(fit.t[s], fit.tau[s, j], lw=0.8, label="measured")
         ax.plot(fit.t[s], fit.tau_model[s, j], lw=1.0, ls="--", label="model")
+        if fit.tau_base is not None:
+            ax.plot(fit.t[s], fit.tau_base[s, j], lw=1.0, ls=":", label="base fit")
         ax.set_ylabel(f"{ACTUATOR_NAMES[j]} [{FORCE_UNITS[j]}]")
         ax.grid(alpha=0.3)
     axes[0, 0].legend(loc="best", fontsize=8)
@@ -361,9 +471,14 @@ def _save_mat(path: Path, results: Results) -> None:
         "initial": p.initial, "identified": p.identified, "sigma": p.sigma,
         "lower": p.lower, "upper": p.upper,
         "fits": {f.name.replace("-", "_"): {"role": f.role, "t": f.t, "tau": f.tau, "tau_model": f.tau_model,
-                                             "Theta": f.Theta, **({"X": f.X} if f.X is not None else {})}
+                                             "Theta": f.Theta, **({"X": f.X} if f.X is not None else {}),
+                                             **({"tau_base": f.tau_base} if f.tau_base is not None else {})}
                  for f in results.fits},
     }
+    if results.base_fit is not None:
+        b = results.base_fit
+        doc["base_fit"] = {"expressions": np.array(b.expressions, dtype=object), "H": b.H, "identified": b.coef,
+                           "sigma": b.sigma, "initial": b.initial, **({"truth": b.truth} if b.truth is not None else {})}
     if p.truth is not None:
         doc["truth"] = p.truth
     if results.online is not None:
@@ -383,7 +498,7 @@ def _html(folder: Path, results: Results, table: dict, images: list[tuple[str, P
     rows, poor = [], []
     for r in p.rows():
         rel = r["rel_sigma_percent"]
-        if r["step"] and rel is not None and rel > POOR_REL_SIGMA:
+        if r["step"] and rel is not None and rel > results.rel_sigma_threshold:
             poor.append(r["name"])
         cells = [r["name"], r["unit"], _fmt(r["initial"]), _fmt(r["identified"]) if r["step"] else "(held)",
                  _fmt(r["sigma"]), _fmt(rel, ".2f")]
@@ -393,12 +508,13 @@ def _html(folder: Path, results: Results, table: dict, images: list[tuple[str, P
         rows.append("<tr>" + "".join(f"<td>{esc(str(c))}</td>" for c in cells) + "</tr>")
     metric_rows = []
     for name, m in table.items():
-        cells = [name, m["role"], *(_fmt(m["nrms_percent"][a], ".2f") for a in ACTUATOR_NAMES),
-                 _fmt(m["d_tau_percent"], ".2f"), _fmt(m["j_rmse"], ".4g")]
-        metric_rows.append("<tr>" + "".join(f"<td>{esc(str(c))}</td>" for c in cells) + "</tr>")
+        for label, mm in [("step by step", m)] + ([("base fit", m["base_fit"])] if "base_fit" in m else []):
+            cells = [name, m["role"], label, *(_fmt(mm["nrms_percent"][a], ".2f") for a in ACTUATOR_NAMES),
+                     _fmt(mm["d_tau_percent"], ".2f"), _fmt(mm["j_rmse"], ".4g")]
+            metric_rows.append("<tr>" + "".join(f"<td>{esc(str(c))}</td>" for c in cells) + "</tr>")
     notes = []
     if poor:
-        notes.append(f"Poorly identified on their data (%σ > {POOR_REL_SIGMA:g} %): {', '.join(poor)}.")
+        notes.append(f"Poorly identified on their data (%σ > {results.rel_sigma_threshold:g} %): {', '.join(poor)}.")
     base = results.base_parameters or {}
     if base.get("base_parameters"):
         items = "".join(f"<li><code>{esc(e)}</code></li>" for e in base["base_parameters"])
@@ -420,15 +536,38 @@ td,th{{border:1px solid #bbb;padding:2px 6px;text-align:right}} td:first-child{{
 <h2>Parameters (like the paper's Table 1)</h2>
 <table><tr>{''.join(f'<th>{esc(h)}</th>' for h in head)}</tr>{''.join(rows)}</table>
 <h2>Identification steps</h2><ul>{steps}</ul>
+{_html_base_fit(results.base_fit) if results.base_fit is not None else ''}
 {''.join(f'<p>{n}</p>' for n in notes)}
 <h2>Force prediction per trajectory</h2>
 <p>NRMS per actuator = 100·RMS(τ − τ̂)/RMS(τ); d_τ = 100·mean(‖τ − τ̂‖/‖τ‖); J_RMSE = sqrt(mean ‖τ̂ − τ‖²) (mixed units).</p>
-<table><tr><th>trajectory</th><th>role</th>{''.join(f'<th>NRMS {a} %</th>' for a in ACTUATOR_NAMES)}
+<table><tr><th>trajectory</th><th>role</th><th>parameters</th>{''.join(f'<th>NRMS {a} %</th>' for a in ACTUATOR_NAMES)}
 <th>d_τ %</th><th>J_RMSE</th></tr>{''.join(metric_rows)}</table>
 <h2>Plots</h2>{figures}
 <p>Files: parameters.json/.yaml, metrics.yaml, results.mat, config.yaml, data/ (raw CAN log and decoded samples).</p>
 </body></html>
 """
+
+
+def _html_base_fit(fit: BaseFit) -> str:
+    """The base-parameter table: every base parameter, the poorly identified ones marked, not hidden."""
+    esc = html.escape
+    head = ["base parameter", "initial (CAD)", "identified", "σ", "%σ"]
+    head += ["truth", "error %"] if fit.truth is not None else []
+    head += ["on this data"]
+    rows = []
+    for r in fit.rows():
+        cells = [r["base_parameter"], _fmt(r["initial"]), _fmt(r["identified"]), _fmt(r["sigma"]),
+                 _fmt(r["rel_sigma_percent"], ".2f")]
+        if fit.truth is not None:
+            cells += [_fmt(r.get("truth")), _fmt(r.get("error_percent"), "+.2f")]
+        cells.append("identified" if r["well_identified"] else f"poorly identified (%σ > {fit.threshold:g})")
+        rows.append("<tr>" + "".join(f"<td>{esc(str(c))}</td>" for c in cells) + "</tr>")
+    held = f" Held at known values: {esc(', '.join(fit.held))}." if fit.held else ""
+    unexcited = f" Not excited by the data: {esc(', '.join(fit.unexcited))}." if fit.unexcited else ""
+    return (f"<h2>Base parameters: {esc(fit.method)} on {esc(', '.join(fit.trajectories))} (step {esc(fit.step)})</h2>"
+            f"<p>Each combination is what the data determine (seed 000); σ from the least-squares statistics "
+            f"(seed 004). Identified: %σ ≤ {fit.threshold:g}.{held}{unexcited}</p>"
+            f"<table><tr>{''.join(f'<th>{esc(h)}</th>' for h in head)}</tr>{''.join(rows)}</table>")
 
 
 def _fmt(value, spec: str = ".5g") -> str:

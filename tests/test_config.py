@@ -211,3 +211,37 @@ def test_out_of_range_value(tmp_path):
     text = SIM_TEXT.replace("sync_rate: 250.0", "sync_rate: 25000.0")
     path = write(tmp_path, "sim.yaml", text)
     expect_error(path, "bus.sync_rate", line_of(text, "sync_rate: 25000.0"), "[1.0, 2000.0]", "Hz")
+
+
+def test_fourier_trajectory_defaults_to_the_shipped_excitation(tmp_path):
+    from ident_hw.experiment.plan import plan
+    write(tmp_path, "robot-3prrr.yaml", ROBOT_TEXT)
+    config = load_config(write(tmp_path, "sim.yaml", SIM_TEXT))
+    step = next(s for s in config.identification.steps if s.method == "wls")
+    assert step.trajectories == ("excitation",) and len(step.parameters) == 19
+    (planned,) = plan(config, ["excitation"])
+    assert planned.ok and planned.trajectory.metadata["generator"] == "fourier"
+    # two cycles of the shipped 10 s excitation at the 250 Hz SYNC rate, starting and ending at rest at home
+    assert planned.trajectory.duration == pytest.approx(20.0, abs=0.01)
+    assert abs(planned.trajectory.Thetad[[0, -1]]).max() < 1e-12
+
+
+def test_path_only_for_file_and_fourier_trajectories(tmp_path):
+    write(tmp_path, "robot-3prrr.yaml", ROBOT_TEXT)
+    old = "{name: square1, kind: square, size: 0.12,"
+    text = SIM_TEXT.replace(old, "{name: square1, kind: square, path: a.json, size: 0.12,")
+    expect_error(write(tmp_path, "sim.yaml", text), "trajectories[1].path", line_of(text, "a.json"),
+                 "only 'file' and 'fourier'")
+    text = SIM_TEXT.replace("kind: fourier, cycles: 2}", "kind: fourier, path: missing.json}")
+    config = load_config(write(tmp_path, "sim.yaml", text))
+    from ident_hw.experiment.plan import plan
+    (planned,) = plan(config, ["excitation"])
+    assert not planned.ok and "missing.json" in planned.describe()
+
+
+def test_one_least_squares_step_only(tmp_path):
+    write(tmp_path, "robot-3prrr.yaml", ROBOT_TEXT)
+    text = SIM_TEXT.replace("      parameters: [I_ee]\n      method: sqp", "      parameters: [I_ee]\n      method: ols")
+    path = write(tmp_path, "sim.yaml", text)
+    with pytest.raises(ConfigError, match=r"identification.steps\[3\].method.*only one step"):
+        load_config(path)

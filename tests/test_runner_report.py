@@ -10,8 +10,8 @@ import scipy.io
 import yaml
 
 from ident_hw.model import InertialParams
-from ident_hw.report import (OnlineTrace, ParameterTable, Results, TrajectoryFit, build_report, load_results,
-                             mark_status, read_status, save_results, summary_lines)
+from ident_hw.report import (BaseFit, OnlineTrace, ParameterTable, Results, TrajectoryFit, build_report,
+                             load_results, mark_status, read_status, save_results, summary_lines)
 
 NAMES = InertialParams.NAMES
 
@@ -33,12 +33,19 @@ def synthetic_results(rng) -> Results:
         tau_model = np.column_stack([np.sin(t * (j + 1)) * (1 + 10 * (j >= 3)) for j in range(6)])
         tau = tau_model + 0.01 * rng.standard_normal(tau_model.shape)
         X = np.column_stack([0.1 * np.cos(t), 0.1 * np.sin(t), 0 * t])
-        fits.append(TrajectoryFit(name, role, t, tau, tau_model, Theta=np.tile(t[:, None], (1, 6)), X=X))
+        fits.append(TrajectoryFit(name, role, t, tau, tau_model, Theta=np.tile(t[:, None], (1, 6)), X=X,
+                                  tau_base=tau_model * 1.1))
     online = OnlineTrace(names=NAMES, t=np.arange(100) * 0.01,
                          estimates=np.outer(np.linspace(0.5, 1, 100), truth))
+    H = np.zeros((2, n))
+    H[0, 0], H[1, [1, 2]] = 1.0, [-0.0225, 1.0]
+    base_fit = BaseFit(step="fourier", method="WLS", trajectories=("fourier",),
+                       expressions=("m_c", "-0.0225 m_l1 + I_l1"), H=H, coef=np.array([2.0, 0.5]),
+                       sigma=np.array([0.02, 0.1]), initial=H @ (truth * 1.3), truth=H @ truth,
+                       held=("fv_zeta1",), unexcited=(), threshold=10.0)
     return Results(parameters=table, fits=fits, steps=[{"name": "carriages", "method": "sqp", "free": ["m_c"]}],
                    base_parameters={"rank": 18, "n_params": 19, "base_parameters": ["I_l1 + 0.0225 m_l1"],
-                                    "unexcited": ["m_c"]}, online=online)
+                                    "unexcited": ["m_c"]}, online=online, base_fit=base_fit)
 
 
 def test_results_folder_round_trip_and_metrics(tmp_path):
@@ -82,10 +89,42 @@ def test_results_folder_round_trip_and_metrics(tmp_path):
     assert "Table 1" in text and "m_l1" in text and "Poorly identified" in text
     assert "I_l1 + 0.0225 m_l1" in text and "plots/forces_triangle.png" in text
     lines = summary_lines(tmp_path)
-    assert "error %" in lines[1] and "initial" in lines[1]
+    head = next(line for line in lines if line.split()[:1] == ["parameter"])
+    assert "error %" in head and "initial" in head
     m_c = next(line.split() for line in lines if line.split()[:1] == ["m_c"])
     # m_c: initial 1.3, identified 1.0, truth 1.0 (error +0.00 %), step carriages
     assert [float(v) for v in m_c[2:4]] == pytest.approx([1.3, 1.0]) and m_c[-1] == "carriages"
+
+
+def test_base_fit_round_trip_table_and_metrics(tmp_path):
+    results = synthetic_results(np.random.default_rng(2))
+    mark_status(tmp_path, "complete")
+    save_results(tmp_path, results)
+    back = load_results(tmp_path).base_fit
+    for key in ("H", "coef", "sigma", "initial", "truth"):
+        np.testing.assert_array_equal(getattr(back, key), getattr(results.base_fit, key), err_msg=key)
+    assert back.expressions == results.base_fit.expressions and back.held == ("fv_zeta1",)
+    rows = json.loads((tmp_path / "parameters.json").read_text())["base_fit"]["rows"]
+    # m_c: 2.0 +- 0.02 (1 %), truth H @ truth = 1.0 -> +100 %; second: 0.1 / 0.5 = 20 % > 10 %: poorly identified
+    assert rows[0]["error_percent"] == pytest.approx(100.0) and rows[0]["well_identified"]
+    assert rows[1]["rel_sigma_percent"] == pytest.approx(20.0) and not rows[1]["well_identified"]
+    truth = results.parameters.truth
+    assert rows[1]["truth"] == pytest.approx(truth[2] - 0.0225 * truth[1])
+
+    lines = summary_lines(tmp_path)
+    poor = next(line for line in lines if "I_l1" in line and "m_l1" in line)
+    assert poor.endswith("poorly identified")
+    assert any("held at known values during this fit: fv_zeta1" in line for line in lines)
+    # the base fit's prediction is tau_model * 1.1: its metrics are recomputed here
+    fit = results.fits[1]
+    m = yaml.safe_load((tmp_path / "metrics.yaml").read_text())["triangle"]["base_fit"]
+    assert m["rms"]["theta1"] == pytest.approx(np.sqrt(np.mean((fit.tau_base[:, 0] - fit.tau[:, 0]) ** 2)))
+    triangle = next(line for line in lines if "triangle" in line)
+    assert f"base fit: d_tau = {m['d_tau_percent']:.2f} %" in triangle
+    text = (tmp_path / "report.html").read_text()
+    assert "Base parameters: WLS on fourier" in text and "poorly identified (%σ &gt; 10)" in text
+    mat = scipy.io.loadmat(tmp_path / "results.mat", simplify_cells=True)
+    np.testing.assert_allclose(mat["base_fit"]["identified"], [2.0, 0.5])
 
 
 def test_report_rebuilds_from_the_folder_alone(tmp_path):

@@ -240,13 +240,17 @@ class TrajectoryConfig:
     ``kind``: ``carriage_sweep`` (rotary actuators held, each carriage 0 → -size → +size → 0,
     then the three together), ``square`` (carriages held, side ``size``, rotated by
     ``rotation``), ``triangle`` (the paper's validation triangle, carriages scheduled for
-    singularity margins), ``file`` (a saved trajectory, CSV or NPZ, ``path`` relative to the
-    config file). Timing is rest-to-rest at ``speed_scale`` × the actuator limits, with
-    ``dwell`` s at rest at each waypoint; the motion is repeated ``cycles`` times.
+    singularity margins), ``fourier`` (an optimised Fourier excitation of all the base
+    parameters, :class:`trajectories.FourierExcitation`; ``path`` to its JSON coefficients,
+    default the excitation optimised for the nominal rig that ships with ``trajectories``),
+    ``file`` (a saved trajectory, CSV or NPZ). ``path`` is relative to the config file.
+    Timing of the generated paths is rest-to-rest at ``speed_scale`` × the actuator limits,
+    with ``dwell`` s at rest at each waypoint (the Fourier excitation and a file have their own
+    timing); the motion is repeated ``cycles`` times.
     """
 
     name: str
-    kind: Literal["carriage_sweep", "square", "triangle", "file"]
+    kind: Literal["carriage_sweep", "square", "triangle", "fourier", "file"]
     size: float | None = field(default=None, metadata=spec(positive, unit="m"))
     rotation: float = field(default=0.0, metadata=spec(unit="rad", angle=True))
     speed_scale: float = field(default=1.0, metadata=spec(in_range(0.01, 1.0)))
@@ -255,8 +259,11 @@ class TrajectoryConfig:
     path: str | None = None
 
     def _check(self) -> None:
-        if (self.kind == "file") != (self.path is not None):
-            raise FieldError("path", "a 'file' trajectory needs path, and only a 'file' trajectory has one")
+        if self.kind == "file" and self.path is None:
+            raise FieldError("path", "missing key: a 'file' trajectory needs path")
+        if self.kind not in ("file", "fourier") and self.path is not None:
+            raise FieldError("path", f"a {self.kind!r} trajectory is generated: only 'file' and 'fourier' "
+                                     "trajectories have a path")
         if self.kind in ("carriage_sweep", "square") and self.size is None:
             raise FieldError("size", f"missing key: a {self.kind!r} trajectory needs size (m)")
 
@@ -284,7 +291,14 @@ class FilterConfig:
 
 @dataclass(frozen=True)
 class StepConfig:
-    """One identification step: which recorded trajectories identify which parameters."""
+    """One identification step: which recorded trajectories identify which parameters.
+
+    ``sqp``: bounded fit of the listed parameters, the others held at their current values
+    (seed 001); the result is carried into the next steps. ``wls``/``ols``: least squares of the
+    base parameters of the listed ones (seed 000; the others held), with their standard
+    deviations (seed 004); reported beside the physical parameters, not carried on (a base
+    parameter can group several physical ones). At most one step is ``wls``/``ols``.
+    """
 
     name: str
     trajectories: tuple[str, ...]
@@ -309,15 +323,23 @@ class OnlineConfig:
 @dataclass(frozen=True)
 class IdentificationConfig:
     """Steps run in order (each fixes the parameters it identifies), validation trajectories,
-    and the SQP bounds ``[min, max]`` per parameter."""
+    the SQP bounds ``[min, max]`` per parameter, and the %σ above which an estimate is reported
+    as poorly identified on its data."""
 
     steps: tuple[StepConfig, ...]
     validation: tuple[str, ...] = ()
+    rel_sigma_threshold: float = field(default=10.0, metadata=spec(
+        positive, unit="%", doc="estimates with a larger relative standard deviation are poorly identified"))
     bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
     filter: FilterConfig = FilterConfig()
     online: OnlineConfig = OnlineConfig()
 
     def _check(self) -> None:
+        least_squares = [i for i, s in enumerate(self.steps) if s.method != "sqp"]
+        if len(least_squares) > 1:
+            raise FieldError(f"steps[{least_squares[1]}].method",
+                             f"only one step may fit base parameters by least squares (steps "
+                             f"{[self.steps[i].name for i in least_squares]} are 'wls'/'ols')")
         for name, pair in self.bounds.items():
             if name not in InertialParams.NAMES:
                 raise FieldError(f"bounds.{name}", f"unknown parameter; expected one of {list(InertialParams.NAMES)}")

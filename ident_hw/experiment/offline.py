@@ -19,11 +19,11 @@ import numpy as np
 
 from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log
 from ident_hw.config import Config
-from ident_hw.identification.base_params import base_parameters
+from ident_hw.identification.base_params import base_parameters, identify_base
 from ident_hw.identification.least_squares import stack, wls
 from ident_hw.identification.mass_fit import sqp_fit
 from ident_hw.model import InertialParams, ThreePRRR
-from ident_hw.report import ParameterTable, Results, TrajectoryFit
+from ident_hw.report import BaseFit, ParameterTable, Results, TrajectoryFit
 from ident_hw.signal import kept_samples, parallel_decimate, prepare_actuated
 
 from .plan import plan, robot_model
@@ -134,6 +134,42 @@ def prepare(config: Config, robot: ThreePRRR, name: str, rec: Recording) -> Prep
     return Prepared(name, t[kept], samples.Theta[kept], X[kept], Y[good], tau[good], excluded=int((~good).sum()))
 
 
+def column_scale(Y: np.ndarray) -> np.ndarray:
+    """(n,) inverse RMS of each regressor column over all samples and outputs (1 for a zero
+    column): scaling by it makes the rank decision of the base parameters unit-free."""
+    rms = np.sqrt(np.mean(Y.reshape(-1, Y.shape[-1]) ** 2, axis=0))
+    return np.divide(1.0, rms, out=np.ones_like(rms), where=rms > 0)
+
+
+def fit_base(step, Y: np.ndarray, tau: np.ndarray, coef: np.ndarray, initial: np.ndarray,
+             truth: np.ndarray | None, threshold: float) -> tuple[BaseFit, np.ndarray, dict]:
+    """Least squares (``step.method`` ``wls``/``ols``) of the base parameters of ``step.parameters``
+    on ``Y`` (N, 6, n), ``tau`` (N, 6), the other parameters held at ``coef``.
+
+    Returns the :class:`BaseFit`, the physical vector (n,) that predicts the same forces (each
+    kept parameter carries its base value, the eliminated ones 0, the held ones ``coef``) and the
+    step's record for the results.
+    """
+    free = [NAMES.index(p) for p in step.parameters]
+    held = [i for i in range(len(NAMES)) if i not in free]
+    Yf = Y[:, :, free]
+    base, fit = identify_base(Yf, tau - Y[:, :, held] @ coef[held], step.parameters, scale=column_scale(Yf),
+                              weighted=step.method == "wls")
+    H = np.zeros((base.rank, len(NAMES)))
+    H[:, free] = np.where(np.abs(base.H) > 1e-10, base.H, 0.0)   # rounding of N1 N2^-1, not a coefficient
+    equivalent = coef.copy()
+    equivalent[free] = 0.0
+    equivalent[[NAMES.index(k) for k in base.kept]] = fit.coef
+    result = BaseFit(step=step.name, method=fit.method, trajectories=tuple(step.trajectories),
+                     expressions=base.expressions, H=H, coef=fit.coef, sigma=fit.std,
+                     initial=H @ initial, truth=None if truth is None else H @ truth,
+                     held=tuple(NAMES[i] for i in held), unexcited=base.unexcited, threshold=threshold)
+    record = {"name": step.name, "trajectories": list(step.trajectories), "free": list(step.parameters),
+              "method": f"{fit.method} of the base parameters ({base.rank} of {len(free)})",
+              "eliminated": list(base.eliminated), **{k: v for k, v in fit.to_dict().items() if k != "parameters"}}
+    return result, equivalent, record
+
+
 def identify(config: Config, recordings: Mapping[str, Recording],
              progress: Callable[[str], None] | None = None) -> Results:
     """Run the config's identification steps and validation on ``recordings`` (name → samples)."""
@@ -160,12 +196,20 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     sigma = np.full(n, np.nan)
     lower, upper = np.full(n, -np.inf), np.full(n, np.inf)
     step_of, method_of = [""] * n, [""] * n
+    truth = config.sim.truth.to_model().as_vector() if config.sim is not None else None
     steps = []
+    base_fit, base_equivalent = None, None
     for step in ident.steps:
         if progress:
-            progress(f"step {step.name}: fitting {', '.join(step.parameters)}")
+            progress(f"step {step.name}: fitting {', '.join(step.parameters)}"
+                     + (f" (base parameters, {step.method.upper()})" if step.method != "sqp" else ""))
         Y = np.concatenate([prepared[t].Y for t in step.trajectories])
         tau = np.concatenate([prepared[t].tau for t in step.trajectories])
+        if step.method != "sqp":
+            base_fit, base_equivalent, record = fit_base(step, Y, tau, coef, initial, truth,
+                                                         ident.rel_sigma_threshold)
+            steps.append(record)
+            continue
         bounds = {p: ident.bounds[p] for p in step.parameters if p in ident.bounds}
         fit = sqp_fit(Y, tau, NAMES, coef, free=step.parameters, bounds=bounds)
         coef = fit.coef
@@ -195,8 +239,9 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     fits = []
     for name, p in prepared.items():
         role = "validation" if name in ident.validation and name not in id_names else "identification"
-        fits.append(TrajectoryFit(name, role, p.t, p.tau, p.Y @ coef, p.Theta, p.X))
-    truth = config.sim.truth.to_model().as_vector() if config.sim is not None else None
+        fits.append(TrajectoryFit(name, role, p.t, p.tau, p.Y @ coef, p.Theta, p.X,
+                                  tau_base=None if base_fit is None else p.Y @ base_equivalent))
     table = ParameterTable(names=NAMES, initial=initial, identified=coef, sigma=sigma, lower=lower, upper=upper,
                            step=tuple(step_of), method=tuple(method_of), truth=truth)
-    return Results(parameters=table, fits=fits, steps=steps, base_parameters=base)
+    return Results(parameters=table, fits=fits, steps=steps, base_parameters=base, base_fit=base_fit,
+                   rel_sigma_threshold=ident.rel_sigma_threshold)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,10 @@ import numpy as np
 import trajectories
 from ident_hw.config import Config, TrajectoryConfig
 from ident_hw.model import KinematicsError, ThreePRRR
+
+
+#: the Fourier excitation optimised for the nominal rig, shipped with ``trajectories``
+NOMINAL_EXCITATION = resources.files(trajectories) / "data" / "fourier-nominal.json"
 
 
 @dataclass
@@ -60,6 +65,9 @@ def build(config: Config, tcfg: TrajectoryConfig, robot: ThreePRRR) -> trajector
                                    name=tcfg.name)
     elif tcfg.kind == "triangle":
         traj = trajectories.validation_triangle(robot, timing, rate=rate, dwell=tcfg.dwell)
+    elif tcfg.kind == "fourier":
+        path = NOMINAL_EXCITATION if tcfg.path is None else Path(config.source).parent / tcfg.path
+        traj = trajectories.FourierExcitation.load(path).trajectory(robot, rate, name=tcfg.name)
     else:
         path = Path(config.source).parent / tcfg.path
         traj = trajectories.load(path).resample(rate)
