@@ -132,8 +132,9 @@ def cmd_scan(args) -> int:
     from ident_hw.experiment.session import open_session
     config = _load(args.config)
     with open_session(config) as session:
-        ids = scan(session.network, args.wait)
-        found = {i: read_node(session.network, i, sdo_timeout=config.bus.sdo_timeout) for i in ids}
+        heard = scan(session.network, args.wait)
+        found = {i: read_node(session.network, i, state, sdo_timeout=config.bus.sdo_timeout)
+                 for i, state in heard.items()}
     print(f"{len(found)} node(s) on {config.bus.interface}:{config.bus.channel}")
     for info in found.values():
         print("  " + info.describe())

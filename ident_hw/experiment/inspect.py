@@ -7,7 +7,9 @@ import struct
 import time
 from dataclasses import dataclass
 
+import can
 import canopen
+from canopen.nmt import NMT_STATES
 from canopen.profiles.p402 import State402
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
@@ -58,31 +60,69 @@ def _text(data: bytes | None) -> str | None:
     return data.rstrip(b"\0").decode("latin-1") if data is not None else None
 
 
-def read_node(network: canopen.Network, node_id: int, heartbeat_wait: float = 1.0,
+def nmt_state(heard: int | None, answers_sdo: bool, heartbeat_ms: int | None) -> str:
+    """The NMT state of a node from what the bus showed, without node guarding.
+
+    ``heard``: the state byte of its last heartbeat or boot-up message (None: none seen);
+    ``answers_sdo``: it answered an SDO request; ``heartbeat_ms``: its producer heartbeat time
+    (0x1017) if read. A boot-up message means PRE-OPERATIONAL (the node enters it by itself);
+    a node that answers SDO without sending heartbeats (0x1017 = 0, as after power-up) is
+    PRE-OPERATIONAL or OPERATIONAL: a STOPPED node does not answer SDO (CiA 301).
+    """
+    if heard is not None:
+        state = NMT_STATES.get(heard & 0x7F, f"0x{heard:02X}")
+        return "PRE-OPERATIONAL (boot-up seen)" if heard == 0 else state
+    if answers_sdo:
+        why = "heartbeat off: 0x1017 = 0" if heartbeat_ms == 0 else "no heartbeat seen"
+        return f"PRE-OPERATIONAL or OPERATIONAL (answers SDO; {why})"
+    return "unknown (no heartbeat, no SDO answer)"
+
+
+class NmtListener(can.Listener):
+    """The last heartbeat / boot-up state byte of every node (COB-ID 0x701..0x77F) seen on the bus."""
+
+    def __init__(self) -> None:
+        self.states: dict[int, int] = {}
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if (0x701 <= msg.arbitration_id <= 0x77F and not msg.is_extended_id and not msg.is_remote_frame
+                and len(msg.data) == 1):
+            self.states[msg.arbitration_id - 0x700] = msg.data[0]
+
+
+def read_node(network: canopen.Network, node_id: int, heard: int | None = None,
               sdo_timeout: float = 0.5) -> NodeInfo:
-    """Identity, device name, firmware (0x100A), NMT state (heartbeat) and CiA 402 state of a node."""
+    """Identity, device name, firmware (0x100A), NMT state (:func:`nmt_state`; ``heard`` = the
+    state byte of a heartbeat or boot-up seen from it) and CiA 402 state of a node."""
     node = network.nodes.get(node_id)
     if node is None:
         node = canopen.RemoteNode(node_id, canopen.ObjectDictionary())
         network.add_node(node)
     node.sdo.RESPONSE_TIMEOUT = sdo_timeout
-    try:
-        nmt = node.nmt.wait_for_heartbeat(heartbeat_wait)
-    except canopen.nmt.NmtError:
-        nmt = "unknown (no heartbeat)"
+    name = _upload(node, 0x1008)
+    identity = [_u32(_upload(node, 0x1018, sub)) for sub in (1, 2, 3)]
+    heartbeat = _upload(node, 0x1017)
+    answers = name is not None or heartbeat is not None or identity[0] is not None
     status = _upload(node, 0x6041)
-    return NodeInfo(node_id=node_id, device_name=_text(_upload(node, 0x1008)), firmware=_text(_upload(node, 0x100A)),
-                    vendor_id=_u32(_upload(node, 0x1018, 1)), product_code=_u32(_upload(node, 0x1018, 2)),
-                    revision=_u32(_upload(node, 0x1018, 3)), nmt_state=nmt,
+    return NodeInfo(node_id=node_id, device_name=_text(name), firmware=_text(_upload(node, 0x100A)),
+                    vendor_id=identity[0], product_code=identity[1], revision=identity[2],
+                    nmt_state=nmt_state(heard, answers, struct.unpack_from("<H", heartbeat)[0] if heartbeat else None),
                     cia402_state=cia402_state(struct.unpack_from("<H", status)[0]) if status else None)
 
 
-def scan(network: canopen.Network, wait: float = 1.0) -> list[int]:
-    """Node-IDs that answer an SDO request (canopen's scanner over 1..127), sorted."""
-    network.scanner.reset()
-    network.scanner.search()
-    time.sleep(wait)
-    return sorted(set(network.scanner.nodes))
+def scan(network: canopen.Network, wait: float = 1.0) -> dict[int, int | None]:
+    """Nodes on the bus: those that answer an SDO request (canopen's scanner over 1..127) or send
+    a heartbeat within ``wait`` s, each with the state byte of its last heartbeat (None: none)."""
+    listener = NmtListener()
+    network.notifier.add_listener(listener)
+    try:
+        network.scanner.reset()
+        network.scanner.search()
+        time.sleep(wait)
+    finally:
+        network.notifier.remove_listener(listener)
+    found = set(network.scanner.nodes) | set(listener.states)
+    return {i: listener.states.get(i) for i in sorted(found)}
 
 
 def compare(config: Config, found: dict[int, NodeInfo]) -> list[str]:
@@ -113,7 +153,7 @@ def snapshot(group: DriveGroup) -> list[dict]:
     for drive in group.drives:
         s, p = drive.axis.scaling, drive.profile
         nmt = drive.node.nmt
-        row = {"drive": drive.label, "nmt": nmt.state if nmt.timestamp is not None else "no heartbeat"}
+        row = {"drive": drive.label}
         try:
             row["state"] = drive.state
             row["position"] = drive.position()
@@ -122,17 +162,19 @@ def snapshot(group: DriveGroup) -> list[dict]:
             row["error"] = drive.error_text()
         except NodeError as exc:
             row["state"] = f"no answer ({exc})"
+        heard = nmt.state if nmt.timestamp is not None else None
+        row["nmt"] = heard or nmt_state(None, "position" in row, None).split(" (")[0]
         rows.append(row)
     return rows
 
 
 def format_snapshot(rows: list[dict]) -> str:
     """The monitor's table (units: rad or m, rad/s or m/s, A)."""
-    lines = [f"{'drive':<18} {'NMT':<16} {'CiA 402':<24} {'position':>11} {'velocity':>10} {'current':>8}  error"]
+    lines = [f"{'drive':<18} {'NMT':<30} {'CiA 402':<24} {'position':>11} {'velocity':>10} {'current':>8}  error"]
     for r in rows:
         if "position" not in r:
-            lines.append(f"{r['drive']:<18} {r['nmt']:<16} {r['state']}")
+            lines.append(f"{r['drive']:<18} {r['nmt']:<30} {r['state']}")
             continue
-        lines.append(f"{r['drive']:<18} {r['nmt']:<16} {r['state']:<24} {r['position']:>11.6f} "
+        lines.append(f"{r['drive']:<18} {r['nmt']:<30} {r['state']:<24} {r['position']:>11.6f} "
                      f"{r['velocity']:>10.5f} {r['current']:>8.3f}  {r['error']}")
     return "\n".join(lines)
