@@ -81,6 +81,10 @@ class BusNetwork(canopen.Network):
     drive layer reads them from ``network.config`` instead of taking them a second time.
     """
 
+    #: s between the notifier thread's checks for a stop request (canopen's default, 1 s, makes
+    #: every disconnect wait up to a second on an idle bus)
+    NOTIFIER_CYCLE = 0.1
+
     def __init__(self, bus: can.BusABC, config: BusConfig):
         super().__init__(bus)
         self.config = config

@@ -244,20 +244,34 @@ class EposDrive:
     def enable(self) -> None:
         self.set_state("OPERATION ENABLED")
 
-    def disable(self) -> None:
-        """Disable voltage: SWITCH ON DISABLED (the motor is not powered)."""
-        if self.state not in ("SWITCH ON DISABLED", "FAULT", "FAULT REACTION ACTIVE",
-                              "NOT READY TO SWITCH ON"):
+    def _wait_while(self, busy, timeout: float) -> int:
+        """Poll the statusword until ``busy(state, statusword)`` is false or ``timeout`` s passed;
+        return the last statusword."""
+        deadline = time.monotonic() + timeout
+        while True:
+            sw = self.statusword
+            if not busy(_state_of(sw), sw) or time.monotonic() > deadline:
+                return sw
+            time.sleep(0.002)
+
+    def disable(self, timeout: float = 1.0) -> None:
+        """Disable voltage: SWITCH ON DISABLED (the motor is not powered). A drive in its fault
+        reaction (braking on its own) is left to end it in FAULT, waiting up to ``timeout`` s."""
+        sw = self._wait_while(lambda state, _: state == "FAULT REACTION ACTIVE", timeout)
+        state = _state_of(sw)
+        if state == "FAULT REACTION ACTIVE":
+            raise NodeError(self.label, f"still in FAULT REACTION ACTIVE after {timeout:g} s")
+        if state not in ("SWITCH ON DISABLED", "FAULT", "NOT READY TO SWITCH ON"):
             self.set_state("SWITCH ON DISABLED")
 
     def quick_stop(self, timeout: float = 1.0) -> None:
-        """Quick stop (decelerate with 0x6085), then disable."""
+        """Quick stop (decelerate with 0x6085) until halted (statusword bit 10 in QUICK STOP
+        ACTIVE, at most ``timeout`` s), then disable."""
         if self.state == "OPERATION ENABLED":
             self._controlword(State402.CW_QUICK_STOP)
-            deadline = time.monotonic() + timeout
-            while self.state == "OPERATION ENABLED" and time.monotonic() < deadline:
-                time.sleep(0.002)
-        self.disable()
+            self._wait_while(lambda state, sw: state == "OPERATION ENABLED" or (
+                state == "QUICK STOP ACTIVE" and not sw & SW_TARGET_REACHED), timeout)
+        self.disable(timeout)
 
     # -- modes -------------------------------------------------------------------------------------
     def set_mode(self, mode: int, timeout: float = 0.5) -> None:
