@@ -281,3 +281,46 @@ def test_commanded_into_a_singularity_every_enabled_drive_faults_with_a_followin
     assert all(wait_until(lambda c=c: 0x8611 in c) for c in codes.values())
     assert "jammed" in bench.rig.jammed
     assert np.all(bench.rig.plant.Thetad == 0)
+
+
+MASTER_ID = 100
+
+
+def test_lost_master_heartbeat_faults_the_watching_drives_with_a_quick_stop_ramp(bench):
+    """0x1016:01 = producer 100, 100 ms: the watch starts with the first heartbeat; when it stops,
+    EMCY 0x8130, fault reaction (quick-stop ramp at 0x6085, statusword 0x000F), then FAULT."""
+    moving, other_producer, unwatched = bench.nodes[3], bench.nodes[4], bench.nodes[5]
+    codes = {n.id: collect_emcy(n) for n in bench.nodes[3:]}
+    moving.sdo[0x1016][1].raw = MASTER_ID << 16 | 100
+    other_producer.sdo[0x1016][1].raw = (MASTER_ID + 1) << 16 | 100    # never heard: never armed
+    heartbeat = bench.master.send_periodic(0x700 + MASTER_ID, [0x05], 0.02)
+    try:
+        for node in (moving, other_producer, unwatched):
+            enable(node, 1)
+        moving.sdo[0x6081].raw = 1000                                   # rpm: 33 mm/s on the screw
+        moving.sdo[0x6083].raw = 20000
+        moving.sdo[0x6085].raw = 2000                                   # quick stop: 2000 rpm/s = 67 mm/s^2
+        moving.sdo[0x607A].raw = PRI.counts_from_position(0.08)
+        moving.sdo[0x6040].raw = 0x1F                                   # new set-point
+        plant, axis = bench.rig.plant, 3
+        assert wait_until(lambda: plant.Thetad[axis] > 0.03, timeout=3.0)
+        time.sleep(0.2)
+        assert all(c == [] for c in codes.values()) and bench.rig.faulted() == []
+    finally:
+        heartbeat.stop()
+    lost = time.monotonic()
+    speed, start = plant.Thetad[axis], plant.Theta[axis]
+    assert wait_until(lambda: codes[moving.id] == [0x8130], timeout=1.0)
+    assert 0.1 - 0.02 <= time.monotonic() - lost < 0.5                 # last heartbeat <= 20 ms before
+    sw = moving.sdo[0x6041].raw
+    assert sw & 0x004F == 0x000F, hex(sw)                              # FAULT REACTION ACTIVE: braking
+    assert wait_until(lambda: bench.rig.drive(moving.id).state == "FAULT", timeout=2.0)
+    assert moving.sdo[0x603F].raw == 0x8130 and moving.sdo[0x1003][1].raw == 0x8130
+    assert moving.sdo[0x1001].raw & 0x10                               # communication error bit
+    # stopped by the ramp: v^2 / 2a (8 mm from 33 mm/s) plus the travel during the 0.1 s timeout
+    ramp = speed**2 / (2 * 2000 / 60 * PRI.screw_lead)
+    travelled = plant.Theta[axis] - start
+    assert abs(plant.Thetad[axis]) < 1e-3 and ramp < travelled < ramp + 0.5 * speed, (travelled, ramp)
+    # only the drive that heard the producer faulted
+    assert bench.rig.faulted() == [moving.id]
+    assert codes[other_producer.id] == [] and codes[unwatched.id] == []

@@ -30,7 +30,7 @@ def run_plant(plant, seconds, period, demand_fn):
     limit = np.full(6, 1e6)
     for k in range(int(round(seconds / period))):
         d0, d1 = demand_fn(np.array([k * period, (k + 1) * period]))
-        plant.step(period, d0, (d1 - d0) / period, enabled, limit)
+        plant.step(period, [d0, (d1 - d0) / period], enabled, limit)
     return plant.truth()
 
 

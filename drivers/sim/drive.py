@@ -5,8 +5,22 @@ TPDOs packed from the mapping in ``0x1A0x`` (sent on SYNC for transmission types
 their event timer and on a statusword change for 254/255), RPDOs decoded per ``0x160x`` and
 written into the dictionary (applied on the next SYNC for types 0..240, at once for 254/255),
 PDOs only in OPERATIONAL, boot-up and NMT reset, EMCY with ``0x1001``/``0x1003``, the CiA 402
-power state machine and the modes the master uses: homing (HMM), profile position (PPM) and
+power state machine (with the fault reaction: a quick-stop ramp, then FAULT with the power off),
+the heartbeat consumer ``0x1016:01`` (EMCY ``0x8130`` and a fault when the producer it watches
+falls silent) and the modes the master uses: homing (HMM), profile position (PPM) and
 cyclic position (EPOS4 CSP mode 8 on ``0x607A``; EPOS2 position mode -1 on ``0x2062``).
+
+Cyclic set-points are interpolated as a real drive does (its loops run much faster than SYNC):
+the demand velocity is linear within each period, from where the previous period left it to
+the mean velocity of the last two targets, ``(q_k - q_k-1) / T``, and the demand reaches their
+midpoint ``(q_k + q_k-1) / 2`` at the next SYNC (a cubic Hermite segment, which is this
+quadratic in steady streaming and re-anchors the demand when streaming starts). So the demand
+runs 1.5 periods behind the targets, is exact for motions of constant acceleration (up to a
+constant offset ``a T^2 / 8``), and is continuous with its velocity: no velocity step at SYNC,
+hence no force step, and the current sampled at the SYNC instant is the force of that instant.
+(A one-period delay is possible with the backward-difference velocity ``(3 q_k - 4 q_k-1 +
+q_k-2) / 2T``, but it amplifies the quantisation of the targets into the feed-forward 1.8
+times more: 11 N instead of 7 N of force ripple at 250 Hz on the carriages.)
 
 Positions here are drive units (counts); the rig converts to and from the SI plant. Every
 handler runs under the rig's lock, called from the network's notifier thread (SDO, RPDO, NMT,
@@ -29,11 +43,11 @@ from drivers.units import AxisScaling
 logger = logging.getLogger(__name__)
 
 # CiA 402 states and their statusword bits (bit 5 "quick stop" is 1 unless quick-stopping)
-NOT_READY, DISABLED, READY, SWITCHED_ON, ENABLED, QUICK_STOP, FAULT = (
+NOT_READY, DISABLED, READY, SWITCHED_ON, ENABLED, QUICK_STOP, FAULT_REACTION, FAULT = (
     "NOT READY TO SWITCH ON", "SWITCH ON DISABLED", "READY TO SWITCH ON", "SWITCHED ON",
-    "OPERATION ENABLED", "QUICK STOP ACTIVE", "FAULT")
+    "OPERATION ENABLED", "QUICK STOP ACTIVE", "FAULT REACTION ACTIVE", "FAULT")
 STATE_BITS = {NOT_READY: 0x0000, DISABLED: 0x0040, READY: 0x0021, SWITCHED_ON: 0x0023,
-              ENABLED: 0x0027, QUICK_STOP: 0x0007, FAULT: 0x0008}
+              ENABLED: 0x0027, QUICK_STOP: 0x0007, FAULT_REACTION: 0x000F, FAULT: 0x0008}
 SW_VOLTAGE, SW_REMOTE, SW_TARGET_REACHED = 0x0010, 0x0200, 0x0400
 SW_BIT12, SW_BIT13, SW_HOMED = 0x1000, 0x2000, 0x8000
 CW_NEW_SETPOINT, CW_CHANGE_NOW, CW_RELATIVE, CW_FAULT_RESET, CW_HALT = 0x10, 0x20, 0x40, 0x80, 0x100
@@ -42,7 +56,7 @@ MODE_PPM, MODE_HMM = 1, 6
 HOME_HERE = (35, 37)  # homing methods "actual position" (CiA 402 35, maxon 37)
 HOMING_TRAVEL_TURNS = 0.5  # motor turns of the emulated search move of the other methods
 
-EMCY_FOLLOWING_ERROR, EMCY_OVERCURRENT, EMCY_PDO_LENGTH = 0x8611, 0x2310, 0x8210
+EMCY_FOLLOWING_ERROR, EMCY_OVERCURRENT, EMCY_PDO_LENGTH, EMCY_HEARTBEAT = 0x8611, 0x2310, 0x8210, 0x8130
 ABORT_VALUE_RANGE, ABORT_NOT_MAPPABLE, ABORT_PDO_LENGTH = 0x06090030, 0x06040041, 0x06040042
 
 NMT_OPERATIONAL, NMT_STOPPED = 5, 4
@@ -119,9 +133,10 @@ class EmulatedDrive:
         else:
             self.offset = None
         self.actual = 0               # reported position, counts
-        self.demand = 0.0             # position demand, counts
+        self.demand = 0.0             # position demand at the period start, counts
         self.demand_velocity = 0.0    # counts/s
-        self._last_cyclic = None
+        self._demand_curve = (0.0, 0.0)   # coefficients of t^2, t^3 of the demand in the period
+        self._last_cyclic = None      # the two last cyclic targets (q_k-1, q_k-2), counts
         self._profile = None          # [target counts, velocity counts/s] of a PPM/homing move
         self._homing_phase = None
         self._homing_start = 0.0
@@ -130,6 +145,7 @@ class EmulatedDrive:
         self._pending_rpdo: dict[int, bytes] = {}
         self._quick_stop_since = None
         self._pdos_dirty = True
+        self._watch_producer(0)
         self._set(self.profile.statusword, self._statusword())
 
     def get(self, index: int, subindex: int = 0):
@@ -155,6 +171,8 @@ class EmulatedDrive:
             self._pdos_dirty = True
         elif index == 0x1014:
             self._check_emcy_cob_id(value)
+        elif index == 0x1016:
+            self._watch_producer(value)
         elif index == 0x1003:
             if value != 0:
                 raise SdoAbortedError(ABORT_VALUE_RANGE)
@@ -182,6 +200,33 @@ class EmulatedDrive:
     def emcy_enabled(self) -> bool:
         """False when the master invalidated the EMCY COB-ID (0x1014 bit 31)."""
         return not self.get(0x1014) >> 31 and not self.silent
+
+    # -- heartbeat consumer ----------------------------------------------------------------------
+    def _watch_producer(self, value: int) -> None:
+        """Consumer heartbeat time ``0x1016:01`` = producer node-ID << 16 | time in ms (0 = off).
+
+        As CiA 301 says, the watch starts with the first heartbeat received from the producer."""
+        if getattr(self, "_consumer_cob", None) is not None:
+            self.network.unsubscribe(self._consumer_cob, self._on_consumed_heartbeat)
+        producer, ms = (value >> 16) & 0x7F, value & 0xFFFF
+        self._consumer_cob = 0x700 + producer if producer and ms else None
+        self._consumer_timeout = ms * 1e-3
+        self._consumer_last = None
+        if self._consumer_cob is not None:
+            self.network.subscribe(self._consumer_cob, self._on_consumed_heartbeat)
+
+    def _on_consumed_heartbeat(self, can_id, data, timestamp) -> None:
+        with self._lock:
+            self._consumer_last = self._clock()
+
+    def check_heartbeat(self, now: float) -> None:
+        """Heartbeat error (EMCY 0x8130, fault reaction) when the watched producer is overdue."""
+        last = self._consumer_last
+        if last is not None and now - last > self._consumer_timeout and not self.silent:
+            self._consumer_last = None      # one error per loss; the watch restarts with the next heartbeat
+            logger.warning("node %d: heartbeat of node %d lost for %.3f s", self.id, self._consumer_cob - 0x700,
+                           now - last)
+            self.emcy(EMCY_HEARTBEAT)
 
     def _check_pdo_write(self, index, subindex, value) -> None:
         od = self.node.object_dictionary
@@ -317,6 +362,7 @@ class EmulatedDrive:
                         del self.node.data_store[index]
                 self.values = {k: v for k, v in self.values.items() if not 0x1000 <= k[0] < 0x2000}
                 self._pdos_dirty = True
+                self._watch_producer(0)
                 self.boot()
 
     def boot(self) -> None:
@@ -336,7 +382,8 @@ class EmulatedDrive:
         self.values[(0x1001, 0)] = register
         if fault:
             self._set(self.profile.error_code, code)
-            self._enter(FAULT)
+            if self.state not in (FAULT_REACTION, FAULT):
+                self._enter(FAULT_REACTION if self.powered else FAULT)
         if self.emcy_enabled:
             self.node.emcy.send(code, register)
 
@@ -374,8 +421,8 @@ class EmulatedDrive:
     def _on_controlword(self, cw: int) -> None:
         previous, self._cw = self._cw, cw
         state = self.state
-        if state == FAULT:
-            if cw & CW_FAULT_RESET and not previous & CW_FAULT_RESET:
+        if state in (FAULT_REACTION, FAULT):
+            if state == FAULT and cw & CW_FAULT_RESET and not previous & CW_FAULT_RESET:
                 self._fault_reset()
             return
         if cw & CW_FAULT_RESET:
@@ -438,29 +485,51 @@ class EmulatedDrive:
     # -- per-period motion ---------------------------------------------------------------------------
     @property
     def powered(self) -> bool:
-        return self.state in (ENABLED, QUICK_STOP)
+        """The position loop is closed (also while quick-stopping and during the fault reaction)."""
+        return self.state in (ENABLED, QUICK_STOP, FAULT_REACTION)
 
-    def plan(self, period: float):
-        """Position demand (counts) at the period start and its velocity (counts/s) for the period."""
+    def plan(self, period: float) -> tuple[float, float, float, float]:
+        """The position demand over the coming period: coefficients ``(c0, c1, c2, c3)`` of
+        ``q_d(t) = c0 + c1 t + c2 t^2 + c3 t^3`` (counts, ``t`` in s from the period start)."""
+        self._demand_curve = (0.0, 0.0)
+        history, self._last_cyclic = self._last_cyclic, None     # kept only while streaming
         if not self.powered:
             self.demand, self.demand_velocity = float(self.actual), 0.0
-            return self.demand, 0.0
+            return self.demand, 0.0, 0.0, 0.0
         mode = self.get(0x6060)
-        if self.state == QUICK_STOP:
-            self.demand_velocity = 0.0
+        if self.state in (QUICK_STOP, FAULT_REACTION):
+            self._ramp_down(period)
         elif mode == self.profile.cyclic_mode:
             ref = self.profile.cyclic_target
             target = min(max(self.get(ref.index, ref.subindex), self.get(0x607D, 1)), self.get(0x607D, 2))
-            start = self.demand if self._last_cyclic is None else self._last_cyclic
-            self.demand = start
-            self.demand_velocity = (target - start) / period if period > 0 else 0.0
-            self._last_cyclic = target
+            self._interpolate(float(target), period, history)
             self._mode_bits = SW_BIT12  # "drive follows the command value"
         elif self._profile is not None and not self._cw & CW_HALT:
             self._profile_step(period)
         else:
             self.demand_velocity = 0.0
-        return self.demand, self.demand_velocity
+        return (self.demand, self.demand_velocity) + self._demand_curve
+
+    def _ramp_down(self, period: float) -> None:
+        """Decelerate the demand to standstill at the quick stop deceleration 0x6085 (rpm/s)."""
+        deceleration = max(self.get(0x6085), 1) * self.scaling.counts_per_turn / 60.0     # counts/s^2
+        v = self.demand_velocity
+        if period > 0 and v:
+            end = v - math.copysign(min(abs(v), deceleration * period), v)
+            self._demand_curve = (0.5 * (end - v) / period, 0.0)
+
+    def _interpolate(self, target: float, period: float, history) -> None:
+        """Cubic Hermite segment from the current demand towards ``target`` (see the module docstring);
+        ``history``: the two previous targets, or None when streaming starts."""
+        q1, q2 = history or (self.demand, self.demand)
+        self._last_cyclic = (target, q1)
+        if not period > 0:
+            return
+        p0, v0 = self.demand, self.demand_velocity
+        v1 = (target - q1) / period
+        rise = 0.5 * (target + q1) - p0
+        self._demand_curve = ((3.0 * rise - (2.0 * v0 + v1) * period) / period**2,
+                              ((v0 + v1) * period - 2.0 * rise) / period**3)
 
     def _profile_step(self, period: float) -> None:
         """Advance the trapezoidal profile (PPM or homing move) by one period."""
@@ -516,8 +585,12 @@ class EmulatedDrive:
             self.emcy(self.profile.software_limit_error)
         if self.state == QUICK_STOP and rpm == 0 and self.get(0x605A) <= 4:
             self._enter(DISABLED)
+        elif self.state == FAULT_REACTION and abs(self.demand_velocity) < 1e-6:
+            self._enter(FAULT)                              # ramp done: power off
         if self._next_demand is not None:
             self.demand, self._next_demand = self._next_demand, None
         else:
-            self.demand += self.demand_velocity * period
+            c2, c3 = self._demand_curve
+            self.demand += (self.demand_velocity + (c2 + c3 * period) * period) * period
+            self.demand_velocity += (2.0 * c2 + 3.0 * c3 * period) * period
         self._update_statusword()

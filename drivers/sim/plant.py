@@ -1,7 +1,12 @@
 """The simulated 3PRRR behind the emulated drives: closed-chain dynamics under six position loops.
 
 Each actuator is driven by a drive-side position controller, PD plus velocity feed-forward,
-``F = Kp (q_d - q) + Kd (qd_d - qd)``, clipped to the drive's current limit. The plant moves by
+``F = Kp (q_d - q) + Kd (qd_d - qd)``, clipped to the drive's current limit. Within a period the
+demand ``q_d(t)`` is a polynomial handed over by the drive (the set-point interpolation of
+:mod:`drivers.sim.drive`); when it is continuous with its first derivative across periods, so
+is the force, and the force at a period start is the force of that instant, not a one-sided
+value. There is no acceleration feed-forward: with it, the steps of the interpolated
+acceleration at each SYNC would come back as steps of the force. The plant moves by
 the closed-chain forward dynamics of :class:`ident_hw.model.ThreePRRR` with the *true*
 parameters (friction included). The reduced mass matrix ``M`` and the velocity terms are
 evaluated once per period (the expensive part, one model evaluation); within the period the
@@ -131,22 +136,29 @@ class Plant:
         """Actuator forces (6,) of the position loops at the current state (0 where disabled)."""
         return self._loop_force(self.Theta, self.Thetad, demand, demand_velocity, enabled, force_limit)
 
-    def step(self, period, demand, demand_velocity, enabled, force_limit) -> None:
-        """Advance one period (s). The demand ramps from ``demand`` at ``demand_velocity`` (each (6,)).
+    def step(self, period, demand, enabled, force_limit) -> None:
+        """Advance one period (s) under the demand polynomial ``demand`` (k, 6).
 
+        ``demand[i]`` is the coefficient of ``t**i`` (``t`` from the period start, s), so that
+        ``q_d(t) = sum_i demand[i] t**i``: rows position, velocity, ... (rad, m; per s**i).
         ``enabled`` (6,) bool: axes whose loop is closed (others are free); ``force_limit`` (6,)
         the drive's current limit as a force. The force at the period start is :attr:`force`.
 
         Raises:
             PlantJammed: the robot cannot move any more (see the module docstring).
         """
+        demand = np.asarray(demand, dtype=float).reshape(-1, 6)
+        powers = np.arange(len(demand))
+        slope = demand[1:] * powers[1:, None]
         M, bias = self._dynamics()
         Theta0, Thetad0, X0 = self.Theta, self.Thetad, self.X
         M_inv = np.linalg.inv(M)
         external = self.external_force - bias
 
         def acceleration(Theta, Thetad, t):
-            F = self._loop_force(Theta, Thetad, demand + demand_velocity * t, demand_velocity, enabled, force_limit)
+            q_d = t ** powers @ demand
+            v_d = t ** powers[:-1] @ slope if len(slope) else np.zeros(6)
+            F = self._loop_force(Theta, Thetad, q_d, v_d, enabled, force_limit)
             return F, M_inv @ (F + external - self._friction(Thetad))
 
         self.force, a1 = acceleration(Theta0, Thetad0, 0.0)

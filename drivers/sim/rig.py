@@ -6,6 +6,9 @@ send every SYNC-triggered TPDO, then integrate the plant over the period. A cloc
 the event-driven TPDOs, releases delayed frames and keeps the plant moving when no SYNC comes
 (homing and profile moves before the cyclic phase).
 
+Each drive watches the producer named in its ``0x1016:01`` (the master's heartbeat) from the
+clock thread: see :meth:`drivers.sim.drive.EmulatedDrive.check_heartbeat`.
+
 Fault injection (for tests and demos): :meth:`SimulatedRig.silence`, :meth:`~SimulatedRig.emcy`,
 :meth:`~SimulatedRig.sdo_abort`, :meth:`~SimulatedRig.frame_faults` and ``initial_states``.
 """
@@ -21,7 +24,7 @@ import canopen
 import numpy as np
 
 from drivers.axis import AxisConfig
-from drivers.sim.drive import EMCY_FOLLOWING_ERROR, FAULT, EmulatedDrive
+from drivers.sim.drive import EMCY_FOLLOWING_ERROR, FAULT, FAULT_REACTION, EmulatedDrive
 from drivers.sim.plant import Plant, PlantJammed
 from drivers.units import AxisScaling
 from ident_hw.model import Geometry, InertialParams, ThreePRRR
@@ -205,19 +208,18 @@ class SimulatedRig:
 
     def _cycle(self, period: float, sync_count=None) -> None:
         """One period: RPDOs, demands, sensor sampling, TPDOs (if ``sync_count``), plant step."""
-        demand = np.empty(6)
-        velocity = np.empty(6)
+        demand = np.empty((4, 6))     # q_d(t) = sum_i demand[i] t^i over the period
         for j, drive in enumerate(self.drives):
             drive.apply_pending_rpdos()
-            demand[j], velocity[j] = drive.plan(period)
+            demand[:, j] = drive.plan(period)
         offsets = np.array([d.offset for d in self.drives], dtype=float)
-        demand = (demand + offsets) / self._counts_per_unit
-        velocity = velocity / self._counts_per_unit
+        demand[0] += offsets
+        demand /= self._counts_per_unit
         enabled = np.array([d.powered for d in self.drives])
         limit_ma = [d.get(d.profile.current_limit.index, d.profile.current_limit.subindex) for d in self.drives]
         limit = np.array(limit_ma, dtype=float) * 1e-3 * self._force_per_amp
         plant = self.plant
-        force = plant.control(demand, velocity, enabled, limit)
+        force = plant.control(demand[0], demand[1], enabled, limit)
         milliamps = force / self._force_per_amp * 1e3
         if self.current_noise_ma:
             milliamps += self._rng.normal(0.0, self.current_noise_ma, 6)
@@ -231,7 +233,7 @@ class SimulatedRig:
                 drive.send_sync_tpdos(sync_count)
         if period > 0:
             try:
-                plant.step(period, demand, velocity, enabled, limit)
+                plant.step(period, demand, enabled, limit)
             except PlantJammed as exc:   # what a real drive sees: the axis does not follow
                 if self.jammed is None:
                     logger.error("%s", exc)
@@ -248,6 +250,7 @@ class SimulatedRig:
                 with self._lock:
                     self.network.release_delayed(now)
                     for drive in self.drives:
+                        drive.check_heartbeat(now)
                         drive.send_event_tpdos(now)
                     idle = self._last_sync is None or now - self._last_sync > IDLE_AFTER
                     if idle and now - self._last_step >= IDLE_STEP:
@@ -314,5 +317,5 @@ class SimulatedRig:
             self.network.faulty_nodes = None if node_ids is None else set(node_ids)
 
     def faulted(self) -> list[int]:
-        """Node-IDs of the drives in FAULT."""
-        return [d.id for d in self.drives if d.state == FAULT]
+        """Node-IDs of the drives in FAULT (or in their fault reaction, on the way to it)."""
+        return [d.id for d in self.drives if d.state in (FAULT_REACTION, FAULT)]
