@@ -311,5 +311,20 @@ def test_master_heartbeat_is_produced_and_watched_by_every_drive(rig_factory):
         assert [d.get(0x1016, 1) for d in rig.drives] == [0] * 6
         heartbeats(0.05)  # frames already queued before the stop
         assert heartbeats(0.5) == []
+        # ... and, their consumer switched off first, no drive took the end for a lost master
+        assert 0.55 > group.heartbeat_timeout and [d.state for d in rig.drives] == ["SWITCH ON DISABLED"] * 6
     finally:
         listener.shutdown()
+
+
+def test_drives_stop_themselves_when_the_master_is_lost(rig_factory):
+    rig, _ = rig_factory(up=False)
+    network = open_network(BusConfig("virtual", rig._bus_kwargs["channel"], ignore_config=True))
+    group = DriveGroup(network, AXES)
+    group.bring_up()
+    group.enable()
+    assert all(d.state == "OPERATION ENABLED" for d in rig.drives)
+    network.disconnect()  # the master process is gone: no heartbeat, no SDO, no stop command
+    time.sleep(group.heartbeat_timeout + 0.3)
+    assert [d.state for d in rig.drives] == ["FAULT"] * 6
+    assert all(d.get(d.profile.error_code.index) == 0x8130 for d in rig.drives)  # heartbeat error
