@@ -174,7 +174,7 @@ def cmd_home(args) -> int:
         return EXIT_FAIL
     with open_session(config) as session:
         with session.drive_group() as group:
-            group.bring_up()
+            group.bring_up(timeout=config.bus.bring_up_timeout)
             group.home()
             positions = group.positions()
     for act, q in zip(config.robot.actuators, positions):

@@ -89,10 +89,22 @@ def synthetic_recordings(config, folder: Path) -> list[Path]:
     return paths
 
 
+SWEEP_ONLY = f"""extends: {CONFIGS / 'sim-3prrr.yaml'}
+bus: {{interface: virtual, channel: unused, sync_rate: 100.0}}
+trajectories: [{{name: sweep, kind: carriage_sweep, size: 0.03}}]
+identification:
+  steps: [{{name: carriages, trajectories: [sweep], parameters: [m_c]}}]
+  validation: []
+  filter: {{bandwidth: 1.0}}
+"""
+
+
 def test_identify_and_report_from_recordings(tmp_path):
-    config = load_config(CONFIGS / "vcan-3prrr.yaml")   # one short sweep, m_c only
+    path = tmp_path / "sweep.yaml"
+    path.write_text(SWEEP_ONLY)    # one short sweep at 100 Hz, m_c only
+    config = load_config(path)
     paths = synthetic_recordings(config, tmp_path)
-    out = ident_hw("identify", CONFIGS / "vcan-3prrr.yaml", *paths, "--out", tmp_path / "res", "--quiet")
+    out = ident_hw("identify", path, *paths, "--out", tmp_path / "res", "--quiet")
     assert out.returncode == 0, out.stderr
     assert "m_c" in out.stdout and "603.62" in out.stdout and "error %" in out.stdout
     res = tmp_path / "res"

@@ -194,6 +194,10 @@ class BusConfig:
     sync_rate: float = field(default=250.0, metadata=spec(in_range(1.0, 2000.0), unit="Hz"))
     sdo_timeout: float = field(default=0.5, metadata=spec(positive, unit="s"))
     heartbeat: float = field(default=0.1, metadata=spec(positive, unit="s"))
+    heartbeat_timeout: float | None = field(default=None, metadata=spec(
+        positive, unit="s", doc="consumer heartbeat timeout on both sides (default 3.5 heartbeat periods)"))
+    bring_up_timeout: float = field(default=5.0, metadata=spec(
+        positive, unit="s", doc="time for every drive to answer and reach PRE-OPERATIONAL at bring-up"))
 
     def to_driver(self, ignore_config: bool = True) -> drivers.bus.BusConfig:
         """python-can settings of the bus (``ignore_config``: ignore the user's python-can files)."""

@@ -6,9 +6,9 @@ and identification together.
 
 :func:`run_campaign` brings the drives up (homes them on the simulated rig, which powers up at
 the home pose; on hardware ``ident-hw home`` does that first), and for each trajectory moves
-slowly to its start, streams it at the SYNC rate and records it (``data/<name>.npz`` decoded,
-``data/<name><raw_log>`` raw CAN log). Then it identifies and validates
-(:func:`ident_hw.experiment.offline.identify`) and writes the results folder
+slowly to its start (unless the drives stand there already), streams it at the SYNC rate and
+records it (``data/<name>.npz`` decoded, ``data/<name><raw_log>`` raw CAN log). Then it
+identifies and validates (:func:`ident_hw.experiment.offline.identify`) and writes the results folder
 (:func:`ident_hw.report.save_results`). On Ctrl-C or a drive fault the drives are stopped and
 disabled by the driver, the recordings so far stay on disk, STATUS says ``partial: <why>`` and
 :class:`CampaignStopped` is raised. ``data/drives.json`` holds the CiA 402 state of every drive
@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 import can
+import numpy as np
 from tqdm import tqdm
 
 from drivers.bus import SYNC_COB_ID
@@ -127,7 +128,9 @@ def stream(session: Session, group: DriveGroup, planned: PlannedTrajectory, data
            show_progress: bool) -> Recording:
     """Move to the trajectory's start, stream it and record it into ``data``."""
     config, traj = session.config, planned.trajectory
-    group.move_to(traj.Theta[0], speed_fraction=APPROACH_SPEED)
+    window = np.array([a.limits.following_error for a in config.robot.actuators])
+    if np.any(np.abs(group.positions() - traj.Theta[0]) > 0.5 * window):
+        group.move_to(traj.Theta[0], speed_fraction=APPROACH_SPEED)
     with _progress(session.network, traj.name, len(traj.t), show_progress), _injected_fault(session, traj.name):
         return group.run_cyclic(traj.Theta, 1.0 / sample_rate(config), output=data / f"{traj.name}.npz",
                                 raw_log=data / f"{traj.name}{config.output.raw_log}",
@@ -160,7 +163,7 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
             group = session.drive_group()
             try:
                 say(f"bringing up {len(group.drives)} drives on {config.bus.interface}:{config.bus.channel}")
-                group.bring_up()
+                group.bring_up(timeout=config.bus.bring_up_timeout)
                 if config.simulated:
                     say("homing (the simulated rig powers up at the home pose)")
                     group.home()

@@ -53,7 +53,8 @@ class Session:
         """The six actuators' drives (theta1..3, zeta1..3) with the bus settings of the config."""
         bus = self.config.bus
         return DriveGroup(self.network, [a.to_driver() for a in self.config.robot.actuators],
-                          heartbeat_period=bus.heartbeat, sdo_timeout=bus.sdo_timeout)
+                          heartbeat_period=bus.heartbeat, heartbeat_timeout=bus.heartbeat_timeout,
+                          sdo_timeout=bus.sdo_timeout)
 
 
 @contextmanager

@@ -11,39 +11,59 @@ from .conftest import VCAN_CHANNEL
 pytestmark = pytest.mark.vcan
 
 CONFIG = Path(__file__).parents[2] / "configs" / "vcan-3prrr.yaml"
-CLI_TIMEOUT = 300.0  # s; numpy/scipy alone take ~25 s to import in the emulated guest
+CLI_TIMEOUT = 600.0  # s; numpy/scipy/matplotlib alone take a minute to import in the emulated guest
 
 
-@pytest.mark.skip(reason="needs the CLI's 'ident-hw sim' and 'ident-hw scan' subcommands and an 'ident-hw run' "
-                         "that drives the bus (ident_hw/cli.py has neither yet); enable and check when they land")
 def test_cli_run_against_rig_process_matches_candump(start_process, candump, tmp_path):
     # imported here, not at collection: numpy/scipy cost ~25 s in the guest even when the test is skipped
+    import json
+
     import numpy as np
 
     from drivers.recording import Recording, decode_log
     from ident_hw.config import load_config
 
+    config = load_config(CONFIG)
+    actuators = config.robot.actuators
     start_process(["ident-hw", "sim", CONFIG], ready="simulated rig:")
-    actuators = load_config(CONFIG).robot.actuators
 
-    scan = subprocess.run(["ident-hw", "scan", CONFIG], capture_output=True, text=True, timeout=CLI_TIMEOUT)
+    scan = subprocess.run(["ident-hw", "scan", CONFIG, "--wait", "3"], capture_output=True, text=True,
+                          timeout=CLI_TIMEOUT)
+    print(f"\n$ ident-hw scan\n{scan.stdout}{scan.stderr}")
     assert scan.returncode == 0, scan.stderr
     for actuator in actuators:
-        assert str(actuator.node_id) in scan.stdout, f"scan did not list node {actuator.node_id}:\n{scan.stdout}"
+        assert f"node {actuator.node_id:3d}: EPOS4" in scan.stdout, f"scan did not list node {actuator.node_id}"
+    assert "matches the config" in scan.stdout and "PRE-OPERATIONAL" in scan.stdout
 
     out = tmp_path / "results"
     run = subprocess.run(["ident-hw", "run", CONFIG, "--quiet", "--out", out], capture_output=True, text=True,
                          timeout=CLI_TIMEOUT)
+    print(f"$ ident-hw run\n{run.stdout}{run.stderr}")
     assert run.returncode == 0, run.stderr
-    recordings = sorted(out.rglob("*.npz"))
-    assert len(recordings) == 1, f"expected the one trajectory's recording in {out}: {recordings}"
-    recorded = Recording.load(recordings[0])
-    assert recorded.metadata["n_cycles"] > 0 and recorded.n_invalid == 0
+    assert (out / "STATUS").read_text().strip() == "complete"
+    (traj,) = config.trajectories
+    recorded = Recording.load(out / "data" / f"{traj.name}.npz")
+    n = recorded.metadata["n_cycles"]
+    print(f"recorded {n} cycles at {config.bus.sync_rate:g} Hz, {recorded.n_invalid} incomplete, "
+          f"late set-points {recorded.metadata.get('late_setpoints')}")
+    assert n > 0 and recorded.valid.all(axis=1).any()
+    # the identification ran on what was recorded: the step's parameters were fitted
+    rows = {r["name"]: r for r in json.loads((out / "parameters.json").read_text())["parameters"]}
+    (step,) = config.identification.steps
+    for name in step.parameters:
+        assert rows[name]["step"] == step.name and np.isfinite(rows[name]["identified"]), name
 
-    # candump saw the same frames on the bus; the project's decoder must give the same samples from them
-    decoded = decode_log(candump.path, [a.to_driver() for a in actuators],
-                         max_cycles=recorded.metadata["n_cycles"])
-    np.testing.assert_allclose(decoded.t, recorded.t, rtol=0, atol=1e-6)  # both logs have 1 µs resolution
-    for name in ("cycle", "position", "velocity", "current", "statusword", "valid"):
+    # candump saw the same frames on the bus: the project's decoder gives the same samples from its log,
+    # from the run's first frame on (the set-points of cycle 0, sent just before the first SYNC)
+    lines = candump.lines()
+    rpdo1 = tuple(f" {VCAN_CHANNEL} {0x200 + a.node_id:03X}#" for a in actuators)
+    first = next(i for i, line in enumerate(lines) if any(key in line for key in rpdo1))
+    dumped = tmp_path / "candump-run.log"
+    dumped.write_text("\n".join(lines[first:]) + "\n")
+    decoded = decode_log(dumped, [a.to_driver() for a in actuators], max_cycles=n)
+    for name in ("cycle", "position", "velocity", "current", "statusword", "target", "valid"):
         np.testing.assert_array_equal(getattr(decoded, name), getattr(recorded, name), err_msg=name)
-    assert VCAN_CHANNEL in candump.lines()[-1]
+    # and the run's own raw CAN log decodes to its recording as well
+    own = decode_log(out / "data" / f"{traj.name}{config.output.raw_log}", [a.to_driver() for a in actuators],
+                     max_cycles=n)
+    np.testing.assert_array_equal(own.position, recorded.position)
