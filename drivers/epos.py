@@ -597,7 +597,8 @@ class DriveGroup:
 
         The drives must stand at ``targets[0]`` (within their following-error window), e.g. after
         :meth:`move_to`. Row k of the result holds the state the drives reported at SYNC k and
-        ``target[k]``, the set-point in force from SYNC k on. On a fault (EMCY, heartbeat,
+        ``target[k]``, the set-point in force from SYNC k on; ``t[k]`` is the measured bus time
+        of SYNC k (not ``k * period``: the SYNC producer drifts, see :mod:`drivers.recording`). On a fault (EMCY, heartbeat,
         statusword fault/following-error bit, bus error) or any exception (Ctrl-C included) the
         SYNC stops, the drives are quick-stopped and disabled, the samples so far are saved and
         the error is raised (a :class:`DriveFault` carries ``recording``, the NPZ path).
