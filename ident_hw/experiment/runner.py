@@ -178,6 +178,7 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
                 group.stop_motion()
                 states = _drive_states(session, group)
                 (data / "drives.json").write_text(json.dumps(states, indent=2))
+                group.close()  # drives stop watching the master's heartbeat before it ends
         mark_status(folder, "identifying")
         results = identify(config, recordings, progress=say)
         if online is not None:
