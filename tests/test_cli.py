@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from drivers.recording import Recording
 from ident_hw.config import load_config
@@ -126,3 +127,46 @@ def test_identify_and_report_from_recordings(tmp_path):
 def test_identify_with_a_missing_trajectory_fails_clearly(tmp_path):
     out = ident_hw("identify", CONFIGS / "sim-3prrr.yaml", tmp_path / "absent.npz", "--out", tmp_path / "res")
     assert out.returncode == 1 and "absent.npz" in out.stderr
+
+
+BASE_STEP = f"""extends: {CONFIGS / 'sim-3prrr.yaml'}
+bus: {{interface: virtual, channel: unused, sync_rate: 250.0}}
+trajectories:
+  - {{name: excitation, kind: fourier}}
+  - {{name: triangle, kind: triangle}}
+identification:
+  steps:
+    - {{name: base, trajectories: [excitation], method: wls,
+       parameters: [m_c, m_l1, I_l1, m_l2, I_l2, m_ee, I_ee, fv_theta1, fv_theta2, fv_theta3,
+                    fv_zeta1, fv_zeta2, fv_zeta3, fc_theta1, fc_theta2, fc_theta3, fc_zeta1, fc_zeta2, fc_zeta3]}}
+  validation: [triangle]
+"""
+
+
+def test_base_parameter_step_on_the_optimised_excitation(tmp_path):
+    """Model-made recordings (true forces in whole mA plus noise, positions in counts): the WLS
+    base parameters match the same combinations of the truth, and their prediction of the
+    held-out triangle matches its measured forces."""
+    path = tmp_path / "base.yaml"
+    path.write_text(BASE_STEP)
+    config = load_config(path)
+    paths = synthetic_recordings(config, tmp_path)
+    out = ident_hw("identify", path, *paths, "--out", tmp_path / "res", "--quiet")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads((tmp_path / "res" / "parameters.json").read_text())
+    base = doc["base_fit"]
+    assert len(base["rows"]) == 18 and base["held"] == [] and base["unexcited"] == []
+    H = np.array(base["H"])
+    truth = config.sim.truth.to_model().as_vector()
+    for row, h in zip(base["rows"], H):
+        assert row["truth"] == pytest.approx(h @ truth, rel=1e-12)
+        if row["well_identified"]:
+            # 3 sigma of the fit's own statistics, and no more than 5 %
+            assert abs(row["identified"] - row["truth"]) <= min(3 * row["sigma"], 0.05 * abs(row["truth"])), row
+    assert sum(r["well_identified"] for r in base["rows"]) >= 15
+    assert all(not r["well_identified"] for r in base["rows"] if r["rel_sigma_percent"] > 10.0)
+    metrics = yaml.safe_load((tmp_path / "res" / "metrics.yaml").read_text())
+    assert metrics["triangle"]["role"] == "validation" and metrics["triangle"]["base_fit"]["d_tau_percent"] < 2.0
+    assert "base parameters, WLS on excitation" in out.stdout
+    # the step-by-step table fitted nothing here: every physical parameter is held
+    assert all(r["step"] == "" for r in doc["parameters"])
