@@ -4,9 +4,11 @@ Each recording (positions and motor currents of the six axes at the SYNC rate, S
 the same preparation (:func:`ident_hw.signal.prepare_actuated`, then the parallel filter and
 decimation of forces and regressor). The steps of ``identification.steps`` run in order, each
 an SQP fit of its parameters with the others held at their current values (CAD at the start),
-so the sweep's ``m_c`` is used by the squares' step. The result is a
-:class:`ident_hw.report.Results` with standard deviations from the weighted least-squares
-statistics of each step and a base-parameter analysis of all identification data.
+so the sweep's ``m_c`` is used by the squares' step. A ``wls``/``ols`` step instead fits the
+base parameters of its parameters (:func:`fit_base`), reported beside the physical ones with
+its own prediction of every trajectory. The result is a :class:`ident_hw.report.Results` with
+standard deviations from the weighted least-squares statistics of each step and a
+base-parameter analysis of all identification data.
 """
 
 from __future__ import annotations
