@@ -254,6 +254,7 @@ def _add_communication_objects(od: ObjectDictionary, prof: DriveProfile, node_id
         _record(od, f"Receive PDO {n + 1} parameter", 0x1400 + n, [
             (1, "COB-ID used by RPDO", "UNSIGNED32", "rw", valid | (0x200 + 0x100 * n + node_id)),
             (2, "Transmission type", "UNSIGNED8", "rw", 255),
+            (5, "Event timer", "UNSIGNED16", "rw", 0, False, "ms"),   # deadline monitoring, 0 = off
         ])
         _record(od, f"Receive PDO {n + 1} mapping", 0x1600 + n, [
             (sub, f"Mapped object {sub}", "UNSIGNED32", "rw", 0x60400010 if (n, sub) == (0, 1) else 0)

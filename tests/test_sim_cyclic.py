@@ -18,7 +18,6 @@ import threading
 import numpy as np
 import pytest
 
-import drivers.sim.rig as rig_module
 from drivers.sim import nominal
 from ident_hw.identification.dataset import build_dataset
 from ident_hw.identification.least_squares import ols
@@ -37,8 +36,12 @@ COUNTS_PER_UNIT = np.array([s.counts_per_unit for s in SCALINGS])
 FORCE_PER_AMP = np.array([s.force_per_amp for s in SCALINGS])
 
 
-def stream_lockstep(bench, targets):
-    """Stream ``targets`` (N, 6) counts, one row per SYNC; returns reported counts and mA (N, 6)."""
+def stream_lockstep(bench, targets, before_sync=None, rpdo_deadline_ms=0):
+    """Stream ``targets`` (N, 6) counts, one row per SYNC; returns reported counts and mA (N, 6).
+
+    ``before_sync(k)`` runs in the master between the set-points of row k and its SYNC (to stall
+    the master); ``rpdo_deadline_ms``: the drives' RPDO timeout (RPDO1 event timer 0x1400:05).
+    """
     rows, cycle, complete = [], {}, threading.Event()
 
     def received(j, message):
@@ -48,19 +51,22 @@ def stream_lockstep(bench, targets):
 
     for j, node in enumerate(bench.nodes):
         configure_pdos(node, "EPOS4")
+        node.sdo[0x1400][5].raw = rpdo_deadline_ms
         node.sdo[0x6060].raw = 8
         for cw in (0x06, 0x07, 0x0F):
             node.sdo[0x6040].raw = cw
         node.tpdo[1].add_callback(lambda m, j=j: received(j, m))
     bench.master.nmt.state = "OPERATIONAL"
     assert wait_until(lambda: all(d.node.nmt.state == "OPERATIONAL" for d in bench.rig.drives))
-    for row in targets:
+    for k, row in enumerate(targets):
         cycle.clear()
         complete.clear()
         for node, target in zip(bench.nodes, row):
             node.rpdo[1][0].raw = int(target)
             node.rpdo[1][1].raw = 0x0F
             node.rpdo[1].transmit()
+        if before_sync is not None:
+            before_sync(k)
         bench.master.sync.transmit()
         assert complete.wait(5.0), f"cycle {len(rows)}: TPDOs of {sorted(cycle)}"
         rows.append([cycle[j] for j in range(6)])
@@ -75,9 +81,7 @@ def sweep_run():
     n = int(0.75 * len(traj.t))
     home = traj.Theta[0]
     targets = np.rint((traj.Theta[:n] - home) * COUNTS_PER_UNIT)
-    # lockstep is slower than real time: the rig must not take its idle steps between SYNCs
-    idle_after = rig_module.IDLE_AFTER
-    rig_module.IDLE_AFTER = float("inf")
+    # lockstep is slower than real time: in CSP the rig's time is the SYNC's (no idle steps)
     bench = Bench(sync_period=PERIOD, current_noise_ma=2.0, seed=7)
     try:
         bench.rig.start()
@@ -87,7 +91,6 @@ def sweep_run():
         offsets = np.array([d.offset for d in bench.rig.drives])
     finally:
         bench.close()
-        rig_module.IDLE_AFTER = idle_after
     truth = {k: v[-len(targets):] for k, v in truth.items()}     # the streamed cycles, one per SYNC
     assert np.array_equal(counts, np.rint(truth["Theta"] * COUNTS_PER_UNIT) - offsets), "samples not aligned"
     return dict(targets=targets, counts=counts, milliamps=milliamps, truth=truth, home=home)

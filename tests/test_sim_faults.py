@@ -280,7 +280,13 @@ def test_commanded_into_a_singularity_every_enabled_drive_faults_with_a_followin
     assert wait_until(lambda: sorted(bench.rig.faulted()) == [1, 2, 3, 4, 5, 6])
     assert all(wait_until(lambda c=c: 0x8611 in c) for c in codes.values())
     assert "jammed" in bench.rig.jammed
-    assert np.all(bench.rig.plant.Thetad == 0)
+    # the jam put the plant back at rest (the step after it starts from Thetad = 0 exactly);
+    # afterwards the drives' fault reaction and then the free mechanism may move it again
+    def rested_after_moving():
+        with bench.rig._lock:
+            moving = np.any(bench.rig.plant.truth()["Thetad"] != 0, axis=1)
+        return moving.any() and not moving[np.argmax(moving):].all()
+    assert wait_until(rested_after_moving)
 
 
 MASTER_ID = 100

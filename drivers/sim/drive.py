@@ -7,7 +7,8 @@ written into the dictionary (applied on the next SYNC for types 0..240, at once 
 PDOs only in OPERATIONAL, boot-up and NMT reset, EMCY with ``0x1001``/``0x1003``, the CiA 402
 power state machine (with the fault reaction: a quick-stop ramp, then FAULT with the power off),
 the heartbeat consumer ``0x1016:01`` (EMCY ``0x8130`` and a fault when the producer it watches
-falls silent) and the modes the master uses: homing (HMM), profile position (PPM) and
+falls silent), the RPDO deadline monitoring of CiA 301 (see :meth:`EmulatedDrive.check_rpdo_timeout`)
+and the modes the master uses: homing (HMM), profile position (PPM) and
 cyclic position (EPOS4 CSP mode 8 on ``0x607A``; EPOS2 position mode -1 on ``0x2062``).
 
 Cyclic set-points are interpolated as a real drive does (its loops run much faster than SYNC):
@@ -24,7 +25,9 @@ times more: 11 N instead of 7 N of force ripple at 250 Hz on the carriages.)
 
 Positions here are drive units (counts); the rig converts to and from the SI plant. Every
 handler runs under the rig's lock, called from the network's notifier thread (SDO, RPDO, NMT,
-SYNC) or the rig's clock thread (event timers).
+SYNC) or the rig's clock thread (event timers, heartbeat and RPDO watches). Times come from the
+rig's clock (:attr:`drivers.sim.rig.SimulatedRig.time`), which stands still while the rig's
+own thread cannot run: a stall of the host process is not a timeout of the drives.
 """
 
 from __future__ import annotations
@@ -57,6 +60,7 @@ HOME_HERE = (35, 37)  # homing methods "actual position" (CiA 402 35, maxon 37)
 HOMING_TRAVEL_TURNS = 0.5  # motor turns of the emulated search move of the other methods
 
 EMCY_FOLLOWING_ERROR, EMCY_OVERCURRENT, EMCY_PDO_LENGTH, EMCY_HEARTBEAT = 0x8611, 0x2310, 0x8210, 0x8130
+EMCY_RPDO_TIMEOUT = 0x8250
 ABORT_VALUE_RANGE, ABORT_NOT_MAPPABLE, ABORT_PDO_LENGTH = 0x06090030, 0x06040041, 0x06040042
 
 NMT_OPERATIONAL, NMT_STOPPED = 5, 4
@@ -79,10 +83,11 @@ class _Pdo:
     cob_id: int
     trans_type: int
     inhibit: float            # s
-    event_timer: float        # s
+    event_timer: float        # s (TPDO: transmission period; RPDO: deadline, CiA 301)
     layout: struct.Struct
     entries: list             # [(index, subindex)] in frame order
     last_sent: float = -math.inf
+    last_received: float | None = None   # RPDO: time its last value took effect (None: not watched yet)
 
 
 class EmulatedDrive:
@@ -94,7 +99,8 @@ class EmulatedDrive:
         scaling: the axis' :class:`AxisScaling` (counts per motor turn for the rpm limits).
         network: the rig's network (the node is added to it).
         lock: the rig's lock, held by every handler.
-        clock: ``clock() -> float`` seconds (monotonic), for event timers and inhibit times.
+        clock: ``clock() -> float`` seconds (monotonic; the rig's clock), for event timers, inhibit
+            times and the heartbeat and RPDO watches.
     """
 
     def __init__(self, node_id: int, profile_name: str, scaling: AxisScaling, network: canopen.Network,
@@ -143,6 +149,7 @@ class EmulatedDrive:
         self._next_demand = None
         self._homed = False
         self._pending_rpdo: dict[int, bytes] = {}
+        self.rpdos: dict[int, _Pdo] = {}
         self._quick_stop_since = None
         self._pdos_dirty = True
         self._watch_producer(0)
@@ -265,7 +272,8 @@ class EmulatedDrive:
             cob = self.get(0x1400 + n, 1)
             if not cob >> 31 and self.get(0x1600 + n, 0):
                 layout, entries = self._layout(0x1600 + n)
-                rpdos[cob & 0x7FF] = _Pdo(cob & 0x7FF, self.get(0x1400 + n, 2), 0.0, 0.0, layout, entries)
+                rpdos[cob & 0x7FF] = _Pdo(cob & 0x7FF, self.get(0x1400 + n, 2), 0.0, self.get(0x1400 + n, 5) * 1e-3,
+                                          layout, entries)
         for cob in self._rpdo_subscribed:
             self.network.unsubscribe(cob, self._on_rpdo)
         self.rpdos = rpdos
@@ -318,6 +326,7 @@ class EmulatedDrive:
                 self._apply_rpdo(pdo, data)
 
     def _apply_rpdo(self, pdo: _Pdo, data) -> None:
+        pdo.last_received = self._clock()
         for (index, sub), value in zip(pdo.entries, pdo.layout.unpack_from(data)):
             var = self.node.object_dictionary.get_variable(index, sub)
             try:
@@ -332,6 +341,37 @@ class EmulatedDrive:
         for cob, data in pending.items():
             if cob in self.rpdos:
                 self._apply_rpdo(self.rpdos[cob], data)
+
+    @property
+    def streaming(self) -> bool:
+        """OPERATION ENABLED in the cyclic position mode: the drive's time is the SYNC's."""
+        return self.state == ENABLED and self.get(0x6060) == self.profile.cyclic_mode
+
+    @property
+    def interpolation_period(self) -> float | None:
+        """The EPOS4's interpolation period ``0x60C2`` in s while streaming (EPOS2: None)."""
+        ref = self.profile.interpolation_period
+        if ref is None or not self.streaming:
+            return None
+        return self.get(ref.index, ref.subindex) * 10.0 ** self.get(ref.index, ref.subindex + 1)
+
+    def check_rpdo_timeout(self, now: float) -> None:
+        """RPDO timeout (EMCY 0x8250, fault reaction) while streaming: the deadline monitoring of
+        CiA 301, with the RPDO's event timer ``0x140x:05`` (ms, 0 = off) as the deadline.
+
+        A synchronous RPDO's value takes effect at a SYNC, so the deadline counts from the last
+        SYNC that applied one: missing SYNC frames and missing set-points both count. As CiA 301
+        says, the watch starts with the first value received (and again after each timeout).
+        """
+        if not self.streaming or self.silent:
+            return
+        for pdo in self.rpdos.values():
+            if pdo.event_timer and pdo.last_received is not None and now - pdo.last_received > pdo.event_timer:
+                logger.warning("node %d: no set-point (RPDO 0x%03X) for %.3f s in the cyclic mode",
+                               self.id, pdo.cob_id, now - pdo.last_received)
+                pdo.last_received = None
+                self.emcy(EMCY_RPDO_TIMEOUT)
+                return
 
     # -- SDO and NMT gates ------------------------------------------------------------------------
     def _on_sdo_request(self, can_id, data, timestamp) -> None:
@@ -413,6 +453,8 @@ class EmulatedDrive:
         if state in (ENABLED, QUICK_STOP) and self.state not in (ENABLED, QUICK_STOP):
             self.demand, self.demand_velocity = float(self.actual), 0.0
             self._last_cyclic, self._profile, self._homing_phase = None, None, None
+            for pdo in self.rpdos.values():
+                pdo.last_received = None                 # the RPDO watch starts with the next set-point
         if state == QUICK_STOP:
             self._quick_stop_since = None
         self.state = state

@@ -6,8 +6,20 @@ send every SYNC-triggered TPDO, then integrate the plant over the period. A cloc
 the event-driven TPDOs, releases delayed frames and keeps the plant moving when no SYNC comes
 (homing and profile moves before the cyclic phase).
 
-Each drive watches the producer named in its ``0x1016:01`` (the master's heartbeat) from the
-clock thread: see :meth:`drivers.sim.drive.EmulatedDrive.check_heartbeat`.
+Time. While the drives stream (every powered drive OPERATION ENABLED in its cyclic mode) the
+simulated time is the SYNC's: each SYNC advances the plant by one period and nothing else does,
+so a stalled master (a loaded host, a paused SYNC thread) stalls the robot with it instead of
+letting it run on towards a stale set-point. Once one of them quick-stops or faults, the clock
+thread moves the plant again (its ramp must end without SYNC). The period is ``sync_period``, else ``0x1006``, else the EPOS4's
+interpolation period ``0x60C2``, else the measured SYNC interval. Outside the cyclic
+mode the clock thread steps the plant after ``IDLE_AFTER`` without SYNC.
+
+The drives' watches (heartbeat consumer ``0x1016:01``, RPDO deadline ``0x140x:05``: see
+:meth:`~drivers.sim.drive.EmulatedDrive.check_heartbeat` and
+:meth:`~drivers.sim.drive.EmulatedDrive.check_rpdo_timeout`) and their event timers run on the
+rig's clock :attr:`SimulatedRig.time`: it advances with the clock thread's ticks, each counting
+at most ``MAX_TICK``, so a hiccup of the host that stops the rig's own thread too does not count
+as a silence of the master; a master that stops sending while the rig runs does.
 
 Fault injection (for tests and demos): :meth:`SimulatedRig.silence`, :meth:`~SimulatedRig.emcy`,
 :meth:`~SimulatedRig.sdo_abort`, :meth:`~SimulatedRig.frame_faults` and ``initial_states``.
@@ -35,6 +47,7 @@ SYNC_COB_ID = 0x80
 IDLE_AFTER = 0.05      # s without SYNC after which the clock thread moves the plant
 IDLE_STEP = 0.005      # s, plant step of the clock thread
 CLOCK_TICK = 0.001     # s
+MAX_TICK = 0.01        # s, most the rig's clock advances per tick of the clock thread
 MAX_PERIOD = 0.02      # s, longest plant step taken from a measured SYNC interval
 
 
@@ -79,7 +92,8 @@ class SimulatedRig:
         bus: an open python-can bus to use (left open on :meth:`stop`); otherwise one is opened
             from ``bus_kwargs`` (e.g. ``interface="virtual", channel="rig", ignore_config=True``).
         sync_period: plant step per SYNC in s. Default: ``0x1006`` of the first drive when the
-            master wrote it, else the measured SYNC interval.
+            master wrote it, else the interpolation period ``0x60C2`` of a streaming EPOS4,
+            else the measured SYNC interval.
         current_noise_ma: standard deviation of the Gaussian current noise, mA.
         seed: seed of the current noise and of the frame-loss draws.
         initial_states: ``{node_id: "FAULT" | "STOPPED"}``: drives in the wrong state at start.
@@ -111,7 +125,8 @@ class SimulatedRig:
         self.network = _RigNetwork(bus)
         self.network._rng = np.random.default_rng(None if seed is None else seed + 1)
         self._lock = threading.RLock()
-        self.drives = [EmulatedDrive(node_id, profile, scaling, self.network, self._lock, time.monotonic)
+        self.time = 0.0    # s, the rig's clock (see the module docstring)
+        self.drives = [EmulatedDrive(node_id, profile, scaling, self.network, self._lock, lambda: self.time)
                        for node_id, profile, scaling in nodes]
         self._by_id = {d.id: d for d in self.drives}
         scalings = [n[2] for n in nodes]
@@ -121,9 +136,10 @@ class SimulatedRig:
         self.sync_count = 0
         self.jammed: str | None = None        # why the plant stopped moving, if it did
         self.step_seconds: list[float] = []   # duration of each SYNC cycle (s), for benchmarks
-        self._last_sync = None
-        self._last_sync_stamp = None
-        self._last_step = time.monotonic()
+        self._last_sync = None          # rig time of the last SYNC
+        self._last_sync_stamp = None    # bus timestamp of the last SYNC
+        self._last_step = 0.0           # rig time of the last plant step
+        self._last_tick = None          # monotonic time of the last clock tick
         self._stop = threading.Event()
         self._clock_thread = None
 
@@ -164,7 +180,7 @@ class SimulatedRig:
                     drive.emcy(0x1000)
             self.network.subscribe(SYNC_COB_ID, self._on_sync)
         self._stop.clear()
-        self._last_step = time.monotonic()
+        self._last_tick = time.monotonic()
         self._clock_thread = threading.Thread(target=self._clock, name="sim-rig-clock", daemon=True)
         self._clock_thread.start()
         return self
@@ -190,19 +206,22 @@ class SimulatedRig:
 
     # -- the cycle ------------------------------------------------------------------------------------
     def _period(self, timestamp: float) -> float:
+        last, self._last_sync_stamp = self._last_sync_stamp, timestamp
         if self.sync_period is not None:
             return self.sync_period
         cycle_us = self.drives[0].get(0x1006)
         if cycle_us:
             return cycle_us * 1e-6
-        last, self._last_sync_stamp = self._last_sync_stamp, timestamp
+        for drive in self.drives:
+            if drive.interpolation_period:
+                return drive.interpolation_period
         return 0.0 if last is None else min(max(timestamp - last, 0.0), MAX_PERIOD)
 
     def _on_sync(self, can_id, data, timestamp) -> None:
         started = time.perf_counter()
         with self._lock:
             self.sync_count += 1
-            self._last_sync = time.monotonic()
+            self._last_sync = self.time
             self._cycle(self._period(timestamp), self.sync_count)
         self.step_seconds.append(time.perf_counter() - started)
 
@@ -241,20 +260,31 @@ class SimulatedRig:
                 for drive in self.drives:
                     if drive.powered:
                         drive.emcy(EMCY_FOLLOWING_ERROR)
-        self._last_step = time.monotonic()
+        self._last_step = self.time
+
+    @property
+    def sync_driven(self) -> bool:
+        """Simulated time advances only with SYNC: every powered drive streams (one at least)."""
+        powered = [drive for drive in self.drives if drive.powered]
+        return bool(powered) and all(drive.streaming for drive in powered)
 
     def _clock(self) -> None:
         while not self._stop.wait(CLOCK_TICK):
-            now = time.monotonic()
             try:
                 with self._lock:
+                    now = time.monotonic()
+                    self.time += min(now - self._last_tick, MAX_TICK)
+                    self._last_tick = now
                     self.network.release_delayed(now)
                     for drive in self.drives:
-                        drive.check_heartbeat(now)
-                        drive.send_event_tpdos(now)
-                    idle = self._last_sync is None or now - self._last_sync > IDLE_AFTER
-                    if idle and now - self._last_step >= IDLE_STEP:
-                        self._cycle(min(now - self._last_step, MAX_PERIOD))
+                        drive.check_heartbeat(self.time)
+                        drive.check_rpdo_timeout(self.time)
+                        drive.send_event_tpdos(self.time)
+                    if self.sync_driven:
+                        continue
+                    idle = self._last_sync is None or self.time - self._last_sync > IDLE_AFTER
+                    if idle and self.time - self._last_step >= IDLE_STEP:
+                        self._cycle(min(self.time - self._last_step, MAX_PERIOD))
             except Exception:  # keep serving; a broken bus shows up in the notifier too
                 logger.exception("simulated rig clock")
 
