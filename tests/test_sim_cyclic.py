@@ -9,7 +9,7 @@ for the six TPDOs: the run is as fast as the machine, not real time). Independen
   the true positions (not the plant's own acceleration);
 - ``ident_hw.identification.build_dataset`` on the REPORTED (quantised) positions and currents,
   then ``np.linalg.lstsq`` for m_c and the carriage friction, recovers m_c within 1 %;
-- the axes follow the targets 1.5 SYNC periods late (the interpolation of
+- the axes follow the B-spline of the targets 2 SYNC periods late (the interpolation of
   :mod:`drivers.sim.drive`), within the position loop's error.
 """
 
@@ -144,15 +144,16 @@ def test_mass_of_the_carriages_from_the_reported_data_is_unbiased(sweep_run):
     assert np.all(np.abs(coef[1:] - truth[1:]) < 3.0 * fit.std[1:])
 
 
-def test_axes_follow_the_targets_one_and_a_half_periods_late(sweep_run):
+def test_axes_follow_the_b_spline_of_the_targets_two_periods_late(sweep_run):
     counts, targets = sweep_run["counts"], sweep_run["targets"]
-    # targets k-1 and k (sent before SYNC k-1 and k): their midpoint is the demand at SYNC k + 1
-    lagged = counts[2:] - 0.5 * (targets[1:-1] + targets[:-2])
+    # targets k-3, k-2, k-1 (sent before their SYNC): the B-spline demand at SYNC k
+    spline = lambda a, b, c: (a + 4.0 * b + c) / 6.0                   # noqa: E731
+    lagged = counts[3:] - spline(targets[:-3], targets[1:-2], targets[2:-1])
     per_period = np.abs(np.diff(targets, axis=0)).max(axis=0)
     print("following error (counts) max per axis:", np.abs(lagged).max(axis=0), "motion per period:", per_period)
     # position loop error a / w^2 (0.22 m/s^2 at 20 Hz: 14 um = 14 counts): well below one period's motion
     assert np.all(np.abs(lagged[:, 3:]).max(axis=0) < 0.1 * per_period[3:])
-    # the error a delay of one period less or more would leave: half a period's motion
+    # the error a delay of half a period less or more would leave: half a period's motion
     midpoints = 0.5 * (targets[1:] + targets[:-1])
-    for shifted in (counts[1:-1] - midpoints[:-1], counts[3:] - midpoints[:-2]):
+    for shifted in (counts[2:] - midpoints[:-1], counts[3:] - midpoints[:-2]):
         assert np.all(np.abs(shifted[:, 3:]).max(axis=0) > 0.4 * per_period[3:])

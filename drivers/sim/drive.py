@@ -12,16 +12,18 @@ and the modes the master uses: homing (HMM), profile position (PPM) and
 cyclic position (EPOS4 CSP mode 8 on ``0x607A``; EPOS2 position mode -1 on ``0x2062``).
 
 Cyclic set-points are interpolated as a real drive does (its loops run much faster than SYNC):
-the demand velocity is linear within each period, from where the previous period left it to
-the mean velocity of the last two targets, ``(q_k - q_k-1) / T``, and the demand reaches their
-midpoint ``(q_k + q_k-1) / 2`` at the next SYNC (a cubic Hermite segment, which is this
-quadratic in steady streaming and re-anchors the demand when streaming starts). So the demand
-runs 1.5 periods behind the targets, is exact for motions of constant acceleration (up to a
-constant offset ``a T^2 / 8``), and is continuous with its velocity: no velocity step at SYNC,
-hence no force step, and the current sampled at the SYNC instant is the force of that instant.
-(A one-period delay is possible with the backward-difference velocity ``(3 q_k - 4 q_k-1 +
-q_k-2) / 2T``, but it amplifies the quantisation of the targets into the feed-forward 1.8
-times more: 11 N instead of 7 N of force ripple at 250 Hz on the carriages.)
+the demand is the uniform cubic B-spline whose control points are the received targets. Over the
+period after SYNC k it is the segment of the last four, ``q_k-3 .. q_k``; at SYNC k it stands at
+``(q_k-3 + 4 q_k-2 + q_k-1) / 6`` with velocity ``(q_k-1 - q_k-3) / 2T`` and acceleration
+``(q_k-3 - 2 q_k-2 + q_k-1) / T^2``, all three continuous across SYNC (C2). So the demand runs
+2 periods behind the targets and smooths them: for a motion of constant acceleration ``a`` it is
+the motion itself, 2 periods late, plus a constant offset ``a T^2 / 6``; a target step becomes an
+S-curve over 4 periods. Continuous acceleration matters: a C1 demand (e.g. the cubic Hermite
+segment through the last targets' midpoint, 1.5 periods of delay) has an acceleration step at
+every SYNC, hence a force ripple at the SYNC rate that the current sampled at each SYNC catches
+at the same phase, aliased into the identification data (link viscous friction +25..+33 %,
+``tests/test_sim_links.py``). When streaming starts the spline's earlier control points are the
+held demand, so it leaves the standstill with no jump of position, velocity or acceleration.
 
 Positions here are drive units (counts); the rig converts to and from the SI plant. Every
 handler runs under the rig's lock, called from the network's notifier thread (SDO, RPDO, NMT,
@@ -142,7 +144,7 @@ class EmulatedDrive:
         self.demand = 0.0             # position demand at the period start, counts
         self.demand_velocity = 0.0    # counts/s
         self._demand_curve = (0.0, 0.0)   # coefficients of t^2, t^3 of the demand in the period
-        self._last_cyclic = None      # the two last cyclic targets (q_k-1, q_k-2), counts
+        self._last_cyclic = None      # the three last cyclic targets (q_k-1, q_k-2, q_k-3), counts
         self._profile = None          # [target counts, velocity counts/s] of a PPM/homing move
         self._homing_phase = None
         self._homing_start = 0.0
@@ -561,17 +563,16 @@ class EmulatedDrive:
             self._demand_curve = (0.5 * (end - v) / period, 0.0)
 
     def _interpolate(self, target: float, period: float, history) -> None:
-        """Cubic Hermite segment from the current demand towards ``target`` (see the module docstring);
-        ``history``: the two previous targets, or None when streaming starts."""
-        q1, q2 = history or (self.demand, self.demand)
-        self._last_cyclic = (target, q1)
+        """Uniform cubic B-spline segment of the last four targets (see the module docstring);
+        ``history``: the three previous targets, or None when streaming starts (the held demand)."""
+        p2, p1, p0 = history or (self.demand,) * 3
+        self._last_cyclic = (target, p2, p1)
         if not period > 0:
             return
-        p0, v0 = self.demand, self.demand_velocity
-        v1 = (target - q1) / period
-        rise = 0.5 * (target + q1) - p0
-        self._demand_curve = ((3.0 * rise - (2.0 * v0 + v1) * period) / period**2,
-                              ((v0 + v1) * period - 2.0 * rise) / period**3)
+        self.demand = (p0 + 4.0 * p1 + p2) / 6.0
+        self.demand_velocity = (p2 - p0) / (2.0 * period)
+        self._demand_curve = ((p0 - 2.0 * p1 + p2) / (2.0 * period**2),
+                              (target - 3.0 * p2 + 3.0 * p1 - p0) / (6.0 * period**3))
 
     def _profile_step(self, period: float) -> None:
         """Advance the trapezoidal profile (PPM or homing move) by one period."""

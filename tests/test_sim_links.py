@@ -1,0 +1,75 @@
+"""Link parameters from the rig's reported data are unbiased (issue 5/6): no SYNC-rate ripple aliased.
+
+A real canopen master streams the paper's five squares (``trajectories.five_squares``, carriages
+blocked) to the six emulated EPOS4 in CSP at 250 Hz, in lockstep (``stream_lockstep`` of
+``test_sim_cyclic``), with 2 mA of current noise. From the REPORTED counts and milliamps only,
+``ident_hw.identification.build_dataset`` (low-pass, central differences, parallel filter) and
+OLS fit the link parameters ``I_l1, m_l2, I_l2, m_ee, fv_theta1..3, fc_theta1..3`` on the
+three link torques, the other parameters known (their contribution subtracted).
+
+With the former C1 (cubic Hermite) demand, whose acceleration steps at every SYNC, this run gave
+viscous link friction +24..+33 % and I_l1, m_l2, I_l2, m_ee off by 12 sigma: the force ripple at
+the SYNC rate is caught by the current at the same phase of each period. The C2 B-spline demand
+of :mod:`drivers.sim.drive` has no such step: +8..+11 % left. What is left is measured, not yet
+removed (hence the strict xfail): the acceleration by central differences differs from the
+plant's exact one by 0.95 rad/s^2 rms (7 % of the link accelerations), correlated at -0.7 with
+the integer rounding of the streamed targets fed through the interpolator; with 16 times finer
+link encoders m_l2, I_l2, m_ee fall within 0.5 sigma but fv_theta stays +6..+10 %.
+"""
+
+import numpy as np
+import pytest
+
+from drivers.sim import nominal
+from ident_hw.identification.dataset import build_dataset
+from ident_hw.identification.least_squares import ols
+from ident_hw.model import ThreePRRR
+from trajectories import Limits, five_squares
+
+from test_sim_cyclic import COUNTS_PER_UNIT, FORCE_PER_AMP, stream_lockstep
+from test_sim_rig import Bench, wait_until
+
+PERIOD = 0.004
+ROBOT = ThreePRRR(nominal.GEOMETRY)
+TRUE = nominal.TRUE_PARAMS
+FITTED = ("I_l1", "m_l2", "I_l2", "m_ee", "fv_theta1", "fv_theta2", "fv_theta3",
+          "fc_theta1", "fc_theta2", "fc_theta3")
+
+
+@pytest.fixture(scope="module")
+def squares_run():
+    """The five squares one after the other (each from home back to home), streamed once."""
+    Theta = np.concatenate([s.Theta for s in five_squares(ROBOT, Limits(), rate=1.0 / PERIOD)])
+    home = Theta[0]
+    targets = np.rint((Theta - home) * COUNTS_PER_UNIT)
+    bench = Bench(sync_period=PERIOD, current_noise_ma=2.0, seed=11)
+    try:
+        bench.rig.start()
+        counts, milliamps = stream_lockstep(bench, targets)
+        assert wait_until(lambda: len(bench.rig.step_seconds) == bench.rig.sync_count)
+    finally:
+        bench.close()
+    return dict(counts=counts, milliamps=milliamps, home=home)
+
+
+@pytest.mark.xfail(strict=True, reason="viscous link friction still +8..+11 %, link masses off by 15 sigma "
+                                       "(set-point rounding through the interpolator; issue 5/6 open)")
+def test_link_parameters_from_the_reported_data_are_unbiased(squares_run):
+    counts = squares_run["counts"]
+    t = np.arange(len(counts)) * PERIOD
+    Theta = squares_run["home"] + counts / COUNTS_PER_UNIT
+    data = build_dataset(ROBOT, t, Theta, squares_run["milliamps"] * 1e-3, FORCE_PER_AMP, np.zeros(3))
+    names = list(TRUE.NAMES)
+    fitted = [names.index(k) for k in FITTED]
+    known = [k for k in range(len(names)) if k not in fitted]
+    Y = data.Y[:, :3, :]                                                 # link torque rows
+    rhs = data.tau[:, :3] - Y[..., known] @ TRUE.as_vector()[known]
+    fit = ols(Y[..., fitted], rhs, FITTED)
+    truth = TRUE.as_vector()[fitted]
+    rel = fit.coef / truth - 1.0
+    for name, c, s, tr, r in zip(FITTED, fit.coef, fit.std, truth, rel):
+        print(f"{name:10s} {c:11.6f} ± {s:.6f}  truth {tr:.6f}  {100 * r:+6.2f} %  {(c - tr) / s:+5.1f} sigma")
+    viscous = slice(4, 7)
+    assert np.all(np.abs(rel[viscous]) < 0.05), "viscous link friction biased"
+    masses = [FITTED.index(k) for k in ("m_l2", "I_l2", "m_ee")]
+    assert np.all(np.abs(fit.coef[masses] - truth[masses]) < 3.0 * fit.std[masses])
