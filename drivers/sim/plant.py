@@ -3,10 +3,9 @@
 Each actuator is driven by a drive-side position controller, PD plus velocity feed-forward,
 ``F = Kp (q_d - q) + Kd (qd_d - qd)``, clipped to the drive's current limit. Within a period the
 demand ``q_d(t)`` is a polynomial handed over by the drive (the set-point interpolation of
-:mod:`drivers.sim.drive`); when it is continuous with its first derivative across periods, so
-is the force, and the force at a period start is the force of that instant, not a one-sided
-value. There is no acceleration feed-forward: with it, the steps of the interpolated
-acceleration at each SYNC would come back as steps of the force. The plant moves by
+:mod:`drivers.sim.drive`, continuous up to its acceleration); since it is continuous with its
+first derivative across periods, so is the force, and the force at a period start is the force
+of that instant, not a one-sided value. There is no acceleration feed-forward. The plant moves by
 the closed-chain forward dynamics of :class:`ident_hw.model.ThreePRRR` with the *true*
 parameters (friction included). The reduced mass matrix ``M`` and the velocity terms are
 evaluated once per period (the expensive part, one model evaluation); within the period the
