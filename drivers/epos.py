@@ -14,7 +14,6 @@ property does not know them).
 from __future__ import annotations
 
 import logging
-import math
 import time
 from typing import Any, Sequence
 
@@ -112,6 +111,22 @@ class EposDrive:
                 return  # it answered
             if time.monotonic() > deadline:
                 raise BringUpError(self.label, f"no boot-up, heartbeat or SDO answer within {timeout:g} s")
+
+    def wait_operational(self, timeout: float) -> None:
+        """Wait for a heartbeat that reports OPERATIONAL (after the start command).
+
+        A heartbeat sent before the node processed the start command may still be in flight (a slow
+        node, a loaded bus); supervision starts only once the node confirms its new state.
+        """
+        deadline = time.monotonic() + timeout
+        while (remaining := deadline - time.monotonic()) > 0:
+            try:
+                if self.node.nmt.wait_for_heartbeat(remaining) == "OPERATIONAL":
+                    return
+            except canopen.nmt.NmtError:
+                break
+        raise BringUpError(self.label, f"no heartbeat reporting OPERATIONAL within {timeout:g} s of the "
+                                       f"start command (last state {self.node.nmt.state})")
 
     def check_identity(self) -> None:
         """Compare 0x1018 (vendor, product) and 0x1008 (device name) with the configuration."""
@@ -469,6 +484,8 @@ class DriveGroup:
             drive.bring_up(layout.frames, round(self.heartbeat_period * 1e3), consumer, timeout)
         for drive in self.drives:
             drive.node.nmt.state = "OPERATIONAL"
+        for drive in self.drives:
+            drive.wait_operational(timeout)
         self.supervisor.start_heartbeat_monitoring()
         self.supervisor.raise_if_fault()
 
@@ -598,10 +615,11 @@ class DriveGroup:
         The drives must stand at ``targets[0]`` (within their following-error window), e.g. after
         :meth:`move_to`. Row k of the result holds the state the drives reported at SYNC k and
         ``target[k]``, the set-point in force from SYNC k on; ``t[k]`` is the measured bus time
-        of SYNC k (not ``k * period``: the SYNC producer drifts, see :mod:`drivers.recording`). On a fault (EMCY, heartbeat,
-        statusword fault/following-error bit, bus error) or any exception (Ctrl-C included) the
-        SYNC stops, the drives are quick-stopped and disabled, the samples so far are saved and
-        the error is raised (a :class:`DriveFault` carries ``recording``, the NPZ path).
+        of SYNC k (not ``k * period``: the SYNC producer drifts, see :mod:`drivers.recording`).
+        On a fault (EMCY, heartbeat, statusword fault/following-error bit, bus error) or any
+        exception (Ctrl-C included) the SYNC stops, the drives are quick-stopped and disabled,
+        the samples so far are saved and the error is raised (a :class:`DriveFault` carries
+        ``recording``, the NPZ path).
 
         Args:
             targets: set-points, shape (n_cycles, n_axes), rad or m.
