@@ -2,7 +2,7 @@
 
 Campaign (``trajectories`` package, nominal limits, 0.5 s dwell at every waypoint): carriage
 sweep, five squares, validation triangle, about 60 s of data at 1 kHz. Measurements made with
-the model and the truth of the tests (``tests/test_ident_data.py``): positions in encoder
+the model and the truth of the tests (``tests/ident_scenarios.py``): positions in encoder
 counts, currents with 3 % Gaussian noise rounded to 1 mA. Timed: filtering and
 differentiation, forward kinematics and regressor, parallel filtering and decimation, the two
 SQP steps (each cross-checked by lsq_linear) with WLS statistics, the base-parameter analysis
@@ -22,7 +22,7 @@ from ident_hw.identification import base_parameters, build_dataset, validation_m
 from ident_hw.signal import FilterSettings
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from test_ident_data import (CAD, FORCE_PER_AMP, HELD_KNOWN, NAMES, PAPER_STEPS, ROBOT, TRUE,  # noqa: E402
+from ident_scenarios import (CAD, FORCE_PER_AMP, HELD_KNOWN, NAMES, PAPER_STEPS, ROBOT, TRUE,  # noqa: E402
                              exact_regressor, identify_paper_steps, measure, paper_campaign)
 
 RATE = 1000.0

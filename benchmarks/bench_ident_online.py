@@ -13,7 +13,7 @@ import numpy as np
 from ident_hw.identification.online import RLS, SVDDLS, DampedRLS
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from test_ident_data import PAYLOAD_KG, TRUE, online_scenario  # noqa: E402
+from ident_scenarios import PAYLOAD_KG, TRUE, online_scenario  # noqa: E402
 from test_ident_online import j_rmse_table, run_all  # noqa: E402
 
 N, K, SAMPLES = 19, 6, 5000

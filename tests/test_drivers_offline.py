@@ -1,7 +1,6 @@
 """Master-side pieces that need no drive: bus-load budget, EMCY texts, the SYNC-cycle assembler
 fed with hand-made frames, recordings on disk and the raw-log decoder."""
 
-import struct
 
 import can
 import canopen
@@ -14,7 +13,6 @@ from drivers.bus import BusConfig, check_bus_load, frame_bits, max_sync_rate, op
 from drivers.emcy import describe
 from drivers.epos import DriveGroup
 from drivers.errors import BusLoadError, ConfigError
-from drivers.profiles import PROFILES
 from drivers.recording import FlushingLogger, Recording, decode_log, rows_to_arrays
 from drivers.units import AxisScaling
 

@@ -1,6 +1,6 @@
 """Identification from realistically noisy measurements, against the known truth.
 
-Measurements (``test_ident_data.measure``): positions in whole encoder counts (2048 counts per
+Measurements (``ident_scenarios.measure``): positions in whole encoder counts (2048 counts per
 motor turn: 1 µm on the carriages, 0.12 mrad on the links) and currents with Gaussian noise of
 3 % of each axis' RMS current, rounded to 1 mA, at 1 kHz for 10 s of the rich motion. The data
 preparation follows the method of :mod:`ident_hw.signal`: position cut-off ten times the
@@ -22,7 +22,7 @@ from ident_hw.identification.base_params import base_parameters
 from ident_hw.identification.dataset import build_dataset
 from ident_hw.identification.least_squares import ols, wls
 from ident_hw.signal import FilterSettings
-from test_ident_data import CAD, FORCE_PER_AMP, NAMES, RICH, ROBOT, TRUE, make_motion, measure
+from ident_scenarios import CAD, FORCE_PER_AMP, NAMES, RICH, ROBOT, TRUE, make_motion, measure
 
 SEEDS = range(16)
 BANDWIDTH_HZ = max(f for terms in RICH for _, f, _ in terms)

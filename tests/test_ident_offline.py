@@ -6,11 +6,9 @@ import numpy as np
 import pytest
 
 from ident_hw.identification.base_params import base_parameters, format_combination, identify_base
-from ident_hw.identification.dataset import build_dataset
-from ident_hw.identification.least_squares import ols, stack, wls
+from ident_hw.identification.least_squares import ols, wls
 from ident_hw.identification.mass_fit import sqp_fit
-from ident_hw.signal import FilterSettings
-from test_ident_data import CAD, FORCE_PER_AMP, GEOMETRY, NAMES, RICH, ROBOT, TRUE, make_motion, measure
+from ident_scenarios import CAD, GEOMETRY, NAMES, RICH, TRUE, make_motion
 
 TRUTH = TRUE.as_vector()
 SCALE = CAD.as_vector()

@@ -1,6 +1,6 @@
 """Online estimators on one stream with known truth: SVD-DLS against RLS (same forgetting factor,
 same data) and the damped RLS, warm-started from an offline WLS fit (scenario:
-``test_ident_data.online_scenario``: rich motion, a slow small circle, rich motion with a 0.5 kg
+``ident_scenarios.online_scenario``: rich motion, a slow small circle, rich motion with a 0.5 kg
 payload on the end-effector)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from ident_hw.identification import RLS, SVDDLS, DampedRLS, offline_information, run_stream, validation_metrics, wls
-from test_ident_data import CAD, NAMES, PAYLOAD_KG, TRUE, online_scenario
+from ident_scenarios import CAD, NAMES, PAYLOAD_KG, TRUE, online_scenario
 
 FORGETTING = 0.998  # memory 1/(1 − lambda) = 500 samples = 2.5 s at 200 Hz
 #: Time within which SVD-DLS must reach the new m_ee to 5 % after the payload is added, s.

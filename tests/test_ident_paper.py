@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ident_hw.identification import base_parameters, identify_base, validation_metrics
-from test_ident_data import (CAD, HELD_KNOWN, NAMES, PAPER_STEPS, TRUE, exact_regressor, identify_paper_steps,
+from ident_scenarios import (CAD, HELD_KNOWN, NAMES, PAPER_STEPS, TRUE, exact_regressor, identify_paper_steps,
                              paper_campaign)
 
 TRUTH = TRUE.as_vector()

@@ -8,7 +8,7 @@ import pytest
 
 from ident_hw.identification.base_params import identify_base
 from ident_hw.identification.power import energy_rows, power_rows
-from test_ident_data import CAD, NAMES, ROBOT, TRUE, make_motion
+from ident_scenarios import CAD, NAMES, ROBOT, TRUE, make_motion
 
 
 def base_error(rate: float, kind: str) -> float:

@@ -2,7 +2,6 @@
 
 import time
 
-import canopen
 import numpy as np
 import pytest
 from canopen.nmt import NmtError
