@@ -12,13 +12,15 @@ import time
 
 import numpy as np
 
-from ident_hw.model import Geometry, InertialParams, ThreePRRR
+from drivers.sim import nominal
+from ident_hw.model import ThreePRRR
+
+ROBOT = ThreePRRR(nominal.GEOMETRY)
+PARAMS = nominal.TRUE_PARAMS
 
 
 def main(n=60_000, repeats=5):
-    robot = ThreePRRR(Geometry(l1=0.3, l2=0.3, s1=0.15, s2=0.15, h=0.12, a=0.4,
-                               gamma=tuple(np.radians([0, 120, 240]))))
-    params = InertialParams(603.62, 0.3, 0.00225, 0.5723, 0.0043, 0.2269, 0.0016, f_v=(0.1,) * 6, f_c=(0.2,) * 6)
+    robot, params = ROBOT, PARAMS
     t = np.arange(n) / 1000.0
     w = 2 * np.pi * np.array([0.3, 0.5, 0.4, 0.2, 0.25, 0.35])
     amp = np.array([0.05, 0.05, 0.3, 0.04, 0.04, 0.04])
@@ -44,9 +46,7 @@ def main(n=60_000, repeats=5):
 
 def simulation_drift(duration=60.0):
     """Max closure residual over a ``duration`` s simulation of PD tracking of a smooth motion."""
-    robot = ThreePRRR(Geometry(l1=0.3, l2=0.3, s1=0.15, s2=0.15, h=0.12, a=0.4,
-                               gamma=tuple(np.radians([0, 120, 240]))))
-    params = InertialParams(603.62, 0.3, 0.00225, 0.5723, 0.0043, 0.2269, 0.0016, f_v=(0.1,) * 6, f_c=(0.2,) * 6)
+    robot, params = ROBOT, PARAMS
     w = 2 * np.pi * np.array([0.3, 0.5, 0.4, 0.2, 0.25, 0.35])
     amp = np.array([0.03, 0.03, 0.2, 0.03, 0.03, 0.03])
     reference = lambda t: (amp * np.sin(w * t), amp * w * np.cos(w * t))  # noqa: E731

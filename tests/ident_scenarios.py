@@ -15,17 +15,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.units import AxisScaling
-from ident_hw.model import Geometry, InertialParams, ThreePRRR
+from drivers.sim import nominal
+from ident_hw.model import InertialParams, ThreePRRR
 
-GEOMETRY = Geometry(l1=0.30, l2=0.30, s1=0.15, s2=0.15, h=0.12, a=0.40, gamma=(0.0, 2 * math.pi / 3, 4 * math.pi / 3))
+GEOMETRY = nominal.GEOMETRY
 ROBOT = ThreePRRR(GEOMETRY, coulomb_width=1e-3)
 NAMES = ROBOT.parameter_names
 
 # Nominal drives: EC 45 flat + 26:1 gearhead on the links, EC 40 on a 2 mm screw for the carriages.
-AXES = [AxisScaling("revolute", 2048, 0.0369, gear_ratio=26.0)] * 3 + [
-    AxisScaling("prismatic", 2048, 0.0603, screw_lead=0.002)
-] * 3
+AXES = [nominal.REVOLUTE] * 3 + [nominal.PRISMATIC] * 3
 FORCE_PER_AMP = np.array([ax.force_per_amp for ax in AXES])
 COUNTS_PER_UNIT = np.array([ax.counts_per_unit for ax in AXES])
 
