@@ -113,15 +113,16 @@ class Plant:
                 pose that closed them, at rest.
         """
         robot, Theta = self.robot, self.Theta[None]
-        try:
-            self.X = robot.forward_kinematics(Theta, self.X)[0]
+        try:  # one forward kinematics per period: the pose and the dynamics from the same Motion
+            motion = robot.motion_from_actuated(Theta, self.Thetad[None], np.zeros_like(Theta), self.X)
         except KinematicsError as exc:
             message = f"the simulated robot jammed at Theta = {np.round(self.Theta, 5).tolist()}: {exc}"
             self.Theta, self.X = self._last_valid
             self.Thetad = np.zeros(6)
             raise PlantJammed(message) from exc
+        self.X = motion.X[0]
         self._last_valid = (self.Theta, self.X)
-        M, c = robot.reduced_dynamics(Theta, self.Thetad[None], self.params, self.X)
+        M, c = robot.reduced_dynamics_of(motion, self.params)
         return M[0], c[0] - self._friction(self.Thetad)
 
     def _friction(self, Thetad) -> np.ndarray:

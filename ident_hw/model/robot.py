@@ -120,8 +120,12 @@ class ThreePRRR:
         (N, 6): velocity terms and friction. ``M_r = sum_b Jac_b^T mu_b Jac_b`` over the bodies.
         """
         Theta = batch(Theta, 6, "Theta")
-        m0 = self.motion_from_actuated(Theta, Thetad, np.zeros_like(Theta), X_guess)
-        return dynamics.reduced_dynamics(self.kinematics, m0, params, self.coulomb_width)
+        return self.reduced_dynamics_of(self.motion_from_actuated(Theta, Thetad, np.zeros_like(Theta), X_guess), params)
+
+    def reduced_dynamics_of(self, motion: Motion, params: InertialParams):
+        """``M_r`` (N, 6, 6) and ``c`` (N, 6) of an already computed :class:`Motion` (zero actuated
+        acceleration for the velocity terms alone); see :meth:`reduced_dynamics`."""
+        return dynamics.reduced_dynamics(self.kinematics, motion, params, self.coulomb_width)
 
     def friction(self, Thetad, params: InertialParams) -> np.ndarray:
         """Friction forces (N, 6): ``f_v Thetad + f_c tanh(Thetad / coulomb_width)``."""
