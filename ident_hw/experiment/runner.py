@@ -175,10 +175,10 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
                     if online is not None:
                         online.update(p.config.name, rec)
             finally:
-                group.stop_motion()
+                # quick stop and disable, then the drives stop watching the master's heartbeat before it ends
+                group.close()
                 states = _drive_states(session, group)
                 (data / "drives.json").write_text(json.dumps(states, indent=2))
-                group.close()  # drives stop watching the master's heartbeat before it ends
         mark_status(folder, "identifying")
         results = identify(config, recordings, progress=say)
         if online is not None:
