@@ -331,22 +331,56 @@ def summary_lines(folder: str | Path) -> list[str]:
             continue
         sig = row["rel_sigma_percent"]
         text = (f"  {row['name']:>10} {row['unit']:>9} {row['initial']:>11.5g} {row['identified']:>11.5g} "
-                f"{sig if sig is not None else float('nan'):>7.2f}")
+                f"{_percent(sig):>7}")
         if truth:
             err = row.get("error_percent")
             text += f" {row['truth']:>11.5g} {err if err is not None else float('nan'):>+8.2f}"
-        lines.append(text + f"  {row['step']}")
+        lines.append(text + f"  {row['step']}" + ("  poorly identified" if _poorly_identified(row, results) else ""))
     held = [r["name"] for r in rows if not r["step"]]
     if held:
         lines.append(f"  held at their initial values (not fitted by any step): {', '.join(held)}")
     if results.base_fit is not None:
         lines += _base_fit_lines(results.base_fit)
+    if truth:
+        lines.append(_accuracy_line(rows, results))
     for name, m in metrics(results).items():
         text = f"  {m['role']:>14} {name}: d_tau = {m['d_tau_percent']:.2f} %, J_RMSE = {m['j_rmse']:.4g}"
         if "base_fit" in m:
             text += f"; base fit: d_tau = {m['base_fit']['d_tau_percent']:.2f} %"
         lines.append(text)
     return lines
+
+
+def _percent(value: float | None) -> str:
+    """A %σ for the terminal tables: two decimals, ``>1e4`` beyond, ``nan`` when undefined."""
+    if value is None or not np.isfinite(value):
+        return "nan"
+    return f"{value:.2f}" if value < 1e4 else ">1e4"
+
+
+def _accuracy_line(rows: list[dict], results: Results) -> str:
+    """Against the simulated truth: the largest error among the well-identified estimates."""
+    errors = [(abs(r["error_percent"]), r["name"]) for r in rows
+              if r["step"] and not _poorly_identified(r, results) and r.get("error_percent") is not None]
+    text = f"accuracy vs truth, well identified only: {len(errors)} physical parameters"
+    if errors:
+        worst = max(errors)
+        text += f" (largest error {worst[0]:.2f} %, {worst[1]})"
+    if results.base_fit is not None:
+        base = [(abs(r["error_percent"]), r["base_parameter"]) for r in results.base_fit.rows()
+                if r["well_identified"] and r.get("error_percent") is not None]
+        text += f", {len(base)} base parameters"
+        if base:
+            worst = max(base)
+            text += f" (largest error {worst[0]:.2f} %, {worst[1]})"
+    return text
+
+
+def _poorly_identified(row: dict, results: Results) -> bool:
+    """A fitted parameter whose %σ is above the threshold or undefined (an estimate of 0, at its
+    bound, or without statistics)."""
+    rel = row["rel_sigma_percent"]
+    return bool(row["step"]) and (rel is None or not rel <= results.rel_sigma_threshold)
 
 
 def _base_fit_lines(fit: BaseFit) -> list[str]:
@@ -359,7 +393,7 @@ def _base_fit_lines(fit: BaseFit) -> list[str]:
     for row in fit.rows():
         sig = row["rel_sigma_percent"]
         text = (f"  {row['base_parameter']:<{width}} {row['initial']:>11.5g} {row['identified']:>11.5g} "
-                f"{sig if sig is not None else float('inf'):>7.2f}")
+                f"{_percent(sig):>7}")
         if fit.truth is not None:
             err = row.get("error_percent")
             text += f" {row['truth']:>11.5g} {err if err is not None else float('nan'):>+8.2f}"
@@ -498,7 +532,7 @@ def _html(folder: Path, results: Results, table: dict, images: list[tuple[str, P
     rows, poor = [], []
     for r in p.rows():
         rel = r["rel_sigma_percent"]
-        if r["step"] and rel is not None and rel > results.rel_sigma_threshold:
+        if _poorly_identified(r, results):
             poor.append(r["name"])
         cells = [r["name"], r["unit"], _fmt(r["initial"]), _fmt(r["identified"]) if r["step"] else "(held)",
                  _fmt(r["sigma"]), _fmt(rel, ".2f")]

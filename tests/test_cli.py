@@ -161,8 +161,11 @@ def test_base_parameter_step_on_the_optimised_excitation(tmp_path):
     for row, h in zip(base["rows"], H):
         assert row["truth"] == pytest.approx(h @ truth, rel=1e-12)
         if row["well_identified"]:
-            # 3 sigma of the fit's own statistics, and no more than 5 %
-            assert abs(row["identified"] - row["truth"]) <= min(3 * row["sigma"], 0.05 * abs(row["truth"])), row
+            # no more than 5 %, and within 4 sigma of the fit's own statistics: 18 rows from one
+            # noise draw, so 3 sigma would fail by chance 5 % of the time (this draw: m_c - 0.5 m_l2
+            # at 3.0 sigma; over 12 draws its RMS z is 1.08, the calibration of test_ident_noise);
+            # 4 sigma keeps the family-wise false alarm near 0.1 %
+            assert abs(row["identified"] - row["truth"]) <= min(4 * row["sigma"], 0.05 * abs(row["truth"])), row
     assert sum(r["well_identified"] for r in base["rows"]) >= 15
     assert all(not r["well_identified"] for r in base["rows"] if r["rel_sigma_percent"] > 10.0)
     metrics = yaml.safe_load((tmp_path / "res" / "metrics.yaml").read_text())

@@ -74,6 +74,12 @@ class FourierExcitation:
         if not 0 < 2 * self.ramp <= self.duration:
             raise ValueError(f"ramp {self.ramp} s must be positive and at most half the duration {self.duration} s")
 
+    @property
+    def bandwidth(self) -> float:
+        """Highest harmonic ``H f0`` in Hz: the bandwidth of the motion (the envelope adds only
+        slower content), which sets the identification filter."""
+        return self.a.shape[1] * self.base_frequency
+
     def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``q, qd, qdd`` (each ``(N, 6)``) at times ``t`` (s); ``q = [x, y, alpha, zeta1..3]``."""
         t = np.asarray(t, dtype=float)[:, None]
@@ -177,9 +183,9 @@ class ExcitationResult:
     iterations: int
 
 
-def optimise_excitation(robot: ThreePRRR, limits: Limits, base_frequency: float = 0.1, harmonics: int = 3,
+def optimise_excitation(robot: ThreePRRR, limits: Limits, base_frequency: float = 0.2, harmonics: int = 5,
                         duration: float | None = None, ramp: float = 1.5, samples: int = 100, seed: int = 0,
-                        max_iter: int = 80, base: BaseScaling | None = None) -> ExcitationResult:
+                        max_iter: int = 120, base: BaseScaling | None = None) -> ExcitationResult:
     """Fourier coefficients minimising ``cond(W)`` of the base regressor under the rig's limits.
 
     Args:

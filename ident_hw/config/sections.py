@@ -250,7 +250,9 @@ class TrajectoryConfig:
     ``file`` (a saved trajectory, CSV or NPZ). ``path`` is relative to the config file.
     Timing of the generated paths is rest-to-rest at ``speed_scale`` × the actuator limits,
     with ``dwell`` s at rest at each waypoint (the Fourier excitation and a file have their own
-    timing); the motion is repeated ``cycles`` times.
+    timing); the motion is repeated ``cycles`` times. ``bandwidth`` (Hz), the highest frequency
+    the motion has, sets the identification filter of this trajectory (default: the highest
+    harmonic of a Fourier excitation, else ``identification.filter.bandwidth``).
     """
 
     name: str
@@ -261,6 +263,7 @@ class TrajectoryConfig:
     dwell: float = field(default=0.0, metadata=spec(non_negative, unit="s"))
     cycles: int = field(default=1, metadata=spec(in_range(1, 1000)))
     path: str | None = None
+    bandwidth: float | None = field(default=None, metadata=spec(positive, unit="Hz"))
 
     def _check(self) -> None:
         if self.kind == "file" and self.path is None:
@@ -286,9 +289,10 @@ class FilterConfig:
     cutoff: float | None = field(default=None, metadata=spec(positive, unit="Hz"))
     decimation: int | None = field(default=None, metadata=spec(in_range(1, 100)))
 
-    def settings(self, sample_rate: float) -> FilterSettings:
-        """The filter settings for data sampled at ``sample_rate`` (Hz)."""
-        base = FilterSettings.for_sample_rate(sample_rate, self.bandwidth, self.order)
+    def settings(self, sample_rate: float, bandwidth: float | None = None) -> FilterSettings:
+        """The filter settings for data sampled at ``sample_rate`` (Hz), for a motion of
+        ``bandwidth`` Hz (default :attr:`bandwidth`)."""
+        base = FilterSettings.for_sample_rate(sample_rate, bandwidth or self.bandwidth, self.order)
         overrides = {k: v for k, v in (("cutoff_hz", self.cutoff), ("decimation", self.decimation)) if v is not None}
         return dataclasses.replace(base, **overrides)
 
@@ -334,6 +338,9 @@ class IdentificationConfig:
     validation: tuple[str, ...] = ()
     rel_sigma_threshold: float = field(default=10.0, metadata=spec(
         positive, unit="%", doc="estimates with a larger relative standard deviation are poorly identified"))
+    min_speed: float = field(default=0.02, metadata=spec(
+        in_range(0.0, 0.5), doc="an axis moving slower than this fraction of its velocity limit gives no row to the "
+                                "fits: the Coulomb term sign(qdot) does not describe friction near rest"))
     bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
     filter: FilterConfig = FilterConfig()
     online: OnlineConfig = OnlineConfig()

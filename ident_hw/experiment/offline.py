@@ -22,13 +22,13 @@ import numpy as np
 from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log
 from ident_hw.config import Config
 from ident_hw.identification.base_params import base_parameters, identify_base
-from ident_hw.identification.least_squares import stack, wls
+from ident_hw.identification.least_squares import check_regression_data, stack, wls
 from ident_hw.identification.mass_fit import sqp_fit
 from ident_hw.model import InertialParams, ThreePRRR
 from ident_hw.report import BaseFit, ParameterTable, Results, TrajectoryFit
 from ident_hw.signal import kept_samples, parallel_decimate, prepare_actuated
 
-from .plan import plan, robot_model
+from .plan import motion_bandwidth, plan, robot_model
 
 NAMES = InertialParams.NAMES
 
@@ -36,7 +36,8 @@ NAMES = InertialParams.NAMES
 @dataclass
 class Prepared:
     """One trajectory after preparation and decimation: t (M,), Theta (M, 6), X (M, 3),
-    regressor Y (M, 6, n), forces tau (M, 6); ``excluded`` decimated samples were left out."""
+    regressor Y (M, 6, n), forces tau (M, 6); ``excluded`` decimated samples were left out;
+    ``moving`` (M, 6) marks the rows the fits use (:attr:`tau_fit`)."""
 
     name: str
     t: np.ndarray
@@ -44,7 +45,14 @@ class Prepared:
     X: np.ndarray
     Y: np.ndarray
     tau: np.ndarray
+    moving: np.ndarray
     excluded: int = 0
+
+    @property
+    def tau_fit(self) -> np.ndarray:
+        """``tau`` with NaN in the rows of axes near rest (left out of the fits, see
+        :mod:`ident_hw.identification.least_squares`)."""
+        return np.where(self.moving, self.tau, np.nan)
 
 
 def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
@@ -124,7 +132,7 @@ def prepare(config: Config, robot: ThreePRRR, name: str, rec: Recording) -> Prep
     if len(t) < 3:
         raise ValueError(f"recording of {name!r} has {len(t)} samples: too few to identify from")
     rate = 1.0 / float(np.median(np.diff(t)))
-    settings = config.identification.filter.settings(rate)
+    settings = config.identification.filter.settings(rate, motion_bandwidth(config, name))
     force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
     samples = prepare_actuated(t, fill_gaps(t, rec.position), fill_gaps(t, rec.current), force_per_amp, settings)
     X = robot.forward_kinematics(samples.Theta, np.zeros(3))
@@ -133,7 +141,10 @@ def prepare(config: Config, robot: ThreePRRR, name: str, rec: Recording) -> Prep
     kept = np.arange(len(t))[kept_samples(settings, len(t))]
     good = ~disturbed_samples(config, rec, t, 2.0 / settings.decimation_cutoff_hz)[kept]
     kept = kept[good]
-    return Prepared(name, t[kept], samples.Theta[kept], X[kept], Y[good], tau[good], excluded=int((~good).sum()))
+    speed_limit = np.array([a.limits.velocity for a in config.robot.actuators])
+    moving = np.abs(samples.Thetad[kept]) >= config.identification.min_speed * speed_limit
+    return Prepared(name, t[kept], samples.Theta[kept], X[kept], Y[good], tau[good], moving,
+                    excluded=int((~good).sum()))
 
 
 def column_scale(Y: np.ndarray) -> np.ndarray:
@@ -206,7 +217,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
             progress(f"step {step.name}: fitting {', '.join(step.parameters)}"
                      + (f" (base parameters, {step.method.upper()})" if step.method != "sqp" else ""))
         Y = np.concatenate([prepared[t].Y for t in step.trajectories])
-        tau = np.concatenate([prepared[t].tau for t in step.trajectories])
+        tau = np.concatenate([prepared[t].tau_fit for t in step.trajectories])
         if step.method != "sqp":
             base_fit, base_equivalent, record = fit_base(step, Y, tau, coef, initial, truth,
                                                          ident.rel_sigma_threshold)
@@ -234,8 +245,8 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         steps.append(record)
 
     id_names = list(dict.fromkeys(t for s in ident.steps for t in s.trajectories))
-    W, _ = stack(np.concatenate([prepared[t].Y for t in id_names]),
-                 np.concatenate([prepared[t].tau for t in id_names]))
+    W, _ = stack(*check_regression_data(np.concatenate([prepared[t].Y for t in id_names]),
+                                        np.concatenate([prepared[t].tau_fit for t in id_names])))
     base = base_parameters(W, NAMES, scale=np.maximum(np.abs(initial), 1e-3)).to_dict()
 
     fits = []

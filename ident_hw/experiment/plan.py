@@ -26,6 +26,7 @@ class PlannedTrajectory:
     trajectory: trajectories.Trajectory | None
     report: trajectories.Report | None
     error: str = ""
+    notes: tuple[str, ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -37,7 +38,7 @@ class PlannedTrajectory:
         if not self.report.ok:
             return f"{self.config.name}: INFEASIBLE: {self.report.first}"
         t = self.trajectory
-        return f"{self.config.name}: ok ({t.duration:.1f} s, {len(t.t)} samples)"
+        return "\n    note: ".join([f"{self.config.name}: ok ({t.duration:.1f} s, {len(t.t)} samples)", *self.notes])
 
 
 def robot_model(config: Config) -> ThreePRRR:
@@ -66,14 +67,32 @@ def build(config: Config, tcfg: TrajectoryConfig, robot: ThreePRRR) -> trajector
     elif tcfg.kind == "triangle":
         traj = trajectories.validation_triangle(robot, timing, rate=rate, dwell=tcfg.dwell)
     elif tcfg.kind == "fourier":
-        path = NOMINAL_EXCITATION if tcfg.path is None else Path(config.source).parent / tcfg.path
-        traj = trajectories.FourierExcitation.load(path).trajectory(robot, rate, name=tcfg.name)
+        traj = excitation_of(config, tcfg).trajectory(robot, rate, name=tcfg.name)
     else:
         path = Path(config.source).parent / tcfg.path
         traj = trajectories.load(path).resample(rate)
     traj = repeat(traj, tcfg.cycles)
     traj.name = tcfg.name
     return traj
+
+
+def excitation_of(config: Config, tcfg: TrajectoryConfig) -> trajectories.FourierExcitation:
+    """The coefficients of a ``fourier`` trajectory: its ``path`` (relative to the config) or the
+    excitation shipped for the nominal rig."""
+    path = NOMINAL_EXCITATION if tcfg.path is None else Path(config.source).parent / tcfg.path
+    return trajectories.FourierExcitation.load(path)
+
+
+def motion_bandwidth(config: Config, name: str) -> float:
+    """Bandwidth (Hz) of the motion of trajectory ``name``, for its identification filter: its
+    ``bandwidth`` key, else the highest harmonic of a Fourier excitation, else the identification
+    filter's ``bandwidth`` (also for a name the config does not list)."""
+    tcfg = next((t for t in config.trajectories if t.name == name), None)
+    if tcfg is not None and tcfg.bandwidth is not None:
+        return tcfg.bandwidth
+    if tcfg is not None and tcfg.kind == "fourier":
+        return excitation_of(config, tcfg).bandwidth
+    return config.identification.filter.bandwidth
 
 
 def repeat(traj: trajectories.Trajectory, cycles: int) -> trajectories.Trajectory:
@@ -102,8 +121,28 @@ def plan(config: Config, names: list[str] | None = None) -> list[PlannedTrajecto
         except (ValueError, KinematicsError, trajectories.TrajectoryFileError, OSError) as exc:
             out.append(PlannedTrajectory(tcfg, None, None, error=str(exc)))
             continue
-        out.append(PlannedTrajectory(tcfg, traj, trajectories.check_trajectory(traj, robot, limits)))
+        out.append(PlannedTrajectory(tcfg, traj, trajectories.check_trajectory(traj, robot, limits),
+                                     notes=quantisation_notes(config, traj)))
     return out
+
+
+def quantisation_notes(config: Config, traj: trajectories.Trajectory) -> tuple[str, ...]:
+    """Advice (not an error): the axes on which one encoder count per SYNC period, as a demand
+    acceleration (``1 / (counts_per_unit T²)``), exceeds the trajectory's RMS acceleration. The
+    set-points are whole counts, so the drives' interpolated demand ripples by that much: the
+    currents carry it (the identification filters it out, at the cost of noise)."""
+    period = 1.0 / sample_rate(config)
+    parts = []
+    for j, axis in enumerate(config.robot.actuators):
+        rms = float(np.sqrt(np.mean(traj.Thetadd[:, j] ** 2)))
+        quantum = 1.0 / (axis.scaling().counts_per_unit * period**2)
+        if 0 < rms < quantum:
+            unit = "rad/s²" if axis.kind == "revolute" else "m/s²"
+            parts.append(f"{axis.name} {quantum:.3g} {unit} = {quantum / rms:.1f}x its RMS")
+    if not parts:
+        return ()
+    return (f"one encoder count per SYNC period as an acceleration exceeds this motion's: {'; '.join(parts)}. "
+            "Expect current ripple at the set-point rate (a finer encoder or a slower SYNC lowers it)",)
 
 
 def check_campaign(config: Config) -> list[str]:

@@ -3,7 +3,10 @@
 Data convention (the whole package): a regressor ``Y`` of shape (N, k, n) — N samples,
 k outputs (actuator torques/forces), n parameters — and outputs ``tau`` (N, k) with
 ``tau ≈ Y @ pi``. :func:`stack` turns them into ``W`` (k·N, n) and ``y`` (k·N,), with the
-rows of one output kept together (output-major), as seed 004 arranges them.
+rows of one output kept together (output-major), as seed 004 arranges them. A NaN in ``tau``
+leaves that row (one output of one sample) out of the fit: :func:`check_regression_data`
+zeroes it, and the statistics count only the rows whose regressor is not all zero (such a
+row carries no information, whatever its output).
 
 Covariance of the estimate. Seed 004's ``C = sigma² (WᵀW)⁻¹`` assumes white residuals. On
 measured data they are not: the parallel low-pass leaves the current noise correlated over
@@ -35,16 +38,26 @@ POORLY_IDENTIFIED_PERCENT = 10.0
 
 
 def check_regression_data(Y: np.ndarray, tau: np.ndarray, names=None) -> tuple[np.ndarray, np.ndarray]:
-    """Validate and return ``Y`` (N, k, n) and ``tau`` (N, k) as float arrays."""
+    """Validate and return ``Y`` (N, k, n) and ``tau`` (N, k) as float arrays; the rows where
+    ``tau`` is NaN (left out) come back zeroed, in ``Y`` and ``tau``."""
     Y = np.asarray(Y, dtype=float)
     tau = np.asarray(tau, dtype=float)
     if Y.ndim != 3 or tau.shape != Y.shape[:2]:
         raise ValueError(f"expected Y (N, k, n) and tau (N, k); got Y {Y.shape}, tau {tau.shape}")
     if names is not None and len(names) != Y.shape[2]:
         raise ValueError(f"{len(names)} parameter names for a regressor with {Y.shape[2]} columns")
+    left_out = np.isnan(tau)
+    if left_out.any():
+        Y = np.where(left_out[..., None], 0.0, Y)
+        tau = np.where(left_out, 0.0, tau)
     if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(tau))):
-        raise ValueError("regressor or outputs contain NaN or infinite values")
+        raise ValueError("regressor or outputs contain NaN or infinite values (outside the rows left out)")
     return Y, tau
+
+
+def informative_rows(Y: np.ndarray) -> np.ndarray:
+    """(N, k) bool: the rows of ``Y`` (N, k, n) that are not all zero (the rows a fit counts)."""
+    return np.any(Y != 0.0, axis=2)
 
 
 def stack(Y: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -61,10 +74,10 @@ def newey_west_lags(n_samples: int) -> int:
 def output_noise_std(Y: np.ndarray, tau: np.ndarray, coef: np.ndarray | None = None) -> np.ndarray:
     """Noise standard deviation of each output (k,), from its residual at ``coef``.
 
-    ``sigma_j² = ||rho_j||² / (N − n/k)`` (the n degrees of freedom shared out over the k
-    outputs); ``coef`` defaults to the ordinary-least-squares estimate. On noise-free data the
+    ``sigma_j² = ||rho_j||² / (N_j − n/k)`` with ``N_j`` the informative rows of output j
+    (the n degrees of freedom shared out over the k outputs); ``coef`` defaults to the ordinary-least-squares estimate. On noise-free data the
     residual is at rounding level; each sigma_j is then floored at ``1e-9 × RMS(tau_j)`` so
-    that weights stay finite and comparable.
+    that weights stay finite and comparable. An output with no informative row gets 1.
     """
     Y, tau = check_regression_data(Y, tau)
     N, k, n = Y.shape
@@ -72,9 +85,10 @@ def output_noise_std(Y: np.ndarray, tau: np.ndarray, coef: np.ndarray | None = N
         W, y = stack(Y, tau)
         coef = linalg.lstsq(W, y, lapack_driver="gelsd")[0]
     rho = tau - Y @ coef
-    sigma = np.sqrt(np.sum(rho**2, axis=0) / max(N - n / k, 1.0))
-    floor = 1e-9 * np.sqrt(np.mean(tau**2, axis=0))
-    sigma = np.maximum(sigma, floor)
+    rows = informative_rows(Y).sum(axis=0)
+    sigma = np.sqrt(np.sum(rho**2, axis=0) / np.maximum(rows - n / k, 1.0))
+    floor = 1e-9 * np.sqrt(np.sum(tau**2, axis=0) / np.maximum(rows, 1))
+    sigma = np.where(rows > 0, np.maximum(sigma, floor), 1.0)   # an output without rows weighs nothing
     if np.any(sigma == 0):
         raise ValueError(f"outputs {np.flatnonzero(sigma == 0).tolist()} are identically zero: cannot weight them")
     return sigma
@@ -144,7 +158,7 @@ def _fit(Y: np.ndarray, tau: np.ndarray, names, lags: int | None) -> tuple[np.nd
     """QR solution of ``min sum_t ||tau_t − Y_t pi||²``; its covariance, sigma², cond(W), lags."""
     N, k, n = Y.shape
     W, y = stack(Y, tau)
-    r = W.shape[0]
+    r = int(informative_rows(Y).sum())
     if r <= n:
         raise ValueError(f"{r} equations for {n} parameters: need more equations than parameters")
     Q, R = linalg.qr(W, mode="economic")
@@ -184,7 +198,7 @@ def ols(Y: np.ndarray, tau: np.ndarray, names, lags: int | None = None) -> Least
     coef, cov, sigma2, cond, lags = _fit(Y, tau, names, lags)
     return LeastSquaresResult(
         names=tuple(names), coef=coef, covariance=cov, sigma2=sigma2, cond=cond,
-        residual_rms=_residual_rms(Y, tau, coef), method="OLS", lags=lags,
+        residual_rms=residual_rms(Y, tau, coef), method="OLS", lags=lags,
     )
 
 
@@ -222,9 +236,11 @@ def wls(Y: np.ndarray, tau: np.ndarray, names, output_std: np.ndarray | None = N
             break
     return LeastSquaresResult(
         names=tuple(names), coef=coef, covariance=cov, sigma2=sigma2, cond=cond,
-        residual_rms=_residual_rms(Y, tau, coef), output_std=1.0 / w, method="WLS", lags=used_lags,
+        residual_rms=residual_rms(Y, tau, coef), output_std=1.0 / w, method="WLS", lags=used_lags,
     )
 
 
-def _residual_rms(Y: np.ndarray, tau: np.ndarray, coef: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.mean((tau - Y @ coef) ** 2, axis=0))
+def residual_rms(Y: np.ndarray, tau: np.ndarray, coef: np.ndarray) -> np.ndarray:
+    """RMS (k,) of each output's residual over its informative rows."""
+    rows = np.maximum(informative_rows(Y).sum(axis=0), 1)
+    return np.sqrt(np.sum((tau - Y @ coef) ** 2, axis=0) / rows)

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg, optimize
 
-from .least_squares import check_regression_data, output_noise_std, stack
+from .least_squares import check_regression_data, output_noise_std, residual_rms, stack
 
 
 @dataclass(frozen=True)
@@ -163,7 +163,7 @@ def sqp_fit(
     at_bounds = tuple(f for f, active in zip(free, ref.active_mask) if active != 0)
     return MassFitResult(
         names=names, free=free, coef=coef, coef_lsq=coef_lsq, max_rel_difference=float(diff.max()),
-        cost=float(r @ r), residual_rms=np.sqrt(np.mean((tau - Y @ coef) ** 2, axis=0)), output_std=sigma,
+        cost=float(r @ r), residual_rms=residual_rms(Y, tau, coef), output_std=sigma,
         iterations=int(res.nit), success=bool(res.success), message=str(res.message), at_bounds=at_bounds,
     )
 

@@ -1,0 +1,147 @@
+"""Data preparation for the fits: derivatives, rows left out near rest, per-trajectory filter bandwidth."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import linalg
+
+from ident_hw.config import load_config
+from ident_hw.experiment.plan import excitation_of, motion_bandwidth
+from ident_hw.identification.least_squares import ols, output_noise_std, wls
+from ident_hw.signal import central_derivatives
+
+CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+
+
+def test_central_derivatives_are_fourth_order_on_a_uniform_grid():
+    """Against the analytic derivatives of a sine: the interior error falls 16x when h halves."""
+    w = 2 * np.pi * 3.0
+    errors = []
+    for h in (0.004, 0.002):
+        t = np.arange(0.0, 1.0, h)
+        x = np.column_stack([np.sin(w * t), 2 * np.cos(w * t)])
+        xd, xdd = central_derivatives(x, t)
+        inner = slice(2, -2)
+        errors.append((np.abs(xd[inner] - w * np.column_stack([np.cos(w * t), -2 * np.sin(w * t)])[inner]).max(),
+                       np.abs(xdd[inner] + w**2 * x[inner]).max()))
+    (v1, a1), (v2, a2) = errors
+    assert v1 / v2 == pytest.approx(16.0, rel=0.05) and a1 / a2 == pytest.approx(16.0, rel=0.05)
+    assert a1 < 1e-3 * w**2                              # second order would leave (w h)^2/12 = 0.05 %
+
+
+def test_central_derivatives_on_a_non_uniform_grid_fall_back_to_second_order():
+    t = np.cumsum(np.r_[0.0, np.full(50, 0.01), np.full(50, 0.02)])
+    x = (t**2)[:, None]                                  # exact for second-order differences
+    xd, xdd = central_derivatives(x, t)
+    np.testing.assert_allclose(xd[:, 0], 2 * t, atol=1e-9)
+    np.testing.assert_allclose(xdd[:, 0], 2.0, atol=1e-6)
+
+
+def _problem(seed=0, n=400, k=3, p=4):
+    rng = np.random.default_rng(seed)
+    Y = rng.normal(size=(n, k, p))
+    truth = rng.normal(size=p)
+    tau = Y @ truth + rng.normal(0.0, [0.1, 0.2, 0.4][:k], size=(n, k))
+    return Y, tau
+
+
+def test_nan_rows_are_left_out_of_ols_and_its_statistics():
+    """NaN outputs leave their rows out: the estimate, sigma² and dof equal those of least squares
+    on the remaining rows, stacked by hand (white-residual covariance, lags=0)."""
+    Y, tau = _problem()
+    rng = np.random.default_rng(1)
+    out = rng.random(tau.shape) < 0.3
+    masked = np.where(out, np.nan, tau)
+    fit = ols(Y, masked, list("abcd"), lags=0)
+    keep = ~out
+    W = Y[keep]                                          # (rows, p): only the rows kept
+    y = tau[keep]
+    coef, *_ = linalg.lstsq(W, y)
+    r = len(y)
+    sigma2 = np.sum((y - W @ coef) ** 2) / (r - W.shape[1])
+    np.testing.assert_allclose(fit.coef, coef, rtol=1e-10)
+    assert fit.sigma2 == pytest.approx(sigma2, rel=1e-10)
+    np.testing.assert_allclose(fit.covariance, sigma2 * np.linalg.inv(W.T @ W), rtol=1e-8)
+    rms = [np.sqrt(np.mean((y - W @ coef)[np.nonzero(keep)[1] == j] ** 2)) for j in range(3)]
+    np.testing.assert_allclose(fit.residual_rms, rms, rtol=1e-10)
+
+
+def test_an_output_without_rows_weighs_nothing():
+    """The sweep leaves every link row out (links at rest): WLS still fits on the other outputs."""
+    Y, tau = _problem(seed=2)
+    masked = tau.copy()
+    masked[:, 0] = np.nan
+    sigma = output_noise_std(Y, masked)
+    assert sigma[0] == 1.0 and np.all(sigma[1:] > 0)
+    fit = wls(Y, masked, list("abcd"))
+    alone = wls(Y[:, 1:, :], tau[:, 1:], list("abcd"))
+    np.testing.assert_allclose(fit.coef, alone.coef, rtol=1e-8)
+
+
+def test_filter_bandwidth_per_trajectory():
+    config = load_config(CONFIGS / "sim-3prrr.yaml")
+    excitation = next(t for t in config.trajectories if t.kind == "fourier")
+    ex = excitation_of(config, excitation)
+    assert motion_bandwidth(config, excitation.name) == pytest.approx(ex.a.shape[1] * ex.base_frequency)
+    assert motion_bandwidth(config, "square1") == config.identification.filter.bandwidth
+    assert motion_bandwidth(config, "not-in-the-config") == config.identification.filter.bandwidth
+
+
+def test_filter_bandwidth_key_overrides(tmp_path):
+    path = tmp_path / "sim.yaml"
+    path.write_text((CONFIGS / "sim-3prrr.yaml").read_text()
+                    .replace("extends: robot-3prrr.yaml", f"extends: {CONFIGS / 'robot-3prrr.yaml'}")
+                    .replace("{name: square1, kind: square,", "{name: square1, kind: square, bandwidth: 2.5,"))
+    config = load_config(path)
+    assert motion_bandwidth(config, "square1") == 2.5
+    assert config.identification.filter.settings(250.0, 2.5).cutoff_hz == pytest.approx(25.0)
+
+
+def test_rows_of_axes_near_rest_are_left_out_of_the_fits():
+    """The carriage sweep (links held): every link row is left out, a carriage row only where the
+    carriage moves at >= min_speed x its velocity limit; plots and metrics keep every row."""
+    from drivers.recording import Recording
+    from ident_hw.experiment.offline import prepare
+    from ident_hw.experiment.plan import plan, robot_model
+
+    config = load_config(CONFIGS / "sim-3prrr.yaml")
+    robot = robot_model(config)
+    (planned,) = plan(config, ["sweep"])
+    tr = planned.trajectory
+    fpa = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
+    tau = robot.inverse_dynamics(tr.X, tr.Xd, tr.Xdd, tr.zeta, tr.zetad, tr.zetadd, config.sim.truth.to_model())
+    n = len(tr.t)
+    rec = Recording(t=tr.t, cycle=np.arange(n), position=tr.Theta, velocity=tr.Thetad, current=tau / fpa,
+                    statusword=np.zeros((n, 6), np.int32), target=tr.Theta, valid=np.ones((n, 6), bool),
+                    metadata={"trajectory": "sweep", "sync_period": float(tr.t[1] - tr.t[0])})
+    p = prepare(config, robot, "sweep", rec)
+    assert not p.moving[:, :3].any()
+    limit = np.array([a.limits.velocity for a in config.robot.actuators[3:]])
+    exact = np.abs(np.column_stack([np.interp(p.t, tr.t - tr.t[0], tr.Thetad[:, j]) for j in range(3, 6)]))
+    clear = np.abs(exact - config.identification.min_speed * limit) > 1e-4   # away from the threshold
+    np.testing.assert_array_equal(p.moving[:, 3:][clear], (exact >= config.identification.min_speed * limit)[clear])
+    assert 0.2 < p.moving[:, 3:].mean() < 1.0
+    assert np.isnan(p.tau_fit[~p.moving]).all() and np.isfinite(p.tau).all()
+
+
+def test_check_notes_set_point_quantisation_above_the_motion(tmp_path):
+    """One count per SYNC period on a link: 2048 counts x 26 per turn at 250 Hz (the paper's rate)
+    is 7.37 rad/s², above the excitation's RMS link accelerations (1.5-2.3), below the squares'
+    (8-10); at the shipped simulation's 100 Hz it is 1.18 rad/s², below both: no note."""
+    from ident_hw.experiment.plan import plan
+
+    shipped = load_config(CONFIGS / "sim-3prrr.yaml")
+    assert shipped.bus.sync_rate == 100.0
+    assert all(p.notes == () for p in plan(shipped, ["square1", "excitation"]))
+    path = tmp_path / "sim-250.yaml"
+    path.write_text(f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n"
+                    "bus: {interface: virtual, channel: unused, sync_rate: 250.0}\n")
+    config = load_config(path)
+    quantum = 250.0**2 / (2048 * 26 / (2 * np.pi))
+    assert quantum == pytest.approx(7.37, abs=0.01)
+    planned = {p.config.name: p for p in plan(config, ["square1", "excitation"])}
+    assert planned["square1"].ok and planned["square1"].notes == ()
+    (note,) = planned["excitation"].notes
+    assert all(f"theta{i} {quantum:.3g} rad/s²" in note for i in (1, 2, 3)) and "zeta" not in note
+    assert planned["excitation"].ok and "note: " in planned["excitation"].describe()
