@@ -5,10 +5,13 @@ benchmark drives the rig's SYNC cycle directly, with the six drives enabled in C
 TPDOs mapped, so the numbers are the rig's own cost (plant step + drives + TPDO packing).
 "with master": a canopen master maps TPDO1 (position + current, SYNC) and TPDO2 (statusword,
 event) over SDO, enables the drives, produces SYNC with python-can's periodic send and counts the
-TPDO1 it receives. Run: ``python benchmarks/bench_sim_rig.py``.
+TPDO1 it receives. "alone" also splits the cost: the plant step (per period: the model's
+forward kinematics and reduced dynamics, once, then the Heun substeps) and, inside it, the
+model's dynamics alone. Run: ``python benchmarks/bench_sim_rig.py``.
 """
 
 import time
+import timeit
 
 import canopen
 import numpy as np
@@ -44,6 +47,21 @@ def summary(label: str, seconds: list[float], wall: float) -> str:
             f"p99 {np.percentile(us, 99):.0f} us, max {us.max():.0f} us")
 
 
+def split(rig: SimulatedRig, period: float, n: int = 2000) -> str:
+    """Mean costs of the plant step and of the model's dynamics in it (us)."""
+    plant, robot = rig.plant, rig.plant.robot
+    demand = np.vstack([plant.Theta, np.zeros((3, 6))])
+    enabled, limit = np.ones(6, bool), np.full(6, 1e3)
+    step = timeit.timeit(lambda: plant.step(period, demand, enabled, limit), number=n) / n
+
+    def dynamics():
+        Theta = plant.Theta[None]
+        motion = robot.motion_from_actuated(Theta, plant.Thetad[None], np.zeros_like(Theta), plant.X)
+        robot.reduced_dynamics_of(motion, plant.params)
+    model = timeit.timeit(dynamics, number=n) / n
+    return f"; plant step {step * 1e6:.0f} us, of which the model's dynamics {model * 1e6:.0f} us"
+
+
 def run(rate_hz: float, seconds: float, with_master: bool) -> None:
     rig = SimulatedRig.build(nominal.GEOMETRY, nominal.TRUE_PARAMS, nominal.axes("epos4"), sync_period=1.0 / rate_hz,
                              interface="virtual", channel=CHANNEL, ignore_config=True)
@@ -59,6 +77,7 @@ def run(rate_hz: float, seconds: float, with_master: bool) -> None:
         master.nmt.state = "OPERATIONAL"
         time.sleep(0.1)
         rig.step_seconds.clear()
+        done_before = rig.syncs_done
         start = time.perf_counter()
         if with_master:
             master.sync.start(1.0 / rate_hz)
@@ -70,8 +89,10 @@ def run(rate_hz: float, seconds: float, with_master: bool) -> None:
         wall = time.perf_counter() - start
         time.sleep(0.2)
         line = summary(f"{rate_hz:6.0f} Hz {'rig + master' if with_master else 'rig alone   '}", rig.step_seconds, wall)
+        if not with_master:
+            line += split(rig, 1.0 / rate_hz)
         if with_master:
-            n = len(rig.step_seconds)
+            n = rig.syncs_done - done_before
             line += f"; SYNC handled {n / seconds:.0f}/s of {rate_hz:.0f}; TPDO1 received per node {counts} of {n}"
         print(line, flush=True)
     finally:

@@ -86,7 +86,7 @@ def sweep_run():
     try:
         bench.rig.start()
         counts, milliamps = stream_lockstep(bench, targets)
-        assert wait_until(lambda: len(bench.rig.step_seconds) == bench.rig.sync_count)   # last step done
+        assert wait_until(lambda: bench.rig.syncs_done == bench.rig.sync_count)   # last step done
         truth = bench.rig.plant.truth()
         offsets = np.array([d.offset for d in bench.rig.drives])
     finally:

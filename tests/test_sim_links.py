@@ -51,7 +51,7 @@ def squares_run():
     try:
         bench.rig.start()
         counts, milliamps = stream_lockstep(bench, targets)
-        assert wait_until(lambda: len(bench.rig.step_seconds) == bench.rig.sync_count)
+        assert wait_until(lambda: bench.rig.syncs_done == bench.rig.sync_count)
     finally:
         bench.close()
     return dict(counts=counts, milliamps=milliamps, home=home)

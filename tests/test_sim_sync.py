@@ -52,7 +52,7 @@ def run(targets, stall=0.0, stall_at=STALL_AT, deadline_ms=0, stall_rig=False):
                     time.sleep(stall)
 
         counts, milliamps = stream_lockstep(bench, targets, before_sync, deadline_ms)
-        assert wait_until(lambda: len(bench.rig.step_seconds) == bench.rig.sync_count)
+        assert wait_until(lambda: bench.rig.syncs_done == bench.rig.sync_count)
         time.sleep(0.05)                                       # any late EMCY
         truth = {k: v[-len(targets):] for k, v in bench.rig.plant.truth().items()}
         return dict(counts=counts, milliamps=milliamps, truth=truth, codes=codes,

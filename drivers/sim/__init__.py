@@ -11,7 +11,7 @@
 """
 
 from drivers.sim.drive import EmulatedDrive
-from drivers.sim.plant import Plant, PlantJammed, TruthSample
+from drivers.sim.plant import Plant, PlantJammed, TruthLog
 from drivers.sim.rig import SimulatedRig
 
-__all__ = ["EmulatedDrive", "Plant", "PlantJammed", "SimulatedRig", "TruthSample"]
+__all__ = ["EmulatedDrive", "Plant", "PlantJammed", "SimulatedRig", "TruthLog"]

@@ -173,7 +173,10 @@ class EmulatedDrive:
         return self.values.get((index, subindex))
 
     def _on_write(self, index, subindex, od, data):
-        value = od.decode_raw(data)
+        self._write(index, subindex, od.decode_raw(data))
+
+    def _write(self, index: int, subindex: int, value) -> None:
+        """An object written (SDO or RPDO): check it, store it, act on it (may raise an SDO abort)."""
         prof = self.profile
         if index in _PDO_PARAMS:
             self._check_pdo_write(index, subindex, value)
@@ -328,11 +331,12 @@ class EmulatedDrive:
                 self._apply_rpdo(pdo, data)
 
     def _apply_rpdo(self, pdo: _Pdo, data) -> None:
+        # the mapped values, decoded by the mapping's own struct, are written as an SDO download
+        # would write them (without its encoding to bytes and back: the hot path at 1 kHz)
         pdo.last_received = self._clock()
         for (index, sub), value in zip(pdo.entries, pdo.layout.unpack_from(data)):
-            var = self.node.object_dictionary.get_variable(index, sub)
             try:
-                self.node.set_data(index, sub, var.encode_raw(value))
+                self._write(index, sub, value)
             except SdoAbortedError as exc:
                 logger.warning("node %d: RPDO 0x%03X value for 0x%04X:%02X refused (%s)",
                                self.id, pdo.cob_id, index, sub, exc)
@@ -523,6 +527,7 @@ class EmulatedDrive:
         if self._next_demand is not None:
             self._next_demand -= shift
         self.demand_velocity, self._profile, self._homing_phase, self._last_cyclic = 0.0, None, None, None
+        self._demand_curve = (0.0, 0.0)                    # at rest on the reference
         self._homed = True
         self._mode_bits = SW_BIT12 | SW_TARGET_REACHED
 
@@ -575,7 +580,15 @@ class EmulatedDrive:
                               (target - 3.0 * p2 + 3.0 * p1 - p0) / (6.0 * period**3))
 
     def _profile_step(self, period: float) -> None:
-        """Advance the trapezoidal profile (PPM or homing move) by one period."""
+        """Advance the trapezoidal profile (PPM or homing move) by one period.
+
+        The demand over the period is the cubic through its start and end positions and
+        velocities (a parabola while accelerating, cruising or braking); braking starts where
+        the stopping distance at the profile acceleration reaches the remaining travel and then
+        decelerates uniformly onto the target, so the demand arrives there at rest.
+        """
+        if not period > 0:
+            return
         target, speed_rpm = self._profile
         counts_per_s = self.scaling.counts_per_turn / 60.0
         vmax = max(speed_rpm, 1) * counts_per_s
@@ -583,18 +596,18 @@ class EmulatedDrive:
         start, v = self.demand, self.demand_velocity
         remaining = target - start
         direction = math.copysign(1.0, remaining)
-        new_pos = float(target)
-        if abs(remaining) >= 1.0 and period > 0:
-            if v * direction > 0 and v * v / (2 * acc) >= abs(remaining):      # brake
-                new_v = v - direction * acc * period
-                if new_v * direction <= 0:
-                    new_v = direction * min(acc * period, abs(remaining) / period)
+        new_pos, new_v = float(target), 0.0
+        if abs(remaining) >= 1.0:
+            if v * direction > 0 and v * v / (2 * acc) >= abs(remaining):      # brake onto the target
+                new_v = v - direction * v * v / (2 * abs(remaining)) * period
             else:                                                               # accelerate / cruise
                 new_v = max(-vmax, min(vmax, v + direction * acc * period))
             new_pos = start + 0.5 * (v + new_v) * period
-            if (target - new_pos) * direction <= 0:
-                new_pos = float(target)
-        self.demand_velocity = (new_pos - start) / period if period > 0 else 0.0
+            if new_v * direction <= 0 or (target - new_pos) * direction <= 0:
+                new_pos, new_v = float(target), 0.0
+        travel = new_pos - start
+        self._demand_curve = ((3.0 * travel - (2.0 * v + new_v) * period) / period**2,
+                              ((v + new_v) * period - 2.0 * travel) / period**3)
         self._next_demand = new_pos
         if new_pos == target:
             self._profile_done()
@@ -630,10 +643,10 @@ class EmulatedDrive:
             self._enter(DISABLED)
         elif self.state == FAULT_REACTION and abs(self.demand_velocity) < 1e-6:
             self._enter(FAULT)                              # ramp done: power off
-        if self._next_demand is not None:
+        c2, c3 = self._demand_curve
+        if self._next_demand is not None:                   # exact end of a profile step
             self.demand, self._next_demand = self._next_demand, None
         else:
-            c2, c3 = self._demand_curve
             self.demand += (self.demand_velocity + (c2 + c3 * period) * period) * period
-            self.demand_velocity += (2.0 * c2 + 3.0 * c3 * period) * period
+        self.demand_velocity += (2.0 * c2 + 3.0 * c3 * period) * period
         self._update_statusword()

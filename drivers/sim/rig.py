@@ -31,11 +31,14 @@ import heapq
 import logging
 import threading
 import time
+from collections import deque
+from contextlib import ExitStack
 
 import canopen
 import numpy as np
 
 from drivers.axis import AxisConfig
+from drivers.gc_freeze import frozen_gc
 from drivers.sim.drive import EMCY_FOLLOWING_ERROR, FAULT, FAULT_REACTION, EmulatedDrive
 from drivers.sim.plant import Plant, PlantJammed
 from drivers.units import AxisScaling
@@ -49,6 +52,7 @@ IDLE_STEP = 0.005      # s, plant step of the clock thread
 CLOCK_TICK = 0.001     # s
 MAX_TICK = 0.01        # s, most the rig's clock advances per tick of the clock thread
 MAX_PERIOD = 0.02      # s, longest plant step taken from a measured SYNC interval
+STEP_LOG_LENGTH = 100_000  # SYNC cycles whose duration is kept in SimulatedRig.step_seconds
 
 
 class _RigNetwork(canopen.Network):
@@ -133,15 +137,17 @@ class SimulatedRig:
         self._counts_per_unit = np.array([s.counts_per_unit for s in scalings])
         self._rpm_per_unit = np.array([s.rpm_per_unit_velocity for s in scalings])
         self._force_per_amp = np.array([s.force_per_amp for s in scalings])
-        self.sync_count = 0
+        self.sync_count = 0             # SYNC frames received
+        self.syncs_done = 0             # SYNC cycles finished (the TPDOs sent, the plant stepped)
         self.jammed: str | None = None        # why the plant stopped moving, if it did
-        self.step_seconds: list[float] = []   # duration of each SYNC cycle (s), for benchmarks
+        self.step_seconds: deque[float] = deque(maxlen=STEP_LOG_LENGTH)   # s, the last SYNC cycles' durations
         self._last_sync = None          # rig time of the last SYNC
         self._last_sync_stamp = None    # bus timestamp of the last SYNC
         self._last_step = 0.0           # rig time of the last plant step
         self._last_tick = None          # monotonic time of the last clock tick
         self._stop = threading.Event()
         self._clock_thread = None
+        self._serving = ExitStack()
 
     @classmethod
     def build(cls, geometry: Geometry, truth: InertialParams, axes, *, coulomb_width: float = 1e-3,
@@ -163,11 +169,17 @@ class SimulatedRig:
 
     # -- life cycle ----------------------------------------------------------------------------------
     def start(self) -> SimulatedRig:
-        """Connect, boot every drive (boot-up frames) and start serving."""
+        """Connect, boot every drive (boot-up frames) and start serving.
+
+        While it serves, the garbage collector ignores the objects that existed at the start
+        (:func:`drivers.gc_freeze.frozen_gc`): no collection of the whole heap stalls the SYNC
+        handling; the per-period logs are bounded numpy buffers, not Python objects.
+        """
         if self._own_bus:
             self.network.connect(**self._bus_kwargs)
         else:
             self.network.connect()
+        self._serving.enter_context(frozen_gc())
         counts = np.rint(self.plant.Theta * self._counts_per_unit).astype(np.int64)
         with self._lock:
             for drive, c in zip(self.drives, counts):
@@ -197,6 +209,7 @@ class SimulatedRig:
             self.network.disconnect()
         elif self.network.notifier is not None:
             self.network.notifier.stop(self.network.NOTIFIER_SHUTDOWN_TIMEOUT)
+        self._serving.close()
 
     def __enter__(self) -> SimulatedRig:
         return self.start()
@@ -223,6 +236,7 @@ class SimulatedRig:
             self.sync_count += 1
             self._last_sync = self.time
             self._cycle(self._period(timestamp), self.sync_count)
+            self.syncs_done += 1
         self.step_seconds.append(time.perf_counter() - started)
 
     def _cycle(self, period: float, sync_count=None) -> None:
