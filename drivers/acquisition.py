@@ -145,8 +145,9 @@ class CycleAssembler(can.Listener):
     Args:
         axes: the axes in sample order.
         sink: called with every finished :class:`Row` (e.g. a bounded queue's ``put``).
-        on_sync: called with the cycle index right after a SYNC was seen (notifier thread;
-            may send PDO frames, must not block or call SDO).
+        on_sync: called with the SYNC's index (0, 1, ...: the cycle index) right after a SYNC
+            was seen, also after ``max_cycles`` (notifier thread; may send PDO frames, must not
+            block or call SDO).
         on_status: called ``(axis_index, statusword)`` the first time an axis reports its fault
             or following-error bit.
         on_bus_error: called with a text on an error frame or a receive error of the bus.
@@ -181,6 +182,7 @@ class CycleAssembler(can.Listener):
                 else:
                     self._rpdo[frame.cob_id(axis.node_id)] = (i, frame.struct.unpack, fields)
             self._expected.append(mask)
+        self.syncs = 0  # SYNC frames seen
         self.cycles = 0  # rows emitted
         self.invalid_cycles = 0  # rows with at least one invalid axis
         self.late_frames = 0  # TPDOs received twice in one cycle
@@ -201,6 +203,8 @@ class CycleAssembler(can.Listener):
         for listener in self._forward:
             listener.on_message_received(msg)
         if self.done:
+            if msg.arbitration_id == SYNC_COB_ID and not (msg.is_remote_frame or msg.is_error_frame):
+                self._sync(msg.timestamp)    # no more rows, but on_sync still follows the SYNC
             return
         if msg.is_error_frame:
             self.error_frames += 1
@@ -247,12 +251,11 @@ class CycleAssembler(can.Listener):
     def _sync(self, timestamp: float) -> None:
         if self._open is not None:
             self._close()
-            if self.done:
-                return
-        index = self.cycles
-        self._open = self._new_cycle(timestamp)
+        if not self.done:
+            self._open = self._new_cycle(timestamp)
         if self._on_sync is not None:
-            self._on_sync(index)
+            self._on_sync(self.syncs)
+        self.syncs += 1
 
     def _close(self) -> None:
         timestamp, pos, vel, cur, got, dup, target = self._open

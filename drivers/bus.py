@@ -7,6 +7,10 @@ adapter, or the in-process ``virtual`` bus).
 
 from __future__ import annotations
 
+import logging
+import math
+import threading
+import time
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
@@ -16,6 +20,8 @@ import canopen
 from drivers.errors import BusLoadError, ConfigError
 
 SYNC_COB_ID = 0x080
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -88,6 +94,87 @@ class BusNetwork(canopen.Network):
     def __init__(self, bus: can.BusABC, config: BusConfig):
         super().__init__(bus)
         self.config = config
+
+    @property
+    def timer_periodic(self) -> bool:
+        """The bus sends periodic frames from its own timer (the kernel BCM on SocketCAN, an
+        adapter's hardware), not from a Python thread."""
+        return type(self.bus)._send_periodic_internal is not can.BusABC._send_periodic_internal
+
+    def send_periodic(self, can_id: int, data: bytes, period: float, remote: bool = False):
+        """Start sending a frame every ``period`` s (canopen's SYNC producer and heartbeats use
+        this): the bus' own timer where it has one, else a :class:`GridPeriodicTask`."""
+        if self.timer_periodic:
+            return super().send_periodic(can_id, data, period, remote)
+        return GridPeriodicTask(self, can_id, data, period, remote)
+
+
+class GridPeriodicTask:
+    """A frame sent from a thread on the time grid ``start + k * period``.
+
+    python-can's thread-based periodic send catches up after the thread was held up (a host
+    hiccup, a garbage collection): it sends the missed frames back to back. For SYNC that burst
+    gives the drives several cycles in a row before the master could answer the first with its
+    set-points. Here a slot the thread wakes up too late for is skipped instead (counted in
+    :attr:`skipped`), and two frames are never closer than half a period, as with a hardware
+    timer that cannot queue. The task ends by :meth:`stop`, or by itself once the network is
+    disconnected.
+
+    Args:
+        network: the network whose bus sends (``network.send_message``, under its lock).
+        can_id, data, remote: the frame.
+        period: s between frames.
+    """
+
+    def __init__(self, network: canopen.Network, can_id: int, data: bytes, period: float,
+                 remote: bool = False):
+        if not period > 0:
+            raise ValueError(f"period must be positive, got {period!r}")
+        self.period = period
+        self.msg = can.Message(arbitration_id=can_id, data=bytes(data), is_remote_frame=remote,
+                               is_extended_id=can_id > 0x7FF)
+        self.sent = 0       # frames sent
+        self.skipped = 0    # grid slots left out because the thread woke up too late
+        self.failed = 0     # slots whose frame the bus refused
+        self._network = network
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"periodic-0x{can_id:03X}", daemon=True)
+        self._thread.start()
+
+    def update(self, data: bytes) -> None:
+        """Send ``data`` from the next slot on."""
+        self.msg = can.Message(arbitration_id=self.msg.arbitration_id, data=bytes(data),
+                               is_remote_frame=self.msg.is_remote_frame,
+                               is_extended_id=self.msg.is_extended_id)
+
+    def stop(self) -> None:
+        """Stop sending (returns once the thread has ended)."""
+        self._stop.set()
+        if self._thread is not threading.current_thread():
+            self._thread.join()
+
+    def _run(self) -> None:
+        period = self.period
+        due = time.perf_counter()
+        while not self._stop.is_set():
+            bus = self._network.bus
+            if bus is None or getattr(bus, "_is_shutdown", False):
+                break                          # the network was disconnected under the task: it ends
+            try:
+                with self._network.send_lock:
+                    bus.send(self.msg)
+                self.sent += 1
+            except can.CanError as exc:       # e.g. a full transmit queue: the slot is lost
+                self.failed += 1
+                if self.failed == 1:
+                    logger.warning("periodic frame 0x%03X not sent: %s", self.msg.arbitration_id, exc)
+            due += period
+            earliest = time.perf_counter() + 0.5 * period
+            if due < earliest:
+                missed = math.ceil((earliest - due) / period)
+                self.skipped += missed
+                due += missed * period
+            self._stop.wait(due - time.perf_counter())
 
 
 def open_network(config: BusConfig) -> BusNetwork:

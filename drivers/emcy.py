@@ -31,6 +31,7 @@ COMMON_CODES = MappingProxyType({
     0x81FE: "CAN Rx queue overflow",
     0x81FF: "CAN Tx queue overflow",
     0x8210: "CAN PDO length error",
+    0x8250: "RPDO timeout",   # deadline monitoring, 0x140x:05
     0x8611: "Following error",
 })
 
@@ -76,7 +77,6 @@ EPOS4_CODES = MappingProxyType({
     0x7390: "Missing main sensor error",
     0x7391: "Missing commutation sensor error",
     0x7392: "Main sensor direction error",
-    0x8250: "RPDO timeout",
     0x8A80: "Negative limit switch error",
     0x8A81: "Positive limit switch error",
     0x8A82: "Software position limit error",

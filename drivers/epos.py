@@ -3,8 +3,9 @@
 
 Everything that talks SDO (bring-up, limits, modes, the CiA 402 power state machine, homing,
 point-to-point moves, stopping after a fault) runs in the calling thread. The streaming run
-(:meth:`DriveGroup.run_cyclic`) sends SYNC with python-can's periodic send
-(``canopen.SyncProducer`` -> ``bus.send_periodic``, the kernel BCM on SocketCAN) and, from the
+(:meth:`DriveGroup.run_cyclic`) sends SYNC with ``network.send_periodic`` (the kernel BCM on
+SocketCAN; on a :class:`drivers.bus.BusNetwork` over a thread-timed bus, a
+:class:`drivers.bus.GridPeriodicTask` that skips late slots instead of bursting) and, from the
 notifier thread, answers each SYNC with the next set-points as RPDO frames; it never calls SDO
 there. State machine transitions use canopen's CiA 402 tables (:class:`canopen.profiles.p402.State402`)
 over SDO, which also covers the EPOS2's maxon-specific negative modes (canopen's ``op_mode``
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import logging
 import time
+from contextlib import ExitStack
 from typing import Any, Sequence
 
 import canopen
@@ -25,9 +27,10 @@ from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
 from drivers.acquisition import (STATUS_FAULT, STATUS_FOLLOWING_ERROR, AxisLayout, CycleAssembler,
                                  PdoFrame, cycle_frame_sizes, event_bits_per_s, pdo_layout)
 from drivers.axis import AxisConfig
-from drivers.bus import BusConfig, check_bus_load, frame_bits
+from drivers.bus import SYNC_COB_ID, BusConfig, check_bus_load, frame_bits
 from drivers.emcy import describe
 from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, NodeError
+from drivers.gc_freeze import GcPauses, frozen_gc
 from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, make_object_dictionary
 from drivers.recording import FlushingLogger, Recording, SampleRecorder
 from drivers.supervision import Supervisor
@@ -153,7 +156,12 @@ class EposDrive:
         self.write(p.following_error_window, s.counts_from_position(a.following_error_window))
 
     def configure_pdos(self, frames: Sequence[PdoFrame]) -> None:
-        """Write the PDO mapping over SDO (PRE-OPERATIONAL); unused PDOs are disabled."""
+        """Write the PDO mapping over SDO (PRE-OPERATIONAL); unused PDOs are disabled.
+
+        canopen's maps subscribe to their frames when saved; the master decodes PDOs in
+        :class:`~drivers.acquisition.CycleAssembler` instead, so they are unsubscribed again (at
+        1 kHz, 18 frames a cycle through a ``Condition`` each for nothing).
+        """
         by_key = {(f.direction, f.number): f for f in frames}
         for direction, maps in (("tpdo", self.node.tpdo), ("rpdo", self.node.rpdo)):
             count = self.profile.tpdo_count if direction == "tpdo" else self.profile.rpdo_count
@@ -172,6 +180,8 @@ class EposDrive:
                     pdo.save()
                 except (SdoAbortedError, SdoCommunicationError) as exc:
                     raise NodeError(self.label, f"configuring {direction.upper()}{number}: {exc}") from exc
+                if pdo.enabled:
+                    self.node.network.unsubscribe(pdo.cob_id, pdo.on_message)
         self.frames = tuple(frames)
 
     def bring_up(self, frames: Sequence[PdoFrame], heartbeat_ms: int, consumer_heartbeat: int,
@@ -313,6 +323,23 @@ class EposDrive:
             self.write((ip.index, ip.subindex + 1), -3)
         self.set_mode(self.profile.cyclic_mode)
 
+    def watches_setpoints(self) -> bool:
+        """The drive has a deadline on its set-point RPDO (``0x1400:05`` > 0, ms): it faults with
+        EMCY 0x8250 when the set-points stop in a cyclic mode. A drive without the object has none."""
+        try:
+            return bool(self._var((0x1400, 5)).raw)
+        except (SdoAbortedError, KeyError):
+            return False
+        except SdoCommunicationError as exc:
+            raise NodeError(self.label, f"reading 0x1400:05: {exc}") from exc
+
+    def hold_position(self, counts: int) -> None:
+        """Leave the cyclic mode standing still: profile position with its target at ``counts``
+        (the last cyclic set-point). Done while the SYNC/RPDO stream still runs, so that a drive
+        watching it (an RPDO deadline ``0x140x:05``) never sees it stop in the cyclic mode."""
+        self.write(self.profile.target_position, counts)
+        self.set_mode(MODE_PPM)
+
     # -- positions (SI) ----------------------------------------------------------------------------
     def position(self) -> float:
         """Actual position in rad or m (SDO)."""
@@ -373,7 +400,9 @@ def _name(ref) -> str:
 
 
 class _TargetStreamer:
-    """Sends the set-points of cycle k+1 as RPDO frames when SYNC k is seen (notifier thread)."""
+    """Sends the set-points of cycle k+1 as RPDO frames when SYNC k is seen (notifier thread);
+    after the last cycle it repeats the last set-points, until the SYNC stops (the drives hold
+    them, and their RPDO deadline is met, while they are switched out of the cyclic mode)."""
 
     def __init__(self, network: canopen.Network, drives: Sequence[EposDrive], counts: np.ndarray,
                  supervisor: Supervisor):
@@ -387,10 +416,10 @@ class _TargetStreamer:
         self.failed = False
 
     def send(self, k: int) -> None:
-        if k >= len(self.counts) or self.failed:
+        if self.failed:
             return
         try:
-            for (cob_id, pack), value in zip(self.rpdos, self.counts[k]):
+            for (cob_id, pack), value in zip(self.rpdos, self.counts[min(k, len(self.counts) - 1)]):
                 self.network.send_message(cob_id, pack(value, CW_ENABLE_OPERATION))
         except Exception as exc:  # noqa: BLE001 - any send failure stops the run
             self.failed = True
@@ -406,7 +435,7 @@ class DriveGroup:
     Heartbeats run both ways once :meth:`bring_up` started: every drive produces one every
     ``heartbeat_period`` and the master watches them (a silent node stops the run with a
     :class:`HeartbeatTimeout`); the master produces its own (COB-ID ``0x700 + master_id``, state
-    OPERATIONAL, python-can's periodic send: the kernel BCM on SocketCAN, which ends with the
+    OPERATIONAL, ``network.send_periodic``: the kernel BCM on SocketCAN, which ends with the
     master's socket) and writes every drive's consumer heartbeat time 0x1016:01, so that a drive
     stops itself (heartbeat error, EMCY 0x8130, fault reaction) when the master is lost.
 
@@ -619,7 +648,18 @@ class DriveGroup:
         On a fault (EMCY, heartbeat, statusword fault/following-error bit, bus error) or any
         exception (Ctrl-C included) the SYNC stops, the drives are quick-stopped and disabled,
         the samples so far are saved and the error is raised (a :class:`DriveFault` carries
-        ``recording``, the NPZ path).
+        ``recording``, the NPZ path). At a normal end, if any drive watches its set-points (an
+        RPDO deadline, :meth:`EposDrive.watches_setpoints`), every drive is switched to profile
+        position holding the last set-point before the SYNC stops (:meth:`EposDrive.hold_position`),
+        as it would fault if the stream stopped in the cyclic mode; that SDO traffic waits behind
+        any SYNCs a drive has not worked off yet, so a device slower than the SYNC rate must have
+        no deadline. Otherwise the SYNC stops first and the drives hold the last set-point in the
+        cyclic mode. Either way they stay enabled, e.g. for :meth:`move_to`. While the SYNC runs the garbage collector only walks
+        objects created during the run (:func:`drivers.gc_freeze.frozen_gc`); the metadata keeps
+        ``gc_collections`` and ``gc_longest_pause`` (s) of the run, and ``sync_slots_skipped``: the
+        SYNC slots a thread-timed producer left out because the host woke it too late (``None``
+        under a bus timer); a skipped slot leaves a gap of whole periods in ``t``, the cycles
+        stay consecutive.
 
         Args:
             targets: set-points, shape (n_cycles, n_axes), rad or m.
@@ -650,6 +690,7 @@ class DriveGroup:
         for d, c in zip(self.drives, counts[0]):
             d.write(d.profile.cyclic_target, int(c))
         self._guarded(lambda: [d.prepare_cyclic(period) for d in self.drives])
+        hold_at_end = any(d.watches_setpoints() for d in self.drives)
         self.enable()
 
         meta = dict(metadata or {}, sync_period=period, with_velocity=self.with_velocity,
@@ -667,9 +708,13 @@ class DriveGroup:
             forward=[raw] if raw else [])
         self.network.notifier.add_listener(assembler)
         error: BaseException | None = None
+        gc_section = ExitStack()  # no full collection stalls the threads while the SYNC runs
+        gc_section.enter_context(frozen_gc())
+        pauses = gc_section.enter_context(GcPauses())
+        sync = None
         try:
             streamer.send(0)
-            self.network.sync.start(period)
+            sync = self.network.send_periodic(SYNC_COB_ID, b"", period)
             last_count, last_progress = -1, time.monotonic()
             while not assembler.done:
                 if self.supervisor.fault_event.wait(min(0.05, 10 * period)):
@@ -683,10 +728,16 @@ class DriveGroup:
                     hint = " (is the bus opened with receive_own_messages=True?)" if progress == 0 else ""
                     raise DriveError(f"no SYNC cycle seen for {now - last_progress:.2f} s{hint}")
             self.supervisor.raise_if_fault()
+            if hold_at_end:
+                for d, c in zip(self.drives, counts[-1]):
+                    d.hold_position(int(c))
+                self.supervisor.raise_if_fault()
         except BaseException as exc:
             error = exc
         finally:
-            self.network.sync.stop()
+            if sync is not None:
+                sync.stop()
+            gc_section.close()
             if error is not None:
                 error = self._with_error_code(error)
                 self.stop_motion()
@@ -696,7 +747,10 @@ class DriveGroup:
             status = "complete" if error is None else f"stopped: {error}"
             recording = recorder.close(status, late_frames=assembler.late_frames,
                                        error_frames=assembler.error_frames,
-                                       raw_log=str(raw_log) if raw_log else None)
+                                       raw_log=str(raw_log) if raw_log else None,
+                                       gc_collections=len(pauses.durations),
+                                       gc_longest_pause=pauses.longest,
+                                       sync_slots_skipped=getattr(sync, "skipped", None))
         if len(recording.t):
             sent = counts[: len(recording.t)] / [a.scaling.counts_per_unit for a in self.axes]
             late = np.any(np.abs(recording.target - sent) > 0.5 / np.array(

@@ -11,6 +11,7 @@ import can
 import numpy as np
 import pytest
 
+from drivers.acquisition import pdo_layout
 from drivers.bus import BusConfig, open_network
 from drivers.epos import DriveGroup
 from drivers.errors import BringUpError, DriveFault, HeartbeatTimeout
@@ -30,7 +31,7 @@ AXES = [dataclasses.replace(a.to_driver(), profile="epos2" if i < 3 else "epos4"
 def rig_factory():
     opened = []
 
-    def make(initial_states=None, up=True):
+    def make(initial_states=None, up=True, sdo_timeout=0.5):
         channel = f"drivers-test-{next(_channels)}"
         robot = ThreePRRR(CONFIG.robot.geometry.to_model(), coulomb_width=CONFIG.robot.coulomb_width)
         plant = Plant(robot, CONFIG.sim.truth.to_model())
@@ -38,7 +39,7 @@ def rig_factory():
                            initial_states=initial_states, interface="virtual", channel=channel,
                            ignore_config=True).start()
         network = open_network(BusConfig("virtual", channel, ignore_config=True))
-        group = DriveGroup(network, AXES)
+        group = DriveGroup(network, AXES, sdo_timeout=sdo_timeout)
         opened.append((rig, network, group))
         if up:
             group.bring_up()
@@ -102,14 +103,19 @@ def _check_bookkeeping(rec, targets, period, raw_log):
     stamps = _sync_stamps(raw_log)[:n]
     # (the log and rec.t are both on a 1 us grid: 0.5 us rounding each)
     np.testing.assert_allclose(rec.t + rec.metadata["t0"], stamps, rtol=0, atol=1.01e-6)
-    assert (np.diff(rec.t) > 0).all()
-    np.testing.assert_allclose(np.diff(rec.t).mean(), period, rtol=0.05)
+    # SYNC on the period grid: never two within half a period (no catch-up burst); a slot the
+    # producer thread woke up too late for is skipped and counted
+    assert np.diff(rec.t).min() > 0.4 * period
+    # (the count runs until the SYNC stops, after the switch to holding at the end)
+    skipped = rec.metadata["sync_slots_skipped"] or 0
+    span = rec.t[-1] - rec.t[0]
+    assert 0.99 * (n - 1) * period - 2 * period <= span <= 1.01 * (n - 1 + skipped) * period + 2 * period
     exact, near = _setpoints_on_time(rec, targets, max_lag=round(0.2 / period))
     assert rec.metadata["late_setpoints"] == np.count_nonzero(~exact)
     assert near.all()
     log = logging.getLogger(__name__)
-    log.warning("%g Hz: late set-points %d, invalid cycles %d of %d", 1 / period,
-                np.count_nonzero(~exact), rec.n_invalid, n)
+    log.warning("%g Hz: late set-points %d, invalid cycles %d of %d, SYNC slots skipped %d", 1 / period,
+                np.count_nonzero(~exact), rec.n_invalid, n, skipped)
 
 
 def _check_following(rec):
@@ -158,6 +164,8 @@ def test_stream_10s_at_250hz_records_every_cycle(rig_factory, tmp_path):
     # (scheduling on a loaded machine) invalidates a cycle: measured 2, 4, 4, 24, 63 of 2500
     # (0.1-2.5 %) in five runs on the 2-core machine with a load average of 2.3 from other jobs
     assert rec.n_invalid / len(targets) < 0.05
+    # no collection of the whole heap while streaming (frozen_gc): 65-85 ms ones stalled runs
+    assert rec.metadata["gc_collections"] > 0 and rec.metadata["gc_longest_pause"] < 5e-3
     on_disk = Recording.load(tmp_path / "run.npz")
     np.testing.assert_array_equal(on_disk.position, rec.position)
     assert on_disk.metadata["status"] == "complete" and on_disk.metadata["sync_period"] == 0.004
@@ -167,8 +175,9 @@ def test_stream_at_1khz_keeps_its_books_when_the_rig_falls_behind(rig_factory, t
     """At 1 kHz the in-process rig (plant + six drives, ~0.7-1.5 ms per SYNC here) cannot answer
     every SYNC in time: the throughput claims (every cycle complete, positions following row by
     row) are measured by benchmarks/bench_e2e.py. Here: the bookkeeping holds, the raw log
-    replays to the same samples, and the drives end at the final set-point."""
-    rig, group = rig_factory()
+    replays to the same samples, and the drives end at the final set-point (the switch to profile
+    position at the end waits behind the rig's SYNC backlog: a long SDO timeout)."""
+    rig, group = rig_factory(sdo_timeout=5.0)
     targets = _targets(group, 1.0, 0.001)
     rec = group.run_cyclic(targets, 0.001, raw_log=tmp_path / "raw.log")
     _check_bookkeeping(rec, targets, 0.001, tmp_path / "raw.log")
@@ -178,6 +187,115 @@ def test_stream_at_1khz_keeps_its_books_when_the_rig_falls_behind(rig_factory, t
     _wait_rig_idle(rig)
     window = np.array([a.following_error_window for a in AXES])
     assert np.all(np.abs(group.positions() - targets[-1]) < window)
+
+
+class _Tpdo1Collector(can.Listener):
+    """Every drive's TPDO1 data, in arrival order, kept after the run ends (the raw log closes
+    with the run, while an in-process rig may still be answering its backlog of SYNC). Bytes
+    only: no Python object per frame for the garbage collector."""
+
+    def __init__(self):
+        self.layout = {a.node_id: pdo_layout(a.drive_profile)[0] for a in AXES}
+        self.data = {node: bytearray() for node in self.layout}
+
+    def on_message_received(self, msg):
+        buffer = self.data.get(msg.arbitration_id - 0x180)
+        if buffer is not None:
+            buffer += msg.data
+
+    def answers(self, n_syncs):
+        """The first ``n_syncs`` TPDO1 of each drive: the k-th answers the k-th SYNC (the rig's time
+        is the SYNC's: it answers every SYNC, in order, however late). Positions (n, 6) in SI
+        units and currents (n, 6) in mA."""
+        columns = []
+        for a in AXES:
+            got = list(self.layout[a.node_id].struct.iter_unpack(bytes(self.data[a.node_id])))
+            assert len(got) >= n_syncs, f"node {a.node_id}: {len(got)} TPDO1 for {n_syncs} SYNC"
+            columns.append(np.array(got[:n_syncs], dtype=float)[:, :2])
+        values = np.stack(columns, axis=1)    # (n, 6, [position, current])
+        return values[:, :, 0] / COUNTS, values[:, :, 1]
+
+
+@pytest.mark.slow
+def test_stream_10s_at_1khz_every_sync_answered_with_the_model_currents(rig_factory, tmp_path):
+    """Issue 5 at 1 kHz, rig and master in one Python process. What holds on any host: every one of
+    the 10,000 SYNC was answered by all six drives (raw log), positions follow the set-points, the
+    reported currents are the model's actuator forces of the simulated motion (no noise: to the
+    1 mA rounding), no garbage collection stalls the run, the books and the replay hold.
+
+    The master's real-time assembly of those answers into complete cycles is what this 2-core host
+    cannot hold in one process: ~0.95 ms of CPU per 1 ms cycle (rig ~0.72 ms, of which the model's
+    per-period dynamics ~0.26 ms; master ~0.2 ms), so answers come after the next SYNC and the
+    cycle is flagged invalid (measured by benchmarks/bench_e2e.py, logged here)."""
+    # the in-process rig answers an SDO only after the SYNC backlog it has at the end of the run
+    # (up to ~1.5 s here): the end of the run (switch to profile position) waits for it
+    rig, group = rig_factory(sdo_timeout=10.0)
+    period = 0.001
+    targets = _targets(group, 10.0, period)
+    raw = tmp_path / "run.log"
+    collector = _Tpdo1Collector()
+    group.network.notifier.add_listener(collector)
+    rec = group.run_cyclic(targets, period, output=tmp_path / "run.npz", raw_log=raw)
+    _wait_rig_idle(rig)
+    time.sleep(0.2)     # the master's notifier receives the last answers
+    group.network.notifier.remove_listener(collector)
+    _check_bookkeeping(rec, targets, period, raw)
+    assert rec.metadata["gc_longest_pause"] < 5e-3, rec.metadata["gc_longest_pause"]
+    n = len(targets)
+    assert rig.syncs_done == rig.sync_count >= n     # (a few more SYNC went out before it stopped)
+    position, milliamps = collector.answers(n)
+    # the answer to SYNC k follows the set-points two periods late (B-spline), within the windows
+    window = np.array([a.following_error_window for a in AXES])
+    lagged = np.vstack([targets[:1], targets[:1], targets])[:n]
+    assert (np.abs(position - lagged) < window).all()
+    # current at SYNC k = the plant's actuator force at that instant through K_m and the gear; the
+    # plant steps by exactly one period per SYNC while the drives stream (idle steps: >= 5 ms)
+    truth = rig.plant.truth()
+    one_period = np.abs(np.diff(truth["t"]) - period) < 1e-9
+    start = int(np.flatnonzero(np.convolve(one_period, np.ones(n), "valid") == n)[0])
+    force = truth["force"][start: start + n]
+    expected_ma = np.rint(force / np.array([a.scaling.force_per_amp for a in AXES]) * 1e3)
+    np.testing.assert_array_equal(milliamps, expected_ma)
+    replay = decode_log(raw, AXES, max_cycles=len(targets))
+    for name in ("position", "current", "target", "valid"):
+        np.testing.assert_array_equal(getattr(replay, name), getattr(rec, name), err_msg=name)
+    logging.getLogger(__name__).warning(
+        "1 kHz, one process: %d of %d cycles complete in real time", len(targets) - rec.n_invalid, len(targets))
+
+
+def test_a_normal_end_leaves_the_drives_holding_in_profile_position(rig_factory):
+    """Each drive watches its set-points (RPDO deadline 0x1400:05 = 50 ms, 12 SYNC periods, EMCY
+    0x8250 when they stop in the cyclic mode): the run switches them to profile position, holding
+    the last set-point, before the SYNC stops; none faults afterwards and a move starts from there.
+    (A deadline of a few periods also catches a host that holds the SYNC thread up, not this test's
+    subject: 20 ms faulted a drive once in a full suite on a loaded 2-core machine.)"""
+    rig, group = rig_factory()
+    for d in group.drives:
+        d.write((0x1400, 5), 50)
+    targets = _targets(group, 0.5, 0.004)
+    group.run_cyclic(targets, 0.004)
+    time.sleep(0.5)                      # 10 deadlines without a set-point
+    assert rig.faulted() == []
+    for axis, drive in zip(AXES, rig.drives):
+        assert drive.state == "OPERATION ENABLED" and drive.get(0x6060) == 1
+        assert drive.get(0x607A) == axis.scaling.counts_from_position(targets[-1][AXES.index(axis)])
+    window = np.array([a.following_error_window for a in AXES])
+    assert np.all(np.abs(group.positions() - targets[-1]) < window)
+    group.move_to(targets[-1] + [0.01, 0.01, 0.01, 0.001, 0.001, 0.001])
+
+
+def test_without_a_deadline_the_sync_stops_before_any_sdo_and_the_drives_hold_in_the_cyclic_mode(rig_factory):
+    """No drive watches its set-points (0x1400:05 = 0, the default): nothing is switched over SDO
+    while the SYNC still runs (a device slower than the SYNC would answer it only after its
+    backlog); the drives stay enabled in their cyclic mode at the last set-point."""
+    rig, group = rig_factory()
+    targets = _targets(group, 0.3, 0.004)
+    group.run_cyclic(targets, 0.004)
+    for axis, drive in zip(AXES, rig.drives):
+        assert drive.get(0x1400, 5) == 0
+        assert drive.state == "OPERATION ENABLED" and drive.get(0x6060) == drive.profile.cyclic_mode
+        ref = drive.profile.cyclic_target
+        assert drive.get(ref.index, ref.subindex) == axis.scaling.counts_from_position(targets[-1][AXES.index(axis)])
 
 
 def test_units_round_trip_si_to_counts_on_the_drive_and_back(rig_factory):
@@ -290,10 +408,11 @@ def test_master_heartbeat_is_produced_and_watched_by_every_drive(rig_factory):
     master_cob = 0x700 + group.master_id
 
     def heartbeats(seconds):
-        found, end = [], time.monotonic() + seconds
+        """The master's heartbeats sent in the next ``seconds`` (not those queued before)."""
+        found, start, end = [], time.time(), time.monotonic() + seconds
         while (left := end - time.monotonic()) > 0:
             msg = listener.recv(left)
-            if msg is not None and msg.arbitration_id == master_cob:
+            if msg is not None and msg.arbitration_id == master_cob and msg.timestamp >= start:
                 found.append(msg)
         return found
 

@@ -171,7 +171,9 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
                     say(f"[{i}/{len(planned)}] {p.describe()}")
                     rec = stream(session, group, p, data, show_progress)
                     recordings[p.config.name] = rec
-                    say(f"    recorded {rec.metadata['n_cycles']} cycles, {rec.n_invalid} incomplete")
+                    skipped = rec.metadata.get("sync_slots_skipped") or 0
+                    say(f"    recorded {rec.metadata['n_cycles']} cycles, {rec.n_invalid} incomplete"
+                        + (f", {skipped} SYNC slots skipped (the host woke the SYNC thread late)" if skipped else ""))
                     if online is not None:
                         online.update(p.config.name, rec)
             finally:

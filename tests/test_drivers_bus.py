@@ -1,0 +1,76 @@
+"""drivers.bus: periodic frames on a thread-timed bus (python-can's virtual bus) keep to the grid.
+
+python-can's thread-based periodic task sends the slots it missed back to back once its thread
+runs again; for SYNC that gives the drives several cycles before the master could answer the
+first. The network's own task skips them. The stall here is real: the test holds the network's
+send lock, so the producer thread blocks in its send as it would behind a busy GIL.
+"""
+
+import itertools
+import time
+
+import can
+import numpy as np
+import pytest
+
+from drivers.bus import SYNC_COB_ID, BusConfig, GridPeriodicTask, open_network
+
+PERIOD = 0.005
+_channels = itertools.count()
+
+
+@pytest.fixture
+def network_and_listener():
+    channel = f"bus-test-{next(_channels)}"
+    network = open_network(BusConfig("virtual", channel, ignore_config=True))
+    listener = can.Bus(interface="virtual", channel=channel, ignore_config=True)
+    yield network, listener
+    listener.shutdown()
+    network.disconnect()
+
+
+def _receive(bus, seconds):
+    stamps, end = [], time.monotonic() + seconds
+    while time.monotonic() < end:
+        msg = bus.recv(0.05)
+        if msg is not None and msg.arbitration_id == SYNC_COB_ID:
+            stamps.append(msg.timestamp)
+    return np.array(stamps)
+
+
+def test_a_stalled_producer_skips_the_missed_slots_instead_of_bursting(network_and_listener):
+    network, listener = network_and_listener
+    assert not network.timer_periodic              # the virtual bus has no timer of its own
+    task = network.send_periodic(SYNC_COB_ID, b"", PERIOD)
+    assert isinstance(task, GridPeriodicTask)
+    try:
+        time.sleep(0.1)
+        with network.send_lock:                    # the producer blocks in its next send
+            time.sleep(12 * PERIOD)
+        stamps = _receive(listener, 0.3)
+    finally:
+        task.stop()
+    gaps = np.diff(stamps)
+    # the slots of the stall are skipped and counted; what is sent keeps half a period apart
+    assert task.skipped >= 10
+    assert gaps.min() > 0.4 * PERIOD, gaps.min()
+    # and after the stall it is back on the period
+    assert abs(np.median(gaps) - PERIOD) < 0.2 * PERIOD
+    count = task.sent
+    time.sleep(3 * PERIOD)
+    assert task.sent == count                      # stop() ends the thread
+
+
+def test_python_cans_thread_task_would_burst_after_the_same_stall(network_and_listener):
+    """The contrast, on the same bus: python-can's own task, stalled the same way (its send lock),
+    sends the missed slots back to back."""
+    network, listener = network_and_listener
+    task = network.bus.send_periodic(can.Message(arbitration_id=SYNC_COB_ID, is_extended_id=False), PERIOD)
+    try:
+        time.sleep(0.1)
+        with task.send_lock:
+            time.sleep(12 * PERIOD)
+        stamps = _receive(listener, 0.3)
+    finally:
+        task.stop()
+    assert np.count_nonzero(np.diff(stamps) < 0.4 * PERIOD) >= 5
