@@ -25,11 +25,14 @@ def main(argv=None) -> None:
     parser.add_argument("--sync-period", type=float, default=None,
                         help="plant step per SYNC in s (default: 0x1006 or the measured SYNC interval)")
     parser.add_argument("--current-noise-ma", type=float, default=2.0)
+    parser.add_argument("--max-substep", type=float, default=5e-4,
+                        help="integration step of the plant in s (a slow host may need a coarser one)")
     args = parser.parse_args(argv)
     bus_kwargs = {"interface": args.interface, "channel": args.channel}
     if args.bitrate:
         bus_kwargs["bitrate"] = args.bitrate
     rig = SimulatedRig.build(nominal.GEOMETRY, nominal.TRUE_PARAMS, nominal.axes(args.profile, args.node_ids),
+                             max_substep=args.max_substep,
                              sync_period=args.sync_period, current_noise_ma=args.current_noise_ma, **bus_kwargs)
     done = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):

@@ -214,7 +214,7 @@ class Plant:
         M_inv0 = np.linalg.inv(M)
         M_inv, bias_t = M_inv0[None], bias[None]
         previous, self._previous = self._previous, (period, M_inv0, bias)
-        if previous is not None and 0 < previous[0] <= 2 * period:
+        if previous is not None and 0.5 * period <= previous[0] <= 2 * period:   # not after a much shorter step
             tau = (np.arange(n_sub + 1) * dt / previous[0])[:, None]       # previous[0]: its period
             M_inv = M_inv0 + tau[:, :, None] * (M_inv0 - previous[1])
             bias_t = bias + tau * (bias - previous[2])

@@ -151,7 +151,8 @@ class SimulatedRig:
 
     @classmethod
     def build(cls, geometry: Geometry, truth: InertialParams, axes, *, coulomb_width: float = 1e-3,
-              bandwidth_hz: float = 20.0, damping: float = 1.0, Theta0=None, **rig_kwargs) -> SimulatedRig:
+              bandwidth_hz: float = 20.0, damping: float = 1.0, max_substep: float = 5e-4, Theta0=None,
+              **rig_kwargs) -> SimulatedRig:
         """A rig from plain settings (what a config file holds); not started.
 
         Args:
@@ -159,12 +160,13 @@ class SimulatedRig:
             truth: the plant's TRUE parameters.
             axes: the six drives, as for ``nodes`` of the constructor.
             coulomb_width: smoothing of the Coulomb friction (rad/s, m/s).
-            bandwidth_hz, damping, Theta0: the position loops and initial pose of the :class:`Plant`.
+            bandwidth_hz, damping, max_substep, Theta0: the position loops, integration step (s) and
+                initial pose of the :class:`Plant`.
             rig_kwargs: ``sync_period``, ``current_noise_ma``, ``seed``, ``initial_states``, ``bus``
                 or the python-can bus settings (``interface``, ``channel``, ...).
         """
         plant = Plant(ThreePRRR(geometry, coulomb_width=coulomb_width), truth, Theta0,
-                      bandwidth_hz=bandwidth_hz, damping=damping)
+                      bandwidth_hz=bandwidth_hz, damping=damping, max_substep=max_substep)
         return cls(axes, plant, **rig_kwargs)
 
     # -- life cycle ----------------------------------------------------------------------------------

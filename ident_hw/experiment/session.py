@@ -36,6 +36,7 @@ def simulated_rig(config: Config) -> SimulatedRig:
     axes = [(a.node_id, a.profile, a.scaling()) for a in robot.actuators]
     return SimulatedRig.build(robot.geometry.to_model(), sim.truth.to_model(), axes,
                               coulomb_width=robot.coulomb_width, bandwidth_hz=sim.bandwidth, damping=sim.damping,
+                              max_substep=sim.max_substep,
                               sync_period=1.0 / config.bus.sync_rate, current_noise_ma=sim.current_noise * 1e3,
                               seed=sim.seed, interface=config.bus.interface, channel=config.bus.channel,
                               ignore_config=True)

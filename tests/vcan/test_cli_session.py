@@ -12,13 +12,6 @@ CONFIG = Path(__file__).parents[2] / "configs" / "vcan-3prrr.yaml"
 CLI_TIMEOUT = 600.0  # s; numpy/scipy/matplotlib alone take a minute to import in the emulated guest
 
 
-# Known failure in the CI guest (QEMU without KVM, ~25x slower), not diagnosed yet (2026-11-23):
-# `ident-hw run` stops on a following-error EMCY of zeta3 while streaming; the same config on the
-# in-process virtual bus completes (sweep, 401 samples, no fault). The guest's rig process is slower
-# than the 10 Hz SYNC (29 of 40 cycles incomplete in test_drivers_vcan). Not strict: a pass is
-# reported as XPASS, and the run's output is printed either way.
-@pytest.mark.xfail(reason="following-error EMCY of zeta3 in the slow CI guest; see the comment above",
-                   strict=False)
 def test_cli_run_against_rig_process_matches_candump(start_process, candump, tmp_path):
     # imported here, not at collection: numpy/scipy cost ~25 s in the guest even when the test is skipped
     import json
@@ -57,6 +50,11 @@ def test_cli_run_against_rig_process_matches_candump(start_process, candump, tmp
     (step,) = config.identification.steps
     for name in step.parameters:
         assert rows[name]["step"] == step.name and np.isfinite(rows[name]["identified"]), name
+    # and right, where the rig process kept up with the SYNC (a loaded host slows the guest so much that
+    # most cycles can come incomplete: then the fit has too little to go on, and only the above holds)
+    if recorded.n_invalid <= 0.1 * n:
+        m_c = rows["m_c"]
+        assert abs(m_c["identified"] - m_c["truth"]) <= 0.05 * m_c["truth"], m_c
 
     # candump saw the same frames on the bus: the project's decoder gives the same samples from candump's log,
     # from where the run's own raw log starts (the master records from the start of the stream; the kernel
