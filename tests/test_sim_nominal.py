@@ -1,0 +1,19 @@
+"""drivers.sim.nominal (the rig of ``python -m drivers.sim`` and of the benchmarks, which run without a
+config) holds the same rig as configs/sim-3prrr.yaml: geometry, true parameters, drive scalings."""
+
+from pathlib import Path
+
+import numpy as np
+
+from drivers.sim import nominal
+from ident_hw.config import load_config
+
+CONFIG = Path(__file__).resolve().parents[1] / "configs" / "sim-3prrr.yaml"
+
+
+def test_nominal_rig_equals_the_simulation_config():
+    config = load_config(CONFIG)
+    assert config.robot.geometry.to_model() == nominal.GEOMETRY
+    np.testing.assert_array_equal(config.sim.truth.to_model().as_vector(), nominal.TRUE_PARAMS.as_vector())
+    node_ids = [a.node_id for a in config.robot.actuators]
+    assert [(a.node_id, a.profile, a.scaling()) for a in config.robot.actuators] == nominal.axes("epos4", node_ids)
