@@ -220,10 +220,14 @@ class Plant:
             bias_t = bias + tau * (bias - previous[2])
         M_inv = np.broadcast_to(M_inv, (n_sub + 1, 6, 6))
         external = self.external_force - np.broadcast_to(bias_t, (n_sub + 1, 6))
+        # the hot loop (two evaluations per substep): the loop's demand part and the friction
+        # coefficients computed once per period, as in _loop_force and model.dynamics.friction
+        loop_demand = Kp * q_d + Kd * v_d
+        f_v, f_c, width = np.asarray(self.params.f_v), np.asarray(self.params.f_c), self.robot.coulomb_width
 
         def acceleration(Theta, Thetad, k):
-            F = np.minimum(np.maximum(Kp * (q_d[k] - Theta) + Kd * (v_d[k] - Thetad), low), high)
-            return F, M_inv[k] @ (F + external[k] - self._friction(Thetad))
+            F = np.minimum(np.maximum(loop_demand[k] - Kp * Theta - Kd * Thetad, low), high)
+            return F, M_inv[k] @ (F + external[k] - (f_v * Thetad + f_c * np.tanh(Thetad / width)))
 
         Theta, Thetad = self.Theta, self.Thetad
         self.force, a1 = acceleration(Theta, Thetad, 0)
