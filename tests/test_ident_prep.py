@@ -1,17 +1,18 @@
 """Data preparation for the fits: derivatives, rows left out near rest, per-trajectory filter bandwidth."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from scipy import linalg
 
+from drivers.recording import Recording
 from ident_hw.config import load_config
-from ident_hw.experiment.plan import excitation_of, motion_bandwidth
+from ident_hw.experiment.offline import identify, with_skipped_slots
+from ident_hw.experiment.plan import excitation_of, motion_bandwidth, plan
 from ident_hw.identification.least_squares import ols, output_noise_std, wls
 from ident_hw.signal import central_derivatives
 
-CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+from ident_scenarios import CONFIGS, NAMES, exact_recording
+
 
 
 def test_central_derivatives_are_fourth_order_on_a_uniform_grid():
@@ -145,3 +146,64 @@ def test_check_notes_set_point_quantisation_above_the_motion(tmp_path):
     (note,) = planned["excitation"].notes
     assert all(f"theta{i} {quantum:.3g} rad/s²" in note for i in (1, 2, 3)) and "zeta" not in note
     assert planned["excitation"].ok and "note: " in planned["excitation"].describe()
+
+
+def test_skipped_sync_slots_become_rows_without_samples():
+    """Hand-made: SYNCs at 0, 10, 30, 60 ms with a 10 ms period: slots 2, 4 and 5 were skipped."""
+    t = np.array([0.0, 0.010, 0.030, 0.060])
+    values = np.arange(4.0)[:, None] * np.ones((1, 6))
+    rec = Recording(t=t, cycle=np.arange(7, 11), position=values, velocity=values, current=values,
+                    statusword=np.full((4, 6), 0x1237, np.int32), target=values + 10, valid=np.ones((4, 6), bool),
+                    metadata={"sync_period": 0.01})
+    out = with_skipped_slots(rec)
+    np.testing.assert_allclose(out.t, np.arange(7) * 0.01)
+    np.testing.assert_array_equal(out.cycle, np.arange(7, 14))
+    present = np.array([1, 1, 0, 1, 0, 0, 1], bool)
+    np.testing.assert_array_equal(out.valid.all(axis=1), present)
+    np.testing.assert_array_equal(out.position[present, 0], values[:, 0])
+    assert np.isnan(out.position[~present]).all() and np.isnan(out.current[~present]).all()
+    np.testing.assert_array_equal(out.target[:, 0], [10, 11, 11, 12, 12, 12, 13])   # held by the drives
+    assert out.metadata["slots_inserted"] == 3
+    on_time = Recording(**{**rec.__dict__, "t": np.arange(4) * 0.0101})             # jitter, no skip
+    assert with_skipped_slots(on_time) is on_time
+
+
+def test_skipped_sync_slots_on_hardware_keep_the_fit(tmp_path):
+    """Exact samples of the plant following the excitation at 100 Hz, as a thread-timed SYNC producer
+    on hardware records them when it skips 20 slots in 10 s: the drives move on through each skipped
+    slot, the recording has one row less each time. Put back as rows without samples, the base
+    parameters stay near those of the complete recording; taken as consecutive periods (what is
+    right only for the simulated rig, whose time advances by SYNC) they are far off."""
+    names = ", ".join(NAMES)
+    base = f"""trajectories:
+  - {{name: excitation, kind: fourier, cycles: 2}}
+identification:
+  steps:
+    - {{name: base, trajectories: [excitation], method: wls, parameters: [{names}]}}
+  validation: []
+"""
+    configs = {}
+    for kind, bus in (("hardware", "bus: {interface: socketcan, channel: can0}\n"), ("simulated", "")):
+        path = tmp_path / f"{kind}.yaml"
+        path.write_text(f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n{bus}{base}")
+        configs[kind] = load_config(path)
+    assert not configs["hardware"].simulated and configs["simulated"].simulated
+    (planned,) = plan(configs["hardware"], ["excitation"])
+    complete = exact_recording(configs["hardware"], planned.trajectory, 5e-4)
+    n = len(complete.t)
+    kept = np.setdiff1d(np.arange(n), np.random.default_rng(1).choice(np.arange(50, n - 50), 20, replace=False))
+    skipping = Recording(t=complete.t[kept], cycle=np.arange(len(kept)), position=complete.position[kept],
+                         velocity=complete.velocity[kept], current=complete.current[kept],
+                         statusword=complete.statusword[kept], target=complete.target[kept],
+                         valid=complete.valid[kept], metadata=complete.metadata)
+
+    def worst_error(config, rec):
+        fit = identify(config, {"excitation": rec}).base_fit
+        return np.abs((fit.coef - fit.truth) / fit.truth).max()
+
+    reference = worst_error(configs["hardware"], complete)
+    restored = worst_error(configs["hardware"], skipping)
+    as_consecutive = worst_error(configs["simulated"], skipping)
+    # measured: 0.70 %, 1.38 % (linear interpolation over the 20 empty rows), 45 %
+    assert reference < 0.01 and restored < 2 * reference + 0.005 and as_consecutive > 0.2, \
+        (reference, restored, as_consecutive)

@@ -13,40 +13,16 @@ campaign's own base-parameter step must recover the truth.
 import numpy as np
 import pytest
 
-from drivers.recording import Recording
-from drivers.sim import Plant
 from ident_hw.config import load_config
 from ident_hw.experiment.offline import identify
-from ident_hw.experiment.plan import plan, robot_model
+from ident_hw.experiment.plan import plan
 from ident_hw.model import ThreePRRR
 
-from test_ident_prep import CONFIGS
+from ident_scenarios import CONFIGS, exact_recording
 
 CYCLES = 4
 ThreePRRR_DEFAULT_SUBSTEP = 5e-4   # s, Plant's and sim.max_substep's default
 NAMES = ThreePRRR.parameter_names
-
-
-def exact_recording(config, traj, max_substep: float) -> Recording:
-    """The plant of ``config``'s rig (integration step ``max_substep``, s) following ``traj`` at the
-    SYNC rate, sampled exactly at every period start: positions, velocities, forces as currents."""
-    period = 1.0 / config.bus.sync_rate
-    sim = config.sim
-    plant = Plant(robot_model(config), sim.truth.to_model(), traj.Theta[0], bandwidth_hz=sim.bandwidth,
-                  damping=sim.damping, max_substep=max_substep)
-    enabled, limit = np.ones(6, bool), np.full(6, 1e6)
-    for k in range(len(traj.t) - 1):
-        # the demand of the period: the cubic through the trajectory's positions and velocities
-        q0, q1, v0, v1 = traj.Theta[k], traj.Theta[k + 1], traj.Thetad[k], traj.Thetad[k + 1]
-        c2 = (3 * (q1 - q0) - (2 * v0 + v1) * period) / period**2
-        c3 = ((v0 + v1) * period - 2 * (q1 - q0)) / period**3
-        plant.step(period, [q0, v0, c2, c3], enabled, limit)
-    truth = plant.truth()
-    n = len(truth["t"])
-    force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
-    return Recording(t=truth["t"], cycle=np.arange(n), position=truth["Theta"], velocity=truth["Thetad"],
-                     current=truth["force"] / force_per_amp, statusword=np.zeros((n, 6), np.int32),
-                     target=traj.Theta[:n], valid=np.ones((n, 6), bool), metadata={"sync_period": period})
 
 
 @pytest.mark.slow

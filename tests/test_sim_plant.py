@@ -4,7 +4,6 @@ import gc
 import math
 
 import numpy as np
-import pytest
 
 from drivers.sim import Plant, PlantJammed, TruthLog, nominal
 from ident_hw.model import ThreePRRR

@@ -98,13 +98,50 @@ def sample_times(rec: Recording) -> np.ndarray:
     return np.asarray(rec.t, dtype=float)
 
 
+#: two SYNCs further apart than this many periods: the producer skipped a slot
+SKIPPED_SLOT = 1.5
+
+
+def with_skipped_slots(rec: Recording) -> Recording:
+    """A hardware recording on the drives' time again: every SYNC slot a thread-timed producer
+    skipped (:class:`drivers.bus.GridPeriodicTask`; SYNC timestamps ``t`` more than
+    ``SKIPPED_SLOT`` periods apart) becomes a row without samples (NaN, invalid), so that
+    ``cycle × sync_period`` (:func:`sample_times`) is the time the drives ran. Real drives move
+    on through a skipped slot: without the rows, the motion across it would count one period
+    instead of two (20 skipped slots in 10 s biased base parameters by up to 45 %). Such a row
+    keeps the set-point and statusword of the row before (the drives held them). Not for the
+    simulated rig, whose time advances one period per SYNC received."""
+    period = rec.metadata.get("sync_period")
+    if not period or len(rec.t) < 2:
+        return rec
+    interval = np.diff(np.asarray(rec.t, dtype=float)) / float(period)
+    missing = np.where(interval > SKIPPED_SLOT, np.rint(interval).astype(np.int64) - 1, 0)
+    if not missing.any():
+        return rec
+    row = np.concatenate([[0], np.cumsum(1 + missing)])    # each recorded row's slot
+    n = int(row[-1]) + 1
+    held = np.zeros(n, dtype=np.int64)                      # for every slot, the recorded row before it
+    held[row] = np.arange(len(row))
+    held = np.maximum.accumulate(held)
+
+    def spread(values: np.ndarray) -> np.ndarray:
+        out = np.full((n,) + values.shape[1:], np.nan)
+        out[row] = values
+        return out
+
+    valid = np.zeros((n,) + rec.valid.shape[1:], dtype=bool)
+    valid[row] = rec.valid
+    metadata = dict(rec.metadata, slots_inserted=int(missing.sum()))
+    return Recording(t=np.interp(np.arange(n), row, rec.t), cycle=rec.cycle[0] + np.arange(n),
+                     position=spread(rec.position), velocity=spread(rec.velocity), current=spread(rec.current),
+                     statusword=rec.statusword[held], target=rec.target[held], valid=valid, metadata=metadata)
+
+
 #: a set-point sequence accelerating faster than this many times the axis limit was not
 #: delivered on time (the drive held a stale set-point, then jumped)
 SETPOINT_JUMP = 5.0
 #: a current within this fraction of the drive's limit is clipped, not a measurement
 SATURATION = 0.98
-
-
 def disturbed_samples(config: Config, rec: Recording, t: np.ndarray, reach: float) -> np.ndarray:
     """Samples (N,) bool near a disturbance the model cannot explain: a current at the drive's
     limit, or a set-point that arrived late (its second difference implies more than
@@ -127,7 +164,10 @@ def disturbed_samples(config: Config, rec: Recording, t: np.ndarray, reach: floa
 
 def prepare(config: Config, robot: ThreePRRR, name: str, rec: Recording) -> Prepared:
     """Recording → filtered motion, regressor and forces, decimated in parallel; decimated
-    samples near a disturbance (:func:`disturbed_samples`) are left out."""
+    samples near a disturbance (:func:`disturbed_samples`) are left out. On hardware the SYNC
+    slots the producer skipped are put back first (:func:`with_skipped_slots`)."""
+    if not config.simulated:
+        rec = with_skipped_slots(rec)
     t = sample_times(rec)
     if len(t) < 3:
         raise ValueError(f"recording of {name!r} has {len(t)} samples: too few to identify from")
