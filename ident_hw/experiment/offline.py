@@ -108,10 +108,10 @@ def with_skipped_slots(rec: Recording) -> Recording:
     ``SKIPPED_SLOT`` periods apart) becomes a row without samples (NaN, invalid), so that
     ``cycle × sync_period`` (:func:`sample_times`) is the time the drives ran. Real drives move
     on through a skipped slot: without the rows, the motion across it would count one period
-    instead of two (20 skipped slots in 10 s of exact samples biased base parameters by up to 45 %;
-    put back, 1.3 % against 0.7 % from the complete recording). Such a row
-    keeps the set-point and statusword of the row before (the drives held them); the rows around
-    it are left out of the fits (:func:`disturbed_samples`). Not for the simulated rig, whose time
+    instead of two (20 skipped slots in 10 s of exact samples biased base parameters by up to
+    45 %; put back, 1.3 % against 0.7 % from the complete recording). Such a row keeps the
+    set-point and statusword of the row before (the drives held them); the rows around it are
+    left out of the fits (:func:`disturbed_samples`). Not for the simulated rig, whose time
     advances one period per SYNC received."""
     period = rec.metadata.get("sync_period")
     if not period or len(rec.t) < 2:
@@ -144,6 +144,8 @@ def with_skipped_slots(rec: Recording) -> Recording:
 SETPOINT_JUMP = 5.0
 #: a current within this fraction of the drive's limit is clipped, not a measurement
 SATURATION = 0.98
+
+
 def disturbed_samples(config: Config, rec: Recording, t: np.ndarray, reach: float) -> np.ndarray:
     """Samples (N,) bool near a disturbance the model cannot explain: a current at the drive's
     limit, a set-point that arrived late (its second difference implies more than
