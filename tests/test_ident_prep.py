@@ -6,7 +6,7 @@ from scipy import linalg
 
 from drivers.recording import Recording
 from ident_hw.config import load_config
-from ident_hw.experiment.offline import identify, with_skipped_slots
+from ident_hw.experiment.offline import disturbed_samples, identify, with_skipped_slots
 from ident_hw.experiment.plan import excitation_of, motion_bandwidth, plan
 from ident_hw.identification.least_squares import ols, output_noise_std, wls
 from ident_hw.signal import central_derivatives
@@ -153,7 +153,7 @@ def test_skipped_sync_slots_become_rows_without_samples():
     t = np.array([0.0, 0.010, 0.030, 0.060])
     values = np.arange(4.0)[:, None] * np.ones((1, 6))
     rec = Recording(t=t, cycle=np.arange(7, 11), position=values, velocity=values, current=values,
-                    statusword=np.full((4, 6), 0x1237, np.int32), target=values + 10, valid=np.ones((4, 6), bool),
+                    statusword=np.full((4, 6), 0x1237, np.int32), target=(values + 10) * 1e-6, valid=np.ones((4, 6), bool),
                     metadata={"sync_period": 0.01})
     out = with_skipped_slots(rec)
     np.testing.assert_allclose(out.t, np.arange(7) * 0.01)
@@ -162,10 +162,14 @@ def test_skipped_sync_slots_become_rows_without_samples():
     np.testing.assert_array_equal(out.valid.all(axis=1), present)
     np.testing.assert_array_equal(out.position[present, 0], values[:, 0])
     assert np.isnan(out.position[~present]).all() and np.isnan(out.current[~present]).all()
-    np.testing.assert_array_equal(out.target[:, 0], [10, 11, 11, 12, 12, 12, 13])   # held by the drives
-    assert out.metadata["slots_inserted"] == 3
+    np.testing.assert_array_equal(out.target[:, 0] * 1e6, [10, 11, 11, 12, 12, 12, 13])   # held by the drives
+    assert out.metadata["slots_inserted"] == 3 and out.metadata["inserted_rows"] == [2, 4, 5]
     on_time = Recording(**{**rec.__dict__, "t": np.arange(4) * 0.0101})             # jitter, no skip
     assert with_skipped_slots(on_time) is on_time
+    # the put-back rows are left out of the fits; a cycle that merely came incomplete is not
+    out.valid[1] = False
+    config = load_config(CONFIGS / "sim-3prrr.yaml")
+    np.testing.assert_array_equal(disturbed_samples(config, out, out.t, 0.0), ~present)
 
 
 def test_skipped_sync_slots_on_hardware_keep_the_fit(tmp_path):

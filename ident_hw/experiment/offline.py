@@ -111,7 +111,7 @@ def with_skipped_slots(rec: Recording) -> Recording:
     instead of two (20 skipped slots in 10 s of exact samples biased base parameters by up to
     45 %; put back, 1.3 % against 0.7 % from the complete recording). Such a row keeps the
     set-point and statusword of the row before (the drives held them); the rows around it are
-    left out of the fits (:func:`disturbed_samples`). Not for the simulated rig, whose time
+    left out of the fits (:func:`disturbed_samples`, metadata ``inserted_rows``). Not for the simulated rig, whose time
     advances one period per SYNC received."""
     period = rec.metadata.get("sync_period")
     if not period or len(rec.t) < 2:
@@ -133,7 +133,8 @@ def with_skipped_slots(rec: Recording) -> Recording:
 
     valid = np.zeros((n,) + rec.valid.shape[1:], dtype=bool)
     valid[row] = rec.valid
-    metadata = dict(rec.metadata, slots_inserted=int(missing.sum()))
+    inserted = np.setdiff1d(np.arange(n), row)
+    metadata = dict(rec.metadata, slots_inserted=len(inserted), inserted_rows=inserted.tolist())
     return Recording(t=np.interp(np.arange(n), row, rec.t), cycle=rec.cycle[0] + np.arange(n),
                      position=spread(rec.position), velocity=spread(rec.velocity), current=spread(rec.current),
                      statusword=rec.statusword[held], target=rec.target[held], valid=valid, metadata=metadata)
@@ -149,14 +150,15 @@ SATURATION = 0.98
 def disturbed_samples(config: Config, rec: Recording, t: np.ndarray, reach: float) -> np.ndarray:
     """Samples (N,) bool near a disturbance the model cannot explain: a current at the drive's
     limit, a set-point that arrived late (its second difference implies more than
-    ``SETPOINT_JUMP`` × the axis' acceleration limit), or a row without any sample (every
-    frame of the cycle missing, or a skipped SYNC slot put back by :func:`with_skipped_slots`:
-    the gap-filling interpolation stands in for all six axes there). Each is widened by
-    ``reach`` s on both sides (the support of the filters that spread it)."""
+    ``SETPOINT_JUMP`` × the axis' acceleration limit), or a skipped SYNC slot put back by
+    :func:`with_skipped_slots` (metadata ``inserted_rows``: the drives moved on there, the
+    gap-filling interpolation stands in for all six axes). Each is widened by ``reach`` s on
+    both sides (the support of the filters that spread it). Cycles that came incomplete are
+    not: their gaps are filled (on a slow simulated rig they can be most of the cycles)."""
     acts = config.robot.actuators
     limit = np.array([a.limits.current for a in acts])
     bad = np.any(np.abs(np.nan_to_num(rec.current)) >= SATURATION * limit, axis=1)
-    bad |= ~rec.valid.any(axis=1)
+    bad[np.asarray(rec.metadata.get("inserted_rows", ()), dtype=np.int64)] = True
     if len(t) > 2:
         dt = float(np.median(np.diff(t)))
         counts = np.array([a.scaling().counts_per_unit for a in acts])
@@ -248,7 +250,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         prepared[name] = prepare(config, robot, name, recordings[name])
         if progress and prepared[name].excluded:
             progress(f"  {name}: {prepared[name].excluded} of {prepared[name].excluded + len(prepared[name].t)} "
-                     "samples left out (current at its limit or late set-point nearby)")
+                     "samples left out (current at its limit, late set-point or skipped SYNC slot nearby)")
 
     n = len(NAMES)
     initial = config.robot.cad.to_model().as_vector()
