@@ -360,19 +360,20 @@ def _percent(value: float | None) -> str:
 
 def _accuracy_line(rows: list[dict], results: Results) -> str:
     """Against the simulated truth: the largest error among the well-identified estimates."""
-    errors = [(abs(r["error_percent"]), r["name"]) for r in rows
-              if r["step"] and not _poorly_identified(r, results) and r.get("error_percent") is not None]
-    text = f"accuracy vs truth, well identified only: {len(errors)} physical parameters"
-    if errors:
-        worst = max(errors)
-        text += f" (largest error {worst[0]:.2f} %, {worst[1]})"
-    if results.base_fit is not None:
-        base = [(abs(r["error_percent"]), r["base_parameter"]) for r in results.base_fit.rows()
-                if r["well_identified"] and r.get("error_percent") is not None]
-        text += f", {len(base)} base parameters"
-        if base:
-            worst = max(base)
+    def largest(errors: list[tuple[float, str]], what: str) -> str:
+        text = f"{len(errors)} {what}"
+        if errors:
+            worst = max(errors)
             text += f" (largest error {worst[0]:.2f} %, {worst[1]})"
+        return text
+
+    text = "accuracy vs truth, well identified only: " + largest(
+        [(abs(r["error_percent"]), r["name"]) for r in rows
+         if r["step"] and not _poorly_identified(r, results) and r.get("error_percent") is not None],
+        "physical parameters")
+    if results.base_fit is not None:
+        text += ", " + largest([(abs(r["error_percent"]), r["base_parameter"]) for r in results.base_fit.rows()
+                                if r["well_identified"] and r.get("error_percent") is not None], "base parameters")
     return text
 
 

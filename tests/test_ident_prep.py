@@ -5,9 +5,10 @@ import pytest
 from scipy import linalg
 
 from drivers.recording import Recording
+from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
 from ident_hw.config import load_config
-from ident_hw.experiment.offline import disturbed_samples, identify, with_skipped_slots
-from ident_hw.experiment.plan import excitation_of, motion_bandwidth, plan
+from ident_hw.experiment.offline import disturbed_samples, identify, prepare, with_skipped_slots
+from ident_hw.experiment.plan import excitation_of, motion_bandwidth, plan, robot_model
 from ident_hw.identification.least_squares import ols, output_noise_std, wls
 from ident_hw.signal import central_derivatives
 
@@ -102,10 +103,6 @@ def test_filter_bandwidth_key_overrides(tmp_path):
 def test_rows_of_axes_near_rest_are_left_out_of_the_fits():
     """The carriage sweep (links held): every link row is left out, a carriage row only where the
     carriage moves at >= min_speed x its velocity limit; plots and metrics keep every row."""
-    from drivers.recording import Recording
-    from ident_hw.experiment.offline import prepare
-    from ident_hw.experiment.plan import plan, robot_model
-
     config = load_config(CONFIGS / "sim-3prrr.yaml")
     robot = robot_model(config)
     (planned,) = plan(config, ["sweep"])
@@ -130,8 +127,6 @@ def test_check_notes_set_point_quantisation_above_the_motion(tmp_path):
     """One count per SYNC period on a link: 2048 counts x 26 per turn at 250 Hz (the paper's rate)
     is 7.37 rad/s², above the excitation's RMS link accelerations (1.5-2.3), below the squares'
     (8-10); at the shipped simulation's 100 Hz it is 1.18 rad/s², below both: no note."""
-    from ident_hw.experiment.plan import plan
-
     shipped = load_config(CONFIGS / "sim-3prrr.yaml")
     assert shipped.bus.sync_rate == 100.0
     assert all(p.notes == () for p in plan(shipped, ["square1", "excitation"]))
@@ -193,7 +188,7 @@ identification:
         configs[kind] = load_config(path)
     assert not configs["hardware"].simulated and configs["simulated"].simulated
     (planned,) = plan(configs["hardware"], ["excitation"])
-    complete = exact_recording(configs["hardware"], planned.trajectory, 5e-4)
+    complete = exact_recording(configs["hardware"], planned.trajectory, DEFAULT_MAX_SUBSTEP)
     n = len(complete.t)
     kept = np.setdiff1d(np.arange(n), np.random.default_rng(1).choice(np.arange(50, n - 50), 20, replace=False))
     skipping = Recording(t=complete.t[kept], cycle=np.arange(len(kept)), position=complete.position[kept],

@@ -13,6 +13,7 @@ campaign's own base-parameter step must recover the truth.
 import numpy as np
 import pytest
 
+from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
 from ident_hw.config import load_config
 from ident_hw.experiment.offline import identify
 from ident_hw.experiment.plan import plan
@@ -21,7 +22,6 @@ from ident_hw.model import ThreePRRR
 from ident_scenarios import CONFIGS, exact_recording
 
 CYCLES = 4
-ThreePRRR_DEFAULT_SUBSTEP = 5e-4   # s, Plant's and sim.max_substep's default
 NAMES = ThreePRRR.parameter_names
 
 
@@ -50,15 +50,15 @@ def test_vcan_config_coarser_integration_step_keeps_the_carriage_fit():
     10 Hz: on exact samples of its sweep its carriage step recovers the truth within 1 %, and the
     coarser step changes the estimates by less than the 10 Hz sampling itself errs."""
     config = load_config(CONFIGS / "vcan-3prrr.yaml")
-    assert config.sim.max_substep > ThreePRRR_DEFAULT_SUBSTEP
+    assert config.sim.max_substep > DEFAULT_MAX_SUBSTEP
     (planned,) = plan(config)
     (step,) = config.identification.steps
     errors = {}
-    for substep in (config.sim.max_substep, ThreePRRR_DEFAULT_SUBSTEP):
+    for substep in (config.sim.max_substep, DEFAULT_MAX_SUBSTEP):
         table = identify(config, {planned.config.name: exact_recording(config, planned.trajectory, substep)}).parameters
         rows = {r["name"]: r for r in table.rows()}
         errors[substep] = np.array([(rows[p]["identified"] - rows[p]["truth"]) / rows[p]["truth"] for p in step.parameters])
-    coarse, fine = (100 * errors[s] for s in (config.sim.max_substep, ThreePRRR_DEFAULT_SUBSTEP))
+    coarse, fine = (100 * errors[s] for s in (config.sim.max_substep, DEFAULT_MAX_SUBSTEP))
     assert np.abs(coarse).max() < 1.0, dict(zip(step.parameters, coarse.round(3)))
     # the integrator's share is below half the error the 10 Hz sampling leaves with the fine step
     # (measured: 0.35 % of m_c against 0.90 % of fv_zeta2; at 2 ms it was 2.0 % of m_c)

@@ -13,6 +13,7 @@ import signal
 import threading
 
 from drivers.sim import SimulatedRig, nominal
+from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
 
 
 def main(argv=None) -> None:
@@ -25,7 +26,7 @@ def main(argv=None) -> None:
     parser.add_argument("--sync-period", type=float, default=None,
                         help="plant step per SYNC in s (default: 0x1006 or the measured SYNC interval)")
     parser.add_argument("--current-noise-ma", type=float, default=2.0)
-    parser.add_argument("--max-substep", type=float, default=5e-4,
+    parser.add_argument("--max-substep", type=float, default=DEFAULT_MAX_SUBSTEP,
                         help="integration step of the plant in s (a slow host may need a coarser one)")
     args = parser.parse_args(argv)
     bus_kwargs = {"interface": args.interface, "channel": args.channel}

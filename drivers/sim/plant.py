@@ -36,6 +36,10 @@ from ident_hw.model import InertialParams, KinematicsError, ThreePRRR
 from ident_hw.model.dynamics import friction
 
 
+#: s, the plant's integration step unless configured (``sim.max_substep``)
+DEFAULT_MAX_SUBSTEP = 5e-4
+
+
 class PlantJammed(RuntimeError):
     """The mechanism cannot follow: its forward kinematics failed (parallel singularity crossed)."""
 
@@ -106,7 +110,7 @@ class Plant:
 
     def __init__(self, robot: ThreePRRR, params: InertialParams, Theta0=None, *,
                  bandwidth_hz: float = 20.0, damping: float = 1.0, gains=None,
-                 max_substep: float = 5e-4, log_length: int = 600_000):
+                 max_substep: float = DEFAULT_MAX_SUBSTEP, log_length: int = 600_000):
         if not max_substep > 0:
             raise ValueError(f"max_substep must be positive, got {max_substep}")
         if gains is None and not (bandwidth_hz > 0 and damping > 0):
@@ -155,23 +159,17 @@ class Plant:
                 pose that closed them, at rest.
         """
         try:  # one forward kinematics: the pose and the dynamics from the same Motion
-            M, c, X = self._dynamics_at(self.Theta, self.Thetad, self.X)
+            motion = self.robot.motion_from_actuated(self.Theta[None], self.Thetad[None], np.zeros((1, 6)), self.X)
         except KinematicsError as exc:
             message = f"the simulated robot jammed at Theta = {np.round(self.Theta, 5).tolist()}: {exc}"
             self.Theta, self.X = self._last_valid
             self.Thetad = np.zeros(6)
             self._previous = None
             raise PlantJammed(message) from exc
-        self.X = X
+        self.X = motion.X[0]
         self._last_valid = (self.Theta, self.X)
-        return M, c
-
-    def _dynamics_at(self, Theta, Thetad, X_guess):
-        """``(M, c, X)`` at an actuated state: reduced mass matrix (6, 6), velocity terms without
-        friction (6,), pose (3,). Raises :class:`KinematicsError` where no pose closes the chains."""
-        motion = self.robot.motion_from_actuated(Theta[None], Thetad[None], np.zeros((1, 6)), X_guess)
         M, c = self.robot.reduced_dynamics_of(motion, self.params)
-        return M[0], c[0] - self._friction(Thetad), motion.X[0]
+        return M[0], c[0] - self._friction(self.Thetad)
 
     def _friction(self, Thetad) -> np.ndarray:
         return friction(Thetad, self.params, self.robot.coulomb_width)

@@ -40,7 +40,7 @@ import numpy as np
 from drivers.axis import AxisConfig
 from drivers.gc_freeze import frozen_gc
 from drivers.sim.drive import EMCY_FOLLOWING_ERROR, FAULT, FAULT_REACTION, EmulatedDrive
-from drivers.sim.plant import Plant, PlantJammed
+from drivers.sim.plant import DEFAULT_MAX_SUBSTEP, Plant, PlantJammed
 from drivers.units import AxisScaling
 from ident_hw.model import Geometry, InertialParams, ThreePRRR
 
@@ -151,7 +151,7 @@ class SimulatedRig:
 
     @classmethod
     def build(cls, geometry: Geometry, truth: InertialParams, axes, *, coulomb_width: float = 1e-3,
-              bandwidth_hz: float = 20.0, damping: float = 1.0, max_substep: float = 5e-4, Theta0=None,
+              bandwidth_hz: float = 20.0, damping: float = 1.0, max_substep: float = DEFAULT_MAX_SUBSTEP, Theta0=None,
               **rig_kwargs) -> SimulatedRig:
         """A rig from plain settings (what a config file holds); not started.
 

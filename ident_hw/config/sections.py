@@ -13,6 +13,7 @@ from typing import Literal
 
 import drivers.axis
 import drivers.bus
+from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
 from drivers.units import PRISMATIC, REVOLUTE, AxisScaling
 from ident_hw.model import ACTUATOR_NAMES, Geometry, InertialParams
 from ident_hw.signal import FilterSettings
@@ -232,7 +233,7 @@ class SimConfig:
     current_noise: float = field(default=0.0, metadata=spec(non_negative, unit="A", doc="Gaussian std"))
     bandwidth: float = field(default=20.0, metadata=spec(positive, unit="Hz", doc="position loops"))
     damping: float = field(default=1.0, metadata=spec(positive))
-    max_substep: float = field(default=5e-4, metadata=spec(
+    max_substep: float = field(default=DEFAULT_MAX_SUBSTEP, metadata=spec(
         in_range(1e-5, 0.01), unit="s", doc="integration step of the plant (Heun, second order): the rig's CPU "
                                             "time per simulated second is inversely proportional to it"))
     in_process: bool = True
