@@ -18,6 +18,7 @@ import numpy as np
 
 from drivers.recording import Recording
 from drivers.sim import Plant, nominal
+from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
 from ident_hw.experiment.plan import robot_model
 from ident_hw.model import InertialParams, ThreePRRR
 
@@ -203,13 +204,14 @@ def identify_paper_steps(data: dict, initial: np.ndarray) -> list:
     return fits
 
 
-def exact_recording(config, traj, max_substep: float) -> Recording:
-    """The plant of ``config``'s rig (integration step ``max_substep``, s) following ``traj`` at the
+def exact_recording(config, traj, max_substep: float | None) -> Recording:
+    """The plant of ``config``'s rig (integration step ``max_substep``, s, ``None``: the plant's
+    default) following ``traj`` at the
     SYNC rate, sampled exactly at every period start: positions, velocities, forces as currents."""
     period = 1.0 / config.bus.sync_rate
     sim = config.sim
     plant = Plant(robot_model(config), sim.truth.to_model(), traj.Theta[0], bandwidth_hz=sim.bandwidth,
-                  damping=sim.damping, max_substep=max_substep)
+                  damping=sim.damping, max_substep=max_substep or DEFAULT_MAX_SUBSTEP)
     enabled, limit = np.ones(6, bool), np.full(6, 1e6)
     for k in range(len(traj.t) - 1):
         # the demand of the period: the cubic through the trajectory's positions and velocities

@@ -30,14 +30,57 @@ from __future__ import annotations
 
 from collections import deque
 
+import numba
 import numpy as np
 
 from ident_hw.model import InertialParams, KinematicsError, ThreePRRR
 from ident_hw.model.dynamics import friction
+from ident_hw.model.single import SingleState
 
 
 #: s, the plant's integration step unless configured (``sim.max_substep``)
 DEFAULT_MAX_SUBSTEP = 5e-4
+
+
+@numba.njit(cache=True)
+def _heun(Theta, Thetad, dt, n_sub, M_inv0, M_slope, bias0, bias_slope, loop_demand, Kp, Kd, low, high,
+          f_v, f_c, width):
+    """``n_sub`` Heun steps of ``dt`` s (Euler predictor, trapezoid corrector) of
+    ``Thetadd = M^-1(t) (F - bias(t) - f_v Thetad - f_c tanh(Thetad / width))`` with the loop force
+    ``F = clip(loop_demand[k] - Kp Theta - Kd Thetad, low, high)`` at substep boundary ``k`` and
+    ``M^-1``, ``bias`` linear in ``t``. Returns the end state, and the force and acceleration at
+    the start. Compiled (numba): it is most of the simulated rig's work per SYNC."""
+    n = Theta.shape[0]
+    F = np.empty(n)
+    u = np.empty(n)
+
+    def acceleration(q, qd, k, out_force):
+        t = k * dt
+        for j in range(n):
+            f = loop_demand[k, j] - Kp[j] * q[j] - Kd[j] * qd[j]
+            f = min(max(f, low[j]), high[j])
+            out_force[j] = f
+            u[j] = f - (bias0[j] + t * bias_slope[j]) - (f_v[j] * qd[j] + f_c[j] * np.tanh(qd[j] / width))
+        a = np.empty(n)
+        for r in range(n):
+            acc = 0.0
+            for j in range(n):
+                acc += (M_inv0[r, j] + t * M_slope[r, j]) * u[j]
+            a[r] = acc
+        return a
+
+    force0 = np.empty(n)
+    q, qd = Theta.copy(), Thetad.copy()
+    a1 = acceleration(q, qd, 0, force0)
+    a0 = a1.copy()
+    for k in range(n_sub):
+        if k:
+            a1 = acceleration(q, qd, k, F)
+        qd_p = qd + dt * a1
+        a2 = acceleration(q + dt * qd, qd_p, k + 1, F)
+        q = q + 0.5 * dt * (qd + qd_p)
+        qd = qd + 0.5 * dt * (a1 + a2)
+    return q, qd, force0, a0
 
 
 class PlantJammed(RuntimeError):
@@ -116,6 +159,7 @@ class Plant:
         if gains is None and not (bandwidth_hz > 0 and damping > 0):
             raise ValueError(f"bandwidth_hz and damping must be positive, got {bandwidth_hz}, {damping}")
         self.robot = robot
+        self._single = SingleState(robot.kinematics)
         self._base_params = params
         self.params = params
         if Theta0 is None:
@@ -158,18 +202,16 @@ class Plant:
             PlantJammed: no pose closes the chains at ``Theta``; the plant goes back to the last
                 pose that closed them, at rest.
         """
-        try:  # one forward kinematics: the pose and the dynamics from the same Motion
-            motion = self.robot.motion_from_actuated(self.Theta[None], self.Thetad[None], np.zeros((1, 6)), self.X)
+        try:  # one forward kinematics: the pose and the dynamics of the same state
+            M, c, self.X = self._single.reduced_dynamics(self.Theta, self.Thetad, self.params, self.X)
         except KinematicsError as exc:
             message = f"the simulated robot jammed at Theta = {np.round(self.Theta, 5).tolist()}: {exc}"
             self.Theta, self.X = self._last_valid
             self.Thetad = np.zeros(6)
             self._previous = None
             raise PlantJammed(message) from exc
-        self.X = motion.X[0]
         self._last_valid = (self.Theta, self.X)
-        M, c = self.robot.reduced_dynamics_of(motion, self.params)
-        return M[0], c[0] - self._friction(self.Thetad)
+        return M, c
 
     def _friction(self, Thetad) -> np.ndarray:
         return friction(Thetad, self.params, self.robot.coulomb_width)
@@ -210,33 +252,19 @@ class Plant:
         # over the period from the previous period's start (second order in the period; holding
         # the start's values over a 10 ms period biased the identified link friction by 5 %)
         M_inv0 = np.linalg.inv(M)
-        M_inv, bias_t = M_inv0[None], bias[None]
+        M_slope, bias_slope = np.zeros((6, 6)), np.zeros(6)      # per s of the period
         previous, self._previous = self._previous, (period, M_inv0, bias)
         if previous is not None and 0.5 * period <= previous[0] <= 2 * period:   # not after a much shorter step
-            tau = (np.arange(n_sub + 1) * dt / previous[0])[:, None]       # previous[0]: its period
-            M_inv = M_inv0 + tau[:, :, None] * (M_inv0 - previous[1])
-            bias_t = bias + tau * (bias - previous[2])
-        M_inv = np.broadcast_to(M_inv, (n_sub + 1, 6, 6))
-        external = self.external_force - np.broadcast_to(bias_t, (n_sub + 1, 6))
-        # the hot loop (two evaluations per substep): the loop's demand part and the friction
-        # coefficients computed once per period, as in _loop_force and model.dynamics.friction
+            M_slope = (M_inv0 - previous[1]) / previous[0]              # previous[0]: its period
+            bias_slope = (bias - previous[2]) / previous[0]
+        # the hot loop (two evaluations per substep), compiled: the loop's demand part computed
+        # once per period, the loop force and the friction as in _loop_force and model.dynamics.friction
         loop_demand = Kp * q_d + Kd * v_d
-        f_v, f_c, width = np.asarray(self.params.f_v), np.asarray(self.params.f_c), self.robot.coulomb_width
-
-        def acceleration(Theta, Thetad, k):
-            F = np.minimum(np.maximum(loop_demand[k] - Kp * Theta - Kd * Thetad, low), high)
-            return F, M_inv[k] @ (F + external[k] - (f_v * Thetad + f_c * np.tanh(Thetad / width)))
-
-        Theta, Thetad = self.Theta, self.Thetad
-        self.force, a1 = acceleration(Theta, Thetad, 0)
-        self.log.append(self.t, self.X, Theta, Thetad, a1, self.force)
-        for k in range(n_sub):                                    # Heun: Euler predictor, trapezoid corrector
-            if k:
-                a1 = acceleration(Theta, Thetad, k)[1]
-            Thetad_p = Thetad + dt * a1
-            a2 = acceleration(Theta + dt * Thetad, Thetad_p, k + 1)[1]
-            Theta = Theta + 0.5 * dt * (Thetad + Thetad_p)
-            Thetad = Thetad + 0.5 * dt * (a1 + a2)
+        Theta, Thetad, self.force, a0 = _heun(
+            self.Theta, self.Thetad, dt, n_sub, M_inv0, M_slope, bias - self.external_force, bias_slope,
+            loop_demand, Kp, Kd, low, high, np.asarray(self.params.f_v, dtype=float),
+            np.asarray(self.params.f_c, dtype=float), self.robot.coulomb_width)
+        self.log.append(self.t, self.X, self.Theta, self.Thetad, a0, self.force)
         self.Theta, self.Thetad = Theta, Thetad
         self.t += period
 
