@@ -15,7 +15,10 @@ SocketCAN) opens a cycle and gives its timestamp; the SYNC-triggered TPDOs recei
 next SYNC fill it; the RPDO echoes seen in a cycle are the set-points the drives take over at
 the next SYNC, so they become the ``target`` of the next row. A cycle that misses a frame, or
 receives one twice (a late frame of the previous cycle), is flagged invalid for that axis and
-its values are left out — never filled from an earlier cycle. The EPOS4 statusword, which is
+its values are left out — never filled from an earlier cycle. A SYNC that repeats the counter of
+the open cycle (a lockstep retry, :mod:`drivers.sync`) opens no new cycle; the TPDOs answering it
+are the same frames again and are taken as such (a different frame is still a late one). In
+lockstep (``period`` given) a row's time is its cycle index times the period: the simulated time. The EPOS4 statusword, which is
 event-driven by design, is reported as the last value received.
 
 Decoding uses precompiled :class:`struct.Struct` s; the listener runs in the notifier thread and
@@ -154,13 +157,16 @@ class CycleAssembler(can.Listener):
         max_cycles: stop after this many rows (``None``: no limit).
         forward: listeners that receive every message first (e.g. the raw-traffic logger), so
             that the raw log holds exactly the frames this assembler saw.
+        period: in lockstep, the SYNC period (s): row ``k`` gets the time ``k * period``
+            instead of its SYNC's bus timestamp.
     """
 
     def __init__(self, axes: Sequence[AxisLayout], sink: Callable[[Row], None],
                  on_sync: Callable[[int], None] | None = None,
                  on_status: Callable[[int, int], None] | None = None,
                  on_bus_error: Callable[[str], None] | None = None,
-                 max_cycles: int | None = None, forward: Sequence[can.Listener] = ()):
+                 max_cycles: int | None = None, forward: Sequence[can.Listener] = (),
+                 period: float | None = None):
         self.n_axes = len(axes)
         self._sink = sink
         self._on_sync = on_sync
@@ -168,6 +174,7 @@ class CycleAssembler(can.Listener):
         self._on_bus_error = on_bus_error
         self.max_cycles = max_cycles
         self._forward = tuple(forward)
+        self._period = period
         self._tpdo: dict[int, tuple] = {}
         self._rpdo: dict[int, tuple] = {}
         self._expected = []
@@ -192,9 +199,14 @@ class CycleAssembler(can.Listener):
         self._status_reported = [False] * self.n_axes
         self._pending_target = [None] * self.n_axes
         self._open = None  # the cycle being filled, see _new_cycle
+        self._open_counter = None  # SYNC counter of the open cycle (None: SYNC without counter)
+        self._frames: dict[int, bytes] = {}  # TPDO data of the open cycle by COB-ID
 
     def _new_cycle(self, timestamp: float) -> list:
         n = self.n_axes
+        if self._period is not None:
+            timestamp = self.cycles * self._period
+        self._frames = {}
         # [timestamp, position, velocity, current, received-frame bits, duplicate, target]
         return [timestamp, [None] * n, [None] * n, [None] * n, [0] * n, [False] * n,
                 list(self._pending_target)]
@@ -204,7 +216,7 @@ class CycleAssembler(can.Listener):
             listener.on_message_received(msg)
         if self.done:
             if msg.arbitration_id == SYNC_COB_ID and not (msg.is_remote_frame or msg.is_error_frame):
-                self._sync(msg.timestamp)    # no more rows, but on_sync still follows the SYNC
+                self._sync(msg.timestamp, msg.data)    # no more rows, but on_sync still follows the SYNC
             return
         if msg.is_error_frame:
             self.error_frames += 1
@@ -214,11 +226,11 @@ class CycleAssembler(can.Listener):
             return
         cob_id = msg.arbitration_id
         if cob_id == SYNC_COB_ID and not msg.is_remote_frame:
-            self._sync(msg.timestamp)
+            self._sync(msg.timestamp, msg.data)
             return
         handler = self._tpdo.get(cob_id)
         if handler is not None:
-            self._tpdo_frame(handler, msg.data)
+            self._tpdo_frame(cob_id, handler, msg.data)
             return
         handler = self._rpdo.get(cob_id)
         if handler is not None:
@@ -226,13 +238,18 @@ class CycleAssembler(can.Listener):
             values = unpack(bytes(msg.data))
             self._pending_target[axis] = values[fields.index("target")]
 
-    def _tpdo_frame(self, handler, data) -> None:
+    def _tpdo_frame(self, cob_id: int, handler, data) -> None:
         axis, unpack, fields, bit = handler
+        data = bytes(data)
         try:
-            values = unpack(bytes(data))
+            values = unpack(data)
         except struct.error:
             return  # wrong length: treated as not received
         cycle = self._open
+        if cycle is not None and bit:
+            if self._frames.get(cob_id) == data and self._open_counter is not None:
+                return  # the same frame again, answering a repeated SYNC (lockstep retry)
+            self._frames[cob_id] = data
         for name, value in zip(fields, values):
             if name == "statusword":
                 self._statusword[axis] = value
@@ -248,7 +265,11 @@ class CycleAssembler(can.Listener):
                 self.late_frames += 1
             cycle[4][axis] |= bit
 
-    def _sync(self, timestamp: float) -> None:
+    def _sync(self, timestamp: float, data=b"") -> None:
+        counter = data[0] if len(data) else None
+        if counter is not None and counter == self._open_counter:
+            return  # a repeated SYNC (lockstep retry): the same cycle, asked again
+        self._open_counter = counter
         if self._open is not None:
             self._close()
         if not self.done:

@@ -17,7 +17,7 @@ from __future__ import annotations
 import logging
 import time
 from contextlib import ExitStack
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import canopen
 import numpy as np
@@ -29,11 +29,12 @@ from drivers.acquisition import (STATUS_FAULT, STATUS_FOLLOWING_ERROR, AxisLayou
 from drivers.axis import AxisConfig
 from drivers.bus import SYNC_COB_ID, BusConfig, check_bus_load, frame_bits
 from drivers.emcy import describe
-from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, NodeError
+from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, HeartbeatTimeout, NodeError
 from drivers.gc_freeze import GcPauses, frozen_gc
 from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, make_object_dictionary
 from drivers.recording import FlushingLogger, Recording, SampleRecorder
 from drivers.supervision import Supervisor
+from drivers.sync import SYNC_MODES, LockstepSync
 
 logger = logging.getLogger(__name__)
 
@@ -46,6 +47,7 @@ SW_SETPOINT_ACK = 0x1000  # bit 12 (PPM set-point acknowledge, HMM homing attain
 MODE_PPM, MODE_HMM = 1, 6
 HEARTBEAT_CONSUMER = (0x1016, 1)  # consumer heartbeat time 1: node-ID << 16 | time in ms
 NMT_OPERATIONAL = 0x05  # heartbeat state byte
+WAIT_POLL = 0.02  # s between two statusword polls of the drives while they home or move
 
 
 def _state_of(statusword: int) -> str:
@@ -76,6 +78,10 @@ class EposDrive:
         network.add_node(self.node)
         self.node.emcy.add_callback(supervisor.emcy_callback(self.label, self.profile.name))
         self.frames: tuple[PdoFrame, ...] = ()
+        #: the time base and the pause of the state waits (quick stop, fault reaction, mode
+        #: switch): wall-clock by default; the drive group's lockstep SYNC in lockstep
+        self.clock: Callable[[], float] = time.monotonic
+        self.tick: Callable[[], None] = lambda: time.sleep(0.002)
 
     # -- SDO access, errors naming node and object ---------------------------------------------
     def _var(self, ref: ObjectRef | tuple[int, int]) -> SdoVariable:
@@ -238,15 +244,15 @@ class EposDrive:
         logger.warning("%s: in FAULT at start (%s), resetting", self.label, self.error_text())
         self._controlword(State402.CW_DISABLE_VOLTAGE)
         self._controlword(CW_FAULT_RESET)
-        deadline = time.monotonic() + timeout
+        deadline = self.clock() + timeout
         while self.state in ("FAULT", "FAULT REACTION ACTIVE"):
-            if time.monotonic() > deadline:
+            if self.clock() > deadline:
                 raise NodeError(self.label, f"still in FAULT after a fault reset ({self.error_text()})")
-            time.sleep(0.005)
+            self.tick()
 
     def set_state(self, target: str, timeout: float = 1.0) -> None:
         """Walk the CiA 402 state machine to ``target`` (one transition per controlword write)."""
-        deadline = time.monotonic() + timeout
+        deadline = self.clock() + timeout
         state = self.state
         while state != target:
             if state in ("FAULT", "FAULT REACTION ACTIVE"):
@@ -261,10 +267,10 @@ class EposDrive:
                 state = self.state
                 if state == step or state in ("FAULT", "FAULT REACTION ACTIVE"):
                     break
-                if time.monotonic() > deadline:
+                if self.clock() > deadline:
                     raise NodeError(self.label, f"stays in {state}, expected {step} on the way to "
                                     f"{target} (statusword 0x{self.statusword:04X})")
-                time.sleep(0.002)
+                self.tick()
 
     def enable(self) -> None:
         self.set_state("OPERATION ENABLED")
@@ -272,12 +278,12 @@ class EposDrive:
     def _wait_while(self, busy, timeout: float) -> int:
         """Poll the statusword until ``busy(state, statusword)`` is false or ``timeout`` s passed;
         return the last statusword."""
-        deadline = time.monotonic() + timeout
+        deadline = self.clock() + timeout
         while True:
             sw = self.statusword
-            if not busy(_state_of(sw), sw) or time.monotonic() > deadline:
+            if not busy(_state_of(sw), sw) or self.clock() > deadline:
                 return sw
-            time.sleep(0.002)
+            self.tick()
 
     def disable(self, timeout: float = 1.0) -> None:
         """Disable voltage: SWITCH ON DISABLED (the motor is not powered). A drive in its fault
@@ -305,11 +311,11 @@ class EposDrive:
             raise NodeError(self.label, f"mode {mode} is not supported by an {self.profile.name} "
                             f"(supported: {dict(self.profile.supported_modes)})")
         self.write(self.profile.modes_of_operation, mode)
-        deadline = time.monotonic() + timeout
+        deadline = self.clock() + timeout
         while (shown := self.read(self.profile.modes_display)) != mode:
-            if time.monotonic() > deadline:
+            if self.clock() > deadline:
                 raise NodeError(self.label, f"mode display shows {shown}, expected {mode}")
-            time.sleep(0.002)
+            self.tick()
 
     def prepare_cyclic(self, period: float) -> None:
         """Select the cyclic position mode (EPOS4: CSP with 0x60C2 = SYNC period; EPOS2: mode -1)."""
@@ -450,6 +456,12 @@ class DriveGroup:
         with_velocity: map velocity actual (TPDO3) too.
         status_event_timer_ms: event timer of the EPOS4 statusword TPDO.
         sdo_timeout: SDO response timeout (s).
+        sync: the SYNC producer, ``"periodic"`` (real drives) or ``"lockstep"`` (a simulated rig
+            serving this bus in lockstep: :mod:`drivers.sync`). In lockstep every wait for the
+            drives (homing, moves, stops) advances the simulated time by SYNC, and
+            :meth:`run_cyclic` sends each SYNC once the previous cycle's TPDOs are in.
+        sync_period: the SYNC period in lockstep (s): the simulated time of one cycle.
+        lockstep_timeout: wall-clock s a lockstep cycle may take before it is a fault.
 
     Use as a context manager: on exit every drive is quick-stopped/disabled and the heartbeats
     are stopped (:meth:`close`).
@@ -458,7 +470,8 @@ class DriveGroup:
     def __init__(self, network: canopen.Network, axes: Sequence[AxisConfig],
                  heartbeat_period: float = 0.1, heartbeat_timeout: float | None = None,
                  master_id: int = 127, with_velocity: bool = True, status_event_timer_ms: int = 50,
-                 sdo_timeout: float = 0.5):
+                 sdo_timeout: float = 0.5, sync: str = "periodic", sync_period: float | None = None,
+                 lockstep_timeout: float = 10.0):
         bus_config = getattr(network, "config", None)
         if not isinstance(bus_config, BusConfig):
             raise ConfigError("DriveGroup: open the network with drivers.bus.open_network (its "
@@ -474,6 +487,14 @@ class DriveGroup:
         if not (isinstance(master_id, int) and 1 <= master_id <= 127) or master_id in seen:
             raise ConfigError(f"master_id must be a node-ID in 1..127 that no drive uses, got "
                               f"{master_id!r} (drives: {sorted(seen)})")
+        if sync not in SYNC_MODES:
+            raise ConfigError(f"sync must be one of {SYNC_MODES}, got {sync!r}")
+        if sync == "lockstep" and not (sync_period and sync_period > 0):
+            raise ConfigError(f"lockstep needs a positive sync_period, got {sync_period!r}")
+        self.sync_mode = sync
+        self.sync_period = sync_period
+        self.lockstep_timeout = lockstep_timeout
+        self.lockstep: LockstepSync | None = None   # while brought up in lockstep
         self.heartbeat_timeout = heartbeat_timeout or 3.5 * heartbeat_period
         if not (0 < heartbeat_period and round(heartbeat_period * 1e3) >= 1
                 and 1 <= round(self.heartbeat_timeout * 1e3) <= 0xFFFF
@@ -517,6 +538,29 @@ class DriveGroup:
             drive.wait_operational(timeout)
         self.supervisor.start_heartbeat_monitoring()
         self.supervisor.raise_if_fault()
+        if self.sync_mode == "lockstep" and self.lockstep is None:
+            expected = {f.cob_id(d.axis.node_id): d.label for d, layout in zip(self.drives, self.layouts)
+                        for f in layout.frames if f.direction == "tpdo" and f.per_sync}
+            self.lockstep = LockstepSync(self.network, expected, self.sync_period, self.lockstep_timeout)
+            self.network.notifier.add_listener(self.lockstep)
+            for drive in self.drives:
+                drive.clock, drive.tick = self.clock, lambda: self._advance(1)
+
+    # -- time ----------------------------------------------------------------------------------------
+    def clock(self) -> float:
+        """s: the simulated time in lockstep (wall-clock once the lockstep broke), else wall-clock."""
+        ls = self.lockstep
+        return ls.time if ls is not None and ls.broken is None else time.monotonic()
+
+    def _advance(self, seconds_or_cycles: float | int) -> None:
+        """Let the drives move while the master waits: in lockstep ``cycles`` SYNC cycles (an
+        int), else sleep ``seconds`` (a float)."""
+        ls = self.lockstep
+        if ls is not None and ls.broken is None:
+            ls.run(seconds_or_cycles if isinstance(seconds_or_cycles, int)
+                   else max(1, round(seconds_or_cycles / ls.period)))
+        else:
+            time.sleep(seconds_or_cycles if isinstance(seconds_or_cycles, float) else 0.002)
 
     def close(self) -> None:
         """Quick-stop and disable every drive, switch off their watch of the master (0x1016:01 =
@@ -524,6 +568,11 @@ class DriveGroup:
         Best effort: errors are logged, not raised."""
         self.stop_motion()
         self.supervisor.stop_heartbeat_monitoring()
+        if self.lockstep is not None:
+            self.network.notifier.remove_listener(self.lockstep)
+            for drive in self.drives:
+                drive.clock, drive.tick = time.monotonic, lambda: time.sleep(0.002)
+            self.lockstep = None
         if self._master_heartbeat is None:
             return
         for d in self.drives:
@@ -543,13 +592,14 @@ class DriveGroup:
     # -- commanding (calling thread) -------------------------------------------------------------
     def _wait_all(self, done, timeout: float, what: str) -> None:
         pending = list(self.drives)
-        deadline = time.monotonic() + timeout
+        deadline = self.clock() + timeout
         while pending:
             self.supervisor.raise_if_fault()
             pending = [d for d in pending if not done(d)]
-            if pending and time.monotonic() > deadline:
+            if pending and self.clock() > deadline:
                 raise NodeError(pending[0].label, f"{what} not finished within {timeout:g} s")
-            time.sleep(0.01)
+            if pending:
+                self._advance(WAIT_POLL)
 
     def _guarded(self, action):
         try:
@@ -690,17 +740,24 @@ class DriveGroup:
         for d, c in zip(self.drives, counts[0]):
             d.write(d.profile.cyclic_target, int(c))
         self._guarded(lambda: [d.prepare_cyclic(period) for d in self.drives])
-        hold_at_end = any(d.watches_setpoints() for d in self.drives)
+        lockstep = self.lockstep
+        if lockstep is not None and abs(lockstep.period - period) > 1e-12:
+            raise ConfigError(f"run_cyclic: period {period} s differs from the lockstep SYNC period "
+                              f"{lockstep.period} s")
+        # a drive watching its set-points (an RPDO deadline) must leave the cyclic mode while the
+        # SYNC still runs; in lockstep the rig keeps no deadline (see drivers.sim.rig)
+        hold_at_end = lockstep is None and any(d.watches_setpoints() for d in self.drives)
         self.enable()
 
         meta = dict(metadata or {}, sync_period=period, with_velocity=self.with_velocity,
                     status_event_timer_ms=self.status_event_timer_ms, bus_load=load,
-                    bitrate=self.bitrate, n_targets=len(targets))
+                    bitrate=self.bitrate, n_targets=len(targets), sync=self.sync_mode)
         recorder = SampleRecorder(self.axes, output, meta, maxsize=queue_size).start()
         raw = FlushingLogger(raw_log) if raw_log else None
         streamer = _TargetStreamer(self.network, self.drives, counts, self.supervisor)
         assembler = CycleAssembler(
-            self.layouts, recorder.put, on_sync=streamer.on_sync,
+            self.layouts, recorder.put, on_sync=None if lockstep else streamer.on_sync,
+            period=period if lockstep else None,
             on_status=lambda i, sw: self.supervisor.report(DriveFault(
                 self.drives[i].label, None, f"statusword 0x{sw:04X}: " +
                 ("fault bit" if sw & STATUS_FAULT else "following error bit"))),
@@ -713,10 +770,17 @@ class DriveGroup:
         pauses = gc_section.enter_context(GcPauses())
         sync = None
         try:
-            streamer.send(0)
-            sync = self.network.send_periodic(SYNC_COB_ID, b"", period)
+            if lockstep is not None:
+                # SYNC k goes out once cycle k-1 is in; one more closes the last row (the drives
+                # get the last set-point again)
+                for k in range(len(targets) + 1):
+                    lockstep.step(lambda k=k: streamer.send(k), poll=self.supervisor.raise_if_fault)
+                    self.supervisor.raise_if_fault()
+            else:
+                streamer.send(0)
+                sync = self.network.send_periodic(SYNC_COB_ID, b"", period)
             last_count, last_progress = -1, time.monotonic()
-            while not assembler.done:
+            while not assembler.done and lockstep is None:
                 if self.supervisor.fault_event.wait(min(0.05, 10 * period)):
                     break
                 self.supervisor.check_heartbeats()
@@ -739,6 +803,8 @@ class DriveGroup:
                 sync.stop()
             gc_section.close()
             if error is not None:
+                if lockstep is not None and isinstance(error, HeartbeatTimeout):
+                    lockstep.forget(error.node)      # a lost node answers no SYNC
                 error = self._with_error_code(error)
                 self.stop_motion()
             self.network.notifier.remove_listener(assembler)
@@ -750,7 +816,8 @@ class DriveGroup:
                                        raw_log=str(raw_log) if raw_log else None,
                                        gc_collections=len(pauses.durations),
                                        gc_longest_pause=pauses.longest,
-                                       sync_slots_skipped=getattr(sync, "skipped", None))
+                                       sync_slots_skipped=getattr(sync, "skipped", None),
+                                       lockstep_retries=lockstep.retries if lockstep else None)
         if len(recording.t):
             sent = counts[: len(recording.t)] / [a.scaling.counts_per_unit for a in self.axes]
             late = np.any(np.abs(recording.target - sent) > 0.5 / np.array(

@@ -282,7 +282,7 @@ class FlushingLogger(can.Listener):
 
 def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocity: bool = True,
                max_cycles: int | None = None, status_event_timer_ms: int = 50,
-               metadata: dict[str, Any] | None = None) -> Recording:
+               metadata: dict[str, Any] | None = None, lockstep_period: float | None = None) -> Recording:
     """Replay a raw CAN log through the acquisition decoder.
 
     Args:
@@ -292,13 +292,15 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
         max_cycles: stop after this many cycles (the run's ``n_cycles``; ``None``: all).
         status_event_timer_ms: the statusword event timer of the run (EPOS4).
         metadata: extra metadata for the result.
+        lockstep_period: the SYNC period (s) of a run in lockstep, whose row times are the cycle
+            index times the period (the simulated time); ``None``: the SYNCs' bus time stamps.
     """
     if not Path(path).exists():
         raise ConfigError(f"raw CAN log {path}: no such file")
     layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity,
                                                  status_event_timer_ms)) for a in axes]
     rows: list[Row] = []
-    assembler = CycleAssembler(layouts, rows.append, max_cycles=max_cycles)
+    assembler = CycleAssembler(layouts, rows.append, max_cycles=max_cycles, period=lockstep_period)
     with can.LogReader(path) as reader:
         for msg in reader:
             assembler.on_message_received(msg)

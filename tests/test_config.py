@@ -208,7 +208,7 @@ def test_campaign_references_are_checked(tmp_path):
 
 def test_out_of_range_value(tmp_path):
     write(tmp_path, "robot-3prrr.yaml", ROBOT_TEXT)
-    text = SIM_TEXT.replace("sync_rate: 100.0", "sync_rate: 25000.0")
+    text = SIM_TEXT.replace("sync_rate: 250.0", "sync_rate: 25000.0")
     path = write(tmp_path, "sim.yaml", text)
     expect_error(path, "bus.sync_rate", line_of(text, "sync_rate: 25000.0"), "[1.0, 2000.0]", "Hz")
 
@@ -221,9 +221,10 @@ def test_fourier_trajectory_defaults_to_the_shipped_excitation(tmp_path):
     assert step.trajectories == ("excitation",) and len(step.parameters) == 19
     (planned,) = plan(config, ["excitation"])
     assert planned.ok and planned.trajectory.metadata["generator"] == "fourier"
-    # ten cycles of the shipped 5 s excitation at the 100 Hz SYNC rate (back to back: one 10 ms
+    # ten cycles of the shipped 5 s excitation at the 250 Hz SYNC rate (back to back: one 4 ms
     # period between the end of a cycle and the start of the next), starting and ending at rest at home
-    assert planned.trajectory.duration == pytest.approx(10 * 5.01 - 0.01, abs=1e-9)
+    assert config.bus.sync_rate == 250.0
+    assert planned.trajectory.duration == pytest.approx(10 * 5.004 - 0.004, abs=1e-9)
     assert abs(planned.trajectory.Thetad[[0, -1]]).max() < 1e-12
 
 

@@ -124,23 +124,22 @@ def test_rows_of_axes_near_rest_are_left_out_of_the_fits():
 
 
 def test_check_notes_set_point_quantisation_above_the_motion(tmp_path):
-    """One count per SYNC period on a link: 2048 counts x 26 per turn at 250 Hz (the paper's rate)
-    is 7.37 rad/s², above the excitation's RMS link accelerations (1.5-2.3), below the squares'
-    (8-10); at the shipped simulation's 100 Hz it is 1.18 rad/s², below both: no note."""
+    """One count per SYNC period on a link: 2048 counts x 26 per turn at 250 Hz (the paper's rate,
+    the shipped simulation's) is 7.37 rad/s², above the excitation's RMS link accelerations
+    (1.5-2.3), below the squares' (8-10); at 100 Hz it is 1.18 rad/s², below both: no note."""
     shipped = load_config(CONFIGS / "sim-3prrr.yaml")
-    assert shipped.bus.sync_rate == 100.0
-    assert all(p.notes == () for p in plan(shipped, ["square1", "excitation"]))
-    path = tmp_path / "sim-250.yaml"
-    path.write_text(f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n"
-                    "bus: {interface: virtual, channel: unused, sync_rate: 250.0}\n")
-    config = load_config(path)
+    assert shipped.bus.sync_rate == 250.0
     quantum = 250.0**2 / (2048 * 26 / (2 * np.pi))
     assert quantum == pytest.approx(7.37, abs=0.01)
-    planned = {p.config.name: p for p in plan(config, ["square1", "excitation"])}
+    planned = {p.config.name: p for p in plan(shipped, ["square1", "excitation"])}
     assert planned["square1"].ok and planned["square1"].notes == ()
     (note,) = planned["excitation"].notes
     assert all(f"theta{i} {quantum:.3g} rad/s²" in note for i in (1, 2, 3)) and "zeta" not in note
     assert planned["excitation"].ok and "note: " in planned["excitation"].describe()
+    path = tmp_path / "sim-100.yaml"
+    path.write_text(f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n"
+                    "bus: {interface: virtual, channel: unused, sync_rate: 100.0}\n")
+    assert all(p.notes == () for p in plan(load_config(path), ["square1", "excitation"]))
 
 
 def test_skipped_sync_slots_become_rows_without_samples():
@@ -182,7 +181,8 @@ identification:
   validation: []
 """
     configs = {}
-    for kind, bus in (("hardware", "bus: {interface: socketcan, channel: can0}\n"), ("simulated", "")):
+    for kind, bus in (("hardware", "bus: {interface: socketcan, channel: can0, sync_rate: 100.0}\n"),
+                      ("simulated", "bus: {interface: virtual, channel: unused, sync_rate: 100.0}\n")):
         path = tmp_path / f"{kind}.yaml"
         path.write_text(f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n{bus}{base}")
         configs[kind] = load_config(path)

@@ -29,6 +29,7 @@ NAMES = ThreePRRR.parameter_names
 def test_base_parameters_from_exact_plant_samples_at_100hz_match_the_truth(tmp_path):
     path = tmp_path / "sim.yaml"
     path.write_text(f"""extends: {CONFIGS / 'sim-3prrr.yaml'}
+bus: {{interface: virtual, channel: unused, sync_rate: 100.0}}
 trajectories:
   - {{name: excitation, kind: fourier, cycles: {CYCLES}}}
 identification:

@@ -151,6 +151,7 @@ class EmulatedDrive:
         self._next_demand = None
         self._homed = False
         self._pending_rpdo: dict[int, bytes] = {}
+        self._sync_frames: list[tuple[int, bytes]] = []   # the TPDOs of the last SYNC
         self.rpdos: dict[int, _Pdo] = {}
         self._quick_stop_since = None
         self._pdos_dirty = True
@@ -292,20 +293,33 @@ class EmulatedDrive:
             self._build_pdos()
         return self.node.nmt._state == NMT_OPERATIONAL and not self.silent
 
-    def _send(self, pdo: _Pdo, now: float) -> None:
+    def _send(self, pdo: _Pdo, now: float) -> bytes:
         data = pdo.layout.pack(*[self.get(i, s) for i, s in pdo.entries])
         pdo.last_sent = now
         self.network.send_message(pdo.cob_id, data)
+        return data
 
     def send_sync_tpdos(self, sync_count: int) -> None:
         """Send the SYNC-triggered TPDOs due at SYNC number ``sync_count`` (1, 2, ...)."""
+        self._sync_frames = []
         if not self._operational():
             return
         now = None
         for pdo in self.tpdos:
             if pdo.trans_type <= 240 and sync_count % max(pdo.trans_type, 1) == 0:
                 now = now or self._clock()
-                self._send(pdo, now)
+                self._sync_frames.append((pdo.cob_id, self._send(pdo, now)))
+
+    def resend_sync_tpdos(self) -> None:
+        """Send the frames of the last :meth:`send_sync_tpdos` again, unchanged (a repeated SYNC)."""
+        if self._operational():
+            for cob_id, data in self._sync_frames:
+                self.network.send_message(cob_id, data)
+
+    def awaits_setpoint(self) -> bool:
+        """Streaming with a synchronous RPDO mapped, and no set-point received since the last SYNC."""
+        return (self._operational() and not self._pending_rpdo
+                and any(pdo.trans_type <= 240 for pdo in self.rpdos.values()))
 
     def send_event_tpdos(self, now: float, changed=None) -> None:
         """Send the event-driven TPDOs whose event timer ran out, or that map ``changed`` (index, sub)."""

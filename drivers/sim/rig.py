@@ -21,13 +21,24 @@ rig's clock :attr:`SimulatedRig.time`: it advances with the clock thread's ticks
 at most ``MAX_TICK``, so a hiccup of the host that stops the rig's own thread too does not count
 as a silence of the master; a master that stops sending while the rig runs does.
 
+Lockstep (``lockstep=True``, the master's :class:`drivers.sync.LockstepSync`): the plant moves
+only on SYNC, one ``sync_period`` per SYNC, in every phase (homing, profile moves and stops too),
+so the simulated time is the SYNC count times the period and a run is the same on any host. A
+SYNC whose counter repeats the last one is a retry of the master: the TPDOs of that cycle are sent
+again and nothing moves. A SYNC that finds set-points for only some of the streaming drives
+(a frame lost on a lossy transport) is left unanswered until the master repeats it with them.
+The RPDO deadline watch is off (the set-points come with every SYNC by construction); the
+heartbeat watch stays on the rig's clock.
+
 Fault injection (for tests and demos): :meth:`SimulatedRig.silence`, :meth:`~SimulatedRig.emcy`,
-:meth:`~SimulatedRig.sdo_abort`, :meth:`~SimulatedRig.frame_faults` and ``initial_states``.
+:meth:`~SimulatedRig.sdo_abort`, :meth:`~SimulatedRig.frame_faults` and ``initial_states``;
+:meth:`SimulatedRig.schedule` runs any of them at a given simulated time.
 """
 
 from __future__ import annotations
 
 import heapq
+import itertools
 import logging
 import threading
 import time
@@ -38,6 +49,7 @@ import canopen
 import numpy as np
 
 from drivers.axis import AxisConfig
+from drivers.bus import BusConfig, open_bus
 from drivers.gc_freeze import frozen_gc
 from drivers.sim.drive import EMCY_FOLLOWING_ERROR, FAULT, FAULT_REACTION, EmulatedDrive
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP, Plant, PlantJammed
@@ -101,10 +113,11 @@ class SimulatedRig:
         current_noise_ma: standard deviation of the Gaussian current noise, mA.
         seed: seed of the current noise and of the frame-loss draws.
         initial_states: ``{node_id: "FAULT" | "STOPPED"}``: drives in the wrong state at start.
+        lockstep: the plant moves only on SYNC (see the module docstring); needs ``sync_period``.
     """
 
     def __init__(self, nodes, plant: Plant, *, bus=None, sync_period=None, current_noise_ma: float = 0.0,
-                 seed=None, initial_states=None, **bus_kwargs):
+                 seed=None, initial_states=None, lockstep: bool = False, **bus_kwargs):
         nodes = [(n.node_id, n.profile, n.scaling) if isinstance(n, AxisConfig) else tuple(n) for n in nodes]
         if len(nodes) != 6:
             raise ValueError(f"the rig needs six drives (theta1..3, zeta1..3), got {len(nodes)}")
@@ -120,6 +133,9 @@ class SimulatedRig:
                 raise ValueError(f"initial_states: {node_id}: {state!r} (node-IDs {ids}; FAULT or STOPPED)")
         if sync_period is not None and not sync_period > 0:
             raise ValueError(f"sync_period must be positive, got {sync_period}")
+        if lockstep and sync_period is None:
+            raise ValueError("a lockstep rig needs its sync_period")
+        self.lockstep = lockstep
         self.plant = plant
         self.sync_period = sync_period
         self.current_noise_ma = float(current_noise_ma)
@@ -139,6 +155,12 @@ class SimulatedRig:
         self._force_per_amp = np.array([s.force_per_amp for s in scalings])
         self.sync_count = 0             # SYNC frames received
         self.syncs_done = 0             # SYNC cycles finished (the TPDOs sent, the plant stepped)
+        self.sync_time = 0.0            # s, simulated time of the SYNC cycles finished
+        self.sync_retries = 0           # repeated SYNCs answered (lockstep)
+        self.syncs_held = 0             # SYNCs left unanswered for missing set-points (lockstep)
+        self._last_counter = None       # SYNC counter of the last cycle (lockstep)
+        self._scheduled: list = []      # heap of (due sync_time, sequence, action)
+        self._schedule_seq = itertools.count()
         self.jammed: str | None = None        # why the plant stopped moving, if it did
         self.step_seconds: deque[float] = deque(maxlen=STEP_LOG_LENGTH)   # s, the last SYNC cycles' durations
         self._last_sync = None          # rig time of the last SYNC
@@ -177,10 +199,10 @@ class SimulatedRig:
         (:func:`drivers.gc_freeze.frozen_gc`): no collection of the whole heap stalls the SYNC
         handling; the per-period logs are bounded numpy buffers, not Python objects.
         """
-        if self._own_bus:
-            self.network.connect(**self._bus_kwargs)
-        else:
-            self.network.connect()
+        if self._own_bus:   # opened as the master's are (drivers.bus.open_bus), without own frames
+            settings = dict(self._bus_kwargs, receive_own_messages=False)
+            self.network.bus = open_bus(BusConfig.from_mapping(settings, "simulated rig bus"))
+        self.network.connect()
         self._serving.enter_context(frozen_gc())
         counts = np.rint(self.plant.Theta * self._counts_per_unit).astype(np.int64)
         with self._lock:
@@ -235,11 +257,40 @@ class SimulatedRig:
     def _on_sync(self, can_id, data, timestamp) -> None:
         started = time.perf_counter()
         with self._lock:
+            if self.lockstep:
+                counter = data[0] if data else None
+                if counter is not None and counter == self._last_counter:
+                    self.sync_retries += 1
+                    for drive in self.drives:
+                        drive.resend_sync_tpdos()
+                    return
+                # a SYNC overtaking some set-points of its cycle waits for its repetition; a drive
+                # that stopped streaming (halted, faulted, silent) is not waited for
+                awaiting = [d.awaits_setpoint() for d in self.drives if d.streaming and not d.silent]
+                if any(awaiting) and not all(awaiting):
+                    self.syncs_held += 1
+                    return
+                self._last_counter = counter
             self.sync_count += 1
             self._last_sync = self.time
-            self._cycle(self._period(timestamp), self.sync_count)
+            period = self._period(timestamp)
+            while self._scheduled and self._scheduled[0][0] <= self.sync_time + 1e-9:
+                heapq.heappop(self._scheduled)[2]()
+            self._cycle(period, self.sync_count)
             self.syncs_done += 1
+            self.sync_time += period
         self.step_seconds.append(time.perf_counter() - started)
+
+    def schedule(self, after: float, action) -> None:
+        """Run ``action()`` (under the rig's lock) at the first SYNC cycle ``after`` s of simulated
+        time from now (e.g. an EMCY or a payload change at a given time of a trajectory)."""
+        with self._lock:
+            heapq.heappush(self._scheduled, (self.sync_time + after, next(self._schedule_seq), action))
+
+    def cancel_scheduled(self) -> None:
+        """Forget every action :meth:`schedule` has not run yet."""
+        with self._lock:
+            self._scheduled.clear()
 
     def _cycle(self, period: float, sync_count=None) -> None:
         """One period: RPDOs, demands, sensor sampling, TPDOs (if ``sync_count``), plant step."""
@@ -294,9 +345,10 @@ class SimulatedRig:
                     self.network.release_delayed(now)
                     for drive in self.drives:
                         drive.check_heartbeat(self.time)
-                        drive.check_rpdo_timeout(self.time)
+                        if not self.lockstep:
+                            drive.check_rpdo_timeout(self.time)
                         drive.send_event_tpdos(self.time)
-                    if self.sync_driven:
+                    if self.lockstep or self.sync_driven:
                         continue
                     idle = self._last_sync is None or self.time - self._last_sync > IDLE_AFTER
                     if idle and self.time - self._last_step >= IDLE_STEP:

@@ -13,7 +13,6 @@ from typing import Literal
 
 import drivers.axis
 import drivers.bus
-from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
 from drivers.units import PRISMATIC, REVOLUTE, AxisScaling
 from ident_hw.model import ACTUATOR_NAMES, Geometry, InertialParams
 from ident_hw.signal import FilterSettings
@@ -199,6 +198,12 @@ class BusConfig:
         positive, unit="s", doc="consumer heartbeat timeout on both sides (default 3.5 heartbeat periods)"))
     bring_up_timeout: float = field(default=5.0, metadata=spec(
         positive, unit="s", doc="time for every drive to answer and reach PRE-OPERATIONAL at bring-up"))
+    sync: Literal["periodic", "lockstep"] | None = field(default=None, metadata=spec(
+        doc="SYNC producer: 'periodic' (real drives) or 'lockstep' (the simulated rig: SYNC k+1 once "
+            "cycle k is in, simulated time = SYNC count x period); default lockstep against the "
+            "simulated rig, periodic otherwise"))
+    lockstep_timeout: float = field(default=10.0, metadata=spec(
+        positive, unit="s", doc="wall-clock time a lockstep cycle may take before it is a fault"))
 
     def to_driver(self, ignore_config: bool = True) -> drivers.bus.BusConfig:
         """python-can settings of the bus (``ignore_config``: ignore the user's python-can files)."""
@@ -233,9 +238,9 @@ class SimConfig:
     current_noise: float = field(default=0.0, metadata=spec(non_negative, unit="A", doc="Gaussian std"))
     bandwidth: float = field(default=20.0, metadata=spec(positive, unit="Hz", doc="position loops"))
     damping: float = field(default=1.0, metadata=spec(positive))
-    max_substep: float = field(default=DEFAULT_MAX_SUBSTEP, metadata=spec(
-        in_range(1e-5, 0.01), unit="s", doc="integration step of the plant (Heun, second order): the rig's CPU "
-                                            "time per simulated second is inversely proportional to it"))
+    max_substep: float | None = field(default=None, metadata=spec(
+        in_range(1e-5, 0.01), unit="s", doc="integration step of the plant (Heun, second order; default "
+                                            "drivers.sim.plant.DEFAULT_MAX_SUBSTEP, 0.5 ms)"))
     in_process: bool = True
     seed: int = 0
     fault: SimFaultConfig | None = None
@@ -399,6 +404,10 @@ class Config:
                 if t not in names:
                     raise FieldError(f"identification.validation[{j}]",
                                      f"no trajectory named {t!r}; defined: {list(names)}")
+        if self.bus is not None and self.bus.sync == "lockstep" and not self.simulated:
+            raise FieldError("bus.sync", f"lockstep paces the SYNC by the simulated rig's answers; "
+                             f"{self.bus.interface}:{self.bus.channel} may carry real drives, which "
+                             f"need 'periodic'" + ("" if self.sim is not None else " (no sim: section)"))
         fault = self.sim.fault if self.sim is not None else None
         if fault is not None:
             if fault.trajectory not in names:
@@ -413,6 +422,13 @@ class Config:
     def simulated(self) -> bool:
         """True when the bus is served by the simulated rig and cannot reach hardware."""
         return self.sim is not None and self.bus is not None and self.bus.is_local
+
+    @property
+    def sync_mode(self) -> str:
+        """The SYNC producer of the runs: ``bus.sync``, by default lockstep on the simulated rig."""
+        if self.bus is not None and self.bus.sync is not None:
+            return self.bus.sync
+        return "lockstep" if self.simulated else "periodic"
 
     def trajectory(self, name: str) -> TrajectoryConfig:
         return next(t for t in self.trajectories if t.name == name)

@@ -60,17 +60,22 @@ def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
 
     The trajectory name is the recording's ``trajectory`` metadata, else the file stem. A raw
     log is decoded up to the length of the config's trajectory of that name (the SYNC keeps
-    running for a few cycles after the last set-point), on the config's SYNC period.
+    running for a few cycles after the last set-point), on the config's SYNC period (in lockstep
+    the row times are the cycle times, as the run recorded them).
     """
     path = Path(path)
     if path.suffix in RAW_LOG_SUFFIXES:
         name = path.stem
         meta = {"trajectory": name}
+        lockstep_period = None
         if config.bus is not None:
             meta["sync_period"] = 1.0 / config.bus.sync_rate
+            if config.sync_mode == "lockstep":
+                lockstep_period = meta["sync_period"]
         planned = plan(config, [name])
         cycles = len(planned[0].trajectory.t) if planned and planned[0].trajectory is not None else None
-        rec = decode_log(path, [a.to_driver() for a in config.robot.actuators], max_cycles=cycles, metadata=meta)
+        rec = decode_log(path, [a.to_driver() for a in config.robot.actuators], max_cycles=cycles, metadata=meta,
+                         lockstep_period=lockstep_period)
     else:
         rec = Recording.load(path)
     return str(rec.metadata.get("trajectory", path.stem)), rec

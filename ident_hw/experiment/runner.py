@@ -96,18 +96,18 @@ def _progress(network, name: str, cycles: int, enabled: bool) -> Iterator[None]:
 
 @contextmanager
 def _injected_fault(session: Session, name: str) -> Iterator[None]:
-    """Arm the config's ``sim.fault`` when trajectory ``name`` starts streaming."""
+    """Arm the config's ``sim.fault`` when trajectory ``name`` starts streaming: it happens
+    ``after`` s of simulated time into the stream (:meth:`drivers.sim.SimulatedRig.schedule`)."""
     fault = session.config.sim.fault if session.config.sim is not None else None
-    if fault is None or fault.trajectory != name or session.rig is None:
+    rig = session.rig
+    if fault is None or fault.trajectory != name or rig is None:
         yield
         return
-    timer = threading.Timer(fault.after, session.rig.emcy, (fault.node_id, fault.code))
-    timer.daemon = True
-    timer.start()
+    rig.schedule(fault.after, lambda: rig.drive(fault.node_id).emcy(fault.code))
     try:
         yield
     finally:
-        timer.cancel()
+        rig.cancel_scheduled()
 
 
 def _drive_states(session: Session, group: DriveGroup) -> dict:

@@ -26,7 +26,8 @@ def simulated_rig(config: Config) -> SimulatedRig:
     The plant starts at the home pose (``x = y = alpha = 0``, carriages at 0), where the
     actuators' homing offsets put it; currents get ``sim.current_noise`` (A) of Gaussian noise.
     Each SYNC advances the plant by exactly one SYNC period, as drives sampling on SYNC see
-    it, however irregularly a loaded host delivers the frames.
+    it, however irregularly a loaded host delivers the frames; in lockstep (``bus.sync``, the
+    default here) nothing else moves it.
     """
     if config.sim is None:
         raise ValueError(f"{config.source}: sim: missing section (the simulated rig's truth and noise)")
@@ -36,10 +37,10 @@ def simulated_rig(config: Config) -> SimulatedRig:
     axes = [(a.node_id, a.profile, a.scaling()) for a in robot.actuators]
     return SimulatedRig.build(robot.geometry.to_model(), sim.truth.to_model(), axes,
                               coulomb_width=robot.coulomb_width, bandwidth_hz=sim.bandwidth, damping=sim.damping,
-                              max_substep=sim.max_substep,
+                              **({"max_substep": sim.max_substep} if sim.max_substep else {}),
                               sync_period=1.0 / config.bus.sync_rate, current_noise_ma=sim.current_noise * 1e3,
-                              seed=sim.seed, interface=config.bus.interface, channel=config.bus.channel,
-                              ignore_config=True)
+                              seed=sim.seed, lockstep=config.sync_mode == "lockstep",
+                              interface=config.bus.interface, channel=config.bus.channel, ignore_config=True)
 
 
 @dataclass
@@ -55,7 +56,8 @@ class Session:
         bus = self.config.bus
         return DriveGroup(self.network, [a.to_driver() for a in self.config.robot.actuators],
                           heartbeat_period=bus.heartbeat, heartbeat_timeout=bus.heartbeat_timeout,
-                          sdo_timeout=bus.sdo_timeout)
+                          sdo_timeout=bus.sdo_timeout, sync=self.config.sync_mode,
+                          sync_period=1.0 / bus.sync_rate, lockstep_timeout=bus.lockstep_timeout)
 
 
 @contextmanager
