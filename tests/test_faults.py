@@ -351,3 +351,31 @@ def test_a_silent_node_is_reported_as_state_unknown_not_as_disabled(tmp_path, mo
     master = json.loads((folder / "data" / "drives.json").read_text())["master"]
     assert master["node 5 (zeta2)"].startswith("unknown")
     assert master["node 4 (zeta1)"] == "SWITCH ON DISABLED"
+
+
+def test_dropped_pdo_frames_end_the_run_degraded_not_complete(tmp_path, monkeypatch):
+    """5 % of the drives' PDO frames lost (the rig's own fault injection, reached through the
+    session the runner opens): about half the cycles come incomplete; the run ends ``degraded``
+    with that reason, never ``complete``."""
+    from ident_hw.experiment import runner
+    from ident_hw.experiment.results import new_results_folder
+    config = load_config(short_config(tmp_path))
+    folder = new_results_folder(config, tmp_path / "res", "run")
+    real = runner.open_session
+
+    @contextmanager
+    def lossy(cfg):
+        with real(cfg) as session:
+            session.rig.frame_faults(drop_probability=0.05)
+            yield session
+    monkeypatch.setattr(runner, "open_session", lossy)
+    results = runner.run_campaign(config, folder, show_progress=False)
+    rec = Recording.load(folder / "data" / "square.npz")
+    complete = float(rec.valid.all(axis=1).mean())
+    assert complete < 0.9          # 1 - 0.95^(6 drives x 2-3 PDOs) of the cycles lose a frame
+    status = (folder / "STATUS").read_text()
+    assert status.startswith("degraded") and f"square: {100 * complete:.1f} % of the cycles complete" in status
+    assert results.quality["passed"] is False
+    doc = json.loads((folder / "parameters.json").read_text())
+    assert doc["quality"]["trajectories"]["square"]["valid_fraction"] == pytest.approx(complete)
+    assert "Quality verdict: DEGRADED" in (folder / "report.html").read_text()

@@ -74,13 +74,13 @@ class CampaignStopped(Exception):
 
 def drives_after_stop(master: dict[str, str]) -> str:
     """``drives disabled: a, b; FAULT: c; state unknown: d`` from the states the master read
-    (``unknown (...)`` for a drive that did not answer)."""
+    (``unknown (...)`` for a drive that did not answer: never claimed disabled)."""
     if not master:
         return "drive states not read"
     groups: dict[str, list[str]] = {}
     for label, state in master.items():
         key = ("state unknown" if state.startswith("unknown") else
-               "drives disabled" if state in DISABLED_STATES else f"still {state}")
+               "drives disabled" if state in DISABLED_STATES else state)
         groups.setdefault(key, []).append(label)
     return "; ".join(f"{key}: {', '.join(labels)}" for key, labels in groups.items())
 
