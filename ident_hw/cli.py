@@ -18,7 +18,7 @@ class Exit(enum.IntEnum):
     """The exit codes of ``ident-hw``, one per class of outcome."""
 
     OK = 0            #: done; a run or identify passed the quality verdict
-    FAILURE = 1       #: an unexpected error (a bug: the message says so)
+    FAILURE = 1       #: any other error (the message says what; an unexpected one is flagged as a bug)
     CONFIG = 2        #: the command line or the config is wrong, or the config cannot run (nothing moved)
     BUS = 3           #: the CAN bus cannot be opened or reported errors
     DRIVE_FAULT = 4   #: a drive faulted, refused a command or stopped answering
@@ -300,7 +300,7 @@ def exit_code(exc: BaseException) -> int:
     from ident_hw.config import ConfigError
     if isinstance(exc, KeyboardInterrupt):
         return Exit.INTERRUPTED
-    if isinstance(exc, ConfigError):
+    if isinstance(exc, (ConfigError, FileExistsError)):    # FileExistsError: --out holds results already
         return Exit.CONFIG
     if isinstance(exc, RecordingError):
         return Exit.DATA

@@ -8,13 +8,13 @@ import json
 
 import numpy as np
 import pytest
+from test_cli import SWEEP_ONLY, synthetic_recordings
 
 from drivers.recording import Recording
 from ident_hw.config import ConfigError, load_config
 from ident_hw.experiment.offline import identify
 from ident_hw.experiment.quality import relative_difference
 from ident_hw.report import final_status, mark_status, save_results, summary_lines
-from test_cli import SWEEP_ONLY, synthetic_recordings
 
 
 @pytest.fixture(scope="module")

@@ -7,8 +7,9 @@ an SQP fit of its parameters with the others held at their current values (CAD a
 so the sweep's ``m_c`` is used by the squares' step. A ``wls``/``ols`` step instead fits the
 base parameters of its parameters (:func:`fit_base`), reported beside the physical ones with
 its own prediction of every trajectory. The result is a :class:`ident_hw.report.Results` with
-standard deviations from the weighted least-squares statistics of each step and a
-base-parameter analysis of all identification data.
+standard deviations from the weighted least-squares statistics of each step, a
+base-parameter analysis of all identification data, what each recording covered
+(:func:`coverage`) and the quality verdict (:func:`ident_hw.experiment.quality.verdict`).
 """
 
 from __future__ import annotations
