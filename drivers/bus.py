@@ -19,7 +19,7 @@ import can
 import can.interfaces.virtual
 import canopen
 
-from drivers.errors import BusLoadError, ConfigError
+from drivers.errors import BusLoadError, BusOpenError, ConfigError
 
 SYNC_COB_ID = 0x080
 
@@ -113,7 +113,7 @@ def open_bus(config: BusConfig) -> can.BusABC:
                        receive_own_messages=config.receive_own_messages,
                        ignore_config=config.ignore_config, **kwargs)
     except (can.CanError, OSError, ValueError, ImportError) as exc:
-        raise ConfigError(
+        raise BusOpenError(
             f"cannot open CAN bus interface={config.interface!r} channel={config.channel!r}: {exc}"
         ) from exc
 

@@ -17,6 +17,15 @@ class ConfigError(DriveError, ValueError):
     """A configuration value is invalid (the message names the key or axis)."""
 
 
+class BusOpenError(ConfigError):
+    """The CAN bus could not be opened (no such interface or channel, adapter absent, no driver)."""
+
+
+class RecordingError(DriveError, ValueError):
+    """A recording cannot be used: unreadable, truncated beyond repair, or not made with the
+    axes it is read with (the message names the file)."""
+
+
 class BusLoadError(ConfigError):
     """The PDO traffic of a run does not fit the bitrate of the bus."""
 

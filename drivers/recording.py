@@ -22,6 +22,7 @@
 from __future__ import annotations
 
 import dataclasses
+import io
 import json
 import logging
 import os
@@ -37,7 +38,7 @@ import numpy as np
 
 from drivers.acquisition import AxisLayout, CycleAssembler, Row, pdo_layout
 from drivers.axis import AxisConfig
-from drivers.errors import ConfigError
+from drivers.errors import ConfigError, RecordingError
 from drivers.units import REVOLUTE
 
 logger = logging.getLogger(__name__)
@@ -136,18 +137,40 @@ class Recording:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Recording":
-        """Read a recording written by :meth:`save`."""
+        """Read a recording written by :meth:`save`.
+
+        Raises:
+            RecordingError: the file is missing, empty, truncated or not a recording (the
+                message names the file).
+        """
         try:
             data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise ConfigError(f"{path}: cannot read recording: {exc}") from exc
+        except FileNotFoundError:
+            raise RecordingError(f"{path}: no such file") from None
+        except Exception as exc:   # empty (EOFError), truncated zip (BadZipFile), not NumPy (ValueError)
+            raise RecordingError(f"{path}: cannot read recording ({_why(exc)}): is the file complete?") from exc
         if not isinstance(data, np.lib.npyio.NpzFile):
-            raise ConfigError(f"{path}: not a recording (an NPZ file with arrays {ARRAYS})")
+            raise RecordingError(f"{path}: not a recording (an NPZ file with arrays {ARRAYS})")
         with data:
             missing = [k for k in (*ARRAYS, "metadata") if k not in data]
             if missing:
-                raise ConfigError(f"{path}: not a recording, missing arrays {missing}")
-            return cls(**{k: data[k] for k in ARRAYS}, metadata=json.loads(str(data["metadata"])))
+                raise RecordingError(f"{path}: not a recording, missing arrays {missing}")
+            try:
+                arrays = {k: data[k] for k in ARRAYS}
+                metadata = json.loads(str(data["metadata"]))
+            except Exception as exc:   # a member cut short or corrupt (BadZipFile, zlib, EOFError)
+                raise RecordingError(f"{path}: damaged recording ({_why(exc)})") from exc
+        n = len(arrays["t"])
+        if any(len(a) != n for a in arrays.values()):
+            raise RecordingError(f"{path}: damaged recording: arrays of different lengths "
+                                 f"{ {k: len(a) for k, a in arrays.items()} }")
+        return cls(**arrays, metadata=metadata)
+
+
+def _why(exc: BaseException) -> str:
+    """``Type: message`` of an exception, for a one-line error."""
+    text = str(exc)
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
 def _json_default(obj):
@@ -285,6 +308,11 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
                metadata: dict[str, Any] | None = None, lockstep_period: float | None = None) -> Recording:
     """Replay a raw CAN log through the acquisition decoder.
 
+    A log cut short (copied or killed while written) is read up to its last complete frame: a
+    text log's last line without its newline is left out (it would parse as a shorter frame),
+    and a frame the reader cannot parse ends the reading. The metadata says so
+    (``log_truncated``) and lists ``nodes_heard``: the node-IDs that sent a TPDO or a heartbeat.
+
     Args:
         path: ``.log``/``.asc``/``.blf`` file written during a run.
         axes: the axes of the run, in sample order (node-IDs, profiles, scalings).
@@ -294,19 +322,54 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
         metadata: extra metadata for the result.
         lockstep_period: the SYNC period (s) of a run in lockstep, whose row times are the cycle
             index times the period (the simulated time); ``None``: the SYNCs' bus time stamps.
+
+    Raises:
+        RecordingError: the file is missing or is not a CAN log of that format.
     """
-    if not Path(path).exists():
-        raise ConfigError(f"raw CAN log {path}: no such file")
+    path = Path(path)
+    if not path.is_file():
+        raise RecordingError(f"raw CAN log {path}: no such file")
     layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity,
                                                  status_event_timer_ms)) for a in axes]
     rows: list[Row] = []
     assembler = CycleAssembler(layouts, rows.append, max_cycles=max_cycles, period=lockstep_period)
-    with can.LogReader(path) as reader:
-        for msg in reader:
-            assembler.on_message_received(msg)
-            if assembler.done:
+    heard: set[int] = set()
+    reader, truncated = _log_reader(path)
+    frames = 0
+    with reader:
+        messages = iter(reader)
+        while not assembler.done:
+            try:
+                msg = next(messages)
+            except StopIteration:
                 break
+            except Exception as exc:   # a frame cut short or corrupt: the log ends there
+                if not frames:
+                    raise RecordingError(f"raw CAN log {path}: not a {path.suffix} CAN log ({_why(exc)})") from exc
+                truncated = True
+                break
+            frames += 1
+            cob = msg.arbitration_id
+            if not msg.is_extended_id and (cob >> 7 in (3, 5, 7, 9, 14)) and cob & 0x7F:   # TPDO1-4, heartbeat
+                heard.add(cob & 0x7F)
+            assembler.on_message_received(msg)
     meta = dict(metadata or {}, axes=axes_metadata(axes), source=str(path), status="decoded",
-                late_frames=assembler.late_frames, format_version=FORMAT_VERSION)
+                late_frames=assembler.late_frames, format_version=FORMAT_VERSION, log_truncated=truncated,
+                nodes_heard=sorted(heard))
     chunks = [rows_to_arrays(rows, axes)] if rows else []
     return Recording.from_chunks(chunks, len(axes), meta)
+
+
+def _log_reader(path: Path):
+    """python-can's reader of ``path`` and whether its last line was cut short (text formats)."""
+    suffix = path.suffix.lower()
+    if suffix not in (".log", ".asc"):
+        try:
+            return can.LogReader(path), False
+        except Exception as exc:
+            raise RecordingError(f"raw CAN log {path}: cannot read ({_why(exc)})") from exc
+    raw = path.read_bytes()
+    complete = raw[: raw.rfind(b"\n") + 1]
+    text = io.StringIO(complete.decode("latin-1"))
+    reader = can.io.CanutilsLogReader(text) if suffix == ".log" else can.io.ASCReader(text)
+    return reader, len(complete) < len(raw)

@@ -1,16 +1,30 @@
 """``ident-hw``: identify the dynamic parameters of the 3PRRR from one YAML config.
 
 A thin layer over :mod:`ident_hw.config`, :mod:`ident_hw.experiment` and :mod:`ident_hw.report`;
-nothing imports it. Exit codes: 0 success, 1 failure (bad data, infeasible trajectory, fault),
-2 bad command line or config, 130 interrupted.
+nothing imports it. Every command runs under :func:`ident_hw.experiment.signals.stop_on_signals`
+(SIGTERM and SIGHUP are Ctrl-C) and ends with one exit code per class of outcome,
+:class:`Exit` (documented in the README): no traceback reaches the user.
 """
 
 from __future__ import annotations
 
 import argparse
+import enum
+import os
 import sys
 
-EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+class Exit(enum.IntEnum):
+    """The exit codes of ``ident-hw``, one per class of outcome."""
+
+    OK = 0            #: done; a run or identify passed the quality verdict
+    FAILURE = 1       #: any other error (the message says what; an unexpected one is flagged as a bug)
+    CONFIG = 2        #: the command line or the config is wrong, or the config cannot run (nothing moved)
+    BUS = 3           #: the CAN bus cannot be opened or reported errors
+    DRIVE_FAULT = 4   #: a drive faulted, refused a command or stopped answering
+    DATA = 5          #: a recording or results folder is unreadable, incomplete or does not match the config
+    DEGRADED = 6      #: finished, but the quality verdict failed (STATUS degraded, with the reasons)
+    INTERRUPTED = 130  #: Ctrl-C, SIGTERM or SIGHUP (motion stopped, data kept, STATUS partial)
 
 
 def _load(path: str):
@@ -20,75 +34,104 @@ def _load(path: str):
 
 def cmd_check(args) -> int:
     """Validate the config and every trajectory; move nothing, open no bus."""
-    from ident_hw.experiment.plan import plan
+    from ident_hw.experiment.plan import check_campaign, plan
     config = _load(args.config)
     print(f"{args.config}: config ok")
-    ok = True
-    if config.bus is None:
-        print("bus: missing section (needed to run)")
-        ok = False
-    if not config.trajectories:
-        print("trajectories: none defined")
-        ok = False
-    for planned in plan(config):
-        print("  " + planned.describe())
-        ok &= planned.ok
+    planned = plan(config)
+    for p in planned:
+        print("  " + p.describe())
     if config.bus is not None:
         where = "simulated rig" if config.simulated else "HARDWARE (motion needs --arm)"
         print(f"bus: {config.bus.interface} {config.bus.channel} at {config.bus.sync_rate:g} Hz SYNC: {where}")
-    print("everything would run" if ok else "NOT runnable: fix the items above")
-    return EXIT_OK if ok else EXIT_FAIL
+    problems = [m for m in check_campaign(config, planned) if m not in {p.describe() for p in planned}]
+    for message in problems:
+        print(message)
+    if problems or not all(p.ok for p in planned):
+        print("NOT runnable: fix the items above")
+        return Exit.CONFIG
+    print("everything would run")
+    return Exit.OK
 
 
 def cmd_identify(args) -> int:
-    """Identify offline from recordings (decoded .npz or raw CAN logs) into a results folder."""
-    from ident_hw.experiment.offline import identify, load_recording
+    """Identify offline from recordings (decoded .npz or raw CAN logs) into a results folder.
+
+    Every recording is read and checked against the config before the folder is made; the
+    folder's STATUS ends ``complete``, ``degraded: <reasons>`` or ``failed: <why>``."""
+    from drivers.errors import RecordingError
+    from ident_hw.config import ConfigError
+    from ident_hw.experiment.offline import identify
+    from ident_hw.experiment.recordings import load_recording, require_trajectories
     from ident_hw.experiment.results import new_results_folder
-    from ident_hw.report import mark_status, save_results, summary_lines
+    from ident_hw.experiment.signals import signal_name
+    from ident_hw.report import final_status, mark_status, save_results, summary_lines
     config = _load(args.config)
-    recordings = dict(load_recording(path, config) for path in args.data)
+    if config.identification is None:
+        raise ConfigError("identification: missing section (the steps to run on the recordings)",
+                          file=config.source)
+    recordings, files = {}, {}
+    for path in args.data:
+        name, rec = load_recording(path, config)
+        if name in recordings:
+            raise RecordingError(f"{files[name]} and {path} are both recordings of trajectory {name!r}: give one")
+        recordings[name], files[name] = rec, path
+    require_trajectories(config, recordings)
     folder = new_results_folder(config, args.out, "identify")
-    results = identify(config, recordings, progress=_logger(args))
-    mark_status(folder, "complete")
-    page = save_results(folder, results)
+    try:
+        results = identify(config, recordings, progress=_logger(args))
+        mark_status(folder, final_status(results))
+        page = save_results(folder, results)
+    except BaseException as exc:
+        why = f"interrupted ({signal_name(exc)})" if isinstance(exc, KeyboardInterrupt) else str(exc)
+        mark_status(folder, f"failed: {why}")
+        raise
     print("\n".join(summary_lines(folder)))
     print(f"results: {folder}  (report: {page})")
-    return EXIT_OK
+    return Exit.OK if results.quality is None or results.quality["passed"] else Exit.DEGRADED
 
 
 def cmd_report(args) -> int:
     """Rebuild metrics, plots, report.html and results.mat of a results folder."""
     from ident_hw.report import build_report
-    print(build_report(args.results))
-    return EXIT_OK
+    try:
+        page = build_report(args.results)
+    except (OSError, ValueError, KeyError) as exc:
+        print(f"data error: {args.results}: cannot rebuild the report: {exc}", file=sys.stderr)
+        return Exit.DATA
+    print(page)
+    return Exit.OK
 
 
 def cmd_run(args) -> int:
     """The campaign: checks, then (simulated rig, or hardware with --arm) motion and identification."""
+    from drivers.errors import BusOpenError
     from ident_hw.experiment.plan import check_campaign
     config = _load(args.config)
     problems = check_campaign(config)
     if problems:
         print("checks failed, nothing moved:\n  " + "\n  ".join(problems), file=sys.stderr)
-        return EXIT_FAIL
+        return Exit.CONFIG
     if _needs_arm(config, args, "checks passed; motion"):
-        return EXIT_FAIL
+        return Exit.CONFIG
     from ident_hw.experiment.online import CampaignEstimator
-    from ident_hw.experiment.results import new_results_folder
+    from ident_hw.experiment.results import discard_unused, new_results_folder
     from ident_hw.experiment.runner import CampaignStopped, run_campaign
     from ident_hw.report import summary_lines
     folder = new_results_folder(config, args.out, args.command)
     print(f"results folder: {folder}", file=sys.stderr)
     online = CampaignEstimator(config, show=print) if args.command == "online" else None
     try:
-        run_campaign(config, folder, show_progress=_progress_bars(args), log=_logger(args), online=online)
+        results = run_campaign(config, folder, show_progress=_progress_bars(args), log=_logger(args), online=online)
+    except BusOpenError:
+        if discard_unused(folder):
+            print(f"nothing moved, nothing recorded: {folder} removed", file=sys.stderr)
+        raise
     except CampaignStopped as exc:
-        print(f"STOPPED: {exc.reason}\nmotion stopped, drives disabled; recordings kept in {folder / 'data'}",
-              file=sys.stderr)
-        return EXIT_INTERRUPTED if exc.interrupted else EXIT_FAIL
+        print(f"STOPPED: {exc.reason}\n{exc.stop_message()}", file=sys.stderr)
+        return Exit.INTERRUPTED if exc.interrupted else exit_code(exc.cause)
     print("\n".join(summary_lines(folder)))
     print(f"results: {folder}  (report: {folder / 'report.html'})")
-    return EXIT_OK
+    return Exit.OK if results.quality is None or results.quality["passed"] else Exit.DEGRADED
 
 
 def _needs_arm(config, args, what: str) -> bool:
@@ -110,10 +153,10 @@ def cmd_sim(args) -> int:
     if config.bus is None or config.bus.interface == "virtual":
         print("a python-can 'virtual' bus only reaches its own process: `ident-hw run` of this config "
               "starts the rig itself; `sim` is for a bus shared between processes (e.g. vcan0)", file=sys.stderr)
-        return EXIT_USAGE
+        return Exit.CONFIG
     rig = simulated_rig(config)
     done = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, lambda *_: done.set())
     with rig:
         ids = [a.node_id for a in config.robot.actuators]
@@ -122,7 +165,7 @@ def cmd_sim(args) -> int:
         while not done.wait(0.5):
             pass
     print("simulated rig stopped", flush=True)
-    return EXIT_OK
+    return Exit.OK
 
 
 def cmd_scan(args) -> int:
@@ -139,7 +182,7 @@ def cmd_scan(args) -> int:
         print("  " + info.describe())
     problems = compare(config, found)
     print("matches the config" if not problems else "differs from the config:\n  " + "\n  ".join(problems))
-    return EXIT_OK if not problems else EXIT_FAIL
+    return Exit.OK if not problems else Exit.CONFIG
 
 
 def cmd_monitor(args) -> int:
@@ -158,7 +201,7 @@ def cmd_monitor(args) -> int:
             print(("\x1b[H\x1b[2J" if tty else "") + time.strftime("%H:%M:%S ") + "(read-only)\n" + table,
                   flush=True)
             if args.once or time.monotonic() >= end:
-                return EXIT_OK
+                return Exit.OK
             time.sleep(args.interval)
 
 
@@ -167,10 +210,10 @@ def cmd_home(args) -> int:
     from ident_hw.experiment.session import open_session
     config = _load(args.config)
     if config.bus is None:
-        print(f"{config.source}: bus: missing section", file=sys.stderr)
-        return EXIT_USAGE
+        print(f"config error: {config.source}: bus: missing section", file=sys.stderr)
+        return Exit.CONFIG
     if _needs_arm(config, args, "homing"):
-        return EXIT_FAIL
+        return Exit.CONFIG
     with open_session(config) as session:
         with session.drive_group() as group:
             group.bring_up(timeout=config.bus.bring_up_timeout)
@@ -179,7 +222,7 @@ def cmd_home(args) -> int:
     for act, q in zip(config.robot.actuators, positions):
         print(f"  {act.name}: homed at {q:.6f} {'rad' if act.kind == 'revolute' else 'm'}")
     print("homed; drives disabled")
-    return EXIT_OK
+    return Exit.OK
 
 
 def _progress_bars(args) -> bool:
@@ -250,20 +293,49 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
+def exit_code(exc: BaseException) -> int:
+    """The :class:`Exit` class of an exception."""
+    from drivers.errors import BusError, BusOpenError, DriveError, RecordingError
+    from drivers.errors import ConfigError as DriveConfigError
     from ident_hw.config import ConfigError
+    if isinstance(exc, KeyboardInterrupt):
+        return Exit.INTERRUPTED
+    if isinstance(exc, (ConfigError, FileExistsError)):    # FileExistsError: --out holds results already
+        return Exit.CONFIG
+    if isinstance(exc, RecordingError):
+        return Exit.DATA
+    if isinstance(exc, (BusOpenError, BusError)):
+        return Exit.BUS
+    if isinstance(exc, DriveConfigError):
+        return Exit.CONFIG
+    if isinstance(exc, DriveError):
+        return Exit.DRIVE_FAULT
+    return Exit.FAILURE
+
+
+#: what the message of each exit class starts with
+_LABELS = {Exit.CONFIG: "config error", Exit.BUS: "bus error", Exit.DRIVE_FAULT: "drive fault",
+           Exit.DATA: "data error", Exit.FAILURE: "error"}
+
+
+def main(argv: list[str] | None = None) -> int:
+    from ident_hw.experiment.signals import signal_name, stop_on_signals
     args = build_parser().parse_args(argv)
-    try:
-        return args.func(args)
-    except ConfigError as exc:
-        print(f"config error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except (ValueError, OSError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_FAIL
+    with stop_on_signals():
+        try:
+            return int(args.func(args))
+        except KeyboardInterrupt as exc:
+            print(f"interrupted ({signal_name(exc)})", file=sys.stderr)
+            return Exit.INTERRUPTED
+        except Exception as exc:
+            code = exit_code(exc)
+            if code == Exit.FAILURE and not isinstance(exc, (ValueError, OSError)):
+                print(f"internal error (a bug, please report it): {type(exc).__name__}: {exc}", file=sys.stderr)
+                if os.environ.get("IDENT_HW_TRACEBACK"):
+                    raise
+            else:
+                print(f"{_LABELS[code]}: {exc}", file=sys.stderr)
+            return code
 
 
 if __name__ == "__main__":

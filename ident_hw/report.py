@@ -2,10 +2,14 @@
 
 A results folder holds::
 
-    STATUS               "complete", or "partial: <why>" after a fault or Ctrl-C
+    STATUS               "running", "identifying", then "complete" (the quality verdict passed),
+                         "degraded: <reasons>" (it did not), "partial: <why>" after a fault or a
+                         signal, "failed: <why>" when nothing could be identified
     config.yaml          the config used, with every ``extends:`` merged in
     parameters.json/.yaml  Table-1-like rows: initial, identified, truth, sigma, %sigma, bounds, step;
-                         the base-parameter least-squares fit (``base_fit``) when a step made one
+                         the base-parameter least-squares fit (``base_fit``) when a step made one;
+                         ``trajectories``: what each recording covered and how much of it the fit
+                         used; ``quality``: the verdict, its figures, thresholds and reasons
     fits/<name>.npz      measured and model forces along each trajectory (t, tau, tau_model, Theta, X,
                          tau_base = the base fit's prediction)
     online.npz           estimates over time of an online run (optional)
@@ -225,12 +229,26 @@ class Results:
     online: OnlineTrace | None = None
     base_fit: BaseFit | None = None
     rel_sigma_threshold: float = POOR_REL_SIGMA
+    #: per trajectory: what its recording covered and what the fit used (``offline.coverage``)
+    trajectories: dict = field(default_factory=dict)
+    #: the quality verdict (``ident_hw.experiment.quality.verdict``); None: not judged
+    quality: dict | None = None
 
 
 # ----------------------------------------------------------------------------- status
 def mark_status(folder: str | Path, status: str) -> None:
-    """Write STATUS: ``"running"``, ``"complete"`` or ``"partial: <reason>"``."""
-    Path(folder, STATUS_FILE).write_text(status.strip() + "\n")
+    """Write STATUS (see the module docstring), atomically: a reader never sees half of it."""
+    path = Path(folder, STATUS_FILE)
+    tmp = path.with_name(STATUS_FILE + ".tmp")
+    tmp.write_text(status.strip() + "\n")
+    tmp.replace(path)
+
+
+def final_status(results: Results) -> str:
+    """``complete`` when the quality verdict passed (or there is none), else ``degraded: <reasons>``."""
+    if results.quality is None or results.quality["passed"]:
+        return "complete"
+    return "degraded: " + "; ".join(results.quality["reasons"])
 
 
 def read_status(folder: str | Path) -> str:
@@ -245,7 +263,8 @@ def save_results(folder: str | Path, results: Results) -> Path:
     (folder / "fits").mkdir(parents=True, exist_ok=True)
     doc = {"parameters": results.parameters.rows(), "rel_sigma_threshold_percent": results.rel_sigma_threshold,
            "base_fit": None if results.base_fit is None else results.base_fit.to_dict(),
-           "steps": results.steps, "base_parameters": results.base_parameters}
+           "steps": results.steps, "base_parameters": results.base_parameters,
+           "trajectories": results.trajectories, "quality": results.quality}
     (folder / "parameters.json").write_text(json.dumps(doc, indent=2, default=_jsonable))
     (folder / "parameters.yaml").write_text(yaml.safe_dump(json.loads(json.dumps(doc, default=_jsonable)),
                                                            sort_keys=False))
@@ -273,7 +292,8 @@ def load_results(folder: str | Path) -> Results:
     base_fit = BaseFit.from_dict(doc["base_fit"]) if doc.get("base_fit") else None
     return Results(parameters=ParameterTable.from_rows(doc["parameters"]), fits=fits,
                    steps=doc.get("steps") or [], base_parameters=doc.get("base_parameters"), online=online,
-                   base_fit=base_fit, rel_sigma_threshold=doc.get("rel_sigma_threshold_percent", POOR_REL_SIGMA))
+                   base_fit=base_fit, rel_sigma_threshold=doc.get("rel_sigma_threshold_percent", POOR_REL_SIGMA),
+                   trajectories=doc.get("trajectories") or {}, quality=doc.get("quality"))
 
 
 # ----------------------------------------------------------------------------- building
@@ -327,6 +347,9 @@ def summary_lines(folder: str | Path) -> list[str]:
     if truth:
         head += f" {'truth':>11} {'error %':>8}"
     lines = [f"status: {read_status(folder)}"]
+    if results.trajectories:
+        lines.append("recordings used:")
+        lines += [f"  {name}: {coverage_text(u)}" for name, u in results.trajectories.items()]
     if any(r["step"] for r in rows):
         lines.append("physical parameters, step by step (seed 001):")
     lines.append(head + "  step")
@@ -352,7 +375,39 @@ def summary_lines(folder: str | Path) -> list[str]:
         if "base_fit" in m:
             text += f"; base fit: d_tau = {m['base_fit']['d_tau_percent']:.2f} %"
         lines.append(text)
+    if results.quality is not None:
+        lines += _verdict_lines(results.quality)
     return lines
+
+
+def coverage_text(used: dict) -> str:
+    """``107 of 266 cycles (40 % of the trajectory), 99.1 % complete, ...`` for one recording."""
+    planned = used.get("cycles_planned")
+    text = f"{used['cycles']} of {planned} cycles" if planned else f"{used['cycles']} cycles"
+    if used.get("coverage") is not None and used["coverage"] < 1.0:
+        text += f" ({100 * used['coverage']:.0f} % of the trajectory)"
+    text += f", {100 * used['valid_fraction']:.1f} % complete"
+    if used.get("longest_gap_s"):
+        text += f", longest gap {used['longest_gap_s']:.3g} s"
+    if "samples_used" in used:
+        text += f"; {used['samples_used']} samples after decimation fitted"
+        if used.get("samples_left_out"):
+            text += f", {used['samples_left_out']} left out"
+    status = str(used.get("recording_status", ""))
+    if status.startswith("stopped"):
+        text += f"; partial recording ({status})"
+    elif status.startswith("running"):
+        text += "; checkpoint of a run that did not end (its process died): partial recording"
+    elif status not in ("complete", ""):
+        text += f"; {status}"
+    return text
+
+
+def _verdict_lines(quality: dict) -> list[str]:
+    """The quality verdict for the terminal: passed, or DEGRADED with one line per reason."""
+    if quality["passed"]:
+        return ["quality verdict: passed (identification.quality thresholds)"]
+    return ["quality verdict: DEGRADED (identification.quality thresholds):"] + [f"  {r}" for r in quality["reasons"]]
 
 
 def _percent(value: float | None) -> str:
@@ -585,6 +640,7 @@ def _html(folder: Path, results: Results, table: dict, images: list[tuple[str, P
     figures = "".join(f"<figure><img src='{esc(str(img.relative_to(folder)))}' alt='{esc(title)}'>"
                       f"<figcaption>{esc(title)}</figcaption></figure>" for title, img in images)
     status_class = "ok" if status == "complete" else "partial"
+    verdict = _html_verdict(results)
     return f"""<!doctype html>
 <html><head><meta charset="utf-8"><title>ident_hw report</title>
 <style>body{{font-family:sans-serif;max-width:1100px;margin:auto}} table{{border-collapse:collapse}}
@@ -592,6 +648,7 @@ td,th{{border:1px solid #bbb;padding:2px 6px;text-align:right}} td:first-child{{
 .partial{{color:#b00;font-weight:bold}} .ok{{color:#070}} img{{max-width:100%}}</style></head>
 <body><h1>3PRRR dynamic identification</h1>
 <p>Status: <span class="{status_class}">{esc(status)}</span></p>
+{verdict}
 <h2>Parameters (like the paper's Table 1)</h2>
 <table><tr>{''.join(f'<th>{esc(h)}</th>' for h in head)}</tr>{''.join(rows)}</table>
 <h2>Identification steps</h2><ul>{steps}</ul>
@@ -605,6 +662,23 @@ td,th{{border:1px solid #bbb;padding:2px 6px;text-align:right}} td:first-child{{
 <p>Files: parameters.json/.yaml, metrics.yaml, results.mat, config.yaml, data/ (raw CAN log and decoded samples).</p>
 </body></html>
 """
+
+
+def _html_verdict(results: Results) -> str:
+    """The recordings used and the quality verdict with its reasons."""
+    esc = html.escape
+    parts = []
+    if results.trajectories:
+        items = "".join(f"<li>{esc(name)}: {esc(coverage_text(u))}</li>" for name, u in results.trajectories.items())
+        parts.append(f"<h2>Recordings used</h2><ul>{items}</ul>")
+    q = results.quality
+    if q is not None:
+        head = ("<p class='ok'>Quality verdict: passed.</p>" if q["passed"] else
+                "<p class='partial'>Quality verdict: DEGRADED.</p><ul>"
+                + "".join(f"<li>{esc(r)}</li>" for r in q["reasons"]) + "</ul>")
+        limits = ", ".join(f"{esc(k)} = {esc(str(v))}" for k, v in q["thresholds"].items())
+        parts.append(f"<h2>Quality</h2>{head}<p>Thresholds (identification.quality): {limits}.</p>")
+    return "".join(parts)
 
 
 def _html_base_fit(fit: BaseFit) -> str:

@@ -47,7 +47,7 @@ def test_check_rejects_an_infeasible_trajectory(tmp_path):
         "trajectories:\n  - {name: big, kind: square, size: 0.9}\n"
         "identification:\n  steps: [{name: s, trajectories: [big], parameters: [m_ee]}]\n  validation: []\n")
     out = ident_hw("check", tmp_path / "bad.yaml")
-    assert out.returncode == 1
+    assert out.returncode == 2   # the config cannot run
     assert "big:" in out.stdout and "NOT runnable" in out.stdout
     assert "INFEASIBLE" in out.stdout or "cannot build" in out.stdout
 
@@ -63,7 +63,7 @@ def test_bad_config_names_file_key_and_line(tmp_path):
 
 def test_run_refuses_hardware_without_arm(tmp_path):
     out = ident_hw("run", CONFIGS / "hil-3prrr-epos4.yaml", "--out", tmp_path / "r")
-    assert out.returncode == 1
+    assert out.returncode == 2   # a command-line error: nothing opened, nothing moved
     assert "--arm" in out.stderr and "can0" in out.stderr
     assert not (tmp_path / "r").exists()
 
@@ -94,7 +94,8 @@ SWEEP_ONLY = f"""extends: {CONFIGS / 'sim-3prrr.yaml'}
 bus: {{interface: virtual, channel: unused, sync_rate: 100.0}}
 trajectories: [{{name: sweep, kind: carriage_sweep, size: 0.03}}]
 identification:
-  steps: [{{name: carriages, trajectories: [sweep], parameters: [m_c]}}]
+  steps: [{{name: carriages, trajectories: [sweep],
+           parameters: [m_c, fv_zeta1, fv_zeta2, fv_zeta3, fc_zeta1, fc_zeta2, fc_zeta3]}}]
   validation: []
   filter: {{bandwidth: 1.0}}
 """
@@ -102,7 +103,7 @@ identification:
 
 def test_identify_and_report_from_recordings(tmp_path):
     path = tmp_path / "sweep.yaml"
-    path.write_text(SWEEP_ONLY)    # one short sweep at 100 Hz, m_c only
+    path.write_text(SWEEP_ONLY)    # one short sweep at 100 Hz, m_c and the carriage friction
     config = load_config(path)
     paths = synthetic_recordings(config, tmp_path)
     out = ident_hw("identify", path, *paths, "--out", tmp_path / "res", "--quiet")
@@ -126,7 +127,8 @@ def test_identify_and_report_from_recordings(tmp_path):
 
 def test_identify_with_a_missing_trajectory_fails_clearly(tmp_path):
     out = ident_hw("identify", CONFIGS / "sim-3prrr.yaml", tmp_path / "absent.npz", "--out", tmp_path / "res")
-    assert out.returncode == 1 and "absent.npz" in out.stderr
+    assert out.returncode == 5 and "absent.npz" in out.stderr     # a data error
+    assert not (tmp_path / "res").exists()
 
 
 BASE_STEP = f"""extends: {CONFIGS / 'sim-3prrr.yaml'}

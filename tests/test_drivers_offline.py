@@ -12,7 +12,7 @@ from drivers.axis import AxisConfig
 from drivers.bus import BusConfig, check_bus_load, frame_bits, max_sync_rate, open_network
 from drivers.emcy import describe
 from drivers.epos import DriveGroup
-from drivers.errors import BusLoadError, ConfigError
+from drivers.errors import BusLoadError, ConfigError, RecordingError
 from drivers.recording import FlushingLogger, Recording, decode_log, rows_to_arrays
 from drivers.units import AxisScaling
 
@@ -147,7 +147,7 @@ def test_recording_round_trip_and_bad_files(tmp_path):
     np.testing.assert_array_equal(back.position, rec.position)
     assert back.metadata["note"] == "x" and back.metadata["n_cycles"] == 3
     np.save(tmp_path / "other.npy", np.zeros(3))
-    with pytest.raises(ConfigError, match="other.npy"):
+    with pytest.raises(RecordingError, match="other.npy"):
         Recording.load(tmp_path / "other.npy")
     with pytest.raises(ConfigError, match="suffix"):
         FlushingLogger(tmp_path / "raw.txt")

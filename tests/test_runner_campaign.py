@@ -49,9 +49,14 @@ def rig_states(folder: Path) -> list[str]:
 def test_run_then_identify_from_its_raw_can_log_gives_the_same_result(tmp_path):
     config = short_config(tmp_path)
     run = ident_hw("run", config, "--out", tmp_path / "run", "--quiet", cwd=tmp_path)
-    assert run.returncode == 0, run.stderr
+    # three link parameters from one small square, everything else at its CAD value: none comes out
+    # well identified and the model misses the square's forces by about a third; the quality
+    # verdict says so (exit code 6), and the run is complete in everything else
+    assert run.returncode == 6, run.stderr
     res = tmp_path / "run"
-    assert (res / "STATUS").read_text().strip() == "complete"
+    status = (res / "STATUS").read_text()
+    assert status.startswith("degraded: 0 of 3 fitted parameters well identified") and "square" in status
+    assert "quality verdict: DEGRADED" in run.stdout
     for name in ("config.yaml", "parameters.json", "metrics.yaml", "report.html", "results.mat",
                  "data/square.npz", "data/square.log", "plots/forces_square.png"):
         assert (res / name).is_file(), name
@@ -70,7 +75,8 @@ def test_run_then_identify_from_its_raw_can_log_gives_the_same_result(tmp_path):
     # identification from the raw log, with the run's copy of the config, gives the run's numbers
     again = ident_hw("identify", res / "config.yaml", res / "data" / "square.log", "--out", tmp_path / "again",
                      "--quiet", cwd=tmp_path)
-    assert again.returncode == 0, again.stderr
+    assert again.returncode == 6, again.stderr
+    assert (tmp_path / "again" / "STATUS").read_text() == status
     first, second = (json.loads((tmp_path / d / "parameters.json").read_text())["parameters"]
                      for d in ("run", "again"))
     assert [r["name"] for r in first] == [r["name"] for r in second]
@@ -114,7 +120,7 @@ def test_a_drive_fault_ends_the_run_with_the_fault_in_message_and_folder(tmp_pat
         "sim:\n  fault: {trajectory: square, after: 1.0, node_id: 5, code: 0x2310}\n"))
     res = tmp_path / "run"
     out = ident_hw("run", config, "--out", res, "--quiet", cwd=tmp_path)
-    assert out.returncode == 1, out.stderr
+    assert out.returncode == 4, out.stderr      # a drive fault
     assert "node 5 (zeta2)" in out.stderr and "0x2310" in out.stderr
     status = (res / "STATUS").read_text()
     assert status.startswith("partial: drive fault: node 5 (zeta2)") and "0x2310" in status
@@ -147,6 +153,6 @@ def test_scan_monitor_home_and_online_on_the_simulated_rig(tmp_path):
     assert "theta2: homed at 1.6089" in home.stdout and "drives disabled" in home.stdout
 
     online = ident_hw("online", config, "--out", tmp_path / "online", "--quiet", cwd=tmp_path)
-    assert online.returncode == 0, online.stderr
+    assert online.returncode == 6, online.stderr      # degraded, as in the first test of this module
     assert "SVD-DLS estimates after square" in online.stdout
     assert (tmp_path / "online" / "online.npz").is_file() and (tmp_path / "online" / "plots" / "online.png").is_file()

@@ -15,14 +15,14 @@ import yaml
 from .schema import ConfigError, build
 from .sections import (ActuatorConfig, BusConfig, Config, FilterConfig, GeometryConfig, HomingConfig,
                        IdentificationConfig, InertialConfig, LimitsConfig, OnlineConfig,
-                       OutputConfig, RobotConfig, SafetyConfig, SimConfig, SimFaultConfig, StepConfig, TrajectoryConfig)
+                       OutputConfig, QualityConfig, RobotConfig, SafetyConfig, SimConfig, SimFaultConfig, StepConfig, TrajectoryConfig)
 from .source import compose_file
 
 __all__ = [
     "load_config", "resolved_yaml", "ConfigError", "Config", "RobotConfig", "GeometryConfig",
     "InertialConfig", "ActuatorConfig", "LimitsConfig", "HomingConfig", "SafetyConfig", "BusConfig",
     "SimConfig", "SimFaultConfig", "TrajectoryConfig", "IdentificationConfig", "StepConfig",
-    "FilterConfig", "OnlineConfig", "OutputConfig",
+    "FilterConfig", "OnlineConfig", "OutputConfig", "QualityConfig",
 ]
 
 

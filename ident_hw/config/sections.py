@@ -8,8 +8,11 @@ the other layers (model geometry and parameters, drive unit scaling).
 from __future__ import annotations
 
 import dataclasses
+import difflib
 from dataclasses import dataclass, field
 from typing import Literal
+
+import can
 
 import drivers.axis
 import drivers.bus
@@ -184,11 +187,20 @@ class RobotConfig:
             seen[act.node_id] = i
 
 
+def _python_can_interface(name: str) -> None:
+    """An interface name python-can knows (``can.interfaces.VALID_INTERFACES``)."""
+    if name not in can.interfaces.VALID_INTERFACES:
+        close = difflib.get_close_matches(name, sorted(can.interfaces.VALID_INTERFACES), n=1)
+        hint = f"did you mean {close[0]!r}?" if close else \
+            f"python-can has {', '.join(sorted(can.interfaces.VALID_INTERFACES))}"
+        raise ValueError(f"python-can has no interface {name!r}; {hint}")
+
+
 @dataclass(frozen=True)
 class BusConfig:
     """The CAN bus (python-can) and the SYNC rate of the cyclic exchange."""
 
-    interface: str
+    interface: str = field(metadata=spec(_python_can_interface, doc="a python-can interface name"))
     channel: str
     bitrate: int = field(default=1_000_000, metadata=spec(positive, unit="bit/s"))
     sync_rate: float = field(default=250.0, metadata=spec(in_range(1.0, 2000.0), unit="Hz"))
@@ -338,10 +350,35 @@ class OnlineConfig:
 
 
 @dataclass(frozen=True)
+class QualityConfig:
+    """Thresholds of the quality verdict (:mod:`ident_hw.experiment.quality`) of every run and
+    identify: a result whose data or fit miss one ends ``degraded`` (with the reasons), not
+    ``complete``."""
+
+    min_coverage: float = field(default=1.0, metadata=spec(
+        in_range(0.0, 1.0), doc="fraction of each trajectory's set-points its recording must hold"))
+    min_valid_fraction: float = field(default=0.9, metadata=spec(
+        in_range(0.0, 1.0), doc="fraction of complete cycles (every frame of every drive) per trajectory"))
+    max_gap: float = field(default=0.2, metadata=spec(
+        positive, unit="s", doc="longest stretch of a trajectory without a complete cycle"))
+    max_condition: float = field(default=1e4, metadata=spec(
+        positive, doc="condition number of each step's regressor, columns scaled to unit RMS (the paper's "
+                      "squares give 2.2e3 for the link step: its inertias then come out poorly identified)"))
+    max_d_tau: float = field(default=10.0, metadata=spec(
+        positive, unit="%", doc="force prediction error d_tau of the result on each validation trajectory "
+                                "(on each identification one when there is none)"))
+    max_disagreement: float = field(default=10.0, metadata=spec(
+        positive, unit="%", doc="difference of the step-by-step and base-parameter force predictions, "
+                                "relative to the measured forces, on the trajectories max_d_tau judges"))
+    min_well_identified: int = field(default=1, metadata=spec(
+        non_negative, doc="fitted parameters (physical or base) with %sigma <= rel_sigma_threshold"))
+
+
+@dataclass(frozen=True)
 class IdentificationConfig:
     """Steps run in order (each fixes the parameters it identifies), validation trajectories,
-    the SQP bounds ``[min, max]`` per parameter, and the %σ above which an estimate is reported
-    as poorly identified on its data."""
+    the SQP bounds ``[min, max]`` per parameter, the %σ above which an estimate is reported
+    as poorly identified on its data, and the thresholds of the quality verdict."""
 
     steps: tuple[StepConfig, ...]
     validation: tuple[str, ...] = ()
@@ -353,6 +390,7 @@ class IdentificationConfig:
     bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
     filter: FilterConfig = FilterConfig()
     online: OnlineConfig = OnlineConfig()
+    quality: QualityConfig = QualityConfig()
 
     def _check(self) -> None:
         least_squares = [i for i, s in enumerate(self.steps) if s.method != "sqp"]

@@ -28,10 +28,18 @@ def compose_file(path: str | Path, _chain: tuple[Path, ...] = ()) -> yaml.Mappin
         raise ConfigError("file not found", file=str(path)) from None
     except OSError as exc:
         raise ConfigError(f"cannot read: {exc.strerror}", file=str(path)) from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"not a text file (byte 0x{exc.object[exc.start]:02X} at offset {exc.start} is not "
+                          "UTF-8): a config is a YAML text file", file=str(path)) from None
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line = mark.line + 1 if mark else None
         raise ConfigError(f"not valid YAML: {exc.problem or exc.context}", file=str(path), line=line) from None
+    except yaml.YAMLError as exc:   # the reader's errors: NUL and other control characters
+        line = _line_of(path, getattr(exc, "position", None))
+        why = f"character 0x{exc.character:02X} is not allowed in YAML" if isinstance(
+            getattr(exc, "character", None), int) else str(exc).splitlines()[0]
+        raise ConfigError(f"not valid YAML: {why}", file=str(path), line=line) from None
     if node is None:
         raise ConfigError("the file is empty", file=str(path))
     _flatten_merge_keys(node, set())
@@ -60,6 +68,16 @@ def compose_file(path: str | Path, _chain: tuple[Path, ...] = ()) -> yaml.Mappin
     own = yaml.MappingNode(node.tag, [(k, v) for k, v in node.value if k.value != EXTENDS],
                            node.start_mark, node.end_mark)
     return merge(merged, own)
+
+
+def _line_of(path: Path, position: int | None) -> int | None:
+    """1-based line of character ``position`` of a text file (None when unknown)."""
+    if position is None:
+        return None
+    try:
+        return path.read_text(encoding="utf-8")[:position].count("\n") + 1
+    except (OSError, UnicodeDecodeError):
+        return None
 
 
 def _flatten_merge_keys(node: yaml.Node, done: set[int]) -> None:

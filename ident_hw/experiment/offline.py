@@ -7,28 +7,31 @@ an SQP fit of its parameters with the others held at their current values (CAD a
 so the sweep's ``m_c`` is used by the squares' step. A ``wls``/``ols`` step instead fits the
 base parameters of its parameters (:func:`fit_base`), reported beside the physical ones with
 its own prediction of every trajectory. The result is a :class:`ident_hw.report.Results` with
-standard deviations from the weighted least-squares statistics of each step and a
-base-parameter analysis of all identification data.
+standard deviations from the weighted least-squares statistics of each step, a
+base-parameter analysis of all identification data, what each recording covered
+(:func:`coverage`) and the quality verdict (:func:`ident_hw.experiment.quality.verdict`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Callable, Mapping
 
 import numpy as np
 
-from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log
+from drivers.errors import RecordingError
+from drivers.recording import Recording
 from ident_hw.config import Config
 from ident_hw.identification.base_params import base_parameters, identify_base
 from ident_hw.identification.least_squares import check_regression_data, stack, wls
 from ident_hw.identification.mass_fit import sqp_fit
 from ident_hw.model import InertialParams, ThreePRRR
-from ident_hw.report import BaseFit, ParameterTable, Results, TrajectoryFit
+from ident_hw.report import BaseFit, ParameterTable, Results, TrajectoryFit, coverage_text
 from ident_hw.signal import kept_samples, parallel_decimate, prepare_actuated
 
-from .plan import motion_bandwidth, plan, robot_model
+from .plan import motion_bandwidth, robot_model
+from .quality import verdict
+from .recordings import planned_cycles, require_trajectories
 
 NAMES = InertialParams.NAMES
 
@@ -53,32 +56,6 @@ class Prepared:
         """``tau`` with NaN in the rows of axes near rest (left out of the fits, see
         :mod:`ident_hw.identification.least_squares`)."""
         return np.where(self.moving, self.tau, np.nan)
-
-
-def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
-    """A recording from a decoded ``.npz`` or a raw CAN log (``.log``/``.asc``/``.blf``).
-
-    The trajectory name is the recording's ``trajectory`` metadata, else the file stem. A raw
-    log is decoded up to the length of the config's trajectory of that name (the SYNC keeps
-    running for a few cycles after the last set-point), on the config's SYNC period (in lockstep
-    the row times are the cycle times, as the run recorded them).
-    """
-    path = Path(path)
-    if path.suffix in RAW_LOG_SUFFIXES:
-        name = path.stem
-        meta = {"trajectory": name}
-        lockstep_period = None
-        if config.bus is not None:
-            meta["sync_period"] = 1.0 / config.bus.sync_rate
-            if config.sync_mode == "lockstep":
-                lockstep_period = meta["sync_period"]
-        planned = plan(config, [name])
-        cycles = len(planned[0].trajectory.t) if planned and planned[0].trajectory is not None else None
-        rec = decode_log(path, [a.to_driver() for a in config.robot.actuators], max_cycles=cycles, metadata=meta,
-                         lockstep_period=lockstep_period)
-    else:
-        rec = Recording.load(path)
-    return str(rec.metadata.get("trajectory", path.stem)), rec
 
 
 def fill_gaps(t: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -145,6 +122,37 @@ def with_skipped_slots(rec: Recording) -> Recording:
                      statusword=rec.statusword[held], target=rec.target[held], valid=valid, metadata=metadata)
 
 
+def coverage(config: Config, name: str, rec: Recording) -> dict:
+    """What the recording of trajectory ``name`` holds, for the report and the quality verdict.
+
+    Keys: ``file``; ``recording_status`` (``complete``, ``stopped: <why>`` after a fault or a
+    signal, ``running (checkpoint)`` when the recording process died, ``raw log`` or ``raw log,
+    truncated``); ``cycles`` recorded and ``cycles_planned`` (the trajectory's set-points: the
+    recording's ``n_targets``, else the config's trajectory of that name); ``coverage``
+    (their ratio, None when unknown); ``valid_fraction`` (complete cycles / rows, with the SYNC
+    slots a hardware producer skipped counted as rows, :func:`with_skipped_slots`);
+    ``longest_gap_s`` (s, the longest stretch without a complete cycle); ``skipped_slots``.
+    """
+    meta = rec.metadata
+    planned = meta.get("n_targets") or planned_cycles(config, name)
+    status = str(meta.get("status", "unknown"))
+    if status == "decoded":
+        status = "raw log, truncated" if meta.get("log_truncated") else "raw log"
+    rows = rec if config.simulated else with_skipped_slots(rec)
+    t = sample_times(rows)
+    complete = rows.valid.all(axis=1)
+    gap = 0.0
+    if len(t) > 1:
+        period = float(meta.get("sync_period") or np.median(np.diff(t)))
+        edges = np.concatenate([[t[0] - period], t[complete], [t[-1] + period]])
+        gap = round(max(0.0, float(np.max(np.diff(edges))) - period), 6)
+    return {"file": meta.get("file"), "recording_status": status, "cycles": len(rec.t),
+            "cycles_planned": None if planned is None else int(planned),
+            "coverage": None if not planned else min(1.0, len(rec.t) / planned),
+            "valid_fraction": float(complete.mean()) if len(t) else 0.0, "longest_gap_s": gap,
+            "skipped_slots": int(rows.metadata.get("slots_inserted", 0))}
+
+
 #: a set-point sequence accelerating faster than this many times the axis limit was not
 #: delivered on time (the drive held a stale set-point, then jumped)
 SETPOINT_JUMP = 5.0
@@ -183,8 +191,12 @@ def prepare(config: Config, robot: ThreePRRR, name: str, rec: Recording) -> Prep
     if not config.simulated:
         rec = with_skipped_slots(rec)
     t = sample_times(rec)
+    where = f"{rec.metadata.get('file', 'recording')} (trajectory {name!r})"
     if len(t) < 3:
-        raise ValueError(f"recording of {name!r} has {len(t)} samples: too few to identify from")
+        raise RecordingError(f"{where}: {len(t)} samples, too few to identify from")
+    empty = [f"node {a.node_id} ({a.name})" for a, ok in zip(config.robot.actuators, rec.valid.any(axis=0)) if not ok]
+    if empty:
+        raise RecordingError(f"{where}: no valid sample of {', '.join(empty)}")
     rate = 1.0 / float(np.median(np.diff(t)))
     settings = config.identification.filter.settings(rate, motion_bandwidth(config, name))
     force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
@@ -206,6 +218,16 @@ def column_scale(Y: np.ndarray) -> np.ndarray:
     column): scaling by it makes the rank decision of the base parameters unit-free."""
     rms = np.sqrt(np.mean(Y.reshape(-1, Y.shape[-1]) ** 2, axis=0))
     return np.divide(1.0, rms, out=np.ones_like(rms), where=rms > 0)
+
+
+def scaled_condition(Y: np.ndarray, tau: np.ndarray) -> float:
+    """Condition number of the stacked regressor ``Y`` (N, 6, n) with unit-RMS columns, over the
+    rows the fit uses (``tau`` not NaN): unit-free, unlike cond(W) of kg next to kg·m²."""
+    W, _ = stack(*check_regression_data(Y, tau))
+    W = W[np.any(W != 0.0, axis=1)]
+    if not len(W):
+        return float("inf")
+    return float(np.linalg.cond(W * column_scale(W[:, None, :])))
 
 
 def fit_base(step, Y: np.ndarray, tau: np.ndarray, coef: np.ndarray, initial: np.ndarray,
@@ -233,7 +255,8 @@ def fit_base(step, Y: np.ndarray, tau: np.ndarray, coef: np.ndarray, initial: np
                      held=tuple(NAMES[i] for i in held), unexcited=base.unexcited, threshold=threshold)
     record = {"name": step.name, "trajectories": list(step.trajectories), "free": list(step.parameters),
               "method": f"{fit.method} of the base parameters ({base.rank} of {len(free)})",
-              "eliminated": list(base.eliminated), **{k: v for k, v in fit.to_dict().items() if k != "parameters"}}
+              "eliminated": list(base.eliminated), **{k: v for k, v in fit.to_dict().items() if k != "parameters"},
+              "cond_scaled": scaled_condition(Yf[:, :, [list(step.parameters).index(k) for k in base.kept]], tau)}
     return result, equivalent, record
 
 
@@ -245,9 +268,11 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         raise ValueError(f"{config.source}: identification: missing section")
     robot = robot_model(config)
     needed = [n for s in ident.steps for n in s.trajectories] + list(ident.validation)
-    missing = [n for n in dict.fromkeys(needed) if n not in recordings]
-    if missing:
-        raise ValueError(f"no recording for trajectories {missing} (have {sorted(recordings)})")
+    require_trajectories(config, recordings)
+    used = {name: coverage(config, name, recordings[name]) for name in dict.fromkeys(needed)}
+    if progress:
+        for name, u in used.items():
+            progress(f"  {name}: {coverage_text(u)}")
     prepared: dict[str, Prepared] = {}
     for name in dict.fromkeys(needed):
         if progress:
@@ -284,7 +309,8 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         held = [i for i in range(n) if i not in idx]
         # sigma of the free parameters: WLS statistics of the same weighted problem
         record = {"name": step.name, "trajectories": list(step.trajectories), **fit.to_dict(),
-                  "samples_left_out": {t: prepared[t].excluded for t in step.trajectories}}
+                  "samples_left_out": {t: prepared[t].excluded for t in step.trajectories},
+                  "cond_scaled": scaled_condition(Y[:, :, idx], tau)}
         try:
             stats = wls(Y[:, :, idx], tau - Y[:, :, held] @ coef[held], step.parameters, output_std=fit.output_std)
         except ValueError as exc:  # rank deficient: the fit is bounded, but has no covariance
@@ -310,5 +336,9 @@ def identify(config: Config, recordings: Mapping[str, Recording],
                                   tau_base=None if base_fit is None else p.Y @ base_equivalent))
     table = ParameterTable(names=NAMES, initial=initial, identified=coef, sigma=sigma, lower=lower, upper=upper,
                            step=tuple(step_of), method=tuple(method_of), truth=truth)
-    return Results(parameters=table, fits=fits, steps=steps, base_parameters=base, base_fit=base_fit,
-                   rel_sigma_threshold=ident.rel_sigma_threshold)
+    for name, p in prepared.items():
+        used[name].update(samples_used=len(p.t), samples_left_out=p.excluded)
+    results = Results(parameters=table, fits=fits, steps=steps, base_parameters=base, base_fit=base_fit,
+                      rel_sigma_threshold=ident.rel_sigma_threshold, trajectories=used)
+    results.quality = verdict(results, ident.quality)
+    return results

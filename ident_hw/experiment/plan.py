@@ -145,14 +145,21 @@ def quantisation_notes(config: Config, traj: trajectories.Trajectory) -> tuple[s
             "Expect current ripple at the set-point rate (a finer encoder or a slower SYNC lowers it)",)
 
 
-def check_campaign(config: Config) -> list[str]:
-    """Everything that would stop a run, as messages; empty when the campaign can run."""
+def check_campaign(config: Config, planned: list[PlannedTrajectory] | None = None) -> list[str]:
+    """Everything that would stop a run, as messages; empty when the campaign can run
+    (``planned``: the config's :func:`plan`, if already made)."""
     problems = []
     if config.bus is None:
         problems.append(f"{config.source}: bus: missing section (needed to run)")
+    elif config.sim is not None and config.sim.in_process and not config.simulated:
+        problems.append(f"{config.source}: sim.in_process: the simulated rig only serves a virtual or vcan bus, "
+                        f"not {config.bus.interface}:{config.bus.channel}")
     if not config.trajectories:
         problems.append(f"{config.source}: trajectories: none defined")
-    for planned in plan(config):
-        if not planned.ok:
-            problems.append(planned.describe())
+    if config.identification is None:
+        problems.append(f"{config.source}: identification: missing section (the steps that turn the "
+                        "recordings into parameters; a run would move, record, then stop)")
+    for p in plan(config) if planned is None else planned:
+        if not p.ok:
+            problems.append(p.describe())
     return problems

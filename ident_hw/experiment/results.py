@@ -1,4 +1,5 @@
-"""Creating a results folder: a fresh timestamped directory with STATUS and the config copy."""
+"""Creating a results folder: a fresh timestamped directory with STATUS and the config copy;
+removing it again when the run could not start."""
 
 from __future__ import annotations
 
@@ -23,3 +24,22 @@ def new_results_folder(config: Config, out: str | Path | None, label: str) -> Pa
     mark_status(folder, "running")
     (folder / "config.yaml").write_text(resolved_yaml(config.source))
     return folder
+
+
+def discard_unused(folder: Path) -> bool:
+    """Remove what :func:`new_results_folder` wrote into ``folder`` (STATUS, config.yaml, an
+    empty data/) and the folder if that leaves it empty: a run that could not start (its bus
+    would not open) leaves no results folder behind. Anything else in it stays. True if the
+    folder is gone."""
+    folder = Path(folder)
+    data = folder / "data"
+    if data.is_dir() and any(data.iterdir()):
+        return False
+    for name in ("STATUS", "config.yaml"):
+        (folder / name).unlink(missing_ok=True)
+    for path in (data, folder):
+        try:
+            path.rmdir()
+        except OSError:
+            return False
+    return True

@@ -11,8 +11,10 @@ records it (``data/<name>.npz`` decoded, ``data/<name><raw_log>`` raw CAN log). 
 identifies and validates (:func:`ident_hw.experiment.offline.identify`) and writes the results folder
 (:func:`ident_hw.report.save_results`). On Ctrl-C or a drive fault the drives are stopped and
 disabled by the driver, the recordings so far stay on disk, STATUS says ``partial: <why>`` and
-:class:`CampaignStopped` is raised. ``data/drives.json`` holds the CiA 402 state of every drive
-after the run, as the master read it (and as the in-process rig holds it).
+:class:`CampaignStopped` is raised (SIGTERM and SIGHUP are Ctrl-C too under
+:func:`ident_hw.experiment.signals.stop_on_signals`). ``data/drives.json`` holds the CiA 402
+state of every drive after the run, as the master read it (and as the in-process rig holds it).
+A run that ends normally is ``complete`` or ``degraded: <reasons>`` by the quality verdict.
 """
 
 from __future__ import annotations
@@ -30,30 +32,57 @@ from tqdm import tqdm
 
 from drivers.bus import SYNC_COB_ID
 from drivers.epos import DriveGroup
-from drivers.errors import DriveError, NodeError
+from drivers.errors import BusOpenError, DriveError, NodeError
 from drivers.recording import Recording
 from ident_hw.config import Config
-from ident_hw.report import Results, mark_status, save_results
+from ident_hw.report import Results, final_status, mark_status, save_results
 
 from .offline import identify
 from .online import CampaignEstimator
 from .plan import PlannedTrajectory, plan, sample_rate
 from .session import Session, open_session
+from .signals import shielded, signal_name
 
 #: profile-position moves to a trajectory's start run at this fraction of each axis' speed limit
 APPROACH_SPEED = 0.2
 
 
-class CampaignStopped(Exception):
-    """The campaign ended early (Ctrl-C or a fault); the results folder is marked partial.
+#: CiA 402 states in which a drive's power stage is off
+DISABLED_STATES = ("SWITCH ON DISABLED", "READY TO SWITCH ON", "NOT READY TO SWITCH ON")
 
-    ``interrupted`` is True for Ctrl-C; ``cause`` is the original exception.
+
+class CampaignStopped(Exception):
+    """The campaign ended early (Ctrl-C, SIGTERM, SIGHUP or a fault); the results folder is
+    marked partial.
+
+    ``interrupted`` is True for a signal; ``cause`` is the original exception; ``drives`` the
+    CiA 402 state of each drive after the stop as the master read it (``unknown (...)`` where
+    it could not).
     """
 
-    def __init__(self, folder: Path, reason: str, cause: BaseException):
+    def __init__(self, folder: Path, reason: str, cause: BaseException, drives: dict[str, str] | None = None):
         super().__init__(f"{reason} (partial results in {folder})")
         self.folder, self.reason, self.cause = folder, reason, cause
+        self.drives = dict(drives or {})
         self.interrupted = isinstance(cause, KeyboardInterrupt)
+
+    def stop_message(self) -> str:
+        """What the stop did, claiming only the drive states the master could read."""
+        return (f"stop sent to every drive; {drives_after_stop(self.drives)}\n"
+                f"recordings kept in {self.folder / 'data'}")
+
+
+def drives_after_stop(master: dict[str, str]) -> str:
+    """``drives disabled: a, b; FAULT: c; state unknown: d`` from the states the master read
+    (``unknown (...)`` for a drive that did not answer: never claimed disabled)."""
+    if not master:
+        return "drive states not read"
+    groups: dict[str, list[str]] = {}
+    for label, state in master.items():
+        key = ("state unknown" if state.startswith("unknown") else
+               "drives disabled" if state in DISABLED_STATES else state)
+        groups.setdefault(key, []).append(label)
+    return "; ".join(f"{key}: {', '.join(labels)}" for key, labels in groups.items())
 
 
 class _SyncCounter(can.Listener):
@@ -177,27 +206,32 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
                     if online is not None:
                         online.update(p.config.name, rec)
             finally:
-                # quick stop and disable, then the drives stop watching the master's heartbeat before it ends
-                group.close()
-                states = _drive_states(session, group)
-                (data / "drives.json").write_text(json.dumps(states, indent=2))
+                # quick stop and disable, then the drives stop watching the master's heartbeat before
+                # it ends; a signal arriving meanwhile waits for the states to be written
+                with shielded():
+                    group.close()
+                    states = _drive_states(session, group)
+                    (data / "drives.json").write_text(json.dumps(states, indent=2))
         mark_status(folder, "identifying")
         results = identify(config, recordings, progress=say)
         if online is not None:
             results.online = online.trace()
+        mark_status(folder, final_status(results))    # before the report, which shows it
         save_results(folder, results)
+    except BusOpenError as exc:
+        mark_status(folder, f"failed: {exc}; nothing moved, nothing recorded")
+        raise
     except BaseException as exc:
         if isinstance(exc, KeyboardInterrupt):
-            reason = "interrupted (Ctrl-C)"
+            reason = f"interrupted ({signal_name(exc)})"
         elif isinstance(exc, DriveError):
             reason = f"drive fault: {exc}"
         else:
             reason = f"{type(exc).__name__}: {exc}"
-        drives = ", ".join(f"{k} {v}" for k, v in states.get("master", {}).items())
+        master = states.get("master", {})
         mark_status(folder, f"partial: {reason}; complete recordings: {', '.join(recordings) or 'none'}"
-                    + (f"; drives after the stop: {drives}" if drives else ""))
+                    + (f"; drives after the stop: {drives_after_stop(master)}" if master else ""))
         if isinstance(exc, (KeyboardInterrupt, DriveError)):
-            raise CampaignStopped(folder, reason, exc) from exc
+            raise CampaignStopped(folder, reason, exc, master) from exc
         raise
-    mark_status(folder, "complete")
     return results

@@ -12,10 +12,12 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Iterator
 
+import can
 import canopen
 
 from drivers.bus import open_network
 from drivers.epos import DriveGroup
+from drivers.errors import BusOpenError
 from drivers.sim import SimulatedRig
 from ident_hw.config import Config
 
@@ -70,7 +72,12 @@ def open_session(config: Config) -> Iterator[Session]:
         if not config.simulated:
             raise ValueError(f"{config.source}: sim.in_process: the simulated rig only serves a virtual "
                              f"or vcan bus, not {config.bus.interface}:{config.bus.channel}")
-        rig = simulated_rig(config).start()
+        rig = simulated_rig(config)
+        try:
+            rig.start()
+        except (can.CanError, OSError) as exc:
+            raise BusOpenError(f"simulated rig: cannot open CAN bus interface={config.bus.interface!r} "
+                               f"channel={config.bus.channel!r}: {exc}") from exc
     try:
         network = open_network(config.bus.to_driver())
     except BaseException:

@@ -37,8 +37,11 @@ def test_cli_run_against_rig_process_matches_candump(start_process, candump, tmp
     run = subprocess.run(["ident-hw", "run", CONFIG, "--quiet", "--out", out], capture_output=True, text=True,
                          timeout=CLI_TIMEOUT)
     print(f"$ ident-hw run\n{run.stdout}{run.stderr}")
-    assert run.returncode == 0, run.stderr
-    assert (out / "STATUS").read_text().strip() == "complete"
+    # the plumbing, not the fit (see below): a guest falling behind the SYNC leaves cycles incomplete
+    # and the quality verdict then says degraded (exit code 6)
+    assert run.returncode in (0, 6), run.stderr
+    status = (out / "STATUS").read_text().strip()
+    assert status == "complete" if run.returncode == 0 else status.startswith("degraded: "), status
     (traj,) = config.trajectories
     recorded = Recording.load(out / "data" / f"{traj.name}.npz")
     n = recorded.metadata["n_cycles"]

@@ -1,0 +1,108 @@
+"""The quality verdict of a result: is it good enough to be marked ``complete``?
+
+Computed from the data and the fit of :func:`ident_hw.experiment.offline.identify`, against the
+thresholds of ``identification.quality`` (:class:`ident_hw.config.QualityConfig`):
+
+* per trajectory: the share of its set-points the recording holds (a stopped run, a checkpoint,
+  a truncated log), the share of complete cycles, the longest stretch without one;
+* per step: the condition number of its regressor (columns scaled to unit RMS);
+* the parameters: how many fitted ones are well identified (%σ at most ``rel_sigma_threshold``);
+* per validation trajectory (each identification one when there is none): the force prediction
+  error d_τ of the step-by-step parameters (and of the base-parameter fit), and how far the
+  two predictions are apart. Not on identification trajectories beside a validation one: on
+  the paper's squares, with noise-free forces in whole mA, the best fit leaves d_τ 15-17 %
+  (small forces, so quantisation and noise weigh) and the ill-conditioned links step puts the
+  two predictions 7 % apart; the validation triangle's are 1.0 % and 0.04 %.
+
+The verdict (a JSON-able dict, stored in ``parameters.json``) lists every figure, the
+thresholds and, when it fails, one reason per missed threshold; ``STATUS`` is then
+``degraded: <reasons>`` (:func:`ident_hw.report.final_status`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ident_hw.config import QualityConfig
+from ident_hw.identification.metrics import validation_metrics
+from ident_hw.report import Results
+
+
+def relative_difference(tau: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """``100 × mean_t(||a_t − b_t|| / ||tau_t||)`` (%) over the samples with ``||tau_t|| > 0``:
+    two predictions ``a``, ``b`` (N, 6) compared on the scale of the measured forces ``tau``."""
+    norm = np.linalg.norm(tau, axis=1)
+    ok = norm > 0
+    return 100.0 * float(np.mean(np.linalg.norm(a[ok] - b[ok], axis=1) / norm[ok])) if ok.any() else float("nan")
+
+
+def verdict(results: Results, limits: QualityConfig) -> dict:
+    """The quality verdict of ``results`` (its ``trajectories`` coverage included).
+
+    Returns ``{"passed", "reasons", "thresholds", "trajectories", "steps", "well_identified"}``.
+    """
+    reasons: list[str] = []
+    per_traj: dict[str, dict] = {}
+    for name, used in (results.trajectories or {}).items():
+        row = {k: used.get(k) for k in ("recording_status", "coverage", "valid_fraction", "longest_gap_s")}
+        per_traj[name] = row
+        status = str(used.get("recording_status", ""))
+        if status.startswith(("stopped", "running")):
+            reasons.append(f"{name}: partial recording ({status})")
+        elif "truncated" in status:
+            reasons.append(f"{name}: truncated raw log")
+        cov = used.get("coverage")
+        if cov is not None and cov < limits.min_coverage:
+            reasons.append(f"{name}: {used['cycles']} of {used['cycles_planned']} cycles recorded "
+                           f"({100 * cov:.0f} % < {100 * limits.min_coverage:g} %)")
+        if used["valid_fraction"] < limits.min_valid_fraction:
+            reasons.append(f"{name}: {100 * used['valid_fraction']:.1f} % of the cycles complete "
+                           f"(< {100 * limits.min_valid_fraction:g} %)")
+        if used["longest_gap_s"] > limits.max_gap:
+            reasons.append(f"{name}: {used['longest_gap_s']:.3g} s without a complete cycle (> {limits.max_gap:g} s)")
+
+    steps = {}
+    for record in results.steps:
+        cond = record.get("cond_scaled")
+        steps[record["name"]] = {"cond_scaled": cond}
+        if cond is not None and not cond <= limits.max_condition:
+            reasons.append(f"step {record['name']}: condition number {cond:.3g} (> {limits.max_condition:g})")
+
+    rows = results.parameters.rows()
+    threshold = results.rel_sigma_threshold
+    fitted = [r for r in rows if r["step"]]
+    well = [r["name"] for r in fitted if r["rel_sigma_percent"] is not None and r["rel_sigma_percent"] <= threshold]
+    if results.base_fit is not None:
+        base_rows = results.base_fit.rows()
+        fitted += base_rows
+        well += [r["base_parameter"] for r in base_rows if r["well_identified"]]
+    if fitted and len(well) < limits.min_well_identified:
+        reasons.append(f"{len(well)} of {len(fitted)} fitted parameters well identified "
+                       f"(%sigma <= {threshold:g}; at least {limits.min_well_identified} needed)")
+
+    judged = [f for f in results.fits if f.role == "validation"] or results.fits
+    stepwise = any(r["step"] for r in rows)     # else the step-by-step table holds the CAD values only
+    for fit in judged:
+        row = per_traj.setdefault(fit.name, {})
+        row["role"] = fit.role
+        if not len(fit.t):
+            continue
+        predictions = {"step-by-step": fit.tau_model if stepwise else None, "base-parameter": fit.tau_base}
+        for label, tau_hat in predictions.items():
+            if tau_hat is None:
+                continue
+            d_tau = validation_metrics(fit.tau, tau_hat).d_tau_percent
+            row["d_tau_percent" if label == "step-by-step" else "base_fit_d_tau_percent"] = d_tau
+            if not d_tau <= limits.max_d_tau:
+                reasons.append(f"{fit.name} ({fit.role}): force prediction error d_tau {d_tau:.1f} % of the "
+                               f"{label} parameters (> {limits.max_d_tau:g} %)")
+        if stepwise and fit.tau_base is not None:
+            apart = relative_difference(fit.tau, fit.tau_model, fit.tau_base)
+            row["disagreement_percent"] = apart
+            if not apart <= limits.max_disagreement:
+                reasons.append(f"{fit.name}: step-by-step and base-parameter predictions {apart:.1f} % apart "
+                               f"(> {limits.max_disagreement:g} %)")
+    return {"passed": not reasons, "reasons": reasons, "thresholds": dataclasses.asdict(limits),
+            "trajectories": per_traj, "steps": steps, "well_identified": well}

@@ -1,0 +1,127 @@
+"""The recordings given to ``ident-hw identify``: loaded and checked against the config before
+anything is written.
+
+A decoded ``.npz`` keeps the node-IDs, profiles and drive scalings it was converted with
+(metadata ``axes``); a mismatch with the config is an error naming both files, since the SI
+samples of the file were made with the recording's values (a raw CAN log holds counts and mA and
+is decoded with the config's values instead). A raw log must hold frames of every configured
+node. What each recording covers (complete, stopped, checkpoint, truncated) is reported by
+:func:`ident_hw.experiment.offline.coverage` and judged by the quality verdict.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from drivers.errors import RecordingError
+from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log
+from ident_hw.config import Config
+
+from .plan import plan
+
+#: drive-scaling fields compared between a recording and the config (drivers.units.AxisScaling)
+SCALING_FIELDS = ("kind", "counts_per_turn", "torque_constant", "gear_ratio", "screw_lead")
+
+
+def require_trajectories(config: Config, names) -> None:
+    """Every trajectory the config's identification needs is among ``names`` (those recorded)."""
+    ident = config.identification
+    needed = [n for s in ident.steps for n in s.trajectories] + list(ident.validation)
+    missing = [n for n in dict.fromkeys(needed) if n not in names]
+    if missing:
+        raise RecordingError(f"no recording of trajectories {missing}, which the identification of "
+                             f"{config.source} needs (given: {sorted(names) or 'none'})")
+
+
+def planned_cycles(config: Config, name: str) -> int | None:
+    """Samples (SYNC cycles) of the config's trajectory ``name``; None if it has none or cannot be built."""
+    planned = plan(config, [name])
+    return len(planned[0].trajectory.t) if planned and planned[0].trajectory is not None else None
+
+
+def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
+    """A recording from a decoded ``.npz`` or a raw CAN log (``.log``/``.asc``/``.blf``), checked
+    against ``config``; returns (trajectory name, recording).
+
+    The trajectory name is the recording's ``trajectory`` metadata, else the file stem. A raw
+    log is decoded up to the length of the config's trajectory of that name (the SYNC keeps
+    running for a few cycles after the last set-point), on the config's SYNC period (in lockstep
+    the row times are the cycle times, as the run recorded them). The
+    metadata gets ``file`` (the path) and, for a raw log, ``n_targets`` (the planned cycles).
+
+    Raises:
+        RecordingError: unreadable file, or a recording that does not fit the config (node-IDs,
+            profiles, drive scaling); the message names the file, the config and the axis.
+    """
+    path = Path(path)
+    axes = [a.to_driver() for a in config.robot.actuators]
+    if path.suffix.lower() in RAW_LOG_SUFFIXES:
+        name = path.stem
+        meta = {"trajectory": name, "file": str(path)}
+        lockstep_period = None
+        if config.bus is not None:
+            meta["sync_period"] = 1.0 / config.bus.sync_rate
+            if config.sync_mode == "lockstep":
+                lockstep_period = meta["sync_period"]
+        cycles = planned_cycles(config, name)
+        if cycles is not None:
+            meta["n_targets"] = cycles
+        rec = decode_log(path, axes, max_cycles=cycles, metadata=meta, lockstep_period=lockstep_period)
+        check_log_nodes(path, rec, config)
+    else:
+        rec = Recording.load(path)
+        rec.metadata["file"] = str(path)
+        check_axes(path, rec, config)
+    return str(rec.metadata.get("trajectory", path.stem)), rec
+
+
+def check_axes(path: Path, rec: Recording, config: Config) -> None:
+    """The axes a decoded recording was made with (metadata ``axes``) are the config's: same
+    node-IDs, profiles and drive scaling. A recording without that metadata is not checked."""
+    recorded = rec.metadata.get("axes")
+    if not recorded:
+        return
+    acts = config.robot.actuators
+    if len(recorded) != len(acts):
+        raise RecordingError(f"{path}: recorded with {len(recorded)} axes, {config.source} has {len(acts)}")
+    nodes = [f"{a.name} on node {r.get('node_id')} (config: node {a.node_id})"
+             for a, r in zip(acts, recorded) if r.get("node_id") != a.node_id]
+    if nodes:
+        raise RecordingError(f"{path} was recorded from other nodes than {config.source} configures: "
+                             f"{'; '.join(nodes)}. Identify with the run's own config (config.yaml of its "
+                             "results folder)")
+    differ = []
+    for act, r in zip(acts, recorded):
+        if str(r.get("profile", act.profile)).lower() != act.profile:
+            differ.append(f"{act.name} (node {act.node_id}) profile {r.get('profile')!r} (config: {act.profile!r})")
+        mine = act.scaling()
+        for key in SCALING_FIELDS:
+            theirs, ours = (r.get("scaling") or {}).get(key), getattr(mine, key)
+            if not _same(theirs, ours):
+                differ.append(f"{act.name} (node {act.node_id}) {key} = {theirs} (config: {ours})")
+    if differ:
+        raise RecordingError(
+            f"{path} was converted to SI units with other drive data than {config.source}: {'; '.join(differ)}. "
+            "Identify with the run's own config (config.yaml of its results folder), or from the raw CAN log "
+            "of the run, which is decoded with this config's values")
+
+
+def check_log_nodes(path: Path, rec: Recording, config: Config) -> None:
+    """Every configured node has samples in a decoded raw log (else the log is of other nodes,
+    or holds no streaming at all)."""
+    heard = rec.metadata.get("nodes_heard", [])
+    if not len(rec.t):
+        raise RecordingError(f"{path}: no SYNC cycle of the configured nodes in the log (nodes heard: "
+                             f"{heard or 'none'})")
+    silent = [f"node {a.node_id} ({a.name})" for a, any_valid in zip(config.robot.actuators, rec.valid.any(axis=0))
+              if not any_valid]
+    if silent:
+        raise RecordingError(f"{path}: no sample of {', '.join(silent)} configured in {config.source}; the log "
+                             f"holds frames of nodes {heard or 'none'}")
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)):
+        return math.isclose(a, b, rel_tol=1e-9)
+    return a == b
