@@ -33,12 +33,15 @@ CYCLE = 266   # samples of one cycle of the short config's square (6 cm, speed_s
 CONFIG_ERROR, BUS_ERROR, DRIVE_FAULT, DATA_ERROR, DEGRADED, INTERRUPTED = 2, 3, 4, 5, 6, 130
 
 
-def short_config(folder: Path, cycles: int = 1, extra: str = "", name: str = "short.yaml") -> Path:
-    """One 6 cm square (2.6 s, 266 samples per cycle) at 100 Hz SYNC on the in-process rig."""
+def short_config(folder: Path, cycles: int = 1, extra: str = "", name: str = "short.yaml",
+                 sync: str = "lockstep") -> Path:
+    """One 6 cm square (2.6 s, 266 samples per cycle) at 100 Hz SYNC on the in-process rig
+    (``sync``: ``periodic`` runs it in real time, as real drives)."""
     path = folder / name
     path.write_text(
         f"extends: {SIM}\n"
-        f"bus: {{interface: virtual, channel: faults-{os.getpid()}-{time.monotonic_ns()}, sync_rate: 100.0}}\n"
+        f"bus: {{interface: virtual, channel: faults-{os.getpid()}-{time.monotonic_ns()}, sync_rate: 100.0, "
+        f"sync: {sync}}}\n"
         f"trajectories:\n  - {{name: square, kind: square, size: 0.06, cycles: {cycles}, speed_scale: 0.6}}\n"
         "identification:\n"
         "  steps: [{name: links, trajectories: [square], parameters: [m_l2, m_ee, I_l1]}]\n"
@@ -122,7 +125,7 @@ def test_identify_on_a_truncated_raw_log_says_how_much_was_used(recorded, tmp_pa
     text = (recorded / "data" / "square.log").read_bytes()
     cut = text[: int(0.4 * len(text))]          # 40 % of the bytes: ends inside a line
     (tmp_path / "square.log").write_bytes(cut)
-    syncs = sum(1 for line in cut.decode().splitlines() if re.search(r"\s080#(\s+[RT])?\s*$", line))
+    syncs = sum(1 for line in cut.decode().splitlines() if re.search(r"\s080#([0-9A-F]{2})?(\s+[RT])?\s*$", line))
     out = ident_hw("identify", recorded / "config.yaml", tmp_path / "square.log", "--out", tmp_path / "res",
                    cwd=tmp_path)
     no_traceback(out)
@@ -355,11 +358,12 @@ def test_a_silent_node_is_reported_as_state_unknown_not_as_disabled(tmp_path, mo
 
 def test_dropped_pdo_frames_end_the_run_degraded_not_complete(tmp_path, monkeypatch):
     """5 % of the drives' PDO frames lost (the rig's own fault injection, reached through the
-    session the runner opens): about half the cycles come incomplete; the run ends ``degraded``
-    with that reason, never ``complete``."""
+    session the runner opens) with a periodic SYNC, as on a real bus (lockstep would ask the
+    cycle again): about half the cycles come incomplete; the run ends ``degraded`` with that
+    reason, never ``complete``."""
     from ident_hw.experiment import runner
     from ident_hw.experiment.results import new_results_folder
-    config = load_config(short_config(tmp_path))
+    config = load_config(short_config(tmp_path, sync="periodic"))
     folder = new_results_folder(config, tmp_path / "res", "run")
     real = runner.open_session
 
