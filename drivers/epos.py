@@ -541,10 +541,19 @@ class DriveGroup:
         if self.sync_mode == "lockstep" and self.lockstep is None:
             expected = {f.cob_id(d.axis.node_id): d.label for d, layout in zip(self.drives, self.layouts)
                         for f in layout.frames if f.direction == "tpdo" and f.per_sync}
-            self.lockstep = LockstepSync(self.network, expected, self.sync_period, self.lockstep_timeout)
+            self.lockstep = LockstepSync(self.network, expected, self.sync_period, self.lockstep_timeout,
+                                         barrier=self._lockstep_barrier)
             self.network.notifier.add_listener(self.lockstep)
             for drive in self.drives:
                 drive.clock, drive.tick = self.clock, lambda: self._advance(1)
+
+    def _lockstep_barrier(self) -> None:
+        """An SDO round trip to a node the lockstep still waits for: the rig answers frames in
+        order, so its response comes after its answers to every SYNC sent before."""
+        waited = set(self.lockstep.expected.values())
+        drive = next((d for d in self.drives if d.label in waited), None)
+        if drive is not None:
+            drive.read(drive.profile.statusword)
 
     # -- time ----------------------------------------------------------------------------------------
     def clock(self) -> float:

@@ -12,7 +12,10 @@ Every SYNC carries the CiA 301 SYNC counter (1..240, object ``0x1019`` on a devi
 whose frames did not all arrive within ``retry_after`` is asked again: the caller's set-points and
 the SYNC with the *same* counter are sent again, and the rig answers a repeated counter with the
 TPDOs of that cycle without moving (a frame a lossy transport such as ``udp_multicast`` dropped
-is sent again). A cycle still incomplete after ``timeout`` is a fault naming the silent nodes.
+is sent again). A rig that was only slow then answers that cycle twice; before the next SYNC
+the master waits for a *barrier* (an SDO round trip through the rig, which answers frames in the
+order they came), so that no late copy lands in the next cycle. A cycle still incomplete after
+``timeout`` is a fault naming the silent nodes.
 
 Lockstep is for the simulated rig only: real drives move on every SYNC, whatever its counter.
 """
@@ -60,10 +63,15 @@ class LockstepSync(can.Listener):
         period: the simulated time one cycle stands for, s.
         timeout: wall-clock s a cycle may take before it is a :class:`LockstepTimeout`.
         retry_after: wall-clock s after which an incomplete cycle is asked again.
+        barrier: called (from the stepping thread) after a cycle that was asked again completed;
+            returns once the rig has handled every frame sent before it (e.g. an SDO read of
+            one of its nodes). ``None``: no barrier (a repeated answer may then fall into the
+            next cycle, where the acquisition flags it).
     """
 
     def __init__(self, network: canopen.Network, expected: Mapping[int, str], period: float,
-                 timeout: float = 10.0, retry_after: float = 0.5):
+                 timeout: float = 10.0, retry_after: float = 1.0,
+                 barrier: Callable[[], None] | None = None):
         if not period > 0 or not timeout > 0 or not retry_after > 0:
             raise ValueError(f"period, timeout and retry_after must be positive, got {period}, "
                              f"{timeout}, {retry_after}")
@@ -72,6 +80,7 @@ class LockstepSync(can.Listener):
         self.period = period
         self.timeout = timeout
         self.retry_after = retry_after
+        self.barrier = barrier
         self.cycles = 0        # cycles completed
         self.retries = 0       # cycles asked again
         self.broken: LockstepTimeout | None = None   # the timeout that ended the lockstep, if any
@@ -118,6 +127,7 @@ class LockstepSync(can.Listener):
         if not self.expected:      # every node forgotten: nothing to wait for
             self._complete.set()
         started = time.monotonic()
+        asked = 0
         while True:
             if before_sync is not None:
                 before_sync()
@@ -136,6 +146,9 @@ class LockstepSync(can.Listener):
                 self.broken = LockstepTimeout(self.cycles, missing, waited)
                 raise self.broken
             self.retries += 1
+            asked += 1
+        if asked and self.barrier is not None:
+            self.barrier()        # the rig's answers to the repeated SYNCs are in before SYNC k+1
         self.cycles += 1
 
     def forget(self, label: str) -> None:

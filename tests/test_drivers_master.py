@@ -232,6 +232,24 @@ def test_lockstep_survives_lost_frames_by_asking_again(rig_factory):
         np.testing.assert_array_equal(getattr(lossy, name), getattr(clean, name), err_msg=name)
 
 
+def test_lockstep_a_slow_rig_answers_twice_and_no_copy_lands_in_the_next_cycle(rig_factory):
+    """The rig stalls inside a cycle for longer than the master waits before asking again: it
+    then answers that cycle twice (the late original, then the repeat); the master's barrier
+    keeps the copy out of the next cycle, and the recording is the one of a run without stalls."""
+    rig, group = rig_factory()
+    targets = _targets(group, 0.4, PERIOD)
+    clean = group.run_cyclic(targets, PERIOD)
+    rig_slow, group_slow = rig_factory()
+    group_slow.lockstep.retry_after = 0.05
+    for cycle in (20, 21, 60):
+        rig_slow.schedule(cycle * PERIOD, lambda: time.sleep(0.2))    # inside the rig's SYNC handling
+    slow = group_slow.run_cyclic(targets, PERIOD)
+    assert slow.metadata["lockstep_retries"] >= 3 and rig_slow.sync_retries >= 3
+    assert slow.n_invalid == 0 and slow.metadata["late_frames"] == 0
+    for name in ("position", "velocity", "current", "target", "valid"):
+        np.testing.assert_array_equal(getattr(slow, name), getattr(clean, name), err_msg=name)
+
+
 def test_stream_at_1khz_keeps_its_books_when_the_rig_falls_behind(rig_factory, tmp_path):
     """At 1 kHz the in-process rig (plant + six drives, ~0.7-1.5 ms per SYNC here) cannot answer
     every SYNC in time: the throughput claims (every cycle complete, positions following row by
