@@ -1,6 +1,7 @@
 """Serve a simulated rig on a CAN bus until SIGINT/SIGTERM.
 
     python -m drivers.sim --interface socketcan --channel vcan0 [--profile epos4] [--sync-period 0.004]
+                          [--lockstep]
 
 Uses the nominal 3PRRR of :mod:`drivers.sim.nominal`; a config-driven rig is the CLI's
 ``ident-hw sim CONFIG`` (:meth:`SimulatedRig.build`).
@@ -25,15 +26,20 @@ def main(argv=None) -> None:
     parser.add_argument("--node-ids", type=int, nargs=6, default=[1, 2, 3, 4, 5, 6], metavar="ID")
     parser.add_argument("--sync-period", type=float, default=None,
                         help="plant step per SYNC in s (default: 0x1006 or the measured SYNC interval)")
+    parser.add_argument("--lockstep", action="store_true",
+                        help="answer each SYNC as one step of --sync-period, never by the clock (a master "
+                             "with bus.sync: lockstep)")
     parser.add_argument("--current-noise-ma", type=float, default=2.0)
     parser.add_argument("--max-substep", type=float, default=DEFAULT_MAX_SUBSTEP,
                         help="integration step of the plant in s (a slow host may need a coarser one)")
     args = parser.parse_args(argv)
+    if args.lockstep and not args.sync_period:
+        parser.error("--lockstep needs --sync-period")
     bus_kwargs = {"interface": args.interface, "channel": args.channel}
     if args.bitrate:
         bus_kwargs["bitrate"] = args.bitrate
     rig = SimulatedRig.build(nominal.GEOMETRY, nominal.TRUE_PARAMS, nominal.axes(args.profile, args.node_ids),
-                             max_substep=args.max_substep,
+                             max_substep=args.max_substep, lockstep=args.lockstep,
                              sync_period=args.sync_period, current_noise_ma=args.current_noise_ma, **bus_kwargs)
     done = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):

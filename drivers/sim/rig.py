@@ -184,7 +184,7 @@ class SimulatedRig:
             coulomb_width: smoothing of the Coulomb friction (rad/s, m/s).
             bandwidth_hz, damping, max_substep, Theta0: the position loops, integration step (s) and
                 initial pose of the :class:`Plant`.
-            rig_kwargs: ``sync_period``, ``current_noise_ma``, ``seed``, ``initial_states``, ``bus``
+            rig_kwargs: ``sync_period``, ``lockstep``, ``current_noise_ma``, ``seed``, ``initial_states``, ``bus``
                 or the python-can bus settings (``interface``, ``channel``, ...).
         """
         plant = Plant(ThreePRRR(geometry, coulomb_width=coulomb_width), truth, Theta0,
