@@ -85,7 +85,7 @@ def test_run_then_identify_from_its_raw_can_log_gives_the_same_result(tmp_path):
 
 
 def test_ctrl_c_mid_trajectory_stops_disables_and_keeps_the_data(tmp_path):
-    config = short_config(tmp_path, cycles=3)   # 8 s of streaming
+    config = short_config(tmp_path, cycles=30)  # 80 s of streaming: seconds of wall time even in lockstep
     res = tmp_path / "run"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     proc = subprocess.Popen([sys.executable, "-m", "ident_hw.cli", "run", str(config), "--out", str(res)],
@@ -108,7 +108,7 @@ def test_ctrl_c_mid_trajectory_stops_disables_and_keeps_the_data(tmp_path):
 
     rec = Recording.load(res / "data" / "square.npz")
     assert rec.metadata["status"].startswith("stopped")
-    assert 100 < len(rec.t) < 3 * CYCLE and np.isfinite(rec.position[rec.valid]).all()
+    assert 100 < len(rec.t) < 30 * CYCLE and np.isfinite(rec.position[rec.valid]).all()
     # the raw log holds the same cycles
     axes = [a.to_driver() for a in load_config(config).robot.actuators]
     replay = decode_log(res / "data" / "square.log", axes, max_cycles=len(rec.t))
