@@ -83,6 +83,20 @@ def _heun(Theta, Thetad, dt, n_sub, M_inv0, M_slope, bias0, bias_slope, loop_dem
     return q, qd, force0, a0
 
 
+_compiled = False
+
+
+def _compile_heun() -> None:
+    """Compile :func:`_heun` (or load it from numba's cache) now, with the argument types of
+    :meth:`Plant.step`, so that a rig's first SYNC does not wait for the compiler (seconds on a
+    host, minutes in an emulated guest without a cache)."""
+    global _compiled
+    if not _compiled:
+        z6, z66 = np.zeros(6), np.zeros((6, 6))
+        _heun(z6, z6, 1e-3, 1, z66, z66, z6, z6, np.zeros((2, 6)), z6, z6, z6, z6, z6, z6, 1e-3)
+        _compiled = True
+
+
 class PlantJammed(RuntimeError):
     """The mechanism cannot follow: its forward kinematics failed (parallel singularity crossed)."""
 
@@ -181,6 +195,7 @@ class Plant:
             gains = (diag * w**2, 2.0 * damping * diag * w)
         self.Kp, self.Kd = (np.array(g, dtype=float).reshape(6) for g in gains)
         self.log = TruthLog(log_length)
+        _compile_heun()
 
     # -- configuration ---------------------------------------------------------------------------
     def set_payload(self, mass: float, inertia: float = 0.0) -> None:
@@ -263,7 +278,7 @@ class Plant:
         Theta, Thetad, self.force, a0 = _heun(
             self.Theta, self.Thetad, dt, n_sub, M_inv0, M_slope, bias - self.external_force, bias_slope,
             loop_demand, Kp, Kd, low, high, np.asarray(self.params.f_v, dtype=float),
-            np.asarray(self.params.f_c, dtype=float), self.robot.coulomb_width)
+            np.asarray(self.params.f_c, dtype=float), float(self.robot.coulomb_width))
         self.log.append(self.t, self.X, self.Theta, self.Thetad, a0, self.force)
         self.Theta, self.Thetad = Theta, Thetad
         self.t += period

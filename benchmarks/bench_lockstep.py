@@ -1,0 +1,73 @@
+"""Lockstep rate of the simulated rig: SYNC cycles per wall-clock second, and what a cycle costs.
+
+The main job's rig (``configs/sim-3prrr.yaml``: six emulated drives, the 3PRRR plant, 1 mA
+current quantisation and noise) and the canopen master in one process on the in-process
+``virtual`` bus, in lockstep (``bus.sync: lockstep``): the master streams a sinusoid on every
+axis for ``seconds`` of simulated time at ``rate_hz`` SYNC, as fast as the host lets it.
+
+Prints the cycles per wall-clock second and the split of one cycle's wall time:
+* rig: the rig's SYNC handler (plant step, six drives' demand and TPDOs), median;
+* of which the plant step (forward kinematics, reduced dynamics, Heun substeps), timed alone;
+* the rest: the master (set-points, decoding, recording), the bus and the threads' hand-offs.
+
+    python benchmarks/bench_lockstep.py [seconds=20] [rate_hz=250]
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import timeit
+from pathlib import Path
+
+import numpy as np
+
+from drivers.bus import BusConfig, open_network
+from drivers.epos import DriveGroup
+from ident_hw.config import load_config
+from ident_hw.experiment.session import simulated_rig
+
+CONFIG = Path(__file__).resolve().parents[1] / "configs" / "sim-3prrr.yaml"
+
+
+def main(seconds: float, rate_hz: float) -> None:
+    config = load_config(CONFIG)
+    config = dataclasses.replace(config, bus=dataclasses.replace(config.bus, sync_rate=rate_hz,
+                                                                 channel="bench-lockstep"))
+    period = 1.0 / rate_hz
+    axes = [a.to_driver() for a in config.robot.actuators]
+    rig = simulated_rig(config).start()
+    network = open_network(BusConfig("virtual", config.bus.channel, ignore_config=True))
+    group = DriveGroup(network, axes, sync="lockstep", sync_period=period)
+    try:
+        group.bring_up()
+        group.home()
+        start = group.positions()
+        t = np.arange(round(seconds / period)) * period
+        amplitude = np.array([0.05, 0.05, 0.05, 0.004, 0.004, 0.004])
+        targets = start + np.sin(2 * np.pi * 0.5 * t)[:, None] * np.sin(np.pi * t / t[-1])[:, None] * amplitude
+        rig.step_seconds.clear()
+        began = timeit.default_timer()
+        rec = group.run_cyclic(targets, period)
+        wall = timeit.default_timer() - began
+        rig_us = float(np.median(rig.step_seconds)) * 1e6
+    finally:
+        group.close()
+        network.disconnect()
+        rig.stop()
+    plant = rig.plant
+    demand = np.vstack([plant.Theta, np.zeros((3, 6))])
+    enabled, limit = np.ones(6, bool), np.full(6, 1e3)
+    n = 500
+    plant_us = timeit.timeit(lambda: plant.step(period, demand, enabled, limit), number=n) / n * 1e6
+    cycles = rec.metadata["n_cycles"]
+    per_cycle_us = wall / cycles * 1e6
+    print(f"lockstep at {rate_hz:g} Hz, {seconds:g} s simulated: {cycles} cycles in {wall:.1f} s wall = "
+          f"{cycles / wall:.0f} cycles/s ({cycles / wall * period:.2f}x real time); "
+          f"{rec.n_invalid} incomplete, {rec.metadata.get('lockstep_retries')} asked again")
+    print(f"per cycle {per_cycle_us:.0f} us: rig {rig_us:.0f} us (plant step {plant_us:.0f} us, drives "
+          f"{rig_us - plant_us:.0f} us), master + bus + hand-offs {per_cycle_us - rig_us:.0f} us")
+
+
+if __name__ == "__main__":
+    main(float(sys.argv[1]) if len(sys.argv) > 1 else 20.0, float(sys.argv[2]) if len(sys.argv) > 2 else 250.0)
