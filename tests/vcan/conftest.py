@@ -16,7 +16,7 @@ import pytest
 
 VCAN_CHANNEL = "vcan0"
 PEERS = Path(__file__).with_name("peers.py")
-START_TIMEOUT = 120.0  # s until a started process is listening on the bus
+START_TIMEOUT = 300.0  # s until a started process is listening on the bus (the guest compiles the plant: minutes)
 STOP_TIMEOUT = 30.0  # s for a process to end once asked to
 MARKER_ID = 0x7FF  # frame the candump fixture sends until it sees it, to know candump is listening
 

@@ -37,26 +37,36 @@ def test_cli_run_against_rig_process_matches_candump(start_process, candump, tmp
     run = subprocess.run(["ident-hw", "run", CONFIG, "--quiet", "--out", out], capture_output=True, text=True,
                          timeout=CLI_TIMEOUT)
     print(f"$ ident-hw run\n{run.stdout}{run.stderr}")
-    # the plumbing, not the fit (see below): a guest falling behind the SYNC leaves cycles incomplete
-    # and the quality verdict then says degraded (exit code 6)
-    assert run.returncode in (0, 6), run.stderr
-    status = (out / "STATUS").read_text().strip()
-    assert status == "complete" if run.returncode == 0 else status.startswith("degraded: "), status
+    assert run.returncode == 0, run.stderr
+    assert (out / "STATUS").read_text().strip() == "complete"
     (traj,) = config.trajectories
     recorded = Recording.load(out / "data" / f"{traj.name}.npz")
     n = recorded.metadata["n_cycles"]
-    print(f"recorded {n} cycles at {config.bus.sync_rate:g} Hz, {recorded.n_invalid} incomplete, "
-          f"late set-points {recorded.metadata.get('late_setpoints')}")
-    assert n > 0 and recorded.valid.all(axis=1).any()
-    # the identification ran on what was recorded: the step's parameters were fitted
+    print(f"recorded {n} cycles at {config.bus.sync_rate:g} Hz in {recorded.metadata.get('sync')}, "
+          f"{recorded.n_invalid} incomplete, cycles asked again {recorded.metadata.get('lockstep_retries')}")
+    assert recorded.metadata.get("sync") == "lockstep" and recorded.n_invalid == 0
+    # the identification is right: every fitted parameter within 2 % of the simulated truth, or within
+    # 3 sigma where the sweep excites it less (the viscous friction: %sigma ~3)
     rows = {r["name"]: r for r in json.loads((out / "parameters.json").read_text())["parameters"]}
     (step,) = config.identification.steps
+    model = config.sim.truth.to_model()
+    truth = dict(zip(model.NAMES, model.as_vector()))
     for name in step.parameters:
-        assert rows[name]["step"] == step.name and np.isfinite(rows[name]["identified"]), name
-    # Not checked here: the values. In the guest the rig process may fall behind the 10 Hz SYNC, and a
-    # sample it sends late fills the next cycle as if it were that cycle's (a TPDO carries no SYNC
-    # counter): 37 incomplete cycles of 401 around such stale ones gave m_c -58 %, 0 gave -0.27 %.
-    # The accuracy of the campaign is the host tests' and benchmarks' business.
+        row = rows[name]
+        assert row["step"] == step.name, name
+        error = abs(row["identified"] - truth[name])
+        assert error <= max(0.02 * abs(truth[name]), 3 * row["sigma"]), (name, row["identified"], truth[name])
+    # and it is the answer of the same config with the rig in the master's process (lockstep: the
+    # process boundary, the kernel's sockets and the guest's speed reach no sample)
+    local = tmp_path / "in-process.yaml"
+    local.write_text(f"extends: {CONFIG}\nbus: {{interface: virtual, channel: in-process}}\n"
+                     "sim: {in_process: true}\n")
+    alone = subprocess.run(["ident-hw", "run", local, "--quiet", "--out", tmp_path / "alone"], capture_output=True,
+                           text=True, timeout=CLI_TIMEOUT)
+    assert alone.returncode == 0, alone.stderr
+    same = {r["name"]: r["identified"] for r in
+            json.loads((tmp_path / "alone" / "parameters.json").read_text())["parameters"]}
+    assert {name: rows[name]["identified"] for name in step.parameters} == {name: same[name] for name in step.parameters}
 
     # candump saw the same frames on the bus: the project's decoder gives the same samples from candump's log,
     # from where the run's own raw log starts (the master records from the start of the stream; the kernel

@@ -37,8 +37,7 @@ def test_master_streams_from_rig_process_and_raw_logs_replay(start_process, cand
     config = load_config(CONFIG)
     axes = [dataclasses.replace(a.to_driver(), profile="epos4") for a in config.robot.actuators]
     start_process([sys.executable, "-m", "drivers.sim", "--interface", "socketcan", "--channel", VCAN_CHANNEL,
-                   "--profile", "epos4", "--node-ids", *[str(a.node_id) for a in axes],
-                   "--max-substep", str(config.sim.max_substep)], ready="simulated rig:")
+                   "--profile", "epos4", "--node-ids", *[str(a.node_id) for a in axes]], ready="simulated rig:")
     network = open_network(BusConfig("socketcan", VCAN_CHANNEL, bitrate=1_000_000))
     group = DriveGroup(network, axes, heartbeat_period=HEARTBEAT, heartbeat_timeout=8 * HEARTBEAT,
                        sdo_timeout=SDO_TIMEOUT)
