@@ -23,7 +23,7 @@ CHANNEL = "bench-sim-rig"
 
 
 def map_and_enable(node: canopen.RemoteNode) -> None:
-    """TPDO1 = position + current (SYNC), TPDO2 = statusword (event); CSP, OPERATION ENABLED."""
+    """TPDO1 = position + current (SYNC), TPDO2 = statusword (on change); CSP, OPERATION ENABLED."""
     node.tpdo.read()
     for pdo in node.tpdo.values():
         pdo.enabled = False
@@ -34,7 +34,7 @@ def map_and_enable(node: canopen.RemoteNode) -> None:
     t1.trans_type, t1.enabled = 1, True
     t2.clear()
     t2.add_variable(0x6041)
-    t2.trans_type, t2.event_timer, t2.enabled = 255, 50, True
+    t2.trans_type, t2.enabled = 255, True   # on change: a real EPOS4 has no TPDO event timer
     node.tpdo.save()
     node.sdo[0x6060].raw = 8
     for cw in (0x06, 0x07, 0x0F):

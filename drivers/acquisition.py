@@ -83,21 +83,24 @@ class PdoFrame:
         return self.direction == "rpdo" or 1 <= self.trans_type <= 240
 
 
-def pdo_layout(profile: DriveProfile, with_velocity: bool = True,
-               status_event_timer_ms: int = 50) -> tuple[PdoFrame, ...]:
-    """The PDOs the master configures on a drive of ``profile`` for a streaming run."""
+def pdo_layout(profile: DriveProfile, with_velocity: bool = True) -> tuple[PdoFrame, ...]:
+    """The PDOs the master configures on a drive of ``profile`` for a streaming run.
+
+    Every TPDO is SYNC-triggered: TPDO1 = position + current (+ statusword where it fits: the
+    EPOS2's 16-bit current); else the statusword travels in TPDO2 with the velocity (6 bytes), or
+    alone without the velocity. No event timer is used: a real EPOS4 has none on its TPDOs.
+    """
     frames = []
-    if profile.current_actual.bits + profile.position_actual.bits + profile.statusword.bits <= 64:
-        frames.append(PdoFrame("tpdo", 1, (("position", profile.position_actual),
-                                           ("current", profile.current_actual),
-                                           ("statusword", profile.statusword)), 1))
-    else:
-        frames.append(PdoFrame("tpdo", 1, (("position", profile.position_actual),
-                                           ("current", profile.current_actual)), 1))
-        frames.append(PdoFrame("tpdo", 2, (("statusword", profile.statusword),), 255,
-                               status_event_timer_ms))
-    if with_velocity:
-        frames.append(PdoFrame("tpdo", 3, (("velocity", profile.velocity_actual),), 1))
+    status_in_first = profile.current_actual.bits + profile.position_actual.bits + profile.statusword.bits <= 64
+    first = (("position", profile.position_actual), ("current", profile.current_actual))
+    if status_in_first:
+        first += (("statusword", profile.statusword),)
+    frames.append(PdoFrame("tpdo", 1, first, 1))
+    second = (("velocity", profile.velocity_actual),) if with_velocity else ()
+    if not status_in_first:
+        second += (("statusword", profile.statusword),)
+    if second:
+        frames.append(PdoFrame("tpdo", 2, second, 1))
     frames.append(PdoFrame("rpdo", 1, (("target", profile.cyclic_target),
                                        ("controlword", profile.controlword)), 1))
     return tuple(frames)

@@ -47,6 +47,8 @@ class AxisConfig:
         following_error_window: max following error in rad or m.
         product_code: expected 0x1018:02; ``None`` accepts any maxon product of the generation.
         homing: homing settings, ``None`` if the axis is not homed.
+        object_dictionary: the drive's EDS or DCF file, whose dictionary the master then uses
+            (``None``: the built-in one of ``profile``).
     """
 
     name: str
@@ -60,6 +62,7 @@ class AxisConfig:
     following_error_window: float
     product_code: int | None = None
     homing: HomingConfig | None = None
+    object_dictionary: str | None = None
 
     def __post_init__(self) -> None:
         where = f"axis {self.name!r}"

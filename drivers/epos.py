@@ -31,7 +31,7 @@ from drivers.bus import SYNC_COB_ID, BusConfig, check_bus_load, frame_bits
 from drivers.emcy import describe
 from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, HeartbeatTimeout, NodeError
 from drivers.gc_freeze import GcPauses, frozen_gc
-from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, make_object_dictionary
+from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, load_object_dictionary, make_object_dictionary
 from drivers.recording import FlushingLogger, Recording, SampleRecorder
 from drivers.supervision import Supervisor
 from drivers.sync import SYNC_MODES, LockstepSync
@@ -73,7 +73,14 @@ class EposDrive:
         self.profile = axis.drive_profile
         self.label = axis.label
         self.supervisor = supervisor
-        self.node = canopen.RemoteNode(axis.node_id, make_object_dictionary(axis.profile, axis.node_id))
+        if axis.object_dictionary is None:
+            od = make_object_dictionary(axis.profile, axis.node_id)
+        else:
+            try:
+                od = load_object_dictionary(axis.object_dictionary, axis.profile, axis.node_id)
+            except ValueError as exc:
+                raise ConfigError(f"{axis.label}: {exc}") from None
+        self.node = canopen.RemoteNode(axis.node_id, od)
         self.node.sdo.RESPONSE_TIMEOUT = sdo_timeout
         network.add_node(self.node)
         self.node.emcy.add_callback(supervisor.emcy_callback(self.label, self.profile.name))
@@ -454,7 +461,6 @@ class DriveGroup:
         heartbeat_timeout: consumer timeout on both sides (s); default 3.5 periods.
         master_id: node-ID under which the master produces its heartbeat (not a drive's).
         with_velocity: map velocity actual (TPDO3) too.
-        status_event_timer_ms: event timer of the EPOS4 statusword TPDO.
         sdo_timeout: SDO response timeout (s).
         sync: the SYNC producer, ``"periodic"`` (real drives) or ``"lockstep"`` (a simulated rig
             serving this bus in lockstep: :mod:`drivers.sync`). In lockstep every wait for the
@@ -469,7 +475,7 @@ class DriveGroup:
 
     def __init__(self, network: canopen.Network, axes: Sequence[AxisConfig],
                  heartbeat_period: float = 0.1, heartbeat_timeout: float | None = None,
-                 master_id: int = 127, with_velocity: bool = True, status_event_timer_ms: int = 50,
+                 master_id: int = 127, with_velocity: bool = True,
                  sdo_timeout: float = 0.5, sync: str = "periodic", sync_period: float | None = None,
                  lockstep_timeout: float = 10.0):
         bus_config = getattr(network, "config", None)
@@ -508,13 +514,11 @@ class DriveGroup:
         self.master_id = master_id
         self._master_heartbeat = None  # the periodic task, while running
         self.with_velocity = with_velocity
-        self.status_event_timer_ms = status_event_timer_ms
         self.supervisor = Supervisor()
         self.drives = [EposDrive(network, a, self.supervisor, sdo_timeout) for a in self.axes]
         for drive in self.drives:
             self.supervisor.watch_heartbeat(drive.label, drive.node.nmt, self.heartbeat_timeout)
-        self.layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity,
-                                                          status_event_timer_ms)) for a in self.axes]
+        self.layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity)) for a in self.axes]
 
     def __enter__(self) -> "DriveGroup":
         return self
@@ -759,7 +763,7 @@ class DriveGroup:
         self.enable()
 
         meta = dict(metadata or {}, sync_period=period, with_velocity=self.with_velocity,
-                    status_event_timer_ms=self.status_event_timer_ms, bus_load=load,
+                    bus_load=load,
                     bitrate=self.bitrate, n_targets=len(targets), sync=self.sync_mode)
         recorder = SampleRecorder(self.axes, output, meta, maxsize=queue_size).start()
         raw = FlushingLogger(raw_log) if raw_log else None

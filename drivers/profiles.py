@@ -7,9 +7,13 @@ in one place. A :class:`DriveProfile` names the objects the driver reads and wri
 object dictionary holds them with their data types, access rights, defaults and PDO-mappable
 flags, plus the CiA 301 communication objects (PDO parameters, heartbeat, EMCY, identity).
 
-Facts checked against public EPOS drivers that reproduce maxon's firmware specifications
-(no maxon document was in reach; re-check against the "EPOS4 Firmware Specification" and
-"EPOS2 Firmware Specification" when one is):
+The EPOS4 dictionary agrees with maxon's EPOS4 EDS (firmware 0x0110) and a maxon DCF (firmware
+0x0170) for every object defined here (``tests/test_real_od.py``, given the files): its PDO
+parameter records have no sub-index 5 (no TPDO event timer, no RPDO deadline), it has no
+``0x1006``/``0x1009``/``0x100A``, and ``0x1005``/``0x1014`` are not writable; the master's PDO
+layout therefore uses no event timer (:func:`drivers.acquisition.pdo_layout`). The EPOS2 facts
+below were checked against public EPOS drivers that reproduce maxon's firmware specification
+(re-check against the "EPOS2 Firmware Specification" when it is in reach):
 
 * Homing: the EPOS2 has the CiA 402 "home offset" ``0x607C`` and the maxon "home position"
   ``0x2081``; the EPOS4 has no ``0x607C`` but "home position" ``0x30B0`` and "home offset move
@@ -19,7 +23,7 @@ Facts checked against public EPOS drivers that reproduce maxon's firmware specif
   "software position limit error", ``0xFF09`` on the EPOS2 and ``0x8A82`` on the EPOS4 (their
   EMCY tables; ``0x8611`` is the following error on both). Targets are limited to the range
   (CiA 402).
-* EMCY COB-ID ``0x1014``: read-write with CiA 301 semantics (bit 31 = no EMCY; the CAN-ID may
+* EMCY COB-ID ``0x1014`` of the EPOS2: read-write with CiA 301 semantics (bit 31 = no EMCY; the CAN-ID may
   only change while invalid).
 
 Differences kept as on the real devices: the EPOS2 reports its current in ``0x6078`` (I16, mA)
@@ -30,11 +34,20 @@ and has no ``0x30D1``, ``0x60C2`` or torque-constant object; the EPOS4 reports i
 
 from __future__ import annotations
 
+import dataclasses
+import os
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Mapping, Optional
 
-from canopen.objectdictionary import ODArray, ODRecord, ODVariable, ObjectDictionary, datatypes
+import canopen
+from canopen.objectdictionary import (
+    ObjectDictionary,
+    ODArray,
+    ODRecord,
+    ODVariable,
+    datatypes,
+)
 
 VENDOR_ID_MAXON = 0x000000FB
 
@@ -114,6 +127,12 @@ class DriveProfile:
     tpdo_count: int = 4
     rpdo_count: int = 4
     max_tpdo_bytes: int = 8
+    #: the PDO parameter records have sub-index 5 (TPDO event timer, RPDO deadline)
+    pdo_event_timer: bool = True
+    #: 0x1006 (SYNC period), 0x1009/0x100A (version strings) exist and 0x1005/0x1014 are writable
+    cia301_optional: bool = True
+    #: entries of the error history 0x1003
+    error_history: int = 8
 
 
 def _r(index: int, subindex: int, data_type: str, unit: str = "") -> ObjectRef:
@@ -178,6 +197,11 @@ EPOS4 = DriveProfile(
     home_offset=_r(0x30B1, 0, "INTEGER32", "qc"),   # "Home offset move distance"; no 0x607C
     home_position=_r(0x30B0, 0, "INTEGER32", "qc"),
     software_limit_error=0x8A82,
+    # maxon's EPOS4 EDS (firmware 0x0110) and a DCF (firmware 0x0170): no PDO sub-index 5, no
+    # 0x1006/0x1009/0x100A, five error history entries
+    pdo_event_timer=False,
+    cia301_optional=False,
+    error_history=5,
     **_COMMON,
 )
 
@@ -222,19 +246,25 @@ def _record(od, name, index, members, array=False):
 
 def _add_communication_objects(od: ObjectDictionary, prof: DriveProfile, node_id: int) -> None:
     od.add_object(_var("Device type", 0x1000, 0, "UNSIGNED32", "ro", 0x00020192))
-    od.add_object(_var("Error register", 0x1001, 0, "UNSIGNED8", "ro", 0, True))
+    od.add_object(_var("Error register", 0x1001, 0, "UNSIGNED8", "ro", 0))
     errors = ODArray("Pre-defined error field", 0x1003)
     # sub 0 = number of errors (write 0 to clear); sub 1 = newest error
     errors.add_member(_var("Number of errors", 0x1003, 0, "UNSIGNED8", "rw", 0))
-    for sub in range(1, 9):
+    for sub in range(1, prof.error_history + 1):
         errors.add_member(_var(f"Standard error field {sub}", 0x1003, sub, "UNSIGNED32", "ro", 0))
     od.add_object(errors)
-    od.add_object(_var("COB-ID SYNC", 0x1005, 0, "UNSIGNED32", "rw", 0x80))
-    od.add_object(_var("Communication cycle period", 0x1006, 0, "UNSIGNED32", "rw", 0, unit="us"))
-    od.add_object(_var("Manufacturer device name", 0x1008, 0, "VISIBLE_STRING", "const", prof.device_name))
-    od.add_object(_var("Manufacturer hardware version", 0x1009, 0, "VISIBLE_STRING", "const", "6410h"))
-    od.add_object(_var("Manufacturer software version", 0x100A, 0, "VISIBLE_STRING", "const", "2126h"))
-    od.add_object(_var("COB-ID EMCY", 0x1014, 0, "UNSIGNED32", "rw", 0x80 + node_id))
+    # the EPOS4 (maxon EDS, firmware 0x0110, and DCF, firmware 0x0170): 0x1005 const, 0x1008 and
+    # 0x1014 read-only, no 0x1006/0x1009/0x100A
+    epos4_like = not prof.cia301_optional
+    od.add_object(_var("COB-ID SYNC", 0x1005, 0, "UNSIGNED32", "const" if epos4_like else "rw", 0x80))
+    if prof.cia301_optional:
+        od.add_object(_var("Communication cycle period", 0x1006, 0, "UNSIGNED32", "rw", 0, unit="us"))
+    od.add_object(_var("Manufacturer device name", 0x1008, 0, "VISIBLE_STRING", "ro" if epos4_like else "const",
+                       prof.device_name))
+    if prof.cia301_optional:
+        od.add_object(_var("Manufacturer hardware version", 0x1009, 0, "VISIBLE_STRING", "const", "6410h"))
+        od.add_object(_var("Manufacturer software version", 0x100A, 0, "VISIBLE_STRING", "const", "2126h"))
+    od.add_object(_var("COB-ID EMCY", 0x1014, 0, "UNSIGNED32", "ro" if epos4_like else "rw", 0x80 + node_id))
     _record(od, "Consumer heartbeat time", 0x1016, [(1, "Consumer heartbeat time 1", "UNSIGNED32", "rw", 0)],
             array=True)
     od.add_object(_var("Producer heartbeat time", 0x1017, 0, "UNSIGNED16", "rw", 0, unit="ms"))
@@ -254,8 +284,8 @@ def _add_communication_objects(od: ObjectDictionary, prof: DriveProfile, node_id
         _record(od, f"Receive PDO {n + 1} parameter", 0x1400 + n, [
             (1, "COB-ID used by RPDO", "UNSIGNED32", "rw", valid | (0x200 + 0x100 * n + node_id)),
             (2, "Transmission type", "UNSIGNED8", "rw", 255),
-            (5, "Event timer", "UNSIGNED16", "rw", 0, False, "ms"),   # deadline monitoring, 0 = off
-        ])
+        ] + ([(5, "Event timer", "UNSIGNED16", "rw", 0, False, "ms")]   # deadline monitoring, 0 = off
+             if prof.pdo_event_timer else []))
         _record(od, f"Receive PDO {n + 1} mapping", 0x1600 + n, [
             (sub, f"Mapped object {sub}", "UNSIGNED32", "rw", 0x60400010 if (n, sub) == (0, 1) else 0)
             for sub in range(1, 9)
@@ -268,8 +298,7 @@ def _add_communication_objects(od: ObjectDictionary, prof: DriveProfile, node_id
             (1, "COB-ID used by TPDO", "UNSIGNED32", "rw", valid | (0x180 + 0x100 * n + node_id)),
             (2, "Transmission type", "UNSIGNED8", "rw", 255),
             (3, "Inhibit time", "UNSIGNED16", "rw", 0, False, "100us"),
-            (5, "Event timer", "UNSIGNED16", "rw", 0, False, "ms"),
-        ])
+        ] + ([(5, "Event timer", "UNSIGNED16", "rw", 0, False, "ms")] if prof.pdo_event_timer else []))
         _record(od, f"Transmit PDO {n + 1} mapping", 0x1A00 + n, [
             (sub, f"Mapped object {sub}", "UNSIGNED32", "rw", 0x60410010 if (n, sub) == (0, 1) else 0)
             for sub in range(1, 9)
@@ -366,4 +395,46 @@ def make_object_dictionary(profile_name: str, node_id: int) -> ObjectDictionary:
     od.device_information.product_number = prof.product_code
     _add_communication_objects(od, prof, node_id)
     _add_drive_objects(od, prof)
+    return od
+
+
+def required_objects(prof: DriveProfile) -> list[tuple[int, int]]:
+    """``(index, sub-index)`` of every object the master reads or writes on a drive of ``prof``:
+    the profile's objects and the communication objects of bring-up (heartbeats, identity, PDO
+    parameters and mappings)."""
+    keys = set()
+    for f in dataclasses.fields(prof):
+        value = getattr(prof, f.name)
+        for ref in value if isinstance(value, tuple) else (value,):
+            if isinstance(ref, ObjectRef):
+                keys.add((ref.index, ref.subindex))
+    keys |= {(0x1016, 1), (0x1017, 0), (0x1018, 1), (0x1018, 2)}
+    for n in range(prof.tpdo_count):
+        keys |= {(0x1800 + n, 1), (0x1800 + n, 2), (0x1A00 + n, 0)}
+    for n in range(prof.rpdo_count):
+        keys |= {(0x1400 + n, 1), (0x1400 + n, 2), (0x1600 + n, 0)}
+    return sorted(keys)
+
+
+def load_object_dictionary(path: str | os.PathLike, profile_name: str, node_id: int) -> ObjectDictionary:
+    """A drive's own object dictionary from an EDS or DCF file (maxon's, or one saved from the
+    drive), for the master to use instead of the built-in one.
+
+    Raises:
+        ValueError: the file cannot be read, or lacks objects the master uses on a drive of
+            that profile (all of them listed), so that nothing moves on a dictionary that
+            does not fit.
+    """
+    prof = get_profile(profile_name)
+    if not os.path.isfile(path):
+        raise ValueError(f"object dictionary {path}: no such file")
+    try:
+        od = canopen.import_od(os.fspath(path), node_id)
+    except Exception as exc:   # canopen raises what its parsers raise
+        raise ValueError(f"object dictionary {path}: not a readable EDS/DCF ({exc})") from exc
+    missing = [f"0x{index:04X}:{sub:02X}" for index, sub in required_objects(prof)
+               if od.get_variable(index, sub) is None]
+    if missing:
+        raise ValueError(f"object dictionary {path} lacks {', '.join(missing)}, which the master uses "
+                         f"on an {prof.name}")
     return od

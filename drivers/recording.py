@@ -304,7 +304,7 @@ class FlushingLogger(can.Listener):
 
 
 def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocity: bool = True,
-               max_cycles: int | None = None, status_event_timer_ms: int = 50,
+               max_cycles: int | None = None,
                metadata: dict[str, Any] | None = None, lockstep_period: float | None = None) -> Recording:
     """Replay a raw CAN log through the acquisition decoder.
 
@@ -318,7 +318,6 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
         axes: the axes of the run, in sample order (node-IDs, profiles, scalings).
         with_velocity: whether the run mapped the velocity TPDO.
         max_cycles: stop after this many cycles (the run's ``n_cycles``; ``None``: all).
-        status_event_timer_ms: the statusword event timer of the run (EPOS4).
         metadata: extra metadata for the result.
         lockstep_period: the SYNC period (s) of a run in lockstep, whose row times are the cycle
             index times the period (the simulated time); ``None``: the SYNCs' bus time stamps.
@@ -329,8 +328,7 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
     path = Path(path)
     if not path.is_file():
         raise RecordingError(f"raw CAN log {path}: no such file")
-    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity,
-                                                 status_event_timer_ms)) for a in axes]
+    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity)) for a in axes]
     rows: list[Row] = []
     assembler = CycleAssembler(layouts, rows.append, max_cycles=max_cycles, period=lockstep_period)
     heard: set[int] = set()

@@ -29,6 +29,8 @@ ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
 SIM = CONFIGS / "sim-3prrr.yaml"
 CYCLE = 266   # samples of one cycle of the short config's square (6 cm, speed_scale 0.6, 100 Hz)
+LONG = 30     # cycles of the runs interrupted by a signal: 80 s of simulated time, seconds of wall
+              # time even in lockstep, so that the signal comes mid-trajectory
 
 CONFIG_ERROR, BUS_ERROR, DRIVE_FAULT, DATA_ERROR, DEGRADED, INTERRUPTED = 2, 3, 4, 5, 6, 130
 
@@ -170,10 +172,10 @@ def test_identify_with_other_node_ids_names_file_and_node(recorded, tmp_path, fi
 # ----------------------------------------------------------------------------- signals during run
 @pytest.fixture(scope="module")
 def terminated(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
-    """A 3-cycle run stopped by SIGTERM in the middle of its trajectory."""
+    """A long run stopped by SIGTERM in the middle of its trajectory."""
     folder = tmp_path_factory.mktemp("terminated")
     res = folder / "run"
-    proc = start_run(short_config(folder, cycles=3), res)
+    proc = start_run(short_config(folder, cycles=LONG), res)
     try:
         proc.send_signal(signal.SIGTERM)
         out, err = proc.communicate(timeout=60)
@@ -195,7 +197,7 @@ def check_interrupted_folder(res: Path, out, signame: str) -> Recording:
     assert set(master.values()) == {"SWITCH ON DISABLED"}
     rec = Recording.load(res / "data" / "square.npz")
     assert rec.metadata["status"].startswith("stopped")
-    assert 100 < len(rec.t) < 3 * CYCLE and np.isfinite(rec.position[rec.valid]).all()
+    assert 100 < len(rec.t) < LONG * CYCLE and np.isfinite(rec.position[rec.valid]).all()
     return rec
 
 
@@ -206,7 +208,7 @@ def test_sigterm_during_run_is_handled_like_ctrl_c(terminated):
 
 def test_sighup_during_run_is_handled_like_ctrl_c(tmp_path):
     res = tmp_path / "run"
-    proc = start_run(short_config(tmp_path, cycles=3), res)
+    proc = start_run(short_config(tmp_path, cycles=LONG), res)
     try:
         proc.send_signal(signal.SIGHUP)
         out, err = proc.communicate(timeout=60)
@@ -217,7 +219,7 @@ def test_sighup_during_run_is_handled_like_ctrl_c(tmp_path):
 
 def test_a_second_signal_during_shutdown_still_leaves_a_consistent_folder(tmp_path):
     res = tmp_path / "run"
-    proc = start_run(short_config(tmp_path, cycles=3), res)
+    proc = start_run(short_config(tmp_path, cycles=LONG), res)
     try:
         proc.send_signal(signal.SIGTERM)
         for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGINT):
@@ -238,7 +240,7 @@ def test_identify_after_an_interrupted_run_reports_the_partial_recording(termina
     no_traceback(out)
     text = out.stdout + out.stderr
     assert "partial" in text and "interrupted (SIGTERM)" in text
-    assert f"square: {len(rec.t)} of {3 * CYCLE} cycles" in text
+    assert f"square: {len(rec.t)} of {LONG * CYCLE} cycles" in text
     assert out.returncode == DEGRADED
     status = (tmp_path / "res" / "STATUS").read_text()
     assert status.startswith("degraded") and "square" in status
@@ -248,7 +250,7 @@ def test_identify_after_an_interrupted_run_reports_the_partial_recording(termina
 
 def test_identify_recognises_the_checkpoint_of_a_killed_run(tmp_path):
     res = tmp_path / "run"
-    proc = start_run(short_config(tmp_path, cycles=3), res)
+    proc = start_run(short_config(tmp_path, cycles=LONG), res)
     proc.kill()                     # SIGKILL: nothing can be done; the checkpoint is what is left
     proc.communicate(timeout=60)
     rec = Recording.load(res / "data" / "square.npz")
@@ -257,7 +259,7 @@ def test_identify_recognises_the_checkpoint_of_a_killed_run(tmp_path):
                    cwd=tmp_path)
     no_traceback(out)
     assert "checkpoint" in out.stdout + out.stderr
-    assert f"square: {len(rec.t)} of {3 * CYCLE} cycles" in out.stdout + out.stderr
+    assert f"square: {len(rec.t)} of {LONG * CYCLE} cycles" in out.stdout + out.stderr
     assert out.returncode == DEGRADED
 
 

@@ -40,7 +40,8 @@ def stream_lockstep(bench, targets, before_sync=None, rpdo_deadline_ms=0):
     """Stream ``targets`` (N, 6) counts, one row per SYNC; returns reported counts and mA (N, 6).
 
     ``before_sync(k)`` runs in the master between the set-points of row k and its SYNC (to stall
-    the master); ``rpdo_deadline_ms``: the drives' RPDO timeout (RPDO1 event timer 0x1400:05).
+    the master); ``rpdo_deadline_ms``: the drives' RPDO timeout (RPDO1 event timer 0x1400:05,
+    an EPOS2 object: no EPOS4 has it).
     """
     rows, cycle, complete = [], {}, threading.Event()
 
@@ -49,10 +50,11 @@ def stream_lockstep(bench, targets, before_sync=None, rpdo_deadline_ms=0):
         if len(cycle) == 6:
             complete.set()
 
-    for j, node in enumerate(bench.nodes):
-        configure_pdos(node, "EPOS4")
-        node.sdo[0x1400][5].raw = rpdo_deadline_ms
-        node.sdo[0x6060].raw = 8
+    for j, (node, drive) in enumerate(zip(bench.nodes, bench.rig.drives)):
+        configure_pdos(node, drive.profile.name)
+        if rpdo_deadline_ms:
+            node.sdo[0x1400][5].raw = rpdo_deadline_ms
+        node.sdo[0x6060].raw = drive.profile.cyclic_mode
         for cw in (0x06, 0x07, 0x0F):
             node.sdo[0x6040].raw = cw
         node.tpdo[1].add_callback(lambda m, j=j: received(j, m))

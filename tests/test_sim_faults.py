@@ -285,6 +285,7 @@ def test_short_rpdo_raises_the_pdo_length_emcy_without_a_fault(bench):
     assert node.sdo[0x1003][1].raw == 0x8210
 
 
+@pytest.mark.parametrize("bench", [{"profiles": ("epos2",) * 6}], indirect=True)   # read-only on an EPOS4
 def test_emcy_cob_id_follows_0x1014_with_cia301_rules(bench):
     node = bench.nodes[0]
     seen = []

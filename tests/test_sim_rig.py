@@ -88,7 +88,7 @@ def test_epos2_has_no_30d1():
 
 
 def configure_pdos(node, profile_name):
-    """TPDO1 = position + current (+ statusword on EPOS2), SYNC; EPOS4 statusword in TPDO2 (event)."""
+    """TPDO1 = position + current (+ statusword on EPOS2), SYNC; EPOS4 statusword in TPDO2, SYNC."""
     node.tpdo.read()
     node.rpdo.read()
     for pdo in node.tpdo.values():
@@ -104,7 +104,7 @@ def configure_pdos(node, profile_name):
         t2 = node.tpdo[2]
         t2.clear()
         t2.add_variable(0x6041)
-        t2.trans_type, t2.event_timer, t2.enabled = 255, 50, True
+        t2.trans_type, t2.enabled = 1, True        # on SYNC: a real EPOS4 has no TPDO event timer
     t1.trans_type, t1.enabled = 1, True
     r1 = node.rpdo[1]
     r1.clear()

@@ -38,7 +38,7 @@ def targets():
 def run(targets, stall=0.0, stall_at=STALL_AT, deadline_ms=0, stall_rig=False):
     """Stream ``targets``; the master sleeps ``stall`` s before SYNC ``stall_at`` (holding the rig's
     lock with ``stall_rig``: the rig's own thread stalls too). Returns what the master saw."""
-    bench = Bench(sync_period=PERIOD, seed=1)
+    bench = Bench(profiles=("epos2",) * 6, sync_period=PERIOD, seed=1)   # RPDO deadline 0x1400:05: no EPOS4 has it
     try:
         bench.rig.start()
         codes = {n.id: collect_emcy(n) for n in bench.nodes}
@@ -53,7 +53,10 @@ def run(targets, stall=0.0, stall_at=STALL_AT, deadline_ms=0, stall_rig=False):
 
         counts, milliamps = stream_lockstep(bench, targets, before_sync, deadline_ms)
         assert wait_until(lambda: bench.rig.syncs_done == bench.rig.sync_count)
-        time.sleep(0.05)                                       # any late EMCY
+        # what the stream raised: the EMCYs sent before the last set-point's deadline ran out
+        # (after it, a watching drive faults as it should: the set-points have stopped)
+        time.sleep(min(0.05, 0.5 * deadline_ms * 1e-3) if deadline_ms else 0.05)
+        codes = {node: list(seen) for node, seen in codes.items()}
         truth = {k: v[-len(targets):] for k, v in bench.rig.plant.truth().items()}
         return dict(counts=counts, milliamps=milliamps, truth=truth, codes=codes,
                     states=[d.state for d in bench.rig.drives], n_steps=len(bench.rig.plant.log))
@@ -88,7 +91,7 @@ def test_rpdo_timeout_fires_only_when_set_points_stop_for_longer_than_the_deadli
     hiccup = run(targets[:60], stall=0.3, stall_at=30, deadline_ms=int(deadline * 1e3), stall_rig=True)
     assert all(c == [] for c in hiccup["codes"].values()) and hiccup["states"] == ["OPERATION ENABLED"] * 6
     # the master stops: every drive signals the RPDO timeout and ends in FAULT
-    bench = Bench(sync_period=PERIOD, seed=1)
+    bench = Bench(profiles=("epos2",) * 6, sync_period=PERIOD, seed=1)   # RPDO deadline 0x1400:05: no EPOS4 has it
     try:
         bench.rig.start()
         arrivals = {}

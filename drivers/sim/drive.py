@@ -158,6 +158,13 @@ class EmulatedDrive:
         self._watch_producer(0)
         self._set(self.profile.statusword, self._statusword())
 
+    def optional(self, index: int, subindex: int = 0, default=0):
+        """Value of an object this drive may lack (PDO sub-index 5 and 0x1006 exist on an EPOS2,
+        not on an EPOS4): ``default`` where its dictionary has no such object."""
+        if self.node.object_dictionary.get_variable(index, subindex) is None:
+            return default
+        return self.get(index, subindex)
+
     def get(self, index: int, subindex: int = 0):
         """Current value of an object (written value, live value or default)."""
         try:
@@ -273,12 +280,12 @@ class EmulatedDrive:
             if not cob >> 31 and self.get(0x1A00 + n, 0):
                 layout, entries = self._layout(0x1A00 + n)
                 self.tpdos.append(_Pdo(cob & 0x7FF, self.get(0x1800 + n, 2), self.get(0x1800 + n, 3) * 1e-4,
-                                       self.get(0x1800 + n, 5) * 1e-3, layout, entries))
+                                       self.optional(0x1800 + n, 5) * 1e-3, layout, entries))
         for n in range(self.profile.rpdo_count):
             cob = self.get(0x1400 + n, 1)
             if not cob >> 31 and self.get(0x1600 + n, 0):
                 layout, entries = self._layout(0x1600 + n)
-                rpdos[cob & 0x7FF] = _Pdo(cob & 0x7FF, self.get(0x1400 + n, 2), 0.0, self.get(0x1400 + n, 5) * 1e-3,
+                rpdos[cob & 0x7FF] = _Pdo(cob & 0x7FF, self.get(0x1400 + n, 2), 0.0, self.optional(0x1400 + n, 5) * 1e-3,
                                           layout, entries)
         for cob in self._rpdo_subscribed:
             self.network.unsubscribe(cob, self._on_rpdo)

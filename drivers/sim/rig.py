@@ -246,7 +246,7 @@ class SimulatedRig:
         last, self._last_sync_stamp = self._last_sync_stamp, timestamp
         if self.sync_period is not None:
             return self.sync_period
-        cycle_us = self.drives[0].get(0x1006)
+        cycle_us = self.drives[0].optional(0x1006)
         if cycle_us:
             return cycle_us * 1e-6
         for drive in self.drives:

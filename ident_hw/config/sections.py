@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Literal
 
 import can
@@ -117,6 +118,9 @@ class ActuatorConfig:
     gear_ratio: float = field(default=1.0, metadata=spec(positive, doc="motor turns per joint turn"))
     screw_lead: float | None = field(default=None, metadata=spec(positive, unit="m per motor turn"))
     product_code: int | None = field(default=None, metadata=spec(non_negative, doc="expected 0x1018:02"))
+    object_dictionary: str | None = field(default=None, metadata=spec(
+        doc="the drive's EDS or DCF (maxon's, or saved from the drive), relative to the config file; "
+            "default: the built-in dictionary of the profile"))
 
     def _check(self) -> None:
         if self.kind == PRISMATIC and self.screw_lead is None:
@@ -130,14 +134,18 @@ class ActuatorConfig:
                            torque_constant=self.torque_constant, gear_ratio=self.gear_ratio,
                            screw_lead=self.screw_lead)
 
-    def to_driver(self) -> drivers.axis.AxisConfig:
-        """The drive driver's axis settings (SI)."""
+    def to_driver(self, base: Path | None = None) -> drivers.axis.AxisConfig:
+        """The drive driver's axis settings (SI); ``base``: the folder ``object_dictionary`` is
+        relative to (the config file's)."""
+        od_file = self.object_dictionary
+        if od_file is not None and base is not None:
+            od_file = str(Path(base) / od_file)
         return drivers.axis.AxisConfig(
             name=self.name, node_id=self.node_id, profile=self.profile, scaling=self.scaling(),
             position_min=self.limits.position[0], position_max=self.limits.position[1],
             max_velocity=self.limits.velocity, max_current=self.limits.current,
             following_error_window=self.limits.following_error, product_code=self.product_code,
-            homing=self.homing.to_driver())
+            homing=self.homing.to_driver(), object_dictionary=od_file)
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Iterator
 
 import can
@@ -56,7 +57,8 @@ class Session:
     def drive_group(self) -> DriveGroup:
         """The six actuators' drives (theta1..3, zeta1..3) with the bus settings of the config."""
         bus = self.config.bus
-        return DriveGroup(self.network, [a.to_driver() for a in self.config.robot.actuators],
+        base = Path(self.config.source).parent
+        return DriveGroup(self.network, [a.to_driver(base) for a in self.config.robot.actuators],
                           heartbeat_period=bus.heartbeat, heartbeat_timeout=bus.heartbeat_timeout,
                           sdo_timeout=bus.sdo_timeout, sync=self.config.sync_mode,
                           sync_period=1.0 / bus.sync_rate, lockstep_timeout=bus.lockstep_timeout)

@@ -1,0 +1,178 @@
+"""The built-in EPOS4 object dictionary against maxon's own, and what the master writes to a drive.
+
+maxon publishes the EPOS4's object dictionary as an EDS ("EPOS4 ... firmware 0x0110") and
+writes DCF files of configured drives ("EPOS4 50/15, firmware 0x0170"). Set
+``IDENT_HW_MAXON_REFERENCE`` to a folder holding them (``*.eds``, ``*.dcf``) to compare object by
+object; without it that test is skipped. The facts the master depends on are also written out
+below from those files, so that the bring-up check runs everywhere.
+"""
+
+import dataclasses
+import itertools
+import os
+from pathlib import Path
+
+import can
+import canopen
+import numpy as np
+import pytest
+
+from drivers.bus import BusConfig, open_network
+from drivers.epos import DriveGroup
+from drivers.errors import ConfigError
+from drivers.profiles import make_object_dictionary
+from drivers.sim import SimulatedRig
+from ident_hw.config import load_config
+
+CONFIG = load_config(Path(__file__).resolve().parent.parent / "configs" / "sim-3prrr.yaml")
+PERIOD = 0.004
+_channels = itertools.count()
+
+#: objects maxon's EPOS4 EDS (firmware 0x0110) and DCF (firmware 0x0170) do not have
+ABSENT_ON_EPOS4 = {(0x1006, 0), (0x1009, 0), (0x100A, 0)} | {(base + n, 5) for base in (0x1400, 0x1800)
+                                                            for n in range(4)}
+#: objects both files give as not writable
+READ_ONLY_ON_EPOS4 = {(0x1005, 0), (0x1014, 0), (0x1018, 1), (0x1018, 2)}
+
+
+def _variables(od: canopen.ObjectDictionary) -> dict:
+    out = {}
+    for obj in od.values():
+        if isinstance(obj, canopen.objectdictionary.ODVariable):
+            out[(obj.index, 0)] = obj
+        else:
+            for sub in obj.values():
+                out[(obj.index, sub.subindex)] = sub
+    return out
+
+
+def _writable(var) -> bool:
+    return var.access_type in ("rw", "wo", "rww", "rwr")
+
+
+def _maxon_files() -> list[Path]:
+    folder = os.environ.get("IDENT_HW_MAXON_REFERENCE")
+    if not folder:
+        pytest.skip("IDENT_HW_MAXON_REFERENCE (a folder with maxon's EPOS4 EDS/DCF) not set")
+    files = sorted(p for p in Path(folder).iterdir() if p.suffix.lower() in (".eds", ".dcf") and "epos4" in p.name.lower())
+    if not files:
+        pytest.skip(f"no EPOS4 .eds/.dcf in {folder}")
+    return files
+
+
+def test_builtin_epos4_dictionary_agrees_with_maxons_files():
+    """Every object the project defines exists in maxon's EDS or DCF with the same data type, and
+    none the project may write is read-only there (the newer DCF adds ``0x60C2``, the CSP
+    interpolation period, which the older EDS lacks; the two files disagree on the type of
+    ``0x6086``, INTEGER16 in the DCF: either file's word is taken)."""
+    references = [_variables(canopen.import_od(str(path), node_id=1)) for path in _maxon_files()]
+    ours = _variables(make_object_dictionary("epos4", 1))
+    problems = []
+    for key, var in sorted(ours.items()):
+        theirs = [ref[key] for ref in references if key in ref]
+        name = f"0x{key[0]:04X}:{key[1]:02X} {var.name!r}"
+        if not theirs:
+            problems.append(f"{name}: in none of maxon's files")
+        elif all(t.data_type != var.data_type for t in theirs):
+            problems.append(f"{name}: type 0x{var.data_type:X}, maxon 0x{theirs[0].data_type:X}")
+        elif _writable(var) and not any(_writable(t) for t in theirs):
+            problems.append(f"{name}: writable here, {theirs[0].access_type} on the drive")
+    assert problems == []
+    # and the facts written out above are what the files say
+    for key in ABSENT_ON_EPOS4:
+        assert all(key not in ref for ref in references), key
+    for key in READ_ONLY_ON_EPOS4:
+        assert all(not _writable(ref[key]) for ref in references if key in ref), key
+
+
+class SdoDownloads(can.Listener):
+    """Every SDO download (write) request on the bus, as (node-ID, index, sub-index)."""
+
+    def __init__(self):
+        self.writes = []
+
+    def on_message_received(self, msg):
+        cob = msg.arbitration_id
+        if 0x601 <= cob <= 0x67F and msg.dlc == 8 and msg.data[0] & 0xE0 == 0x20:   # initiate download
+            self.writes.append((cob - 0x600, msg.data[1] | msg.data[2] << 8, msg.data[3]))
+
+
+def test_the_master_writes_only_objects_a_real_epos4_has(tmp_path):
+    """Bring-up, homing, a cyclic stream and the stop of six EPOS4 drives: every object written
+    over SDO exists in the dictionary (checked against maxon's above) and is writable there, and
+    none is one maxon's files say an EPOS4 lacks or keeps read-only (a real drive would abort)."""
+    axes = [dataclasses.replace(a.to_driver(), profile="epos4") for a in CONFIG.robot.actuators]
+    channel = f"real-od-{next(_channels)}"
+    rig = SimulatedRig.build(CONFIG.robot.geometry.to_model(), CONFIG.sim.truth.to_model(),
+                             [(a.node_id, a.profile, a.scaling) for a in axes], sync_period=PERIOD,
+                             lockstep=True, interface="virtual", channel=channel, ignore_config=True).start()
+    spy_bus = can.Bus(interface="virtual", channel=channel, ignore_config=True)
+    spy = SdoDownloads()
+    notifier = can.Notifier(spy_bus, [spy])
+    network = open_network(BusConfig("virtual", channel, ignore_config=True))
+    group = DriveGroup(network, axes, sync="lockstep", sync_period=PERIOD)
+    try:
+        group.bring_up()
+        group.home()
+        start = group.positions()
+        t = np.arange(100) * PERIOD
+        rec = group.run_cyclic(start + np.sin(2 * np.pi * t)[:, None] * 1e-3, PERIOD)
+        assert rec.n_invalid == 0
+    finally:
+        group.close()
+        network.disconnect()
+        notifier.stop()
+        spy_bus.shutdown()
+        rig.stop()
+    ours = _variables(make_object_dictionary("epos4", 1))
+    written = sorted(set((index, sub) for _, index, sub in spy.writes))
+    assert len(written) > 20, written      # the spy saw the bring-up
+    bad = [f"0x{i:04X}:{s:02X}" for i, s in written
+           if (i, s) in ABSENT_ON_EPOS4 or (i, s) in READ_ONLY_ON_EPOS4 or (i, s) not in ours
+           or not _writable(ours[(i, s)])]
+    assert bad == []
+
+
+def _exported_eds(tmp_path: Path, node_id: int, without: tuple[int, int] | None = None) -> Path:
+    """The built-in EPOS4 dictionary written as an EDS by canopen (a stand-in for a drive's own
+    file), optionally without one sub-object."""
+    od = make_object_dictionary("epos4", node_id)
+    if without is not None:
+        record = od[without[0]]
+        del record.subindices[without[1]]
+        record.names.pop(next(n for n, v in record.names.items() if v.subindex == without[1]), None)
+    path = tmp_path / f"node{node_id}.eds"
+    canopen.objectdictionary.export_od(od, str(path), doc_type="eds")
+    return path
+
+
+def test_the_master_uses_the_drives_own_eds_and_names_what_it_lacks(tmp_path):
+    """``object_dictionary`` of an axis: the master's dictionary comes from that EDS/DCF (a run
+    works on it); a file without an object the master needs is refused when the drives are set
+    up, before anything moves, naming the node, the file and the object."""
+    axes = [dataclasses.replace(a.to_driver(), profile="epos4") for a in CONFIG.robot.actuators]
+    own = [dataclasses.replace(a, object_dictionary=str(_exported_eds(tmp_path, a.node_id))) for a in axes]
+    channel = f"real-od-{next(_channels)}"
+    rig = SimulatedRig.build(CONFIG.robot.geometry.to_model(), CONFIG.sim.truth.to_model(),
+                             [(a.node_id, a.profile, a.scaling) for a in axes], sync_period=PERIOD,
+                             lockstep=True, interface="virtual", channel=channel, ignore_config=True).start()
+    network = open_network(BusConfig("virtual", channel, ignore_config=True))
+    try:
+        group = DriveGroup(network, own, sync="lockstep", sync_period=PERIOD)
+        group.bring_up()
+        rec = group.run_cyclic(np.repeat(group.positions()[None], 20, axis=0), PERIOD)
+        assert rec.n_invalid == 0
+        group.close()
+        lacking = dataclasses.replace(axes[4], object_dictionary=str(_exported_eds(tmp_path, axes[4].node_id,
+                                                                                   without=(0x30D1, 2))))
+        with pytest.raises(ConfigError, match=rf"node {axes[4].node_id} \(zeta2\).*node{axes[4].node_id}\.eds "
+                                              r"lacks 0x30D1:02"):
+            DriveGroup(network, axes[:4] + [lacking] + axes[5:], sync="lockstep", sync_period=PERIOD)
+    finally:
+        network.disconnect()
+        rig.stop()
+
+
+def test_a_configs_object_dictionary_is_relative_to_the_config_file(tmp_path):
+    actuator = dataclasses.replace(CONFIG.robot.actuators[3], object_dictionary="drives/zeta1.dcf")
+    assert actuator.to_driver(tmp_path).object_dictionary == str(tmp_path / "drives" / "zeta1.dcf")
