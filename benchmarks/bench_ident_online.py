@@ -30,7 +30,7 @@ for est in (RLS(N), DampedRLS(N), SVDDLS(N, threshold=1e-6)):
 sc = online_scenario()
 traces = run_all(sc)
 names = ("rich 20 s", "slow circle 20 s", f"rich + {PAYLOAD_KG} kg 20 s")
-print("\nJ_RMSE of the a-priori force predictions (N and N·m mixed, seed 000 eq. 87), lambda = 0.998 at 200 Hz:")
+print("\nJ_RMSE of the a-priori force predictions (N and N·m mixed, the SVD-DLS paper eq. 87), lambda = 0.998 at 200 Hz:")
 print(f"  {'method':10s}" + "".join(f"{n:>22s}" for n in names) + f"{'cov. growth in circle':>24s}{'m_ee 5 % after':>16s}")
 i_ee = sc.names.index("m_ee")
 target = TRUE.m_ee + PAYLOAD_KG

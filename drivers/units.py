@@ -66,7 +66,7 @@ class AxisScaling:
     def force_per_amp(self) -> float:
         """Joint force per motor current: N·m/A (revolute) or N/A (prismatic).
 
-        Revolute: ``K_m · gear``. Prismatic: ``K_m · gear · 2π / p`` (seed 001, eqs. 37–38).
+        Revolute: ``K_m · gear``. Prismatic: ``K_m · gear · 2π / p`` (the 3PRRR paper, eqs. 37–38).
         """
         return self.torque_constant * 2.0 * math.pi * self.motor_turns_per_unit
 

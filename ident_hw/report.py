@@ -45,7 +45,7 @@ from ident_hw.model import ACTUATOR_NAMES
 FORCE_UNITS = ("N·m",) * 3 + ("N",) * 3
 POSITION_UNITS = ("rad",) * 3 + ("m",) * 3
 STATUS_FILE = "STATUS"
-#: default %sigma above which a parameter is reported as poorly identified on its data (seed 004)
+#: default %sigma above which a parameter is reported as poorly identified on its data (the power-model paper)
 POOR_REL_SIGMA = 10.0
 
 
@@ -111,7 +111,7 @@ class ParameterTable:
 
 @dataclass
 class BaseFit:
-    """Least-squares estimate of base parameters (seed 000) with statistics (seed 004).
+    """Least-squares estimate of base parameters (the SVD-DLS paper) with statistics (the power-model paper).
 
     ``r`` base parameters ``pi_b = H pi`` of the ``n`` physical ones: ``expressions`` (r,) read
     them (e.g. ``"m_c + 0.5 m_l2"``); ``coef``, ``sigma`` (r,) estimate and standard deviation;
@@ -351,7 +351,7 @@ def summary_lines(folder: str | Path) -> list[str]:
         lines.append("recordings used:")
         lines += [f"  {name}: {coverage_text(u)}" for name, u in results.trajectories.items()]
     if any(r["step"] for r in rows):
-        lines.append("physical parameters, step by step (seed 001):")
+        lines.append("physical parameters, step by step (SQP mass fit of the 3PRRR paper):")
     lines.append(head + "  step")
     for row in rows:
         if not row["step"]:
@@ -698,8 +698,8 @@ def _html_base_fit(fit: BaseFit) -> str:
     held = f" Held at known values: {esc(', '.join(fit.held))}." if fit.held else ""
     unexcited = f" Not excited by the data: {esc(', '.join(fit.unexcited))}." if fit.unexcited else ""
     return (f"<h2>Base parameters: {esc(fit.method)} on {esc(', '.join(fit.trajectories))} (step {esc(fit.step)})</h2>"
-            f"<p>Each combination is what the data determine (seed 000); σ from the least-squares statistics "
-            f"(seed 004). Identified: %σ ≤ {fit.threshold:g}.{held}{unexcited}</p>"
+            f"<p>Each combination is what the data determine (the SVD-DLS paper); σ from the least-squares statistics "
+            f"(the power-model paper). Identified: %σ ≤ {fit.threshold:g}.{held}{unexcited}</p>"
             f"<table><tr>{''.join(f'<th>{esc(h)}</th>' for h in head)}</tr>{''.join(rows)}</table>")
 
 

@@ -1,5 +1,5 @@
 """Signal preparation for identification: zero-phase low-pass, central differences, parallel
-filtering and decimation (seed 004, sec. 5).
+filtering and decimation (the power-model paper, sec. 5).
 
 All arrays are time-major: axis 0 is the sample index. Times in s, frequencies in Hz.
 

@@ -123,7 +123,7 @@ def test_sqp_rejects_bad_names(rich):
 @pytest.mark.slow
 def test_statistics_against_monte_carlo():
     """On white noise, both covariances match the spread of the estimates over noise draws:
-    seed 004's sigma² (WᵀW)⁻¹ (lags=0) and the default HAC sandwich."""
+    the power-model paper's sigma² (WᵀW)⁻¹ (lags=0) and the default HAC sandwich."""
     rng = np.random.default_rng(7)
     m = make_motion(duration=2.0, rate=100.0)
     cols = [NAMES.index(n) for n in NAMES if n != "I_l2"]

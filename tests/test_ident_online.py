@@ -34,7 +34,7 @@ def run_all(scenario):
 
 
 def j_rmse_table(scenario, traces) -> dict:
-    """J_RMSE (seed 000, eq. 87) of the a-priori torque predictions against the noise-free
+    """J_RMSE (the SVD-DLS paper, eq. 87) of the a-priori torque predictions against the noise-free
     forces, per method and phase (N and N·m mixed, as in the paper)."""
     return {name: [validation_metrics(scenario.tau_ref[scenario.phase == p], tr.predictions[scenario.phase == p]).j_rmse
                    for p in range(3)] for name, tr in traces.items()}

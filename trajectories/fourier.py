@@ -1,4 +1,4 @@
-"""Optimised excitation: finite Fourier series on the pose and the carriages (seed 000, eqs. 84–86).
+"""Optimised excitation: finite Fourier series on the pose and the carriages (the SVD-DLS paper, eqs. 84–86).
 
 Each coordinate ``j`` of ``q = [x, y, alpha, zeta1, zeta2, zeta3]`` follows
 

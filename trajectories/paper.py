@@ -1,4 +1,4 @@
-"""The paper's experiments (seed 001; spec "The paper's experiments"), on any geometry.
+"""The paper's experiments (the 3PRRR paper; docs/3prrr-model.md, "The paper's experiments"), on any geometry.
 
 Every trajectory starts and ends at home (pose 0, carriages 0), at rest.
 

@@ -34,7 +34,7 @@ def _plus_minus_one(value) -> None:
 
 @dataclass(frozen=True)
 class GeometryConfig:
-    """Geometry of the 3PRRR, per ``shared/spec/3prrr-model.md``."""
+    """Geometry of the 3PRRR, per ``docs/3prrr-model.md``."""
 
     l1: float = field(metadata=spec(positive, unit="m"))
     l2: float = field(metadata=spec(positive, unit="m"))
@@ -331,9 +331,9 @@ class StepConfig:
     """One identification step: which recorded trajectories identify which parameters.
 
     ``sqp``: bounded fit of the listed parameters, the others held at their current values
-    (seed 001); the result is carried into the next steps. ``wls``/``ols``: least squares of the
-    base parameters of the listed ones (seed 000; the others held), with their standard
-    deviations (seed 004); reported beside the physical parameters, not carried on (a base
+    (the 3PRRR paper); the result is carried into the next steps. ``wls``/``ols``: least squares of the
+    base parameters of the listed ones (the SVD-DLS paper; the others held), with their standard
+    deviations (the power-model paper); reported beside the physical parameters, not carried on (a base
     parameter can group several physical ones). At most one step is ``wls``/``ols``.
     """
 

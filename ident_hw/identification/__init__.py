@@ -6,9 +6,9 @@ Public API::
     from ident_hw.identification import SVDDLS, RLS, DampedRLS, validation_metrics
 
 - :func:`build_dataset`: measured positions and currents → filtered, decimated regressor and forces.
-- :func:`ols`, :func:`wls`: least squares with the statistics of seed 004 (HAC covariance).
-- :func:`base_parameters`, :func:`identify_base`: rank, null space and base parameters (seed 000).
-- :func:`sqp_fit`: bounded SQP mass fit of seed 001, cross-checked by ``lsq_linear``.
+- :func:`ols`, :func:`wls`: least squares with the statistics of the power-model paper (HAC covariance).
+- :func:`base_parameters`, :func:`identify_base`: rank, null space and base parameters (the SVD-DLS paper).
+- :func:`sqp_fit`: bounded SQP mass fit of the 3PRRR paper, cross-checked by ``lsq_linear``.
 - :class:`SVDDLS`, :class:`RLS`, :class:`DampedRLS`: online estimators (``partial_fit``);
   :func:`run_stream` records what one does on a stream.
 - :func:`power_rows`, :func:`energy_rows`: power and energy models (no accelerations).

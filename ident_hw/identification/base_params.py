@@ -1,4 +1,4 @@
-"""Base parameters by SVD (seed 000, sec. 6.1, eqs. 66 and 78–80).
+"""Base parameters by SVD (the SVD-DLS paper, sec. 6.1, eqs. 66 and 78–80).
 
 From the stacked regressor ``W`` (r, n): ``W D = U S Vᵀ`` with ``D = diag(scale)`` (columns
 expressed as torque contributions of parameters of the given typical size), rank = number of

@@ -1,9 +1,9 @@
-"""Ordinary and weighted least squares with the statistics of seed 004 (eqs. 10–12).
+"""Ordinary and weighted least squares with the statistics of the power-model paper (eqs. 10–12).
 
 Data convention (the whole package): a regressor ``Y`` of shape (N, k, n) — N samples,
 k outputs (actuator torques/forces), n parameters — and outputs ``tau`` (N, k) with
 ``tau ≈ Y @ pi``. :func:`stack` turns them into ``W`` (k·N, n) and ``y`` (k·N,), with the
-rows of one output kept together (output-major), as seed 004 arranges them. A NaN in ``tau``
+rows of one output kept together (output-major), as the power-model paper arranges them. A NaN in ``tau``
 leaves that row (one output of one sample) out of the fit: :func:`check_regression_data`
 zeroes it, and the statistics count only the rows whose regressor is not all zero (such a
 row carries no information, whatever its output).
@@ -23,7 +23,7 @@ the heteroscedasticity and autocorrelation consistent (HAC) sandwich of Newey & 
 with the rule-of-thumb bandwidth ``L = floor(4 (N/100)^(2/9))`` (Newey & West 1994): it
 weighs the residual at the frequencies of the regressor, which is what the estimate's error
 is made of (checked against Monte Carlo spreads in ``tests/test_ident_noise.py``). ``lags=0``
-gives back the white-residual formula of seed 004.
+gives back the white-residual formula of the power-model paper.
 """
 
 from __future__ import annotations
@@ -96,7 +96,7 @@ def output_noise_std(Y: np.ndarray, tau: np.ndarray, coef: np.ndarray | None = N
 
 @dataclass(frozen=True)
 class LeastSquaresResult:
-    """Estimate with its statistics (seed 004).
+    """Estimate with its statistics (the power-model paper).
 
     Attributes:
         names: parameter names (n).

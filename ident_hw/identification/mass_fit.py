@@ -1,4 +1,4 @@
-"""The SQP mass fit of seed 001 (eq. 39), cross-checked by a bounded linear solver.
+"""The SQP mass fit of the 3PRRR paper (eq. 39), cross-checked by a bounded linear solver.
 
     pi* = argmin sum_t || (tau(t) − Y(t) pi) / sigma ||²   subject to  lo <= pi <= hi
 

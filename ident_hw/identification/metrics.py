@@ -16,7 +16,7 @@ class ValidationMetrics:
         nrms_percent: ``100 × rms_j / RMS(tau_j)`` (k,).
         d_tau_percent: ``100 × mean_t(||tau_t − tau_hat_t|| / ||tau_t||)`` over the samples
             with ``||tau_t|| > 0`` (the relative error of the issue).
-        j_rmse: ``sqrt(mean_t ||tau_hat_t − tau_t||²)`` (seed 000, eq. 87), mixed units as in the paper.
+        j_rmse: ``sqrt(mean_t ||tau_hat_t − tau_t||²)`` (the SVD-DLS paper, eq. 87), mixed units as in the paper.
     """
 
     rms: np.ndarray

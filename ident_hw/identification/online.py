@@ -1,4 +1,4 @@
-"""Online (streaming) estimators: SVD-DLS (seed 000, eqs. 61–83) and two RLS baselines.
+"""Online (streaming) estimators: SVD-DLS (the SVD-DLS paper, eqs. 61–83) and two RLS baselines.
 
 Interface (scikit-learn style, one convention for all three):
 
@@ -225,7 +225,7 @@ class DampedRLS(_RecursiveEstimator):
 
 
 class SVDDLS(_RecursiveEstimator):
-    """SVD-based damped recursive least squares (seed 000, eqs. 65–83).
+    """SVD-based damped recursive least squares (the SVD-DLS paper, eqs. 65–83).
 
     Args:
         n_params: n. forgetting: lambda in (0, 1].

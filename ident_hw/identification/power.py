@@ -1,4 +1,4 @@
-"""Power and energy models (seed 004): identification without accelerations.
+"""Power and energy models (the power-model paper): identification without accelerations.
 
 Actuated power equals the rate of change of the kinetic energy plus the friction losses:
 

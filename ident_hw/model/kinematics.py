@@ -1,6 +1,6 @@
 """Closed-form kinematics of the 3PRRR (spec eqs. 1–14), vectorised over N samples.
 
-Conventions (``shared/spec/3prrr-model.md``): ``e(phi) = [cos, sin]``, ``n(phi) = [-sin, cos]``,
+Conventions (``docs/3prrr-model.md``): ``e(phi) = [cos, sin]``, ``n(phi) = [-sin, cos]``,
 
     A_i = zeta_i e(gamma_i) + a n(gamma_i)
     B_i = A_i + l1 e(theta_i)

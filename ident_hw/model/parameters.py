@@ -1,4 +1,4 @@
-"""Geometry and dynamic parameters of the 3PRRR (conventions of ``shared/spec/3prrr-model.md``)."""
+"""Geometry and dynamic parameters of the 3PRRR (conventions of ``docs/3prrr-model.md``)."""
 
 from __future__ import annotations
 
