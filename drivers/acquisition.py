@@ -4,22 +4,21 @@ The master maps, per drive (see :func:`pdo_layout`):
 
 * TPDO1, SYNC-triggered: position actual (I32) + current actual (I16 on EPOS2, I32 on EPOS4),
   plus the statusword on EPOS2 (4 + 2 + 2 = 8 bytes);
-* TPDO2 on EPOS4 only: statusword, event-driven with an event timer (the I32 + I32 of TPDO1
-  leave no room for it);
-* TPDO3, SYNC-triggered (optional): velocity actual (I32);
+* TPDO2, SYNC-triggered: velocity actual (I32, optional), plus the statusword on EPOS4 (the
+  I32 + I32 of its TPDO1 leave no room for it);
 * RPDO1, applied on the next SYNC: cyclic set-point (I32) + controlword (U16).
 
 :class:`CycleAssembler` is a :class:`can.Listener` that cuts the received traffic into SYNC
 cycles: the SYNC frame (received back with ``receive_own_messages``, or from the kernel BCM on
 SocketCAN) opens a cycle and gives its timestamp; the SYNC-triggered TPDOs received until the
 next SYNC fill it; the RPDO echoes seen in a cycle are the set-points the drives take over at
-the next SYNC, so they become the ``target`` of the next row. A cycle that misses a frame, or
-receives one twice (a late frame of the previous cycle), is flagged invalid for that axis and
-its values are left out — never filled from an earlier cycle. A SYNC that repeats the counter of
-the open cycle (a lockstep retry, :mod:`drivers.sync`) opens no new cycle; the TPDOs answering it
-are the same frames again and are taken as such (a different frame is still a late one). In
-lockstep (``period`` given) a row's time is its cycle index times the period: the simulated time. The EPOS4 statusword, which is
-event-driven by design, is reported as the last value received.
+the next SYNC, so they become the ``target`` of the next row. A frame is placed in its cycle
+only where the bus proves it belongs there (one frame per TPDO per SYNC, in order; see the
+class): a cycle that misses a frame, or holds one that was late or cannot be placed, is invalid
+for that axis and its values are left out, never filled from another cycle. A SYNC that repeats
+the counter of the open cycle (a lockstep retry, :mod:`drivers.sync`) opens no new cycle; the
+TPDOs answering it are the same frames again and are taken as such. In lockstep (``period``
+given) a row's time is its cycle index times the period: the simulated time.
 
 Decoding uses precompiled :class:`struct.Struct` s; the listener runs in the notifier thread and
 never calls SDO: it only sends PDO frames (through ``on_sync``) and hands finished rows to a sink.
@@ -28,6 +27,7 @@ never calls SDO: it only sends PDO frames (through ``on_sync``) and hands finish
 from __future__ import annotations
 
 import struct
+import threading
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
@@ -145,8 +145,55 @@ class Row:
     valid: list
 
 
+class _Stream:
+    """One SYNC-triggered TPDO of one node, as the assembler keeps its books.
+
+    ``owed`` holds the cycles whose window closed without this frame, oldest first: each is a
+    frame either lost or still on its way. While one is owed, a window holding exactly one frame
+    is ``provisional`` (it holds its own frame if the owed one was lost, the previous cycle's
+    if that one was late) until an extra frame proves the shift or :data:`LOOKAHEAD` cycles pass
+    without one.
+    """
+
+    __slots__ = ("cob_id", "axis", "unpack", "fields", "owed", "provisional")
+
+    def __init__(self, cob_id: int, axis: int, unpack, fields: tuple[str, ...]):
+        self.cob_id = cob_id
+        self.axis = axis
+        self.unpack = unpack
+        self.fields = fields
+        self.owed: list[int] = []
+        self.provisional: list[int] = []
+
+
+#: cycles an owed frame may still arrive in before it is taken as lost (see :class:`CycleAssembler`)
+LOOKAHEAD = 16
+
+_OK, _MISSING, _PROVISIONAL, _WITHDRAWN = range(4)
+
+
 class CycleAssembler(can.Listener):
     """Assemble one :class:`Row` per SYNC cycle from the frames of all axes.
+
+    A TPDO carries no cycle number, so its cycle is inferred from what the bus guarantees: each
+    node sends exactly one frame of each SYNC-triggered TPDO per SYNC, in order, and never
+    before that SYNC. Per TPDO of each node the assembler counts the frames between two SYNCs
+    (a *window*):
+
+    * one frame, nothing owed: the cycle's own frame; the cell is valid;
+    * none: the cell is invalid and the frame is *owed*: lost, or late;
+    * two or more: the extra ones pay what is owed (late frames); the last one is the cycle's own
+      once nothing is owed any more; every window since the first owed one held the previous
+      cycle's frame and is withdrawn (invalid);
+    * one frame while a frame is owed: undecided. The row is held back until an extra frame
+      proves the shift (withdrawn) or :data:`LOOKAHEAD` cycles pass without one: the owed frame
+      is then taken as lost and the window's frame as its own.
+
+    Rows leave in cycle order, each as soon as it is decided; :meth:`flush` (the end of a run)
+    withdraws what is still undecided. An extra frame with nothing owed (later than
+    ``LOOKAHEAD`` cycles, or sent twice) cannot be placed: it invalidates its window and is
+    counted in ``unplaced_frames``, a sign that cells already handed out may hold another
+    cycle's data (the quality verdict fails on it).
 
     Args:
         axes: the axes in sample order.
@@ -157,7 +204,7 @@ class CycleAssembler(can.Listener):
         on_status: called ``(axis_index, statusword)`` the first time an axis reports its fault
             or following-error bit.
         on_bus_error: called with a text on an error frame or a receive error of the bus.
-        max_cycles: stop after this many rows (``None``: no limit).
+        max_cycles: stop after this many cycles (``None``: no limit).
         forward: listeners that receive every message first (e.g. the raw-traffic logger), so
             that the raw log holds exactly the frames this assembler saw.
         period: in lockstep, the SYNC period (s): row ``k`` gets the time ``k * period``
@@ -178,95 +225,97 @@ class CycleAssembler(can.Listener):
         self.max_cycles = max_cycles
         self._forward = tuple(forward)
         self._period = period
-        self._tpdo: dict[int, tuple] = {}
+        self._lock = threading.RLock()
+        self._streams: dict[int, _Stream] = {}     # SYNC-triggered TPDOs by COB-ID
+        self._events: dict[int, tuple] = {}        # event-driven TPDOs (statusword only)
         self._rpdo: dict[int, tuple] = {}
-        self._expected = []
         for i, axis in enumerate(axes):
-            mask = 0
             for frame in axis.frames:
                 fields = tuple(name for name, _ in frame.entries)
-                if frame.direction == "tpdo":
-                    bit = (1 << frame.number) if frame.per_sync else 0
-                    mask |= bit
-                    self._tpdo[frame.cob_id(axis.node_id)] = (i, frame.struct.unpack, fields, bit)
+                cob_id = frame.cob_id(axis.node_id)
+                if frame.direction == "rpdo":
+                    self._rpdo[cob_id] = (i, frame.struct.unpack, fields.index("target"))
+                elif frame.per_sync:
+                    self._streams[cob_id] = _Stream(cob_id, i, frame.struct.unpack, fields)
                 else:
-                    self._rpdo[frame.cob_id(axis.node_id)] = (i, frame.struct.unpack, fields)
-            self._expected.append(mask)
+                    self._events[cob_id] = (i, frame.struct.unpack, fields)
+        self._status_field = {cob: s.fields.index("statusword") for cob, s in self._streams.items()
+                              if "statusword" in s.fields}
         self.syncs = 0  # SYNC frames seen
-        self.cycles = 0  # rows emitted
+        self.cycles = 0  # windows closed
+        self.emitted = 0  # rows handed to the sink
         self.invalid_cycles = 0  # rows with at least one invalid axis
-        self.late_frames = 0  # TPDOs received twice in one cycle
+        self.late_frames = 0  # frames that arrived in a later cycle's window than their own
+        self.lost_frames = 0  # owed frames that did not come within LOOKAHEAD cycles
+        self.withdrawn_cells = 0  # cells holding one frame that was not provably their own
+        self.unplaced_frames = 0  # extra frames with nothing owed
         self.error_frames = 0
         self.done = False
         self._statusword = [None] * self.n_axes
         self._status_reported = [False] * self.n_axes
         self._pending_target = [None] * self.n_axes
-        self._open = None  # the cycle being filled, see _new_cycle
-        self._open_counter = None  # SYNC counter of the open cycle (None: SYNC without counter)
-        self._frames: dict[int, bytes] = {}  # TPDO data of the open cycle by COB-ID
-
-    def _new_cycle(self, timestamp: float) -> list:
-        n = self.n_axes
-        if self._period is not None:
-            timestamp = self.cycles * self._period
-        self._frames = {}
-        # [timestamp, position, velocity, current, received-frame bits, duplicate, target]
-        return [timestamp, [None] * n, [None] * n, [None] * n, [0] * n, [False] * n,
-                list(self._pending_target)]
+        self._open = None  # (timestamp, target) of the window being filled
+        self._open_counter = None  # SYNC counter of the open window (None: SYNC without counter)
+        self._count: dict[int, int] = {}   # frames per COB-ID in the open window
+        self._last: dict[int, bytes] = {}  # last frame per COB-ID in the open window
+        self._held: dict[int, list] = {}   # cycle -> [timestamp, target, statusword, {cob: [state, data]}]
 
     def on_message_received(self, msg: can.Message) -> None:
         for listener in self._forward:
             listener.on_message_received(msg)
-        if self.done:
-            if msg.arbitration_id == SYNC_COB_ID and not (msg.is_remote_frame or msg.is_error_frame):
-                self._sync(msg.timestamp, msg.data)    # no more rows, but on_sync still follows the SYNC
-            return
-        if msg.is_error_frame:
-            self.error_frames += 1
-            if self._on_bus_error is not None:
-                self._on_bus_error(f"error frame received at t={msg.timestamp:.6f} s "
-                                   f"(data {bytes(msg.data).hex()})")
-            return
-        cob_id = msg.arbitration_id
-        if cob_id == SYNC_COB_ID and not msg.is_remote_frame:
-            self._sync(msg.timestamp, msg.data)
-            return
-        handler = self._tpdo.get(cob_id)
-        if handler is not None:
-            self._tpdo_frame(cob_id, handler, msg.data)
-            return
-        handler = self._rpdo.get(cob_id)
-        if handler is not None:
-            axis, unpack, fields = handler
-            values = unpack(bytes(msg.data))
-            self._pending_target[axis] = values[fields.index("target")]
+        with self._lock:
+            if self.done:
+                if msg.arbitration_id == SYNC_COB_ID and not (msg.is_remote_frame or msg.is_error_frame):
+                    self._sync(msg.timestamp, msg.data)    # no more rows, but on_sync still follows the SYNC
+                return
+            if msg.is_error_frame:
+                self.error_frames += 1
+                if self._on_bus_error is not None:
+                    self._on_bus_error(f"error frame received at t={msg.timestamp:.6f} s "
+                                       f"(data {bytes(msg.data).hex()})")
+                return
+            cob_id = msg.arbitration_id
+            if cob_id == SYNC_COB_ID and not msg.is_remote_frame:
+                self._sync(msg.timestamp, msg.data)
+            elif cob_id in self._streams:
+                self._tpdo_frame(cob_id, bytes(msg.data))
+            elif cob_id in self._events:
+                axis, unpack, fields = self._events[cob_id]
+                try:
+                    values = unpack(bytes(msg.data))
+                except struct.error:
+                    return
+                if "statusword" in fields:
+                    self._status(axis, values[fields.index("statusword")])
+            elif cob_id in self._rpdo:
+                axis, unpack, at = self._rpdo[cob_id]
+                try:
+                    self._pending_target[axis] = unpack(bytes(msg.data))[at]
+                except struct.error:
+                    pass
 
-    def _tpdo_frame(self, cob_id: int, handler, data) -> None:
-        axis, unpack, fields, bit = handler
-        data = bytes(data)
+    def _status(self, axis: int, value: int) -> None:
+        self._statusword[axis] = value
+        if value & (STATUS_FAULT | STATUS_FOLLOWING_ERROR) and not self._status_reported[axis]:
+            self._status_reported[axis] = True
+            if self._on_status is not None:
+                self._on_status(axis, value)
+
+    def _tpdo_frame(self, cob_id: int, data: bytes) -> None:
+        stream = self._streams[cob_id]
         try:
-            values = unpack(data)
+            values = stream.unpack(data)
         except struct.error:
             return  # wrong length: treated as not received
-        cycle = self._open
-        if cycle is not None and bit:
-            if self._frames.get(cob_id) == data and self._open_counter is not None:
-                return  # the same frame again, answering a repeated SYNC (lockstep retry)
-            self._frames[cob_id] = data
-        for name, value in zip(fields, values):
-            if name == "statusword":
-                self._statusword[axis] = value
-                if value & (STATUS_FAULT | STATUS_FOLLOWING_ERROR) and not self._status_reported[axis]:
-                    self._status_reported[axis] = True
-                    if self._on_status is not None:
-                        self._on_status(axis, value)
-            elif cycle is not None and bit:
-                cycle[1 + FIELDS.index(name)][axis] = value
-        if cycle is not None and bit:
-            if cycle[4][axis] & bit:
-                cycle[5][axis] = True  # duplicate: late frame of an earlier cycle
-                self.late_frames += 1
-            cycle[4][axis] |= bit
+        at = self._status_field.get(cob_id)
+        if at is not None:
+            self._status(stream.axis, values[at])
+        if self._open is None:
+            return
+        if self._open_counter is not None and self._last.get(cob_id) == data:
+            return  # the same frame again, answering a repeated SYNC (lockstep retry)
+        self._last[cob_id] = data
+        self._count[cob_id] = self._count.get(cob_id, 0) + 1
 
     def _sync(self, timestamp: float, data=b"") -> None:
         counter = data[0] if len(data) else None
@@ -276,25 +325,96 @@ class CycleAssembler(can.Listener):
         if self._open is not None:
             self._close()
         if not self.done:
-            self._open = self._new_cycle(timestamp)
+            if self._period is not None:
+                timestamp = self.cycles * self._period
+            self._open = (timestamp, list(self._pending_target))
+            self._count = {}
+            self._last = {}
         if self._on_sync is not None:
             self._on_sync(self.syncs)
         self.syncs += 1
 
     def _close(self) -> None:
-        timestamp, pos, vel, cur, got, dup, target = self._open
-        valid = [got[i] == self._expected[i] and not dup[i] for i in range(self.n_axes)]
-        if not all(valid):
-            self.invalid_cycles += 1
-            for i, ok in enumerate(valid):
-                if not ok:
-                    pos[i] = vel[i] = cur[i] = None
-        self._sink(Row(self.cycles, timestamp, pos, vel, cur, list(self._statusword),
-                       list(target), valid))
+        """Book the open window's frames per TPDO (see the class docstring) and emit what is decided."""
+        w = self.cycles
+        timestamp, target = self._open
+        cells = {}
+        for cob_id, stream in self._streams.items():
+            n = self._count.get(cob_id, 0)
+            if n == 0:
+                state = _MISSING
+                stream.owed.append(w)
+            elif n == 1:
+                state = _PROVISIONAL if stream.owed else _OK
+                if stream.owed:
+                    stream.provisional.append(w)
+            else:
+                repaid = min(n - 1, len(stream.owed))
+                if repaid:
+                    self.late_frames += repaid
+                    del stream.owed[:repaid]
+                    self._withdraw(stream, stream.provisional)
+                surplus = n - 1 - repaid
+                self.unplaced_frames += surplus
+                state = _OK if not (stream.owed or surplus) else _WITHDRAWN
+                self.withdrawn_cells += state == _WITHDRAWN
+            cells[cob_id] = [state, self._last.get(cob_id)]
+        self._held[w] = [timestamp, target, list(self._statusword), cells]
         self.cycles += 1
         self._open = None
+        for stream in self._streams.values():
+            while stream.owed and w - stream.owed[0] >= LOOKAHEAD:
+                stream.owed.pop(0)
+                self.lost_frames += 1
+                until = stream.owed[0] if stream.owed else w + 1
+                for p in [p for p in stream.provisional if p < until]:
+                    stream.provisional.remove(p)
+                    self._held[p][3][stream.cob_id][0] = _OK
         if self.max_cycles is not None and self.cycles >= self.max_cycles:
             self.done = True
+            self.flush()
+        else:
+            self._emit()
+
+    def _withdraw(self, stream: _Stream, windows: list[int]) -> None:
+        for p in windows:
+            self._held[p][3][stream.cob_id][0] = _WITHDRAWN
+            self.withdrawn_cells += 1
+        windows.clear()
+
+    def _emit(self) -> None:
+        """Hand the decided rows at the front to the sink, in cycle order."""
+        while self.emitted in self._held:
+            held = self._held[self.emitted]
+            if any(state == _PROVISIONAL for state, _ in held[3].values()):
+                return
+            del self._held[self.emitted]
+            timestamp, target, statusword, cells = held
+            n = self.n_axes
+            values = {"position": [None] * n, "velocity": [None] * n, "current": [None] * n}
+            valid = [True] * n
+            for cob_id, (state, _) in cells.items():
+                if state != _OK:
+                    valid[self._streams[cob_id].axis] = False
+            for cob_id, (state, data) in cells.items():
+                stream = self._streams[cob_id]
+                if valid[stream.axis]:
+                    for name, value in zip(stream.fields, stream.unpack(data)):
+                        if name in values:
+                            values[name][stream.axis] = value
+            if not all(valid):
+                self.invalid_cycles += 1
+            self._sink(Row(self.emitted, timestamp, values["position"], values["velocity"],
+                           values["current"], statusword, target, valid))
+            self.emitted += 1
+
+    def flush(self) -> None:
+        """End of the run: withdraw the cells still undecided and emit every held row."""
+        with self._lock:
+            for stream in self._streams.values():
+                self._withdraw(stream, stream.provisional)
+                stream.owed.clear()
+            self._emit()
 
     def on_error(self, exc: Exception) -> None:
         for listener in self._forward:
@@ -307,3 +427,10 @@ class CycleAssembler(can.Listener):
 
     def stop(self) -> None:
         """Forwarded listeners are stopped by their owner, not here."""
+
+
+def cycle_books(assembler: CycleAssembler) -> dict[str, int]:
+    """The assembler's counts of misplaced frames, for a recording's metadata."""
+    return {"late_frames": assembler.late_frames, "lost_frames": assembler.lost_frames,
+            "withdrawn_cells": assembler.withdrawn_cells, "unplaced_frames": assembler.unplaced_frames,
+            "error_frames": assembler.error_frames}

@@ -24,7 +24,7 @@ import numpy as np
 from canopen.profiles.p402 import Homing, State402
 from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
 
-from drivers.acquisition import (STATUS_FAULT, STATUS_FOLLOWING_ERROR, AxisLayout, CycleAssembler,
+from drivers.acquisition import (STATUS_FAULT, STATUS_FOLLOWING_ERROR, AxisLayout, CycleAssembler, cycle_books,
                                  PdoFrame, cycle_frame_sizes, event_bits_per_s, pdo_layout)
 from drivers.axis import AxisConfig
 from drivers.bus import SYNC_COB_ID, BusConfig, check_bus_load, frame_bits
@@ -821,11 +821,11 @@ class DriveGroup:
                 error = self._with_error_code(error)
                 self.stop_motion()
             self.network.notifier.remove_listener(assembler)
+            assembler.flush()
             if raw is not None:
                 raw.stop()
             status = "complete" if error is None else f"stopped: {error}"
-            recording = recorder.close(status, late_frames=assembler.late_frames,
-                                       error_frames=assembler.error_frames,
+            recording = recorder.close(status, **cycle_books(assembler),
                                        raw_log=str(raw_log) if raw_log else None,
                                        gc_collections=len(pauses.durations),
                                        gc_longest_pause=pauses.longest,

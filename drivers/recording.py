@@ -36,7 +36,7 @@ from typing import Any, Sequence
 import can
 import numpy as np
 
-from drivers.acquisition import AxisLayout, CycleAssembler, Row, pdo_layout
+from drivers.acquisition import AxisLayout, CycleAssembler, Row, cycle_books, pdo_layout
 from drivers.axis import AxisConfig
 from drivers.errors import ConfigError, RecordingError
 from drivers.units import REVOLUTE
@@ -351,8 +351,9 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
             if not msg.is_extended_id and (cob >> 7 in (3, 5, 7, 9, 14)) and cob & 0x7F:   # TPDO1-4, heartbeat
                 heard.add(cob & 0x7F)
             assembler.on_message_received(msg)
+    assembler.flush()
     meta = dict(metadata or {}, axes=axes_metadata(axes), source=str(path), status="decoded",
-                late_frames=assembler.late_frames, format_version=FORMAT_VERSION, log_truncated=truncated,
+                **cycle_books(assembler), format_version=FORMAT_VERSION, log_truncated=truncated,
                 nodes_heard=sorted(heard))
     chunks = [rows_to_arrays(rows, axes)] if rows else []
     return Recording.from_chunks(chunks, len(axes), meta)

@@ -432,6 +432,52 @@ def test_dropped_frames_are_flagged_not_filled(rig_factory):
     assert rec.metadata["invalid_cycles"] >= dropped_cycles.sum()
 
 
+def test_late_jittered_and_dropped_frames_leave_no_valid_cell_of_another_cycle(rig_factory):
+    """Periodic SYNC (real drives); on three nodes 5 % of the frames are late by 1-3 periods
+    (past the next SYNC; the frames after them are held back in order and go out in a burst) and
+    2 % are lost: every valid cell of the recording equals the spy's decoding of the frame its
+    drive sent for that cycle."""
+    period = 0.01
+    rig, group = rig_factory(sync="periodic")
+    rig.network.sent = sent = []
+    rig.frame_faults(drop_probability=0.02, delay=period, jitter=2 * period, delayed_share=0.05,
+                     node_ids=[2, 3, 5])
+    targets = _targets(group, 3.0, period)
+    first_sync = rig.sync_count + 1
+    rec = group.run_cyclic(targets, period)
+    rig.frame_faults()
+    n = len(rec.t)
+    assert n == len(targets)
+    # the spy: what each drive sent for each SYNC of the run, decoded like the master does
+    truth = {name: np.full((n, len(AXES)), np.nan) for name in ("position", "velocity", "current")}
+    for i, a in enumerate(AXES):
+        for frame in pdo_layout(a.drive_profile):
+            if frame.direction != "tpdo":
+                continue
+            cob = frame.cob_id(a.node_id)
+            for count, can_id, data in sent:
+                k = (count or 0) - first_sync
+                if can_id == cob and 0 <= k < n:
+                    for (name, _), value in zip(frame.entries, frame.struct.unpack(data)):
+                        if name in truth:
+                            truth[name][k, i] = value
+    for name, expected in truth.items():
+        scale = [{"position": a.scaling.counts_per_unit, "velocity": a.scaling.rpm_per_unit_velocity,
+                  "current": 1e3}[name] for a in AXES]
+        got = np.rint(getattr(rec, name) * scale)       # back to drive units (whole numbers)
+        np.testing.assert_array_equal(got[rec.valid], expected[rec.valid], err_msg=name)
+    faulty = [i for i, a in enumerate(AXES) if a.node_id in (2, 3, 5)]
+    meta = rec.metadata
+    logging.getLogger(__name__).warning(
+        "jitter: %d of %d cells invalid on the jittered axes; late %d, lost %d, withdrawn %d, unplaced %d",
+        np.count_nonzero(~rec.valid[:, faulty]), n * len(faulty), meta["late_frames"], meta["lost_frames"],
+        meta["withdrawn_cells"], meta["unplaced_frames"])
+    assert meta["late_frames"] > 0 and meta["withdrawn_cells"] > 0   # the faults happened
+    assert rec.valid[:, faulty].mean() > 0.3                          # and not everything was thrown away
+    clean = [i for i in range(len(AXES)) if i not in faulty]
+    assert rec.valid[:, clean].mean() > 0.9
+
+
 @pytest.mark.parametrize("state", ["FAULT", "STOPPED"])
 def test_node_in_wrong_state_at_start_is_recovered_by_bring_up(rig_factory, state):
     rig, group = rig_factory(initial_states={2: state})

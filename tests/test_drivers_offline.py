@@ -7,7 +7,7 @@ import canopen
 import numpy as np
 import pytest
 
-from drivers.acquisition import AxisLayout, CycleAssembler, event_bits_per_s, pdo_layout
+from drivers.acquisition import LOOKAHEAD, AxisLayout, CycleAssembler, event_bits_per_s, pdo_layout
 from drivers.axis import AxisConfig
 from drivers.bus import BusConfig, check_bus_load, frame_bits, max_sync_rate, open_network
 from drivers.emcy import describe
@@ -77,21 +77,67 @@ def test_assembler_flags_missing_and_late_frames_never_fills(profile):
     rows = []
     asm = CycleAssembler(layouts, rows.append)
     msgs = []
-    for k in range(5):
+    n = LOOKAHEAD + 4     # the frame lost in cycle 2 is taken as lost after LOOKAHEAD cycles
+    for k in range(n):
         drop = {(1, "tpdo", 1)} if k == 2 else set()
         msgs += _frames(axes, k, [100 * k, -100 * k], [10 * k, -10 * k], drop=drop)
-    # a late TPDO1 of axis 0 from cycle 3 arrives in cycle 4
-    late = [m for m in msgs if m.arbitration_id == 0x181 and m.timestamp == pytest.approx(3 * 0.004 + 1e-4)]
-    msgs.insert(msgs.index(_sync_at(msgs, 4)) + 1, late[0])
-    for m in msgs + [_frames(axes, 5, [0, 0], [0, 0])[0]]:
+    # the TPDO1 of axis 0 of cycle 3 comes late, after the SYNC of cycle 4
+    late = next(m for m in msgs if m.arbitration_id == 0x181 and m.timestamp == pytest.approx(3 * 0.004 + 1e-4))
+    msgs.remove(late)
+    msgs.insert(msgs.index(_sync_at(msgs, 4)) + 1, late)
+    for m in msgs + [_frames(axes, n, [0, 0], [0, 0])[0]]:
         asm.on_message_received(m)
-    assert [r.cycle for r in rows] == [0, 1, 2, 3, 4]
+    assert [r.cycle for r in rows] == list(range(n))
     assert rows[1].position == [100, -100] and rows[1].current == [10, -10] and rows[1].valid == [True, True]
     assert rows[2].valid == [True, False] and rows[2].position == [200, None]
-    assert rows[4].valid == [False, True] and rows[4].position[0] is None
+    # cycle 4 got two frames: the first paid cycle 3's, the last is its own
+    assert rows[3].valid == [False, True] and rows[3].position[0] is None
+    assert rows[4].valid == [True, True] and rows[4].position == [400, -400]
     assert asm.late_frames == 1 and asm.invalid_cycles == 2
     # the RPDO echoes seen in cycle k are the set-points of cycle k+1
     assert rows[0].target == [None, None] and rows[3].target == [201, -199]
+
+
+def test_assembler_places_no_frame_in_another_cycle():
+    """Hand-made traffic of two axes; axis 0's TPDO1 is late by one cycle for a run of cycles,
+    lost once, sent twice once, late by two in a burst, and lost just before the end. Each frame
+    carries its cycle in the position; no valid cell may hold another cycle's."""
+    axes = _axes("epos2")
+    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes]
+    n = 75
+    arrivals = {k: [k] for k in range(n)}           # cycle -> windows its axis-0 TPDO1 arrives in
+    for k in (3, 4, 5):
+        arrivals[k] = [k + 1]
+    arrivals[10] = []
+    arrivals[40] = [40, 40]
+    arrivals[50], arrivals[51] = [52], [52]
+    arrivals[70] = []
+    window_frames = {w: [] for w in range(n + 1)}
+    for k in range(n):
+        for m in _frames(axes, k, [1000 * k, -1000 * k], [k, -k]):
+            if m.arbitration_id == 0x181:
+                for w in arrivals[k]:
+                    window_frames[w].append(m)
+            elif m.arbitration_id != 0x80:
+                window_frames[k].append(m)
+    rows = []
+    asm = CycleAssembler(layouts, rows.append, max_cycles=n)
+    for w in range(n + 1):
+        asm.on_message_received(can.Message(arbitration_id=0x80, data=b"", is_extended_id=False))
+        for m in window_frames[w]:
+            asm.on_message_received(m)
+    assert [r.cycle for r in rows] == list(range(n))
+    for r in rows:
+        for i in range(2):
+            if r.valid[i]:
+                assert r.position[i] == (1000 if i == 0 else -1000) * r.cycle, (r.cycle, i)
+    invalid = [r.cycle for r in rows if not r.valid[0]]
+    # 3-5 shifted (cycle 6 holds its own after the extra frame), 10 lost, 40 sent twice,
+    # 50-51 late (52 its own), 70 lost and 71-74 undecided at the end
+    assert invalid == [3, 4, 5, 10, 40, 50, 51, 70, 71, 72, 73, 74]
+    assert all(r.valid[1] for r in rows)
+    assert (asm.late_frames, asm.lost_frames, asm.unplaced_frames) == (3, 1, 1)
+    assert asm.withdrawn_cells == 2 + 1 + 4       # 4, 5; 40; 71..74
 
 
 def _sync_at(msgs, k):

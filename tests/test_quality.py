@@ -89,6 +89,20 @@ def test_incomplete_cycles_and_a_gap_degrade_the_result(sweep):
     assert any(r.startswith("sweep: 0.") and "without a complete cycle" in r for r in q["reasons"])
 
 
+def test_a_frame_the_master_could_not_place_degrades_the_result(sweep):
+    """A recording whose assembler met a frame it could not place (late beyond its look-ahead:
+    some cells handed out before may hold another cycle's data) is not marked good, however
+    clean its samples look."""
+    path, rec = sweep
+    meta = dict(rec.metadata, unplaced_frames=2)
+    marked = Recording(**{k: getattr(rec, k) for k in ("t", "cycle", "position", "velocity", "current",
+                                                       "statusword", "target", "valid")}, metadata=meta)
+    q = identify(load_config(path), {"sweep": marked}).quality
+    assert not q["passed"] and q["trajectories"]["sweep"]["unplaced_frames"] == 2
+    assert q["reasons"] == ["sweep: 2 frame(s) could not be placed in their SYNC cycle (late by more than "
+                            "the assembler's look-ahead, or sent twice)"]
+
+
 def test_the_verdict_is_in_status_parameters_report_and_terminal(sweep, tmp_path):
     path, rec = sweep
     strict = with_quality(path, tmp_path, "{max_d_tau: 0.01}")

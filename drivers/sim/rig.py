@@ -68,27 +68,47 @@ STEP_LOG_LENGTH = 100_000  # SYNC cycles whose duration is kept in SimulatedRig.
 
 
 class _RigNetwork(canopen.Network):
-    """A ``canopen.Network`` whose PDO frames can be dropped or delayed (fault injection)."""
+    """A ``canopen.Network`` whose PDO frames can be dropped or delayed (fault injection).
+
+    A share ``delayed_share`` of the frames (drawn at random; 1: all) is held for ``delay`` plus
+    a uniform random share of ``jitter`` (s); no frame overtakes an earlier frame of its COB-ID: a drive's frames leave in order, so a long
+    delay holds the following ones back and they go out in a burst. ``sent`` (a list, when
+    set) logs every PDO frame as the drives sent it, ``(sync_count, can_id, data)``: the spy
+    that tells which cycle a frame belongs to.
+    """
 
     def __init__(self, bus=None):
         super().__init__(bus)
         self.drop_probability = 0.0
         self.delay = 0.0
+        self.jitter = 0.0
+        self.delayed_share = 1.0
         self.faulty_nodes = None   # None = all
         self.dropped = 0
+        self.sent: list | None = None
+        self.sync_count = None     # the SYNC count of the frames being sent (set by the rig)
         self._rng = np.random.default_rng()
         self._delayed: list = []
+        self._release_after: dict[int, float] = {}  # COB-ID -> release time of its last held frame
         self._seq = 0
 
     def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
-        if ((self.drop_probability or self.delay) and 0x180 <= can_id < 0x580
+        pdo = 0x180 <= can_id < 0x580
+        if pdo and self.sent is not None:
+            self.sent.append((self.sync_count, can_id, bytes(data)))
+        if ((self.drop_probability or self.delay or self.jitter) and pdo
                 and (self.faulty_nodes is None or can_id & 0x7F in self.faulty_nodes)):
             if self.drop_probability and self._rng.random() < self.drop_probability:
                 self.dropped += 1
                 return
-            if self.delay:
+            if self.delay or self.jitter:
+                release = time.monotonic()
+                if self.delayed_share >= 1.0 or self._rng.random() < self.delayed_share:
+                    release += self.delay + self.jitter * self._rng.random()
+                release = max(release, self._release_after.get(can_id, 0.0))
+                self._release_after[can_id] = release
                 self._seq += 1
-                heapq.heappush(self._delayed, (time.monotonic() + self.delay, self._seq, can_id, bytes(data)))
+                heapq.heappush(self._delayed, (release, self._seq, can_id, bytes(data)))
                 return
         super().send_message(can_id, data, remote)
 
@@ -315,6 +335,7 @@ class SimulatedRig:
         for j, drive in enumerate(self.drives):
             drive.update(int(counts[j]), int(rpm[j]), int(milliamps[j]), period)
         if sync_count is not None:
+            self.network.sync_count = sync_count
             for drive in self.drives:
                 drive.send_sync_tpdos(sync_count)
         if period > 0:
@@ -405,13 +426,19 @@ class SimulatedRig:
             else:
                 drive.sdo_aborts[(index, subindex)] = code
 
-    def frame_faults(self, drop_probability: float = 0.0, delay: float = 0.0, node_ids=None) -> None:
-        """Drop (probability) or delay (s) the PDO frames of ``node_ids`` (default: all drives)."""
-        if not 0.0 <= drop_probability <= 1.0 or delay < 0:
-            raise ValueError(f"drop_probability in [0, 1] and delay >= 0, got {drop_probability}, {delay}")
+    def frame_faults(self, drop_probability: float = 0.0, delay: float = 0.0, node_ids=None,
+                     jitter: float = 0.0, delayed_share: float = 1.0) -> None:
+        """Drop (probability) or delay (``delay`` s plus up to ``jitter`` s, uniform; a share
+        ``delayed_share`` of the frames) the PDO frames of ``node_ids`` (default: all drives);
+        see :class:`_RigNetwork`."""
+        if not (0.0 <= drop_probability <= 1.0 and 0.0 <= delayed_share <= 1.0) or delay < 0 or jitter < 0:
+            raise ValueError(f"drop_probability and delayed_share in [0, 1], delay >= 0 and jitter >= 0, "
+                             f"got {drop_probability}, {delayed_share}, {delay}, {jitter}")
         with self._lock:
+            self.network.delayed_share = delayed_share
             self.network.drop_probability = drop_probability
             self.network.delay = delay
+            self.network.jitter = jitter
             self.network.faulty_nodes = None if node_ids is None else set(node_ids)
 
     def faulted(self) -> list[int]:

@@ -131,7 +131,9 @@ def coverage(config: Config, name: str, rec: Recording) -> dict:
     recording's ``n_targets``, else the config's trajectory of that name); ``coverage``
     (their ratio, None when unknown); ``valid_fraction`` (complete cycles / rows, with the SYNC
     slots a hardware producer skipped counted as rows, :func:`with_skipped_slots`);
-    ``longest_gap_s`` (s, the longest stretch without a complete cycle); ``skipped_slots``.
+    ``longest_gap_s`` (s, the longest stretch without a complete cycle); ``skipped_slots``;
+    ``unplaced_frames`` (frames the master could not place in their cycle, so some samples
+    may hold another cycle's data: :class:`drivers.acquisition.CycleAssembler`).
     """
     meta = rec.metadata
     planned = meta.get("n_targets") or planned_cycles(config, name)
@@ -150,7 +152,8 @@ def coverage(config: Config, name: str, rec: Recording) -> dict:
             "cycles_planned": None if planned is None else int(planned),
             "coverage": None if not planned else min(1.0, len(rec.t) / planned),
             "valid_fraction": float(complete.mean()) if len(t) else 0.0, "longest_gap_s": gap,
-            "skipped_slots": int(rows.metadata.get("slots_inserted", 0))}
+            "skipped_slots": int(rows.metadata.get("slots_inserted", 0)),
+            "unplaced_frames": int(meta.get("unplaced_frames") or 0)}
 
 
 #: a set-point sequence accelerating faster than this many times the axis limit was not

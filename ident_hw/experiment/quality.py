@@ -4,7 +4,8 @@ Computed from the data and the fit of :func:`ident_hw.experiment.offline.identif
 thresholds of ``identification.quality`` (:class:`ident_hw.config.QualityConfig`):
 
 * per trajectory: the share of its set-points the recording holds (a stopped run, a checkpoint,
-  a truncated log), the share of complete cycles, the longest stretch without one;
+  a truncated log), the share of complete cycles, the longest stretch without one, and any
+  frame the master could not place in its cycle;
 * per step: the condition number of its regressor (columns scaled to unit RMS);
 * the parameters: how many fitted ones are well identified (%σ at most ``rel_sigma_threshold``);
 * per validation trajectory (each identification one when there is none): the force prediction
@@ -46,7 +47,8 @@ def verdict(results: Results, limits: QualityConfig) -> dict:
     reasons: list[str] = []
     per_traj: dict[str, dict] = {}
     for name, used in (results.trajectories or {}).items():
-        row = {k: used.get(k) for k in ("recording_status", "coverage", "valid_fraction", "longest_gap_s")}
+        row = {k: used.get(k) for k in ("recording_status", "coverage", "valid_fraction", "longest_gap_s",
+                                        "unplaced_frames")}
         per_traj[name] = row
         status = str(used.get("recording_status", ""))
         if status.startswith(("stopped", "running")):
@@ -60,6 +62,9 @@ def verdict(results: Results, limits: QualityConfig) -> dict:
         if used["valid_fraction"] < limits.min_valid_fraction:
             reasons.append(f"{name}: {100 * used['valid_fraction']:.1f} % of the cycles complete "
                            f"(< {100 * limits.min_valid_fraction:g} %)")
+        if used.get("unplaced_frames"):
+            reasons.append(f"{name}: {used['unplaced_frames']} frame(s) could not be placed in their SYNC "
+                           f"cycle (late by more than the assembler's look-ahead, or sent twice)")
         if used["longest_gap_s"] > limits.max_gap:
             reasons.append(f"{name}: {used['longest_gap_s']:.3g} s without a complete cycle (> {limits.max_gap:g} s)")
 
