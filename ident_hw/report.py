@@ -309,6 +309,9 @@ def metrics(results: Results) -> dict:
 
 
 def _metrics(tau: np.ndarray, tau_model: np.ndarray) -> dict:
+    if not len(tau):                # nothing of the trajectory could be fitted (the verdict says why)
+        nan = dict.fromkeys(ACTUATOR_NAMES, float("nan"))
+        return {"rms": nan, "nrms_percent": dict(nan), "d_tau_percent": float("nan"), "j_rmse": float("nan")}
     m = validation_metrics(tau, tau_model)
     return {"rms": dict(zip(ACTUATOR_NAMES, m.rms.tolist())),
             "nrms_percent": dict(zip(ACTUATOR_NAMES, m.nrms_percent.tolist())),
@@ -389,10 +392,15 @@ def coverage_text(used: dict) -> str:
     text += f", {100 * used['valid_fraction']:.1f} % complete"
     if used.get("longest_gap_s"):
         text += f", longest gap {used['longest_gap_s']:.3g} s"
+    if used.get("skipped_slots"):
+        text += f", {used['skipped_slots']} SYNC slots skipped"
     if "samples_used" in used:
         text += f"; {used['samples_used']} samples after decimation fitted"
-        if used.get("samples_left_out"):
-            text += f", {used['samples_left_out']} left out"
+        if used.get("stretches", 1) > 1:
+            text += f" from {used['stretches']} stretches"
+        out = [f"{n} {rule.replace('_', ' ')}" for rule, n in (used.get("rows_left_out") or {}).items() if n]
+        if out:
+            text += f" (rows left out: {', '.join(out)})"
     status = str(used.get("recording_status", ""))
     if status.startswith("stopped"):
         text += f"; partial recording ({status})"

@@ -339,9 +339,13 @@ def test_a_silent_node_is_reported_as_state_unknown_not_as_disabled(tmp_path, mo
     def silencing(cfg):
         with real(cfg) as session:
             def silence_when_streaming():
-                while not (folder / "data" / "square.npz").exists():
-                    time.sleep(0.05)
-                session.rig.silence(5)
+                rig = session.rig
+                while not all(d.streaming for d in rig.drives):
+                    time.sleep(0.002)
+                start = rig.sync_count
+                while rig.sync_count < start + 100:      # 1 s into the square
+                    time.sleep(0.002)
+                rig.silence(5)
             threading.Thread(target=silence_when_streaming, daemon=True).start()
             yield session
     monkeypatch.setattr(runner, "open_session", silencing)

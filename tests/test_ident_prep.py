@@ -7,7 +7,8 @@ from scipy import linalg
 from drivers.recording import Recording
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
 from ident_hw.config import load_config
-from ident_hw.experiment.offline import disturbed_samples, identify, prepare, with_skipped_slots
+from ident_hw.experiment.offline import identify, prepare
+from ident_hw.segments import split, uniform
 from ident_hw.experiment.plan import excitation_of, motion_bandwidth, plan, robot_model
 from ident_hw.identification.least_squares import ols, output_noise_std, wls
 from ident_hw.signal import central_derivatives
@@ -142,36 +143,55 @@ def test_check_notes_set_point_quantisation_above_the_motion(tmp_path):
     assert all(p.notes == () for p in plan(load_config(path), ["square1", "excitation"]))
 
 
-def test_skipped_sync_slots_become_rows_without_samples():
-    """Hand-made: SYNCs at 0, 10, 30, 60 ms with a 10 ms period: slots 2, 4 and 5 were skipped."""
-    t = np.array([0.0, 0.010, 0.030, 0.060])
-    values = np.arange(4.0)[:, None] * np.ones((1, 6))
-    rec = Recording(t=t, cycle=np.arange(7, 11), position=values, velocity=values, current=values,
-                    statusword=np.full((4, 6), 0x1237, np.int32), target=(values + 10) * 1e-6, valid=np.ones((4, 6), bool),
-                    metadata={"sync_period": 0.01})
-    out = with_skipped_slots(rec)
-    np.testing.assert_allclose(out.t, np.arange(7) * 0.01)
-    np.testing.assert_array_equal(out.cycle, np.arange(7, 14))
-    present = np.array([1, 1, 0, 1, 0, 0, 1], bool)
-    np.testing.assert_array_equal(out.valid.all(axis=1), present)
-    np.testing.assert_array_equal(out.position[present, 0], values[:, 0])
-    assert np.isnan(out.position[~present]).all() and np.isnan(out.current[~present]).all()
-    np.testing.assert_array_equal(out.target[:, 0] * 1e6, [10, 11, 11, 12, 12, 12, 13])   # held by the drives
-    assert out.metadata["slots_inserted"] == 3 and out.metadata["inserted_rows"] == [2, 4, 5]
-    on_time = Recording(**{**rec.__dict__, "t": np.arange(4) * 0.0101})             # jitter, no skip
-    assert with_skipped_slots(on_time) is on_time
-    # the put-back rows are left out of the fits; a cycle that merely came incomplete is not
-    out.valid[1] = False
-    config = load_config(CONFIGS / "sim-3prrr.yaml")
-    np.testing.assert_array_equal(disturbed_samples(config, out, out.t, 0.0), ~present)
+def test_gaps_and_rows_left_out_cut_the_recording_and_are_counted():
+    """Hand-made, 10 ms period, 60 rows: slots 20-22 skipped (a gap), row 30 incomplete, row 40's
+    current at the limit, a set-point jump at row 50; trim 2, at least 6 rows per stretch."""
+    n, period = 60, 0.01
+    slots = np.r_[np.arange(20), np.arange(23, 63)]
+    t = slots * period + 1.7e9
+    valid = np.ones((n, 2), bool)
+    valid[30, 1] = False
+    current = np.zeros((n, 2))
+    current[40, 0] = -0.99
+    target = np.zeros((n, 2))
+    target[50:, 1] = 1.0                                 # a step: second difference 1 m/count at 49 and 50
+    seg = split(t, period, valid, current, target, current_limit=np.array([1.0, 1.0]),
+                acceleration_limit=np.array([10.0, 10.0]), counts_per_unit=np.array([1000.0, 1000.0]),
+                trim=2, min_length=6)
+    assert seg.gaps == 1 and seg.skipped_slots == 3
+    np.testing.assert_allclose(seg.t, slots * period, atol=1e-6)
+    assert [(s.start, s.stop) for s in seg.slices] == [(0, 20), (20, 30), (31, 40), (41, 49), (51, 60)]
+    assert seg.left_out == {"incomplete": 1, "saturated": 1, "late_setpoint": 2, "edges": 5 * 4, "short": 0}
+    short = split(t, period, valid, current, target, current_limit=np.array([1.0, 1.0]),
+                  acceleration_limit=np.array([10.0, 10.0]), counts_per_unit=np.array([1000.0, 1000.0]),
+                  trim=2, min_length=10)
+    assert [(s.start, s.stop) for s in short.slices] == [(0, 20), (20, 30)]
+    assert short.left_out["short"] == 9 + 8 + 9 and short.left_out["edges"] == 8
+    assert "1 gap (3 SYNC slots skipped)" in seg.describe() and "1 incomplete" in seg.describe()
+
+
+def test_a_jittered_stretch_is_put_on_a_uniform_grid_by_its_own_time_stamps():
+    """Rows stamped at a jittered SYNC (up to 0.3 period): the stretch interpolated onto its
+    uniform grid equals the motion there (cubic spline: 1e-7 of a 2 Hz sine at 250 Hz)."""
+    rng = np.random.default_rng(3)
+    period = 0.004
+    t = np.arange(500) * period + rng.uniform(-0.3, 0.3, 500) * period
+    t[0], t[-1] = 0.0, 499 * period
+    w = 2 * np.pi * 2.0
+    grid, x, i = uniform(t, np.column_stack([np.sin(w * t)]), np.column_stack([np.cos(w * t)]))
+    np.testing.assert_allclose(grid, np.arange(500) * period, atol=1e-12)
+    assert np.abs(x[:, 0] - np.sin(w * grid)).max() < 1e-6
+    assert np.abs(i[:, 0] - np.cos(w * grid)).max() < 1e-3       # linear: (w h)^2 / 8 of the amplitude
+    exact = np.arange(10) * period
+    assert uniform(exact, exact[:, None])[1] is not None and uniform(exact, exact[:, None])[0] is exact
 
 
 def test_skipped_sync_slots_on_hardware_keep_the_fit(tmp_path):
     """Exact samples of the plant following the excitation at 100 Hz, as a thread-timed SYNC producer
     on hardware records them when it skips 20 slots in 10 s: the drives move on through each skipped
-    slot, the recording has one row less each time. Put back as rows without samples, the base
-    parameters stay near those of the complete recording; taken as consecutive periods (what is
-    right only for the simulated rig, whose time advances by SYNC) they are far off."""
+    slot, the recording has one row less each time. Cut at each gap, the base parameters stay near
+    those of the complete recording; the same rows taken as consecutive periods (time stamps
+    ignored) are far off."""
     names = ", ".join(NAMES)
     base = f"""trajectories:
   - {{name: excitation, kind: fourier, cycles: 2}}
@@ -180,15 +200,12 @@ identification:
     - {{name: base, trajectories: [excitation], method: wls, parameters: [{names}]}}
   validation: []
 """
-    configs = {}
-    for kind, bus in (("hardware", "bus: {interface: socketcan, channel: can0, sync_rate: 100.0}\n"),
-                      ("simulated", "bus: {interface: virtual, channel: unused, sync_rate: 100.0}\n")):
-        path = tmp_path / f"{kind}.yaml"
-        path.write_text(f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n{bus}{base}")
-        configs[kind] = load_config(path)
-    assert not configs["hardware"].simulated and configs["simulated"].simulated
-    (planned,) = plan(configs["hardware"], ["excitation"])
-    complete = exact_recording(configs["hardware"], planned.trajectory, DEFAULT_MAX_SUBSTEP)
+    path = tmp_path / "hardware.yaml"
+    path.write_text(f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n"
+                    f"bus: {{interface: socketcan, channel: can0, sync_rate: 100.0}}\n{base}")
+    config = load_config(path)
+    (planned,) = plan(config, ["excitation"])
+    complete = exact_recording(config, planned.trajectory, DEFAULT_MAX_SUBSTEP)
     n = len(complete.t)
     kept = np.setdiff1d(np.arange(n), np.random.default_rng(1).choice(np.arange(50, n - 50), 20, replace=False))
     skipping = Recording(t=complete.t[kept], cycle=np.arange(len(kept)), position=complete.position[kept],
@@ -200,9 +217,9 @@ identification:
         fit = identify(config, {"excitation": rec}).base_fit
         return np.abs((fit.coef - fit.truth) / fit.truth).max()
 
-    reference = worst_error(configs["hardware"], complete)
-    restored = worst_error(configs["hardware"], skipping)
-    as_consecutive = worst_error(configs["simulated"], skipping)
-    # measured: 0.70 %, 1.32 % (fewer rows: those around the 20 empty ones are left out), 45 %
-    assert reference < 0.01 and restored < 2 * reference + 0.005 and as_consecutive > 0.2, \
-        (reference, restored, as_consecutive)
+    consecutive = Recording(**{**skipping.__dict__, "t": np.arange(len(kept)) * complete.t[1]})
+    reference = worst_error(config, complete)
+    cut = worst_error(config, skipping)
+    as_consecutive = worst_error(config, consecutive)
+    assert reference < 0.01 and cut < 2 * reference + 0.005 and as_consecutive > 0.2, \
+        (reference, cut, as_consecutive)

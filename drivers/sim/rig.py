@@ -263,7 +263,22 @@ class SimulatedRig:
 
     # -- the cycle ------------------------------------------------------------------------------------
     def _period(self, timestamp: float) -> float:
+        """The plant step of a SYNC, s. In lockstep (``sync_period``) the period: the simulated
+        time is the SYNC count times the period. Else, as real drives that move on their own
+        clock between two SYNCs, the time since the last SYNC (its bus time stamps; at most
+        ``IDLE_AFTER``, after which the clock thread moves the plant), the configured SYNC
+        period for the first one."""
         last, self._last_sync_stamp = self._last_sync_stamp, timestamp
+        if self.sync_period is not None:
+            return self.sync_period
+        if last is not None and timestamp > last:
+            return min(timestamp - last, IDLE_AFTER)
+        return self._nominal_period() or 0.0
+
+    def _nominal_period(self) -> float | None:
+        """The SYNC period the drives are configured for (``sync_period``, ``0x1006`` or the
+        EPOS4's interpolation period ``0x60C2``), s: what their set-point interpolation assumes,
+        however late a SYNC comes (a longer interval extrapolates the interpolated demand)."""
         if self.sync_period is not None:
             return self.sync_period
         cycle_us = self.drives[0].optional(0x1006)
@@ -272,7 +287,7 @@ class SimulatedRig:
         for drive in self.drives:
             if drive.interpolation_period:
                 return drive.interpolation_period
-        return 0.0 if last is None else min(max(timestamp - last, 0.0), MAX_PERIOD)
+        return None
 
     def _on_sync(self, can_id, data, timestamp) -> None:
         started = time.perf_counter()
@@ -315,9 +330,10 @@ class SimulatedRig:
     def _cycle(self, period: float, sync_count=None) -> None:
         """One period: RPDOs, demands, sensor sampling, TPDOs (if ``sync_count``), plant step."""
         demand = np.empty((4, 6))     # q_d(t) = sum_i demand[i] t^i over the period
+        nominal = (self._nominal_period() or period) if sync_count is not None else period
         for j, drive in enumerate(self.drives):
             drive.apply_pending_rpdos()
-            demand[:, j] = drive.plan(period)
+            demand[:, j] = drive.plan(nominal)
         offsets = np.array([d.offset for d in self.drives], dtype=float)
         demand[0] += offsets
         demand /= self._counts_per_unit

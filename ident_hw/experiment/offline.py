@@ -27,6 +27,7 @@ from ident_hw.identification.least_squares import check_regression_data, stack, 
 from ident_hw.identification.mass_fit import sqp_fit
 from ident_hw.model import InertialParams, ThreePRRR
 from ident_hw.report import BaseFit, ParameterTable, Results, TrajectoryFit, coverage_text
+from ident_hw.segments import Segments, slot_indices, split, uniform
 from ident_hw.signal import kept_samples, parallel_decimate, prepare_actuated
 
 from .plan import motion_bandwidth, robot_model
@@ -34,13 +35,16 @@ from .quality import verdict
 from .recordings import planned_cycles, require_trajectories
 
 NAMES = InertialParams.NAMES
+#: rows a stretch needs beyond the filters' support at its two ends
+MIN_FILTERED = 8
 
 
 @dataclass
 class Prepared:
     """One trajectory after preparation and decimation: t (M,), Theta (M, 6), X (M, 3),
-    regressor Y (M, 6, n), forces tau (M, 6); ``excluded`` decimated samples were left out;
-    ``moving`` (M, 6) marks the rows the fits use (:attr:`tau_fit`)."""
+    regressor Y (M, 6, n), forces tau (M, 6);
+    ``moving`` (M, 6) marks the rows the fits use (:attr:`tau_fit`); ``segments``: how the
+    recording's rows were used (cuts, rows left out per rule)."""
 
     name: str
     t: np.ndarray
@@ -49,7 +53,7 @@ class Prepared:
     Y: np.ndarray
     tau: np.ndarray
     moving: np.ndarray
-    excluded: int = 0
+    segments: Segments | None = None
 
     @property
     def tau_fit(self) -> np.ndarray:
@@ -58,68 +62,24 @@ class Prepared:
         return np.where(self.moving, self.tau, np.nan)
 
 
-def fill_gaps(t: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """Linear interpolation over NaN samples (cycles in which a frame was missing), per column."""
-    out = np.array(values, dtype=float)
-    for j in range(out.shape[1]):
-        bad = ~np.isfinite(out[:, j])
-        if bad.all():
-            raise ValueError(f"axis {j} has no valid sample")
-        if bad.any():
-            out[bad, j] = np.interp(t[bad], t[~bad], out[~bad, j])
-    return out
-
-
-def sample_times(rec: Recording) -> np.ndarray:
-    """Sample times (s) of a recording: the SYNC grid ``cycle × sync_period`` when the
-    recording knows its SYNC period (the drives sample on SYNC; the host's reception times
-    carry its scheduling jitter), else the recorded ``t``."""
+def recording_period(rec: Recording) -> float:
+    """The SYNC period of a recording, s: its ``sync_period``, else the median row interval."""
     period = rec.metadata.get("sync_period")
     if period:
-        return (np.asarray(rec.cycle) - rec.cycle[0]) * float(period)
-    return np.asarray(rec.t, dtype=float)
+        return float(period)
+    if len(rec.t) < 2:
+        raise RecordingError(f"{rec.metadata.get('file', 'recording')}: {len(rec.t)} rows and no SYNC period")
+    return float(np.median(np.diff(rec.t)))
 
 
-#: two SYNCs further apart than this many periods: the producer skipped a slot
-SKIPPED_SLOT = 1.5
-
-
-def with_skipped_slots(rec: Recording) -> Recording:
-    """A hardware recording on the drives' time again: every SYNC slot a thread-timed producer
-    skipped (:class:`drivers.bus.GridPeriodicTask`; SYNC timestamps ``t`` more than
-    ``SKIPPED_SLOT`` periods apart) becomes a row without samples (NaN, invalid), so that
-    ``cycle × sync_period`` (:func:`sample_times`) is the time the drives ran. Real drives move
-    on through a skipped slot: without the rows, the motion across it would count one period
-    instead of two (20 skipped slots in 10 s of exact samples biased base parameters by up to
-    45 %; put back, 1.3 % against 0.7 % from the complete recording). Such a row keeps the
-    set-point and statusword of the row before (the drives held them); the rows around it are
-    left out of the fits (:func:`disturbed_samples`, metadata ``inserted_rows``). Not for the simulated rig, whose time
-    advances one period per SYNC received."""
-    period = rec.metadata.get("sync_period")
-    if not period or len(rec.t) < 2:
-        return rec
-    interval = np.diff(np.asarray(rec.t, dtype=float)) / float(period)
-    missing = np.where(interval > SKIPPED_SLOT, np.rint(interval).astype(np.int64) - 1, 0)
-    if not missing.any():
-        return rec
-    row = np.concatenate([[0], np.cumsum(1 + missing)])    # each recorded row's slot
-    n = int(row[-1]) + 1
-    held = np.zeros(n, dtype=np.int64)                      # for every slot, the recorded row before it
-    held[row] = np.arange(len(row))
-    held = np.maximum.accumulate(held)
-
-    def spread(values: np.ndarray) -> np.ndarray:
-        out = np.full((n,) + values.shape[1:], np.nan)
-        out[row] = values
-        return out
-
-    valid = np.zeros((n,) + rec.valid.shape[1:], dtype=bool)
-    valid[row] = rec.valid
-    inserted = np.setdiff1d(np.arange(n), row)
-    metadata = dict(rec.metadata, slots_inserted=len(inserted), inserted_rows=inserted.tolist())
-    return Recording(t=np.interp(np.arange(n), row, rec.t), cycle=rec.cycle[0] + np.arange(n),
-                     position=spread(rec.position), velocity=spread(rec.velocity), current=spread(rec.current),
-                     statusword=rec.statusword[held], target=rec.target[held], valid=valid, metadata=metadata)
+def segments_of(config: Config, rec: Recording, trim: int = 0, min_length: int = 1) -> Segments:
+    """The rows of ``rec`` the identification may use (:func:`ident_hw.segments.split`)."""
+    acts = config.robot.actuators
+    return split(rec.t, recording_period(rec), rec.valid, rec.current, rec.target,
+                 current_limit=np.array([a.limits.current for a in acts]),
+                 acceleration_limit=np.array([a.limits.acceleration for a in acts]),
+                 counts_per_unit=np.array([a.scaling().counts_per_unit for a in acts]),
+                 trim=trim, min_length=min_length)
 
 
 def coverage(config: Config, name: str, rec: Recording) -> dict:
@@ -129,9 +89,9 @@ def coverage(config: Config, name: str, rec: Recording) -> dict:
     signal, ``running (checkpoint)`` when the recording process died, ``raw log`` or ``raw log,
     truncated``); ``cycles`` recorded and ``cycles_planned`` (the trajectory's set-points: the
     recording's ``n_targets``, else the config's trajectory of that name); ``coverage``
-    (their ratio, None when unknown); ``valid_fraction`` (complete cycles / rows, with the SYNC
-    slots a hardware producer skipped counted as rows, :func:`with_skipped_slots`);
-    ``longest_gap_s`` (s, the longest stretch without a complete cycle); ``skipped_slots``;
+    (their ratio, None when unknown); ``valid_fraction`` (complete cycles / SYNC slots: a slot
+    the producer skipped counts as incomplete); ``longest_gap_s`` (s, the longest stretch
+    without a complete cycle); ``skipped_slots``;
     ``unplaced_frames`` (frames the master could not place in their cycle, so some samples
     may hold another cycle's data: :class:`drivers.acquisition.CycleAssembler`).
     """
@@ -140,80 +100,67 @@ def coverage(config: Config, name: str, rec: Recording) -> dict:
     status = str(meta.get("status", "unknown"))
     if status == "decoded":
         status = "raw log, truncated" if meta.get("log_truncated") else "raw log"
-    rows = rec if config.simulated else with_skipped_slots(rec)
-    t = sample_times(rows)
-    complete = rows.valid.all(axis=1)
-    gap = 0.0
-    if len(t) > 1:
-        period = float(meta.get("sync_period") or np.median(np.diff(t)))
-        edges = np.concatenate([[t[0] - period], t[complete], [t[-1] + period]])
-        gap = round(max(0.0, float(np.max(np.diff(edges))) - period), 6)
+    complete = rec.valid.all(axis=1)
+    gap, fraction, skipped = 0.0, 0.0, 0
+    if len(rec.t) > 1:
+        period = recording_period(rec)
+        slots = slot_indices(rec.t, period)
+        skipped = int(slots[-1] + 1 - len(slots))
+        fraction = float(complete.sum()) / (slots[-1] + 1)
+        edges = np.concatenate([[-1], slots[complete], [slots[-1] + 1]])
+        gap = round(float(np.max(np.diff(edges)) - 1) * period, 6)
+    elif len(rec.t):
+        fraction = float(complete.mean())
     return {"file": meta.get("file"), "recording_status": status, "cycles": len(rec.t),
             "cycles_planned": None if planned is None else int(planned),
             "coverage": None if not planned else min(1.0, len(rec.t) / planned),
-            "valid_fraction": float(complete.mean()) if len(t) else 0.0, "longest_gap_s": gap,
-            "skipped_slots": int(rows.metadata.get("slots_inserted", 0)),
+            "valid_fraction": fraction, "longest_gap_s": gap, "skipped_slots": skipped,
             "unplaced_frames": int(meta.get("unplaced_frames") or 0)}
 
 
-#: a set-point sequence accelerating faster than this many times the axis limit was not
-#: delivered on time (the drive held a stale set-point, then jumped)
-SETPOINT_JUMP = 5.0
-#: a current within this fraction of the drive's limit is clipped, not a measurement
-SATURATION = 0.98
-
-
-def disturbed_samples(config: Config, rec: Recording, t: np.ndarray, reach: float) -> np.ndarray:
-    """Samples (N,) bool near a disturbance the model cannot explain: a current at the drive's
-    limit, a set-point that arrived late (its second difference implies more than
-    ``SETPOINT_JUMP`` × the axis' acceleration limit), or a skipped SYNC slot put back by
-    :func:`with_skipped_slots` (metadata ``inserted_rows``: the drives moved on there, the
-    gap-filling interpolation stands in for all six axes). Each is widened by ``reach`` s on
-    both sides (the support of the filters that spread it). Cycles that came incomplete are
-    not: their gaps are filled (on a slow simulated rig they can be most of the cycles)."""
-    acts = config.robot.actuators
-    limit = np.array([a.limits.current for a in acts])
-    bad = np.any(np.abs(np.nan_to_num(rec.current)) >= SATURATION * limit, axis=1)
-    bad[np.asarray(rec.metadata.get("inserted_rows", ()), dtype=np.int64)] = True
-    if len(t) > 2:
-        dt = float(np.median(np.diff(t)))
-        counts = np.array([a.scaling().counts_per_unit for a in acts])
-        jump = np.abs(np.diff(np.nan_to_num(rec.target), 2, axis=0))
-        allowed = SETPOINT_JUMP * np.array([a.limits.acceleration for a in acts]) * dt**2 + 2.0 / counts
-        bad[1:-1] |= np.any(jump > allowed, axis=1)
-    width = int(np.ceil(reach / float(np.median(np.diff(t))))) if len(t) > 1 else 0
-    if bad.any() and width:
-        bad = np.convolve(bad, np.ones(2 * width + 1), mode="same") > 0
-    return bad
+def _bridged(t: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``values`` (N, m) with the NaN rows linearly interpolated (for start guesses only)."""
+    out = np.array(values, dtype=float)
+    for j in range(out.shape[1]):
+        bad = ~np.isfinite(out[:, j])
+        if bad.any():
+            out[bad, j] = np.interp(t[bad], t[~bad], out[~bad, j])
+    return out
 
 
 def prepare(config: Config, robot: ThreePRRR, name: str, rec: Recording) -> Prepared:
-    """Recording → filtered motion, regressor and forces, decimated in parallel; decimated
-    samples near a disturbance (:func:`disturbed_samples`) are left out. On hardware the SYNC
-    slots the producer skipped are put back first (:func:`with_skipped_slots`)."""
-    if not config.simulated:
-        rec = with_skipped_slots(rec)
-    t = sample_times(rec)
+    """Recording → filtered motion, regressor and forces, decimated in parallel, stretch by
+    stretch (:func:`segments_of`: cut at gaps and at rows left out, each stretch filtered on
+    its own and trimmed at both ends)."""
     where = f"{rec.metadata.get('file', 'recording')} (trajectory {name!r})"
-    if len(t) < 3:
-        raise RecordingError(f"{where}: {len(t)} samples, too few to identify from")
+    if len(rec.t) < 3:
+        raise RecordingError(f"{where}: {len(rec.t)} samples, too few to identify from")
     empty = [f"node {a.node_id} ({a.name})" for a, ok in zip(config.robot.actuators, rec.valid.any(axis=0)) if not ok]
     if empty:
         raise RecordingError(f"{where}: no valid sample of {', '.join(empty)}")
-    rate = 1.0 / float(np.median(np.diff(t)))
-    settings = config.identification.filter.settings(rate, motion_bandwidth(config, name))
+    settings = config.identification.filter.settings(1.0 / recording_period(rec), motion_bandwidth(config, name))
+    segments = segments_of(config, rec, settings.trim, 2 * settings.trim + MIN_FILTERED)
+    if not segments.slices:      # nothing to fit; the quality verdict says why
+        m = len(NAMES)
+        return Prepared(name, np.zeros(0), np.zeros((0, 6)), np.zeros((0, 3)), np.zeros((0, 6, m)),
+                        np.zeros((0, 6)), np.zeros((0, 6), bool), segments=segments)
     force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
-    samples = prepare_actuated(t, fill_gaps(t, rec.position), fill_gaps(t, rec.current), force_per_amp, settings)
-    X = robot.forward_kinematics(samples.Theta, np.zeros(3))
-    Y = robot.regressor_from_actuated(samples.Theta, samples.Thetad, samples.Thetadd, np.zeros(3))
-    Y, tau = parallel_decimate(settings, Y, samples.tau)
-    kept = np.arange(len(t))[kept_samples(settings, len(t))]
-    good = ~disturbed_samples(config, rec, t, 2.0 / settings.decimation_cutoff_hz)[kept]
-    kept = kept[good]
     speed_limit = np.array([a.limits.velocity for a in config.robot.actuators])
-    moving = np.abs(samples.Thetad[kept]) >= config.identification.min_speed * speed_limit
-    return Prepared(name, t[kept], samples.Theta[kept], X[kept], Y[good], tau[good], moving,
-                    excluded=int((~good).sum()))
+    # start poses for the forward kinematics of each stretch: a continuation from the home pose
+    # along the whole recording, across its gaps (a Newton start only, never data)
+    guess = robot.forward_kinematics(_bridged(segments.t, rec.position), np.zeros(3))
+    parts = []
+    for rows in segments.slices:
+        t, Theta, current = uniform(segments.t[rows], rec.position[rows], rec.current[rows])
+        samples = prepare_actuated(t, Theta, current, force_per_amp, settings)
+        X = robot.forward_kinematics(samples.Theta, guess[rows])
+        Y = robot.regressor_from_actuated(samples.Theta, samples.Thetad, samples.Thetadd, X)
+        Y, tau = parallel_decimate(settings, Y, samples.tau)
+        kept = kept_samples(settings, len(t))
+        parts.append((t[kept], samples.Theta[kept], X[kept], Y, tau,
+                      np.abs(samples.Thetad[kept]) >= config.identification.min_speed * speed_limit))
+    t, Theta, X, Y, tau, moving = (np.concatenate(column) for column in zip(*parts))
+    return Prepared(name, t, Theta, X, Y, tau, moving, segments=segments)
 
 
 def column_scale(Y: np.ndarray) -> np.ndarray:
@@ -281,9 +228,8 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         if progress:
             progress(f"preparing {name}")
         prepared[name] = prepare(config, robot, name, recordings[name])
-        if progress and prepared[name].excluded:
-            progress(f"  {name}: {prepared[name].excluded} of {prepared[name].excluded + len(prepared[name].t)} "
-                     "samples left out (current at its limit, late set-point or skipped SYNC slot nearby)")
+        if progress and prepared[name].segments.describe():
+            progress(f"  {name}: {prepared[name].segments.describe()}")
 
     n = len(NAMES)
     initial = config.robot.cad.to_model().as_vector()
@@ -300,6 +246,10 @@ def identify(config: Config, recordings: Mapping[str, Recording],
                      + (f" (base parameters, {step.method.upper()})" if step.method != "sqp" else ""))
         Y = np.concatenate([prepared[t].Y for t in step.trajectories])
         tau = np.concatenate([prepared[t].tau_fit for t in step.trajectories])
+        if not len(Y):
+            steps.append({"name": step.name, "trajectories": list(step.trajectories),
+                          "skipped": "no stretch of its recordings could be filtered"})
+            continue
         if step.method != "sqp":
             base_fit, base_equivalent, record = fit_base(step, Y, tau, coef, initial, truth,
                                                          ident.rel_sigma_threshold)
@@ -312,7 +262,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         held = [i for i in range(n) if i not in idx]
         # sigma of the free parameters: WLS statistics of the same weighted problem
         record = {"name": step.name, "trajectories": list(step.trajectories), **fit.to_dict(),
-                  "samples_left_out": {t: prepared[t].excluded for t in step.trajectories},
+                  "rows_left_out": {t: prepared[t].segments.left_out for t in step.trajectories},
                   "cond_scaled": scaled_condition(Y[:, :, idx], tau)}
         try:
             stats = wls(Y[:, :, idx], tau - Y[:, :, held] @ coef[held], step.parameters, output_std=fit.output_std)
@@ -340,7 +290,8 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     table = ParameterTable(names=NAMES, initial=initial, identified=coef, sigma=sigma, lower=lower, upper=upper,
                            step=tuple(step_of), method=tuple(method_of), truth=truth)
     for name, p in prepared.items():
-        used[name].update(samples_used=len(p.t), samples_left_out=p.excluded)
+        used[name].update(samples_used=len(p.t), rows_left_out=p.segments.left_out, gaps=p.segments.gaps,
+                          stretches=len(p.segments.slices))
     results = Results(parameters=table, fits=fits, steps=steps, base_parameters=base, base_fit=base_fit,
                       rel_sigma_threshold=ident.rel_sigma_threshold, trajectories=used)
     results.quality = verdict(results, ident.quality)

@@ -62,6 +62,9 @@ def verdict(results: Results, limits: QualityConfig) -> dict:
         if used["valid_fraction"] < limits.min_valid_fraction:
             reasons.append(f"{name}: {100 * used['valid_fraction']:.1f} % of the cycles complete "
                            f"(< {100 * limits.min_valid_fraction:g} %)")
+        if used.get("stretches") == 0:
+            reasons.append(f"{name}: no stretch of consecutive complete cycles long enough to filter; "
+                           f"nothing of it was fitted")
         if used.get("unplaced_frames"):
             reasons.append(f"{name}: {used['unplaced_frames']} frame(s) could not be placed in their SYNC "
                            f"cycle (late by more than the assembler's look-ahead, or sent twice)")
@@ -70,6 +73,8 @@ def verdict(results: Results, limits: QualityConfig) -> dict:
 
     steps = {}
     for record in results.steps:
+        if record.get("skipped"):
+            reasons.append(f"step {record['name']}: not fitted ({record['skipped']})")
         cond = record.get("cond_scaled")
         steps[record["name"]] = {"cond_scaled": cond}
         if cond is not None and not cond <= limits.max_condition:

@@ -28,21 +28,22 @@ def simulated_rig(config: Config) -> SimulatedRig:
 
     The plant starts at the home pose (``x = y = alpha = 0``, carriages at 0), where the
     actuators' homing offsets put it; currents get ``sim.current_noise`` (A) of Gaussian noise.
-    Each SYNC advances the plant by exactly one SYNC period, as drives sampling on SYNC see
-    it, however irregularly a loaded host delivers the frames; in lockstep (``bus.sync``, the
-    default here) nothing else moves it.
+    In lockstep (``bus.sync``, the default here) each SYNC advances the plant by exactly one
+    SYNC period and nothing else moves it: the same run on any host. On a periodic SYNC the
+    plant moves by the time between two SYNCs, as real drives on their own clock do.
     """
     if config.sim is None:
         raise ValueError(f"{config.source}: sim: missing section (the simulated rig's truth and noise)")
     if config.bus is None:
         raise ValueError(f"{config.source}: bus: missing section")
     sim, robot = config.sim, config.robot
+    lockstep = config.sync_mode == "lockstep"
     axes = [(a.node_id, a.profile, a.scaling()) for a in robot.actuators]
     return SimulatedRig.build(robot.geometry.to_model(), sim.truth.to_model(), axes,
                               coulomb_width=robot.coulomb_width, bandwidth_hz=sim.bandwidth, damping=sim.damping,
                               **({"max_substep": sim.max_substep} if sim.max_substep else {}),
-                              sync_period=1.0 / config.bus.sync_rate, current_noise_ma=sim.current_noise * 1e3,
-                              seed=sim.seed, lockstep=config.sync_mode == "lockstep",
+                              sync_period=1.0 / config.bus.sync_rate if lockstep else None,
+                              current_noise_ma=sim.current_noise * 1e3, seed=sim.seed, lockstep=lockstep,
                               interface=config.bus.interface, channel=config.bus.channel, ignore_config=True)
 
 
