@@ -1,8 +1,9 @@
 """A run on a disturbed SYNC, as on a real bus behind a busy host: the simulated rig in real time
 (its drives move on their own clock between two SYNCs) and the master's thread-timed SYNC
 producer held up now and then, so that about a fifth of its slots are skipped. Every try ends
-with each well-identified parameter within 5 % of the truth, or ``degraded``: never with a wrong
-result marked good."""
+with each well-identified parameter within 5 % of the truth, or ``degraded``, or stopped by a
+drive that ran out of its following-error window (set-points too late, as on a real rig): never
+with a wrong result marked good."""
 
 from __future__ import annotations
 
@@ -69,7 +70,16 @@ def test_a_disturbed_sync_ends_within_5_percent_or_degraded(tmp_path, monkeypatc
     config = load_config(path)
     _disturb_sync(monkeypatch, seed=attempt)
     folder = new_results_folder(config, tmp_path / "res", "run")
-    results = runner.run_campaign(config, folder, show_progress=False)
+    try:
+        results = runner.run_campaign(config, folder, show_progress=False)
+    except runner.CampaignStopped as stopped:
+        # the drives starved of set-points ran into their following-error window, as real ones do:
+        # the run stops, non-zero exit, the recording kept, nothing marked good
+        status = (folder / "STATUS").read_text()
+        log.warning("attempt %d: stopped: %s", attempt, stopped.reason)
+        assert "Following error" in stopped.reason and status.startswith("partial: drive fault")
+        assert (folder / "data" / "sweep.npz").is_file()
+        return
     used = results.trajectories["sweep"]
     slots = used["cycles"] + used["skipped_slots"]
     skipped = used["skipped_slots"] / slots

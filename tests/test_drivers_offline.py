@@ -7,7 +7,7 @@ import canopen
 import numpy as np
 import pytest
 
-from drivers.acquisition import LOOKAHEAD, AxisLayout, CycleAssembler, event_bits_per_s, pdo_layout
+from drivers.acquisition import LOOKAHEAD, AxisLayout, CycleAssembler, pdo_layout
 from drivers.axis import AxisConfig
 from drivers.bus import BusConfig, check_bus_load, frame_bits, max_sync_rate, open_network
 from drivers.emcy import describe
@@ -211,10 +211,11 @@ def test_drive_group_takes_bus_settings_from_the_network_and_checks_master_id():
             DriveGroup(network, axes, master_id=2)
         with pytest.raises(ConfigError, match="heartbeat"):
             DriveGroup(network, axes, heartbeat_period=0.1, heartbeat_timeout=0.05)
-        # the master's own heartbeat counts in the budget: 7 heartbeats of 1 byte per 0.1 s
-        sizes = [0] + [f.size for lay in group.layouts for f in lay.frames if f.per_sync]
-        expected = check_bus_load(sizes, 0.004, 500_000,
-                                  frame_bits(1) * 4 / 0.1 + event_bits_per_s(group.layouts))
-        assert group.check_bus_load(0.004) == pytest.approx(expected)
+        # written out: per cycle a SYNC (0 bytes, 55 bits) and per EPOS4 drive TPDO1 (position +
+        # current, 8 bytes: 135 bits), TPDO2 (velocity + statusword, 6 bytes: 115 bits) and RPDO1
+        # (set-point + controlword, 6 bytes: 115 bits), at 250 Hz; plus four heartbeats (three
+        # drives and the master's own, 1 byte: 65 bits) per 0.1 s
+        bits_per_s = (55 + 3 * (135 + 115 + 115)) * 250 + 4 * 65 / 0.1
+        assert group.check_bus_load(0.004) == pytest.approx(bits_per_s / 500_000, rel=1e-12)
     finally:
         network.disconnect()

@@ -2,7 +2,6 @@
 vectorised model: forward kinematics, mass matrix and velocity terms at random states."""
 
 import numpy as np
-import pytest
 
 from drivers.sim import nominal
 from ident_hw.model import KinematicsError, ThreePRRR

@@ -1,6 +1,6 @@
 """Optimised Fourier excitation: analytic derivatives, rest at both ends, base columns, criterion."""
 
-import json
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -63,7 +63,6 @@ def test_base_columns_drop_exactly_the_structural_regrouping(rig):
 def test_cached_excitation_is_feasible_and_excites_every_base_parameter(rig):
     robot, limits = rig
     ex = FourierExcitation.load(CACHED)
-    stored = json.loads(CACHED.read_text())
     traj = ex.trajectory(robot, rate=250.0)
     report = check_trajectory(traj, robot, limits)
     assert report.ok, str(report)
@@ -71,7 +70,25 @@ def test_cached_excitation_is_feasible_and_excites_every_base_parameter(rig):
     W = stacked_regressor(robot, np.c_[traj.X, traj.zeta], np.c_[traj.Xd, traj.zetad], np.c_[traj.Xdd, traj.zetadd])
     assert np.linalg.matrix_rank(W[:, base.columns]) == len(base.columns)  # full column rank
     cond = base.cond(W)
-    assert cond == pytest.approx(stored["cond_final"], rel=0.05)  # 250 Hz grid vs 100 optimiser samples
+    # locally optimal: no small feasible change of its coefficients conditions it better
+    rng = np.random.default_rng(11)
+    checked = 0
+    for _ in range(6):
+        da, db = (rng.normal(size=ex.a.shape) * 1e-3 * np.abs(ex.a).max(),
+                  rng.normal(size=ex.b.shape) * 1e-3 * np.abs(ex.b).max())
+        for sign in (1.0, -1.0):
+            moved = dataclasses.replace(ex, a=ex.a + sign * da, b=ex.b + sign * db).trajectory(robot, rate=250.0)
+            if not check_trajectory(moved, robot, limits).ok:
+                continue
+            Wm = stacked_regressor(robot, np.c_[moved.X, moved.zeta], np.c_[moved.Xd, moved.zetad],
+                                   np.c_[moved.Xdd, moved.zetadd])
+            assert base.cond(Wm) >= cond * (1 - 1e-3)
+            checked += 1
+    assert checked >= 4    # better conditioned than the paper's whole campaign stacked
+    paper = [carriage_sweep(robot, limits), *five_squares(robot, limits), validation_triangle(robot, limits)]
+    Wp = np.vstack([stacked_regressor(robot, np.c_[t.X, t.zeta], np.c_[t.Xd, t.zetad], np.c_[t.Xdd, t.zetadd])
+                    for t in paper])
+    assert 2 * cond <= base.cond(Wp)
     squares = np.vstack([stacked_regressor(robot, np.c_[s.X, s.zeta], np.c_[s.Xd, s.zetad], np.c_[s.Xdd, s.zetadd])
                          for s in five_squares(robot, limits)])
     # five squares: carriages blocked, m_c and the carriage friction are not excited at all
@@ -87,16 +104,13 @@ def test_malformed_coefficient_file(tmp_path):
 
 
 @pytest.mark.slow
-def test_optimisation_reproduces_the_cached_excitation_and_improves_on_its_start(rig):
+def test_optimisation_improves_on_its_start_and_on_the_papers_campaign(rig):
     """The defaults (0.2 Hz, five harmonics: link accelerations twice those of 0.1 Hz with three,
-    which the identification on the simulated rig needs against set-point quantisation) reproduce
-    the cached file; the optimum is four times better conditioned than its random feasible start
-    (measured 16.3 -> 3.67) and five times better than the paper's whole campaign stacked (18.8)."""
+    which the identification on the simulated rig needs against set-point quantisation): the
+    optimum is feasible, four times better conditioned than its random feasible start and five
+    times better than the paper's whole campaign stacked."""
     robot, limits = rig
-    result = optimise_excitation(robot, limits)  # the defaults that produced the cached file
-    stored = json.loads(CACHED.read_text())
-    assert result.cond_initial == pytest.approx(stored["cond_initial"], rel=1e-9)
-    assert result.cond_final == pytest.approx(stored["cond_final"], rel=0.02)
+    result = optimise_excitation(robot, limits)
     assert result.cond_final * 4 <= result.cond_initial
     paper = [carriage_sweep(robot, limits), *five_squares(robot, limits), validation_triangle(robot, limits)]
     W = np.vstack([stacked_regressor(robot, np.c_[t.X, t.zeta], np.c_[t.Xd, t.zetad], np.c_[t.Xdd, t.zetadd])

@@ -1,0 +1,182 @@
+"""The main job end to end: the paper's campaign on the simulated rig (``configs/sim-3prrr.yaml``,
+250 Hz lockstep), identified values against the simulated truth, and the same check failing on a
+deliberately wrong identification (currents 5 % off: a torque constant 5 % wrong).
+
+The truth here comes from the config, and a base parameter's truth from its readable expression
+(``m_c - 0.5 m_l2``) evaluated on the config's values: neither from the code's own truth column.
+Bound per parameter: ``3 σ`` (its own standard deviation) plus a bias budget of
+:data:`BIAS_BUDGET` of its value: the set-point quantisation of the links at 250 Hz (1 count per
+period, 7.4 rad/s² of acceleration noise) and the plant's integration leave biases of up to
+about 1 % that σ does not cover.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from html.parser import HTMLParser
+
+import pytest
+
+from drivers.recording import Recording
+from ident_hw.config import load_config
+from ident_hw.experiment import runner
+from ident_hw.experiment.offline import identify
+from ident_hw.experiment.results import new_results_folder
+from ident_hw.report import save_results
+from ident_scenarios import CONFIGS
+
+#: bias allowed beyond 3 sigma, as a fraction of the true value
+BIAS_BUDGET = 0.01
+#: the campaign identifies at least this many parameters well (physical step by step and base)
+MIN_WELL_IDENTIFIED = 25
+
+
+def evaluate(expression: str, values: dict[str, float]) -> float:
+    """Value of a readable base parameter such as ``m_c - 0.5 m_l2`` or ``0.0216 m_l2 + I_ee``."""
+    total = 0.0
+    parts = re.split(r"\s+([+-])\s+", expression.strip())       # term, sign, term, sign, ...
+    for sign, term in zip(["+"] + parts[1::2], parts[0::2]):
+        words = term.split()
+        factor = float(words[0]) if len(words) == 2 else (-1.0 if words[0].startswith("-") else 1.0)
+        name = words[-1].lstrip("-")
+        total += (-factor if sign == "-" else factor) * values[name]
+    return total
+
+
+def accuracy_failures(doc: dict, truth: dict[str, float]) -> list[str]:
+    """The well-identified parameters of a ``parameters.json`` farther from the truth than
+    ``3 σ + BIAS_BUDGET × |truth|``, and too few well-identified ones."""
+    threshold = doc["rel_sigma_threshold_percent"]
+    failures, well = [], 0
+    rows = [(r["name"], r["identified"], r["sigma"], r["rel_sigma_percent"], truth[r["name"]])
+            for r in doc["parameters"] if r["step"]]
+    rows += [(r["base_parameter"], r["identified"], r["sigma"], r["rel_sigma_percent"],
+              evaluate(r["base_parameter"], truth)) for r in doc["base_fit"]["rows"]]
+    for name, value, sigma, rel, true in rows:
+        if rel is None or rel > threshold:
+            continue
+        well += 1
+        if abs(value - true) > 3 * sigma + BIAS_BUDGET * abs(true):
+            failures.append(f"{name}: {value:.6g} against {true:.6g} ({100 * (value / true - 1):+.2f} %, "
+                            f"sigma {sigma:.3g})")
+    if well < MIN_WELL_IDENTIFIED:
+        failures.append(f"{well} well identified (< {MIN_WELL_IDENTIFIED})")
+    return failures
+
+
+class _Cells(HTMLParser):
+    """The text of every table cell of an HTML page, row by row."""
+
+    def __init__(self):
+        super().__init__()
+        self.rows, self._row, self._cell = [], None, None
+
+    def handle_starttag(self, tag, attrs):
+        if tag == "tr":
+            self._row = []
+        elif tag in ("td", "th"):
+            self._cell = ""
+
+    def handle_endtag(self, tag):
+        if tag in ("td", "th") and self._row is not None and self._cell is not None:
+            self._row.append(self._cell.strip())
+            self._cell = None
+        elif tag == "tr" and self._row is not None:
+            self.rows.append(self._row)
+            self._row = None
+
+    def handle_data(self, data):
+        if self._cell is not None:
+            self._cell += data
+
+
+@pytest.fixture(scope="module")
+def main_job(tmp_path_factory):
+    config = load_config(CONFIGS / "sim-3prrr.yaml")
+    folder = new_results_folder(config, tmp_path_factory.mktemp("main") / "res", "run")
+    runner.run_campaign(config, folder, show_progress=False)
+    return config, folder
+
+
+def test_the_main_job_identifies_the_simulated_truth(main_job):
+    config, folder = main_job
+    truth = dict(zip(config.sim.truth.to_model().NAMES, config.sim.truth.to_model().as_vector()))
+    doc = json.loads((folder / "parameters.json").read_text())
+    assert accuracy_failures(doc, truth) == []
+    assert doc["quality"]["passed"] and (folder / "STATUS").read_text().startswith("complete")
+    for name, used in doc["trajectories"].items():
+        assert used["valid_fraction"] == 1.0 and used["cycles"] == used["cycles_planned"], name
+
+
+def test_a_torque_constant_5_percent_wrong_fails_the_accuracy_check(main_job, tmp_path):
+    """The run's recordings with every current 5 % high (what a torque constant 5 % low in the
+    drive data gives): the masses and frictions come out 5 % high, with the same small σ."""
+    config, folder = main_job
+    truth = dict(zip(config.sim.truth.to_model().NAMES, config.sim.truth.to_model().as_vector()))
+    recordings = {}
+    for path in sorted((folder / "data").glob("*.npz")):
+        rec = Recording.load(path)
+        recordings[path.stem] = Recording(**{k: getattr(rec, k) for k in (
+            "t", "cycle", "position", "velocity", "statusword", "target", "valid")},
+            current=rec.current * 1.05, metadata=rec.metadata)
+    save_results(tmp_path / "wrong", identify(config, recordings))
+    doc = json.loads((tmp_path / "wrong" / "parameters.json").read_text())
+    failures = accuracy_failures(doc, truth)
+    assert len(failures) >= 10 and any(f.startswith("m_c") for f in failures), failures
+
+
+def test_the_report_shows_the_numbers_of_parameters_json(main_job):
+    """Every identified value in ``report.html``'s parameter table equals ``parameters.json``'s to
+    the digits shown."""
+    _, folder = main_job
+    doc = json.loads((folder / "parameters.json").read_text())
+    cells = _Cells()
+    cells.feed((folder / "report.html").read_text())
+    by_name = {r["name"]: r for r in doc["parameters"]}
+    shown = {}
+    for row in cells.rows:           # the first table naming them: the physical parameters
+        if row and row[0] in by_name and len(row) > 3:
+            shown.setdefault(row[0], row)
+    assert set(shown) == set(by_name)
+    for name, row in shown.items():
+        r = by_name[name]
+        if not r["step"]:
+            assert row[3] == "(held)"
+            continue
+        value = float(row[3])
+        digits = len(row[3].replace("-", "").replace(".", "").lstrip("0")) or 1
+        assert value == pytest.approx(r["identified"], rel=10 ** (1 - digits)), (name, row[3], r["identified"])
+
+
+def test_an_epos2_rig_identifies_the_carriages(tmp_path):
+    """The same rig on EPOS2 drives (16-bit current, position mode -1 with set-points in 0x2062,
+    homing method 35), through ``run``: the paper's carriage sweep at 250 Hz identifies ``m_c``
+    and the carriage friction within the same bounds."""
+    robot = tmp_path / "robot-epos2.yaml"
+    text = (CONFIGS / "robot-3prrr.yaml").read_text()
+    assert text.count("profile: epos4") == 2 and "method: 37" in text
+    robot.write_text(text.replace("profile: epos4", "profile: epos2").replace("method: 37", "method: 35"))
+    sim = tmp_path / "sim-epos2.yaml"
+    sim.write_text((CONFIGS / "sim-3prrr.yaml").read_text().replace("extends: robot-3prrr.yaml", f"extends: {robot}"))
+    path = tmp_path / "sweep.yaml"
+    path.write_text(f"extends: {sim}\n"
+                    "trajectories: [{name: sweep, kind: carriage_sweep, size: 0.06}]\n"
+                    "identification:\n"
+                    "  steps: [{name: carriages, trajectories: [sweep],\n"
+                    "           parameters: [m_c, fv_zeta1, fv_zeta2, fv_zeta3, fc_zeta1, fc_zeta2, fc_zeta3]}]\n"
+                    "  validation: []\n")
+    config = load_config(path)
+    assert {a.profile for a in config.robot.actuators} == {"epos2"}
+    folder = new_results_folder(config, tmp_path / "res", "run")
+    runner.run_campaign(config, folder, show_progress=False)
+    doc = json.loads((folder / "parameters.json").read_text())
+    truth = dict(zip(config.sim.truth.to_model().NAMES, config.sim.truth.to_model().as_vector()))
+    rows = {r["name"]: r for r in doc["parameters"] if r["step"]}
+    assert set(rows) == {"m_c", "fv_zeta1", "fv_zeta2", "fv_zeta3", "fc_zeta1", "fc_zeta2", "fc_zeta3"}
+    well = {n: r for n, r in rows.items() if r["rel_sigma_percent"] <= doc["rel_sigma_threshold_percent"]}
+    assert "m_c" in well and len(well) >= 4, rows
+    for name, r in well.items():
+        assert abs(r["identified"] - truth[name]) <= 3 * r["sigma"] + BIAS_BUDGET * abs(truth[name]), (name, r)
+    rec = Recording.load(folder / "data" / "sweep.npz")
+    assert [a["profile"] for a in rec.metadata["axes"]] == ["EPOS2"] * 6
