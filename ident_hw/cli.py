@@ -37,9 +37,9 @@ def cmd_check(args) -> int:
     from ident_hw.experiment.plan import check_campaign, plan
     config = _load(args.config)
     print(f"{args.config}: config ok")
-    planned = plan(config)
+    planned = plan(config, online=True)
     for p in planned:
-        print("  " + p.describe())
+        print("  " + p.describe() + ("  (ident-hw online only)" if p.config.online_only else ""))
     if config.bus is not None:
         where = "simulated rig" if config.simulated else "HARDWARE (motion needs --arm)"
         print(f"bus: {config.bus.interface} {config.bus.channel} at {config.bus.sync_rate:g} Hz SYNC: {where}")
@@ -116,7 +116,7 @@ def cmd_run(args) -> int:
     from ident_hw.experiment.online import CampaignEstimator
     from ident_hw.experiment.results import discard_unused, new_results_folder
     from ident_hw.experiment.runner import CampaignStopped, run_campaign
-    from ident_hw.report import summary_lines
+    from ident_hw.report import online_lines, summary_lines
     folder = new_results_folder(config, args.out, args.command)
     print(f"results folder: {folder}", file=sys.stderr)
     online = CampaignEstimator(config, show=print) if args.command == "online" else None
@@ -130,6 +130,8 @@ def cmd_run(args) -> int:
         print(f"STOPPED: {exc.reason}\n{exc.stop_message()}", file=sys.stderr)
         return Exit.INTERRUPTED if exc.interrupted else exit_code(exc.cause)
     print("\n".join(summary_lines(folder)))
+    if results.online is not None:
+        print("\n".join(online_lines(results.online)))
     print(f"results: {folder}  (report: {folder / 'report.html'})")
     return Exit.OK if results.quality is None or results.quality["passed"] else Exit.DEGRADED
 

@@ -209,13 +209,91 @@ class TrajectoryFit:
                        tau_base=f["tau_base"] if "tau_base" in f else None)
 
 
+#: an online estimate has settled when it stays within this fraction of the true value
+SETTLED = 0.02
+
+
 @dataclass
 class OnlineTrace:
-    """Estimates of an online run: t (M,) s, estimates (M, n) in the units of ``names``."""
+    """Estimates of an online run (:mod:`ident_hw.experiment.online`).
+
+    Attributes:
+        names: (n,) parameter names. t: (M,) campaign time of each sample, s.
+        estimates: per estimator (the first is SVD-DLS), (M, n) in the units of ``names``.
+        rank: (M,) excited directions of SVD-DLS after each sample (None: not recorded).
+        j_rmse: per estimator, RMS a-priori prediction error over the campaign, in units of the
+            output noise (``identification.online.output_noise``).
+        base_names, H: the base parameters of the data, ``pi_b = H @ pi`` (b, n).
+        truth: (M, n) the simulated truth at each sample (None on hardware).
+        change_time: campaign time of the payload change (s), None without one.
+        unexcited: the directions SVD-DLS holds at the end, readable.
+        diverged: per estimator that failed numerically, the campaign time (s) it stopped at.
+    """
 
     names: tuple[str, ...]
     t: np.ndarray
-    estimates: np.ndarray
+    estimates: dict[str, np.ndarray]
+    rank: np.ndarray | None = None
+    j_rmse: dict[str, float] = field(default_factory=dict)
+    base_names: tuple[str, ...] = ()
+    H: np.ndarray | None = None
+    truth: np.ndarray | None = None
+    change_time: float | None = None
+    unexcited: tuple[str, ...] = ()
+    diverged: dict[str, float] = field(default_factory=dict)
+
+    def base(self, estimates: np.ndarray) -> np.ndarray:
+        """(M, b) the base parameters of ``estimates`` (M, n)."""
+        return estimates @ self.H.T
+
+    def tracked(self) -> list[int]:
+        """The base parameters whose truth changes at the payload change."""
+        if self.truth is None or self.change_time is None or self.H is None:
+            return []
+        b = self.base(self.truth)
+        return [i for i in range(b.shape[1]) if np.ptp(b[:, i]) > 1e-12 * max(np.abs(b[:, i]).max(), 1e-300)]
+
+    def settling_time(self, estimator: str, i: int) -> float | None:
+        """s from the payload change until base parameter ``i`` of ``estimator`` stays within
+        :data:`SETTLED` of its new true value (None: it does not, by the end)."""
+        after = self.t >= self.change_time
+        est = self.base(self.estimates[estimator])[after, i]
+        true = self.base(self.truth)[after, i]
+        off = ~(np.abs(est - true) <= SETTLED * np.abs(true))      # NaN (a diverged estimator) is off
+        if not len(off) or off[-1]:
+            return None
+        last_off = np.nonzero(off)[0]
+        k = last_off[-1] + 1 if len(last_off) else 0
+        return float(self.t[after][k] - self.change_time)
+
+    def save(self, path: Path) -> None:
+        labels = list(self.estimates)
+        arrays = {f"estimates_{i}": self.estimates[k] for i, k in enumerate(labels)}
+        np.savez_compressed(path, names=np.array(self.names), t=self.t, estimators=np.array(labels),
+                            j_rmse=np.array([self.j_rmse.get(k, np.nan) for k in labels]),
+                            rank=self.rank if self.rank is not None else np.zeros(0),
+                            base_names=np.array(self.base_names), H=self.H if self.H is not None else np.zeros((0, 0)),
+                            truth=self.truth if self.truth is not None else np.zeros((0, 0)),
+                            change_time=np.nan if self.change_time is None else self.change_time,
+                            unexcited=np.array(self.unexcited),
+                            diverged=np.array([self.diverged.get(k, np.nan) for k in labels]), **arrays)
+
+    @classmethod
+    def load(cls, path: Path) -> "OnlineTrace":
+        with np.load(path) as f:
+            names = tuple(str(n) for n in f["names"])
+            if "estimators" not in f:                  # written before the baselines were traced
+                return cls(names, f["t"], {"SVD-DLS": f["estimates"]})
+            labels = [str(k) for k in f["estimators"]]
+            change = float(f["change_time"])
+            return cls(names, f["t"], {k: f[f"estimates_{i}"] for i, k in enumerate(labels)},
+                       rank=f["rank"] if f["rank"].size else None,
+                       j_rmse=dict(zip(labels, (float(v) for v in f["j_rmse"]))),
+                       base_names=tuple(str(n) for n in f["base_names"]), H=f["H"] if f["H"].size else None,
+                       truth=f["truth"] if f["truth"].size else None,
+                       change_time=None if np.isnan(change) else change,
+                       unexcited=tuple(str(u) for u in f["unexcited"]),
+                       diverged={k: float(v) for k, v in zip(labels, f["diverged"]) if not np.isnan(v)})
 
 
 @dataclass
@@ -271,8 +349,7 @@ def save_results(folder: str | Path, results: Results) -> Path:
     for fit in results.fits:
         fit.save(folder / "fits" / f"{fit.name}.npz")
     if results.online is not None:
-        np.savez_compressed(folder / "online.npz", names=np.array(results.online.names),
-                            t=results.online.t, estimates=results.online.estimates)
+        results.online.save(folder / "online.npz")
     return build_report(folder)
 
 
@@ -287,8 +364,7 @@ def load_results(folder: str | Path) -> Results:
     fits.sort(key=lambda f: f.role != "identification")
     online = None
     if (folder / "online.npz").is_file():
-        with np.load(folder / "online.npz") as f:
-            online = OnlineTrace(names=tuple(str(n) for n in f["names"]), t=f["t"], estimates=f["estimates"])
+        online = OnlineTrace.load(folder / "online.npz")
     base_fit = BaseFit.from_dict(doc["base_fit"]) if doc.get("base_fit") else None
     return Results(parameters=ParameterTable.from_rows(doc["parameters"]), fits=fits,
                    steps=doc.get("steps") or [], base_parameters=doc.get("base_parameters"), online=online,
@@ -545,24 +621,78 @@ def _plot_motion(fit: TrajectoryFit, plots: Path) -> Path:
 
 
 def _plot_online(online: OnlineTrace, params: ParameterTable, plots: Path) -> Path:
-    shown = [i for i, n in enumerate(online.names) if n.startswith(("m_", "I_"))]
+    """The base parameters of the inertial parameters over time, every estimator, the truth
+    (stepping at a payload change) and the change."""
+    if online.H is None:           # an old trace: the physical masses and inertias of SVD-DLS
+        shown = [i for i, n in enumerate(online.names) if n.startswith(("m_", "I_"))]
+        values, labels, truth = next(iter(online.estimates.values())), list(online.names), None
+        curves = {"SVD-DLS": values}
+    else:
+        inertial = [j for j, n in enumerate(online.names) if n.startswith(("m_", "I_"))]
+        shown = [i for i in range(online.H.shape[0]) if np.any(online.H[i, inertial] != 0)]
+        labels = list(online.base_names)
+        curves = {k: online.base(v) for k, v in online.estimates.items()}
+        truth = online.base(online.truth) if online.truth is not None else None
     cols = 2
-    rows = math.ceil(len(shown) / cols)
+    rows = max(1, math.ceil(len(shown) / cols))
     fig = _figure(2.2 * rows)
     axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True)).ravel()
-    truth = dict(zip(params.names, params.truth)) if params.truth is not None else {}
     for ax, i in zip(axes, shown):
-        name = online.names[i]
-        ax.plot(online.t, online.estimates[:, i], lw=0.9)
-        if name in truth:
-            ax.axhline(truth[name], color="k", ls=":", lw=0.8, label="truth")
-            ax.legend(fontsize=7)
-        ax.set_ylabel(f"{name} [{parameter_unit(name)}]")
+        for label, values in reversed(curves.items()):     # SVD-DLS (the first) drawn on top
+            ax.plot(online.t, values[:, i], lw=1.3 if label == next(iter(curves)) else 0.8, label=label)
+        if truth is not None:
+            ax.plot(online.t, truth[:, i], color="k", ls=":", lw=0.9, label="truth")
+            # around the truth (±15 % of it, or of its change): early transients would hide the tracking
+            lo, hi = float(truth[:, i].min()), float(truth[:, i].max())
+            margin = max(0.15 * max(abs(lo), abs(hi)), 0.5 * (hi - lo), 1e-12)
+            ax.set_ylim(lo - margin, hi + margin)
+        if online.change_time is not None:
+            ax.axvline(online.change_time, color="r", lw=0.7, ls="--")
+        ax.set_ylabel(labels[i], fontsize=7)
         ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=6)
     for ax in axes[len(shown):]:
         ax.set_visible(False)
-    fig.suptitle("online estimates over time")
+    fig.suptitle("online estimates over time" + (" (payload added at the dashed line)" if online.change_time else ""))
     return _save(fig, plots / "online.png")
+
+
+def online_lines(online: OnlineTrace) -> list[str]:
+    """The comparison of the online estimators, for the terminal: J_RMSE and, after a payload
+    change, the settling time of each tracked base parameter."""
+    tracked = online.tracked()
+    lines = ["online estimators (J_RMSE: a-priori prediction error in units of the output noise"
+             + (f"; settling to within {100 * SETTLED:g} % after the payload change at {online.change_time:.1f} s"
+                if tracked else "") + "):"]
+    for label in online.estimates:
+        text = f"  {label:>10}: J_RMSE {online.j_rmse.get(label, float('nan')):8.3g}"
+        if label in online.diverged:
+            text += f" (diverged at {online.diverged[label]:.1f} s)"
+        for i in tracked:
+            settle = online.settling_time(label, i)
+            text += f"; {online.base_names[i]}: " + ("not settled" if settle is None else f"{settle:.1f} s")
+        lines.append(text)
+    if online.unexcited:
+        lines.append(f"  SVD-DLS held (not excited at the end): {'; '.join(online.unexcited)}")
+    return lines
+
+
+def _html_online(online: OnlineTrace) -> str:
+    esc = html.escape
+    tracked = online.tracked()
+    head = "<tr><th>estimator</th><th>J_RMSE (noise units)</th>" + "".join(
+        f"<th>settling of {esc(online.base_names[i])} (s)</th>" for i in tracked) + "</tr>"
+    rows = []
+    for label in online.estimates:
+        cells = [label, f"diverged at {online.diverged[label]:.1f} s" if label in online.diverged
+                 else _fmt(online.j_rmse.get(label), ".4g")]
+        cells += ["not settled" if (s := online.settling_time(label, i)) is None else f"{s:.1f}" for i in tracked]
+        rows.append("<tr>" + "".join(f"<td>{esc(str(c))}</td>" for c in cells) + "</tr>")
+    change = (f"<p>Payload added at {online.change_time:.1f} s of the campaign; settled = within "
+              f"{100 * SETTLED:g} % of the new true value to the end.</p>" if online.change_time is not None else "")
+    held = (f"<p>SVD-DLS holds, not excited at the end: {esc('; '.join(online.unexcited))}.</p>"
+            if online.unexcited else "")
+    return f"<h2>Online estimation</h2>{change}<table>{head}{''.join(rows)}</table>{held}"
 
 
 def _render(jobs: list[tuple]) -> list[Path]:
@@ -605,7 +735,8 @@ def _save_mat(path: Path, results: Results) -> None:
         doc["truth"] = p.truth
     if results.online is not None:
         doc["online"] = {"names": np.array(results.online.names, dtype=object), "t": results.online.t,
-                         "estimates": results.online.estimates}
+                         **{f"estimates_{k.replace(' ', '_').replace('-', '_')}": v
+                            for k, v in results.online.estimates.items()}}
     scipy.io.savemat(path, doc, do_compression=True, long_field_names=True)
 
 
@@ -662,6 +793,7 @@ td,th{{border:1px solid #bbb;padding:2px 6px;text-align:right}} td:first-child{{
 <h2>Identification steps</h2><ul>{steps}</ul>
 {_html_base_fit(results.base_fit) if results.base_fit is not None else ''}
 {''.join(f'<p>{n}</p>' for n in notes)}
+{_html_online(results.online) if results.online is not None else ''}
 <h2>Force prediction per trajectory</h2>
 <p>NRMS per actuator = 100·RMS(τ − τ̂)/RMS(τ); d_τ = 100·mean(‖τ − τ̂‖/‖τ‖); J_RMSE = sqrt(mean ‖τ̂ − τ‖²) (mixed units).</p>
 <table><tr><th>trajectory</th><th>role</th><th>parameters</th>{''.join(f'<th>NRMS {a} %</th>' for a in ACTUATOR_NAMES)}

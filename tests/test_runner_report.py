@@ -36,7 +36,7 @@ def synthetic_results(rng) -> Results:
         fits.append(TrajectoryFit(name, role, t, tau, tau_model, Theta=np.tile(t[:, None], (1, 6)), X=X,
                                   tau_base=tau_model * 1.1))
     online = OnlineTrace(names=NAMES, t=np.arange(100) * 0.01,
-                         estimates=np.outer(np.linspace(0.5, 1, 100), truth))
+                         estimates={"SVD-DLS": np.outer(np.linspace(0.5, 1, 100), truth)})
     H = np.zeros((2, n))
     H[0, 0], H[1, [1, 2]] = 1.0, [-0.0225, 1.0]
     base_fit = BaseFit(step="fourier", method="WLS", trajectories=("fourier",),
@@ -65,6 +65,8 @@ def test_results_folder_round_trip_and_metrics(tmp_path):
     np.testing.assert_array_equal(back.parameters.upper, results.parameters.upper)  # inf survives JSON null
     assert [f.name for f in back.fits] == ["sweep", "triangle"]
     np.testing.assert_array_equal(back.fits[1].tau, results.fits[1].tau)
+    np.testing.assert_array_equal(back.online.estimates["SVD-DLS"], results.online.estimates["SVD-DLS"])
+    assert back.online.change_time is None and back.online.diverged == {}
 
     rows = json.loads((tmp_path / "parameters.json").read_text())["parameters"]
     assert rows[1]["rel_sigma_percent"] == pytest.approx(100 * 0.5 / results.parameters.identified[1])
@@ -145,3 +147,22 @@ def test_report_rebuilds_from_the_folder_alone(tmp_path):
 def test_not_a_results_folder(tmp_path):
     with pytest.raises(FileNotFoundError, match="no parameters.json"):
         build_report(tmp_path)
+
+
+def test_online_settling_time_and_diverged_estimator_by_hand():
+    """A base parameter stepping from 1 to 2 at t = 1 s, an estimate approaching it as
+    2 (1 − 0.5 e^{−(t−1)/τ}): within 2 % from t − 1 = τ ln 25; a NaN estimate (diverged) never
+    counts as settled."""
+    t = np.arange(0, 10, 0.01)
+    names = ("a", "b")
+    H = np.eye(2)
+    truth = np.column_stack([np.where(t >= 1.0, 2.0, 1.0), np.ones_like(t)])
+    tau = 0.8
+    good = np.column_stack([np.where(t >= 1.0, 2 * (1 - 0.5 * np.exp(-(t - 1.0) / tau)), 1.0), np.ones_like(t)])
+    bad = good.copy()
+    bad[t > 5.0] = np.nan
+    trace = OnlineTrace(names, t, {"SVD-DLS": good, "RLS": bad}, H=H, base_names=names, truth=truth,
+                        change_time=1.0, diverged={"RLS": 5.0})
+    assert trace.tracked() == [0]
+    assert trace.settling_time("SVD-DLS", 0) == pytest.approx(tau * np.log(25), abs=0.011)
+    assert trace.settling_time("RLS", 0) is None

@@ -267,6 +267,17 @@ class SimConfig:
 
 
 @dataclass(frozen=True)
+class PayloadConfig:
+    """A payload the in-process simulated rig takes on ``after`` s into its trajectory (mass and
+    inertia about the end-effector point, added to the true ``m_ee`` and ``I_ee``) and drops at
+    the trajectory's end: what the online estimators must track."""
+
+    after: float = field(metadata=spec(non_negative, unit="s"))
+    mass: float = field(metadata=spec(positive, unit="kg"))
+    inertia: float = field(default=0.0, metadata=spec(non_negative, unit="kg m^2"))
+
+
+@dataclass(frozen=True)
 class TrajectoryConfig:
     """One trajectory of the campaign (generators of :mod:`trajectories`).
 
@@ -282,6 +293,9 @@ class TrajectoryConfig:
     timing); the motion is repeated ``cycles`` times. ``bandwidth`` (Hz), the highest frequency
     the motion has, sets the identification filter of this trajectory (default: the highest
     harmonic of a Fourier excitation, else ``identification.filter.bandwidth``).
+    ``online_only``: streamed only by ``ident-hw online``, after the others; ``run`` leaves it
+    out. ``payload``: on the in-process simulated rig, a payload added during this trajectory
+    (:class:`PayloadConfig`), e.g. on an ``online_only`` one for the online estimators to track.
     """
 
     name: str
@@ -293,6 +307,8 @@ class TrajectoryConfig:
     cycles: int = field(default=1, metadata=spec(in_range(1, 1000)))
     path: str | None = None
     bandwidth: float | None = field(default=None, metadata=spec(positive, unit="Hz"))
+    online_only: bool = False
+    payload: PayloadConfig | None = None
 
     def _check(self) -> None:
         if self.kind == "file" and self.path is None:
@@ -348,13 +364,55 @@ class StepConfig:
                 raise FieldError(f"parameters[{i}]", f"unknown parameter {p!r}; expected one of {list(InertialParams.NAMES)}")
 
 
+#: typical magnitudes of the friction coefficients by kind (they have no CAD value): the online
+#: estimator's parameter scales where ``identification.online.scales`` gives none. A lab's rig:
+#: revolute joints behind a gear 0.01-0.1 N·m(·s/rad), carriages on ball screws 1-100 N(·s/m).
+FRICTION_SCALES = {"fv_theta": 0.01, "fc_theta": 0.01, "fv_zeta": 10.0, "fc_zeta": 1.0}
+
+
+def parameter_kind(name: str) -> str:
+    """``fv_theta1`` → ``fv_theta``; an inertial parameter is its own kind."""
+    return name.rstrip("0123456789") if name.startswith(("fv_", "fc_")) else name
+
+
 @dataclass(frozen=True)
 class OnlineConfig:
-    """The SVD-DLS online estimator."""
+    """The online estimators (SVD-DLS, beside RLS and damped RLS on the same data).
+
+    They work on parameters divided by their ``scales`` and on forces divided by the noise of
+    the outputs, so that ``threshold`` means the same for every direction (100 ⇔ a relative
+    standard deviation of 10 % of the scale). Scales: ``scales`` per parameter name or friction
+    kind (``fv_zeta`` ...), else the magnitude of the CAD value, else :data:`FRICTION_SCALES`.
+    """
 
     forgetting: float = field(default=0.999, metadata=spec(in_range(0.5, 1.0)))
     threshold: float = field(default=100.0, metadata=spec(
         positive, doc="eigenvalue threshold of the scaled information matrix: 100 = 10 % relative std"))
+    output_noise: float = field(default=0.001, metadata=spec(
+        positive, unit="A", doc="standard deviation of a motor current after the parallel filter and decimation "
+                                "(1 mA: the drives' resolution)"))
+    scales: dict[str, float] = field(default_factory=dict)
+    damping: float = field(default=100.0, metadata=spec(
+        positive, doc="regularisation of the damped-RLS baseline, in the scaled units of the threshold"))
+
+    def _check(self) -> None:
+        kinds = set(InertialParams.NAMES) | set(FRICTION_SCALES)
+        for name, value in self.scales.items():
+            if name not in kinds:
+                raise FieldError(f"scales.{name}", f"unknown parameter or kind; expected one of {sorted(kinds)}")
+            if not value > 0:
+                raise FieldError(f"scales.{name}", f"must be positive, got {value}")
+
+    def parameter_scales(self, cad) -> tuple[float, ...]:
+        """(n,) the scale of every parameter of ``InertialParams.NAMES`` (see the class)."""
+        out = []
+        for name, value in zip(InertialParams.NAMES, cad):
+            kind = parameter_kind(name)
+            scale = self.scales.get(name, self.scales.get(kind, abs(value) or FRICTION_SCALES.get(kind, 0.0)))
+            if not scale > 0:
+                raise FieldError(f"scales.{name}", "no CAD value to take a scale from: give one")
+            out.append(float(scale))
+        return tuple(out)
 
 
 @dataclass(frozen=True)
@@ -463,6 +521,10 @@ class Config:
                 raise FieldError("sim.fault.node_id", f"no actuator with node id {fault.node_id}")
             if not self.sim.in_process:
                 raise FieldError("sim.fault", "fault injection needs the in-process rig (sim.in_process: true)")
+        for i, t in enumerate(self.trajectories):
+            if t.payload is not None and (self.sim is None or not self.sim.in_process):
+                raise FieldError(f"trajectories[{i}].payload", "a payload is put on by the in-process simulated "
+                                 "rig (sim.in_process: true)")
 
     @property
     def simulated(self) -> bool:

@@ -108,13 +108,17 @@ def repeat(traj: trajectories.Trajectory, cycles: int) -> trajectories.Trajector
     return trajectories.Trajectory(traj.name, t, metadata={**traj.metadata, "cycles": cycles}, **arrays)
 
 
-def plan(config: Config, names: list[str] | None = None) -> list[PlannedTrajectory]:
-    """Build and check the config's trajectories (``names``: a subset, in campaign order)."""
+def plan(config: Config, names: list[str] | None = None, online: bool = False) -> list[PlannedTrajectory]:
+    """Build and check the config's trajectories (``names``: a subset, in campaign order), the
+    ``online_only`` ones where ``online`` (``ident-hw online``, ``check``) or named, after the others."""
     robot = robot_model(config)
     limits = config.robot.feasibility_limits()
     out = []
-    for tcfg in config.trajectories:
+    ordered = [t for t in config.trajectories if not t.online_only] + [t for t in config.trajectories if t.online_only]
+    for tcfg in ordered:
         if names is not None and tcfg.name not in names:
+            continue
+        if names is None and tcfg.online_only and not online:
             continue
         try:
             traj = build(config, tcfg, robot)
@@ -159,7 +163,7 @@ def check_campaign(config: Config, planned: list[PlannedTrajectory] | None = Non
     if config.identification is None:
         problems.append(f"{config.source}: identification: missing section (the steps that turn the "
                         "recordings into parameters; a run would move, record, then stop)")
-    for p in plan(config) if planned is None else planned:
+    for p in plan(config, online=True) if planned is None else planned:
         if not p.ok:
             problems.append(p.describe())
     return problems

@@ -124,19 +124,26 @@ def _progress(network, name: str, cycles: int, enabled: bool) -> Iterator[None]:
 
 
 @contextmanager
-def _injected_fault(session: Session, name: str) -> Iterator[None]:
-    """Arm the config's ``sim.fault`` when trajectory ``name`` starts streaming: it happens
-    ``after`` s of simulated time into the stream (:meth:`drivers.sim.SimulatedRig.schedule`)."""
-    fault = session.config.sim.fault if session.config.sim is not None else None
-    rig = session.rig
-    if fault is None or fault.trajectory != name or rig is None:
+def _injected_events(session: Session, name: str) -> Iterator[None]:
+    """Arm the config's ``sim.fault`` and the trajectory's ``payload`` when trajectory ``name``
+    starts streaming: each happens ``after`` s of simulated time into the stream
+    (:meth:`drivers.sim.SimulatedRig.schedule`); the payload is dropped again at its end."""
+    sim, rig = session.config.sim, session.rig
+    fault = sim.fault if sim is not None and sim.fault is not None and sim.fault.trajectory == name else None
+    payload = session.config.trajectory(name).payload
+    if rig is None or (fault is None and payload is None):
         yield
         return
-    rig.schedule(fault.after, lambda: rig.drive(fault.node_id).emcy(fault.code))
+    if fault is not None:
+        rig.schedule(fault.after, lambda: rig.drive(fault.node_id).emcy(fault.code))
+    if payload is not None:
+        rig.schedule(payload.after, lambda: rig.set_payload(payload.mass, payload.inertia))
     try:
         yield
     finally:
         rig.cancel_scheduled()
+        if payload is not None:
+            rig.set_payload(0.0)
 
 
 def _drive_states(session: Session, group: DriveGroup) -> dict:
@@ -160,7 +167,7 @@ def stream(session: Session, group: DriveGroup, planned: PlannedTrajectory, data
     window = np.array([a.limits.following_error for a in config.robot.actuators])
     if np.any(np.abs(group.positions() - traj.Theta[0]) > 0.5 * window):
         group.move_to(traj.Theta[0], speed_fraction=APPROACH_SPEED)
-    with _progress(session.network, traj.name, len(traj.t), show_progress), _injected_fault(session, traj.name):
+    with _progress(session.network, traj.name, len(traj.t), show_progress), _injected_events(session, traj.name):
         return group.run_cyclic(traj.Theta, 1.0 / sample_rate(config), output=data / f"{traj.name}.npz",
                                 raw_log=data / f"{traj.name}{config.output.raw_log}",
                                 metadata={"trajectory": traj.name, "config": Path(config.source).name})
@@ -184,7 +191,7 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
     folder = Path(folder)
     data = folder / "data"
     say = log or (lambda _message: None)
-    planned = plan(config)
+    planned = plan(config, online=online is not None)
     recordings: dict[str, Recording] = {}
     states: dict = {}
     try:
@@ -215,7 +222,7 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
         mark_status(folder, "identifying")
         results = identify(config, recordings, progress=say)
         if online is not None:
-            results.online = online.trace()
+            results.online = online.trace(results.base_fit)
         mark_status(folder, final_status(results))    # before the report, which shows it
         save_results(folder, results)
     except BusOpenError as exc:

@@ -254,6 +254,14 @@ class SVDDLS(_RecursiveEstimator):
         self.rank_ = self.n_params - first
         return lam[first:], V[:, first:]
 
+    def held_directions(self) -> np.ndarray:
+        """(n, n − rank) the unit directions of the scaled parameters in which the estimate is
+        held (eigenvectors of ``R_t`` below the threshold)."""
+        lam, V, info = lapack.dsyevd(self._R, compute_v=1, lower=1)
+        if info != 0:
+            raise np.linalg.LinAlgError(f"dsyevd failed with info={info}")
+        return V[:, lam < self.threshold]
+
     @property
     def covariance_(self) -> np.ndarray:
         """Pseudo-inverse of ``R_t`` on the excited subspace, physical units (n, n)."""
