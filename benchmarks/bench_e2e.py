@@ -33,7 +33,8 @@ import can
 import numpy as np
 
 from drivers.acquisition import cycle_frame_sizes, event_bits_per_s
-from drivers.bus import SYNC_COB_ID, BusConfig, check_bus_load, cycle_bits, frame_bits, max_sync_rate, open_network
+from drivers.cia import SYNC_COB_ID
+from drivers.bus import BusConfig, check_bus_load, cycle_bits, frame_bits, max_sync_rate, open_network
 from drivers.epos import DriveGroup
 from drivers.sim import Plant, SimulatedRig
 from ident_hw.config import load_config

@@ -32,18 +32,13 @@ from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import can
+from canopen.objectdictionary import ODVariable, datatypes
 
-from drivers.bus import SYNC_COB_ID
+from drivers.cia import SW_BIT13, SW_FAULT, SYNC_COB_ID, pdo_cob_id
 from drivers.profiles import DriveProfile, ObjectRef
 
 #: fields of a sample, in drive units
 FIELDS = ("position", "velocity", "current", "statusword", "target")
-
-_STRUCT_CODES = {"INTEGER8": "b", "UNSIGNED8": "B", "INTEGER16": "h", "UNSIGNED16": "H",
-                 "INTEGER32": "i", "UNSIGNED32": "I"}
-
-STATUS_FAULT = 0x0008  # statusword bit 3
-STATUS_FOLLOWING_ERROR = 0x2000  # statusword bit 13 (homing error in HMM)
 
 
 @dataclass(frozen=True)
@@ -66,12 +61,14 @@ class PdoFrame:
     event_timer: int | None = None
 
     def cob_id(self, node_id: int) -> int:
-        base = 0x180 if self.direction == "tpdo" else 0x200
-        return base + 0x100 * (self.number - 1) + node_id
+        return pdo_cob_id(self.direction, self.number, node_id)
 
     @property
     def struct(self) -> struct.Struct:
-        return struct.Struct("<" + "".join(_STRUCT_CODES[ref.data_type] for _, ref in self.entries))
+        # canopen's own little-endian formats of the CiA 301 data types
+        formats = (ODVariable.STRUCT_TYPES[getattr(datatypes, ref.data_type)].format.lstrip("<")
+                   for _, ref in self.entries)
+        return struct.Struct("<" + "".join(formats))
 
     @property
     def size(self) -> int:
@@ -296,7 +293,7 @@ class CycleAssembler(can.Listener):
 
     def _status(self, axis: int, value: int) -> None:
         self._statusword[axis] = value
-        if value & (STATUS_FAULT | STATUS_FOLLOWING_ERROR) and not self._status_reported[axis]:
+        if value & (SW_FAULT | SW_BIT13) and not self._status_reported[axis]:
             self._status_reported[axis] = True
             if self._on_status is not None:
                 self._on_status(axis, value)

@@ -21,7 +21,6 @@ import canopen
 
 from drivers.errors import BusLoadError, BusOpenError, ConfigError
 
-SYNC_COB_ID = 0x080
 
 logger = logging.getLogger(__name__)
 

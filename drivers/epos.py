@@ -24,37 +24,57 @@ import numpy as np
 from canopen.profiles.p402 import Homing, State402
 from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
 
-from drivers.acquisition import (STATUS_FAULT, STATUS_FOLLOWING_ERROR, AxisLayout, CycleAssembler, cycle_books,
-                                 PdoFrame, cycle_frame_sizes, event_bits_per_s, pdo_layout)
+from drivers.acquisition import (
+    AxisLayout,
+    CycleAssembler,
+    PdoFrame,
+    cycle_books,
+    cycle_frame_sizes,
+    event_bits_per_s,
+    pdo_layout,
+)
 from drivers.axis import AxisConfig
-from drivers.bus import SYNC_COB_ID, BusConfig, check_bus_load, frame_bits
+from drivers.bus import BusConfig, check_bus_load, frame_bits
+from drivers.cia import (
+    CW_CHANGE_IMMEDIATELY,
+    CW_ENABLE_OPERATION,
+    CW_FAULT_RESET,
+    CW_NEW_SETPOINT,
+    HEARTBEAT_CONSUMER,
+    MODE_HMM,
+    MODE_PPM,
+    NMT_ENTER_PRE_OPERATIONAL,
+    NMT_OPERATIONAL,
+    SW_BIT12,
+    SW_BIT13,
+    SW_FAULT,
+    SW_TARGET_REACHED,
+    SYNC_COB_ID,
+    state_of,
+)
 from drivers.emcy import describe
-from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, HeartbeatTimeout, NodeError
+from drivers.errors import (
+    BringUpError,
+    ConfigError,
+    DriveError,
+    DriveFault,
+    HeartbeatTimeout,
+    NodeError,
+)
 from drivers.gc_freeze import GcPauses, frozen_gc
-from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, load_object_dictionary, make_object_dictionary
+from drivers.profiles import (
+    VENDOR_ID_MAXON,
+    ObjectRef,
+    load_object_dictionary,
+    make_object_dictionary,
+)
 from drivers.recording import FlushingLogger, Recording, SampleRecorder
 from drivers.supervision import Supervisor
 from drivers.sync import SYNC_MODES, LockstepSync
 
 logger = logging.getLogger(__name__)
 
-CW_ENABLE_OPERATION = State402.CW_OPERATION_ENABLED  # 0x000F
-CW_NEW_SETPOINT = 0x0010  # PPM bit 4; HMM "homing operation start"
-CW_CHANGE_IMMEDIATELY = 0x0020  # PPM bit 5
-CW_FAULT_RESET = 0x0080
-SW_TARGET_REACHED = 0x0400  # bit 10
-SW_SETPOINT_ACK = 0x1000  # bit 12 (PPM set-point acknowledge, HMM homing attained)
-MODE_PPM, MODE_HMM = 1, 6
-HEARTBEAT_CONSUMER = (0x1016, 1)  # consumer heartbeat time 1: node-ID << 16 | time in ms
-NMT_OPERATIONAL = 0x05  # heartbeat state byte
 WAIT_POLL = 0.02  # s between two statusword polls of the drives while they home or move
-
-
-def _state_of(statusword: int) -> str:
-    for state, (mask, value) in State402.SW_MASK.items():
-        if statusword & mask == value:
-            return state
-    return "UNKNOWN"
 
 
 class EposDrive:
@@ -117,7 +137,7 @@ class EposDrive:
         while True:
             if self.node.nmt.timestamp is not None:
                 return
-            self.node.nmt.send_command(0x80)  # enter PRE-OPERATIONAL: a STOPPED node answers no SDO
+            self.node.nmt.send_command(NMT_ENTER_PRE_OPERATIONAL)  # a STOPPED node answers no SDO
             try:
                 self._var((0x1000, 0)).raw
                 return
@@ -231,7 +251,7 @@ class EposDrive:
     @property
     def state(self) -> str:
         """CiA 402 state name, from the statusword read by SDO."""
-        return _state_of(self.statusword)
+        return state_of(self.statusword)
 
     def _controlword(self, value: int) -> None:
         self.write(self.profile.controlword, value)
@@ -288,7 +308,7 @@ class EposDrive:
         deadline = self.clock() + timeout
         while True:
             sw = self.statusword
-            if not busy(_state_of(sw), sw) or self.clock() > deadline:
+            if not busy(state_of(sw), sw) or self.clock() > deadline:
                 return sw
             self.tick()
 
@@ -296,7 +316,7 @@ class EposDrive:
         """Disable voltage: SWITCH ON DISABLED (the motor is not powered). A drive in its fault
         reaction (braking on its own) is left to end it in FAULT, waiting up to ``timeout`` s."""
         sw = self._wait_while(lambda state, _: state == "FAULT REACTION ACTIVE", timeout)
-        state = _state_of(sw)
+        state = state_of(sw)
         if state == "FAULT REACTION ACTIVE":
             raise NodeError(self.label, f"still in FAULT REACTION ACTIVE after {timeout:g} s")
         if state not in ("SWITCH ON DISABLED", "FAULT", "NOT READY TO SWITCH ON"):
@@ -375,7 +395,7 @@ class EposDrive:
     def homing_done(self) -> bool:
         """True when homing is attained; raises on a homing error."""
         sw = self.statusword
-        if sw & STATUS_FAULT:
+        if sw & SW_FAULT:
             raise DriveFault(self.label, None, f"fault during homing ({self.error_text()})")
         for name, (mask, value) in Homing.STATES.items():
             if sw & mask == value:
@@ -397,10 +417,10 @@ class EposDrive:
 
     def move_done(self) -> bool:
         sw = self.statusword
-        if sw & (STATUS_FAULT | STATUS_FOLLOWING_ERROR):
+        if sw & (SW_FAULT | SW_BIT13):
             raise DriveFault(self.label, None, f"fault during the move, statusword 0x{sw:04X} "
                              f"({self.error_text()})")
-        if sw & SW_SETPOINT_ACK:
+        if sw & SW_BIT12:
             self._controlword(CW_ENABLE_OPERATION)  # release the new-set-point handshake
             return False
         return bool(sw & SW_TARGET_REACHED)
@@ -773,7 +793,7 @@ class DriveGroup:
             period=period if lockstep else None,
             on_status=lambda i, sw: self.supervisor.report(DriveFault(
                 self.drives[i].label, None, f"statusword 0x{sw:04X}: " +
-                ("fault bit" if sw & STATUS_FAULT else "following error bit"))),
+                ("fault bit" if sw & SW_FAULT else "following error bit"))),
             on_bus_error=self.supervisor.bus_error, max_cycles=len(targets),
             forward=[raw] if raw else [])
         self.network.notifier.add_listener(assembler)

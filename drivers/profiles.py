@@ -49,6 +49,8 @@ from canopen.objectdictionary import (
     datatypes,
 )
 
+from drivers.cia import EMCY_COB_BASE, SYNC_COB_ID, pdo_cob_id
+
 VENDOR_ID_MAXON = 0x000000FB
 
 
@@ -256,7 +258,7 @@ def _add_communication_objects(od: ObjectDictionary, prof: DriveProfile, node_id
     # the EPOS4 (maxon EDS, firmware 0x0110, and DCF, firmware 0x0170): 0x1005 const, 0x1008 and
     # 0x1014 read-only, no 0x1006/0x1009/0x100A
     epos4_like = not prof.cia301_optional
-    od.add_object(_var("COB-ID SYNC", 0x1005, 0, "UNSIGNED32", "const" if epos4_like else "rw", 0x80))
+    od.add_object(_var("COB-ID SYNC", 0x1005, 0, "UNSIGNED32", "const" if epos4_like else "rw", SYNC_COB_ID))
     if prof.cia301_optional:
         od.add_object(_var("Communication cycle period", 0x1006, 0, "UNSIGNED32", "rw", 0, unit="us"))
     od.add_object(_var("Manufacturer device name", 0x1008, 0, "VISIBLE_STRING", "ro" if epos4_like else "const",
@@ -264,7 +266,7 @@ def _add_communication_objects(od: ObjectDictionary, prof: DriveProfile, node_id
     if prof.cia301_optional:
         od.add_object(_var("Manufacturer hardware version", 0x1009, 0, "VISIBLE_STRING", "const", "6410h"))
         od.add_object(_var("Manufacturer software version", 0x100A, 0, "VISIBLE_STRING", "const", "2126h"))
-    od.add_object(_var("COB-ID EMCY", 0x1014, 0, "UNSIGNED32", "ro" if epos4_like else "rw", 0x80 + node_id))
+    od.add_object(_var("COB-ID EMCY", 0x1014, 0, "UNSIGNED32", "ro" if epos4_like else "rw", EMCY_COB_BASE + node_id))
     _record(od, "Consumer heartbeat time", 0x1016, [(1, "Consumer heartbeat time 1", "UNSIGNED32", "rw", 0)],
             array=True)
     od.add_object(_var("Producer heartbeat time", 0x1017, 0, "UNSIGNED16", "rw", 0, unit="ms"))
@@ -282,7 +284,7 @@ def _add_communication_objects(od: ObjectDictionary, prof: DriveProfile, node_id
     for n in range(prof.rpdo_count):
         valid = 0 if n == 0 else 1 << 31
         _record(od, f"Receive PDO {n + 1} parameter", 0x1400 + n, [
-            (1, "COB-ID used by RPDO", "UNSIGNED32", "rw", valid | (0x200 + 0x100 * n + node_id)),
+            (1, "COB-ID used by RPDO", "UNSIGNED32", "rw", valid | pdo_cob_id("rpdo", n + 1, node_id)),
             (2, "Transmission type", "UNSIGNED8", "rw", 255),
         ] + ([(5, "Event timer", "UNSIGNED16", "rw", 0, False, "ms")]   # deadline monitoring, 0 = off
              if prof.pdo_event_timer else []))
@@ -295,7 +297,7 @@ def _add_communication_objects(od: ObjectDictionary, prof: DriveProfile, node_id
     for n in range(prof.tpdo_count):
         valid = 0 if n == 0 else 1 << 31
         _record(od, f"Transmit PDO {n + 1} parameter", 0x1800 + n, [
-            (1, "COB-ID used by TPDO", "UNSIGNED32", "rw", valid | (0x180 + 0x100 * n + node_id)),
+            (1, "COB-ID used by TPDO", "UNSIGNED32", "rw", valid | pdo_cob_id("tpdo", n + 1, node_id)),
             (2, "Transmission type", "UNSIGNED8", "rw", 255),
             (3, "Inhibit time", "UNSIGNED16", "rw", 0, False, "100us"),
         ] + ([(5, "Event timer", "UNSIGNED16", "rw", 0, False, "ms")] if prof.pdo_event_timer else []))

@@ -29,7 +29,7 @@ from typing import Callable, Mapping
 import can
 import canopen
 
-from drivers.bus import SYNC_COB_ID
+from drivers.cia import SYNC_COB_ID
 from drivers.errors import DriveError
 
 #: the SYNC producers a run can use (``bus.sync`` of a config)

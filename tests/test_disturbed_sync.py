@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from drivers import bus as bus_module
-from drivers.bus import SYNC_COB_ID
+from drivers.cia import SYNC_COB_ID
 from ident_hw.config import load_config
 from ident_hw.experiment import runner
 from ident_hw.experiment.results import new_results_folder

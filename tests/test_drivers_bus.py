@@ -13,7 +13,8 @@ import can
 import numpy as np
 import pytest
 
-from drivers.bus import SYNC_COB_ID, BusConfig, GridPeriodicTask, open_network
+from drivers.bus import BusConfig, GridPeriodicTask, open_network
+from drivers.cia import SYNC_COB_ID
 
 PERIOD = 0.005
 _channels = itertools.count()

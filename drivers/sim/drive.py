@@ -42,22 +42,32 @@ from dataclasses import dataclass
 import canopen
 from canopen.sdo import SdoAbortedError
 
+from drivers.cia import (
+    CW_FAULT_RESET,
+    CW_HALT,
+    CW_NEW_SETPOINT,
+    CW_RELATIVE,
+    MODE_HMM,
+    MODE_PPM,
+    NMT_ENTER_PRE_OPERATIONAL,
+    NMT_OPERATIONAL,
+    NMT_STOPPED,
+    SW_BIT12,
+    SW_HOMED,
+    SW_REMOTE,
+    SW_TARGET_REACHED,
+    SW_VOLTAGE_ENABLED,
+    state_bits,
+)
 from drivers.profiles import get_profile, make_object_dictionary
 from drivers.units import AxisScaling
 
 logger = logging.getLogger(__name__)
 
-# CiA 402 states and their statusword bits (bit 5 "quick stop" is 1 unless quick-stopping)
+# CiA 402 state names (canopen's; their statusword bits: drivers.cia.state_bits)
 NOT_READY, DISABLED, READY, SWITCHED_ON, ENABLED, QUICK_STOP, FAULT_REACTION, FAULT = (
     "NOT READY TO SWITCH ON", "SWITCH ON DISABLED", "READY TO SWITCH ON", "SWITCHED ON",
     "OPERATION ENABLED", "QUICK STOP ACTIVE", "FAULT REACTION ACTIVE", "FAULT")
-STATE_BITS = {NOT_READY: 0x0000, DISABLED: 0x0040, READY: 0x0021, SWITCHED_ON: 0x0023,
-              ENABLED: 0x0027, QUICK_STOP: 0x0007, FAULT_REACTION: 0x000F, FAULT: 0x0008}
-SW_VOLTAGE, SW_REMOTE, SW_TARGET_REACHED = 0x0010, 0x0200, 0x0400
-SW_BIT12, SW_BIT13, SW_HOMED = 0x1000, 0x2000, 0x8000
-CW_NEW_SETPOINT, CW_CHANGE_NOW, CW_RELATIVE, CW_FAULT_RESET, CW_HALT = 0x10, 0x20, 0x40, 0x80, 0x100
-
-MODE_PPM, MODE_HMM = 1, 6
 HOME_HERE = (35, 37)  # homing methods "actual position" (CiA 402 35, maxon 37)
 HOMING_TRAVEL_TURNS = 0.5  # motor turns of the emulated search move of the other methods
 
@@ -65,7 +75,6 @@ EMCY_FOLLOWING_ERROR, EMCY_OVERCURRENT, EMCY_PDO_LENGTH, EMCY_HEARTBEAT = 0x8611
 EMCY_RPDO_TIMEOUT = 0x8250
 ABORT_VALUE_RANGE, ABORT_NOT_MAPPABLE, ABORT_PDO_LENGTH = 0x06090030, 0x06040041, 0x06040042
 
-NMT_OPERATIONAL, NMT_STOPPED = 5, 4
 _PDO_PARAMS = range(0x1400, 0x1C00)
 
 
@@ -436,7 +445,7 @@ class EmulatedDrive:
         """Boot-up message, then PRE-OPERATIONAL with the heartbeat of ``0x1017``."""
         self.node.emcy.cob_id = self.get(0x1014) & 0x7FF
         self.node.nmt.send_command(0x81)   # -> INITIALISING, sends the boot-up frame
-        self.node.nmt.send_command(0x80)   # -> PRE-OPERATIONAL, starts the heartbeat
+        self.node.nmt.send_command(NMT_ENTER_PRE_OPERATIONAL)   # starts the heartbeat
 
     # -- EMCY and faults ----------------------------------------------------------------------------
     def emcy(self, code: int, fault: bool = True) -> None:
@@ -463,9 +472,9 @@ class EmulatedDrive:
 
     # -- CiA 402 ----------------------------------------------------------------------------------
     def _statusword(self) -> int:
-        sw = STATE_BITS[self.state] | SW_REMOTE
+        sw = state_bits(self.state) | SW_REMOTE
         if self.state not in (NOT_READY, DISABLED):
-            sw |= SW_VOLTAGE
+            sw |= SW_VOLTAGE_ENABLED
         if self.state in (ENABLED, QUICK_STOP):
             sw |= self._mode_bits
         return sw | (SW_HOMED if self._homed else 0)

@@ -51,6 +51,7 @@ import numpy as np
 from drivers.axis import AxisConfig
 from drivers.bus import BusConfig, open_bus
 from drivers.gc_freeze import frozen_gc
+from drivers.cia import SYNC_COB_ID
 from drivers.sim.drive import EMCY_FOLLOWING_ERROR, FAULT, FAULT_REACTION, EmulatedDrive
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP, Plant, PlantJammed
 from drivers.units import AxisScaling
@@ -58,7 +59,6 @@ from ident_hw.model import Geometry, InertialParams, ThreePRRR
 
 logger = logging.getLogger(__name__)
 
-SYNC_COB_ID = 0x80
 IDLE_AFTER = 0.05      # s without SYNC after which the clock thread moves the plant
 IDLE_STEP = 0.005      # s, plant step of the clock thread
 CLOCK_TICK = 0.001     # s

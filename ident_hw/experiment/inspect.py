@@ -10,19 +10,13 @@ from dataclasses import dataclass
 import can
 import canopen
 from canopen.nmt import NMT_STATES
-from canopen.profiles.p402 import State402
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
+from drivers.cia import state_of
 from drivers.epos import DriveGroup
 from drivers.errors import NodeError
 from drivers.profiles import VENDOR_ID_MAXON
 from ident_hw.config import Config
-
-
-def cia402_state(statusword: int) -> str:
-    """CiA 402 state name of a statusword (canopen's masks)."""
-    return next((name for name, (mask, value) in State402.SW_MASK.items() if statusword & mask == value),
-                "UNKNOWN")
 
 
 @dataclass
@@ -107,7 +101,7 @@ def read_node(network: canopen.Network, node_id: int, heard: int | None = None,
     return NodeInfo(node_id=node_id, device_name=_text(name), firmware=_text(_upload(node, 0x100A)),
                     vendor_id=identity[0], product_code=identity[1], revision=identity[2],
                     nmt_state=nmt_state(heard, answers, struct.unpack_from("<H", heartbeat)[0] if heartbeat else None),
-                    cia402_state=cia402_state(struct.unpack_from("<H", status)[0]) if status else None)
+                    cia402_state=state_of(struct.unpack_from("<H", status)[0]) if status else None)
 
 
 def scan(network: canopen.Network, wait: float = 1.0) -> dict[int, int | None]:

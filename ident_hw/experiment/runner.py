@@ -30,7 +30,7 @@ import can
 import numpy as np
 from tqdm import tqdm
 
-from drivers.bus import SYNC_COB_ID
+from drivers.cia import SYNC_COB_ID
 from drivers.epos import DriveGroup
 from drivers.errors import BusOpenError, DriveError, NodeError
 from drivers.recording import Recording
