@@ -71,6 +71,7 @@ from drivers.profiles import (
 from drivers.recording import FlushingLogger, Recording, SampleRecorder
 from drivers.supervision import Supervisor
 from drivers.sync import SYNC_MODES, LockstepSync
+from drivers.units import AxesScaling
 
 logger = logging.getLogger(__name__)
 
@@ -758,8 +759,8 @@ class DriveGroup:
         self._check_positions(targets, "run_cyclic targets")
         self.supervisor.raise_if_fault()
         load = self.check_bus_load(period)
-        counts = np.column_stack([np.rint(targets[:, i] * a.scaling.counts_per_unit)
-                                  for i, a in enumerate(self.axes)]).astype(np.int64)
+        units = AxesScaling([a.scaling for a in self.axes])
+        counts = units.counts_from_position(targets)
         if np.abs(counts).max() >= 2**31:
             raise ConfigError("run_cyclic targets: beyond the I32 range of the drives' counts")
         sync_timeout = sync_timeout or max(0.5, 50 * period)
@@ -852,9 +853,8 @@ class DriveGroup:
                                        sync_slots_skipped=getattr(sync, "skipped", None),
                                        lockstep_retries=lockstep.retries if lockstep else None)
         if len(recording.t):
-            sent = counts[: len(recording.t)] / [a.scaling.counts_per_unit for a in self.axes]
-            late = np.any(np.abs(recording.target - sent) > 0.5 / np.array(
-                [a.scaling.counts_per_unit for a in self.axes]), axis=1)
+            sent = units.position_from_counts(counts[: len(recording.t)])
+            late = np.any(np.abs(recording.target - sent) > units.position_from_counts(0.5), axis=1)
             recording.metadata["late_setpoints"] = int(np.count_nonzero(late))
         if error is not None:
             if isinstance(error, DriveFault):

@@ -39,7 +39,7 @@ import numpy as np
 from drivers.acquisition import AxisLayout, CycleAssembler, Row, cycle_books, pdo_layout
 from drivers.axis import AxisConfig
 from drivers.errors import ConfigError, RecordingError
-from drivers.units import REVOLUTE
+from drivers.units import REVOLUTE, AxesScaling
 
 logger = logging.getLogger(__name__)
 
@@ -71,16 +71,15 @@ def rows_to_arrays(rows: Sequence[Row], axes: Sequence[AxisConfig]) -> dict[str,
         data = [[missing if v is None else v for v in getattr(r, name)] for r in rows]
         return np.array(data, dtype=dtype).reshape(len(rows), n)
 
-    counts_per_unit = np.array([a.scaling.counts_per_unit for a in axes])
-    rpm_per_unit = np.array([a.scaling.rpm_per_unit_velocity for a in axes])
+    units = AxesScaling([a.scaling for a in axes])
     return {
         "t": np.array([r.timestamp for r in rows], dtype=float),
         "cycle": np.array([r.cycle for r in rows], dtype=np.int64),
-        "position": column("position", np.nan, float) / counts_per_unit,
-        "velocity": column("velocity", np.nan, float) / rpm_per_unit,
-        "current": column("current", np.nan, float) * 1e-3,
+        "position": units.position_from_counts(column("position", np.nan, float)),
+        "velocity": units.velocity_from_rpm(column("velocity", np.nan, float)),
+        "current": units.current_from_ma(column("current", np.nan, float)),
         "statusword": column("statusword", -1, np.int32),
-        "target": column("target", np.nan, float) / counts_per_unit,
+        "target": units.position_from_counts(column("target", np.nan, float)),
         "valid": column("valid", False, bool),
     }
 

@@ -3,15 +3,22 @@
 This is the only place where drive units meet SI units. Joint-side SI units are rad, rad/s
 for a revolute axis and m, m/s for a prismatic (screw-driven carriage) axis; motor current
 is in A. Forces are N·m (revolute, at the link) or N (prismatic, at the carriage).
+:class:`AxisScaling` converts one axis; :class:`AxesScaling` the columns of arrays
+(samples × axes) of several.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
 
 REVOLUTE = "revolute"
 PRISMATIC = "prismatic"
+#: drive current unit per A
+MA_PER_AMP = 1e3
 
 
 @dataclass(frozen=True)
@@ -79,7 +86,7 @@ class AxisScaling:
 
     @staticmethod
     def current_from_ma(milliamps):
-        return milliamps * 1e-3
+        return milliamps / MA_PER_AMP
 
     # SI -> drive units (rounded to the integer the drive takes)
     def counts_from_position(self, position):
@@ -90,4 +97,48 @@ class AxisScaling:
 
     @staticmethod
     def ma_from_current(amps):
-        return round(amps * 1e3)
+        return round(amps * MA_PER_AMP)
+
+
+class AxesScaling:
+    """The scalings of several axes, converting arrays whose last axis runs over them
+    (e.g. samples × axes); drive units in, SI out and back (rounded to whole counts, rpm, mA).
+
+    Args:
+        scalings: one :class:`AxisScaling` per axis, in column order.
+    """
+
+    def __init__(self, scalings: Sequence[AxisScaling]):
+        self.scalings = tuple(scalings)
+        self.counts_per_unit = np.array([s.counts_per_unit for s in self.scalings])
+        self.rpm_per_unit_velocity = np.array([s.rpm_per_unit_velocity for s in self.scalings])
+        self.force_per_amp = np.array([s.force_per_amp for s in self.scalings])
+
+    # drive units -> SI (float arrays; NaN stays NaN)
+    def position_from_counts(self, counts) -> np.ndarray:
+        return np.asarray(counts, dtype=float) / self.counts_per_unit
+
+    def velocity_from_rpm(self, rpm) -> np.ndarray:
+        return np.asarray(rpm, dtype=float) / self.rpm_per_unit_velocity
+
+    @staticmethod
+    def current_from_ma(milliamps) -> np.ndarray:
+        return np.asarray(milliamps, dtype=float) / MA_PER_AMP
+
+    # SI -> drive units (int64 arrays)
+    def counts_from_position(self, position) -> np.ndarray:
+        return np.rint(np.asarray(position, dtype=float) * self.counts_per_unit).astype(np.int64)
+
+    def rpm_from_velocity(self, velocity) -> np.ndarray:
+        return np.rint(np.asarray(velocity, dtype=float) * self.rpm_per_unit_velocity).astype(np.int64)
+
+    @staticmethod
+    def ma_from_current(amps) -> np.ndarray:
+        return np.rint(np.asarray(amps, dtype=float) * MA_PER_AMP).astype(np.int64)
+
+    # motor current <-> joint force (SI both)
+    def force_from_current(self, amps) -> np.ndarray:
+        return np.asarray(amps, dtype=float) * self.force_per_amp
+
+    def current_from_force(self, force) -> np.ndarray:
+        return np.asarray(force, dtype=float) / self.force_per_amp

@@ -14,7 +14,7 @@ from drivers.emcy import describe
 from drivers.epos import DriveGroup
 from drivers.errors import BusLoadError, ConfigError, RecordingError
 from drivers.recording import FlushingLogger, Recording, decode_log, rows_to_arrays
-from drivers.units import AxisScaling
+from drivers.units import AxesScaling, AxisScaling
 
 
 def test_frame_bits_match_worst_case_stuffing_formula():
@@ -219,3 +219,20 @@ def test_drive_group_takes_bus_settings_from_the_network_and_checks_master_id():
         assert group.check_bus_load(0.004) == pytest.approx(bits_per_s / 500_000, rel=1e-12)
     finally:
         network.disconnect()
+
+
+def test_axes_scaling_converts_columns_by_hand_values():
+    """A revolute axis (2048 counts/turn, gear 26, K_m 0.0369 N·m/A) and a carriage (2048
+    counts/turn, 2 mm lead, K_m 0.0603): values computed by hand from the drive data."""
+    rev = AxisScaling("revolute", 2048, 0.0369, gear_ratio=26.0)
+    lin = AxisScaling("prismatic", 2048, 0.0603, screw_lead=0.002)
+    units = AxesScaling([rev, lin])
+    counts = units.counts_from_position([[1.0, 0.01]])
+    assert counts.tolist() == [[round(2048 * 26 / (2 * np.pi)), round(2048 * 0.01 / 0.002)]]  # 8475, 10240
+    np.testing.assert_allclose(units.position_from_counts([[8475, 10240]]),
+                               [[8475 * 2 * np.pi / (2048 * 26), 0.01]], rtol=1e-15)
+    assert units.rpm_from_velocity([[1.0, 0.002]]).tolist() == [[round(60 * 26 / (2 * np.pi)), 60]]
+    assert units.ma_from_current([[0.5, -1.2346]]).tolist() == [[500, -1235]]
+    np.testing.assert_allclose(units.force_from_current([[1.0, 1.0]]),
+                               [[0.0369 * 26, 0.0603 * 2 * np.pi / 0.002]], rtol=1e-15)
+    np.testing.assert_allclose(units.current_from_force(units.force_from_current([[0.3, -0.7]])), [[0.3, -0.7]])

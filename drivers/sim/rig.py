@@ -50,11 +50,11 @@ import numpy as np
 
 from drivers.axis import AxisConfig
 from drivers.bus import BusConfig, open_bus
-from drivers.gc_freeze import frozen_gc
 from drivers.cia import SYNC_COB_ID
+from drivers.gc_freeze import frozen_gc
 from drivers.sim.drive import EMCY_FOLLOWING_ERROR, FAULT, FAULT_REACTION, EmulatedDrive
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP, Plant, PlantJammed
-from drivers.units import AxisScaling
+from drivers.units import MA_PER_AMP, AxesScaling, AxisScaling
 from ident_hw.model import Geometry, InertialParams, ThreePRRR
 
 logger = logging.getLogger(__name__)
@@ -169,10 +169,7 @@ class SimulatedRig:
         self.drives = [EmulatedDrive(node_id, profile, scaling, self.network, self._lock, lambda: self.time)
                        for node_id, profile, scaling in nodes]
         self._by_id = {d.id: d for d in self.drives}
-        scalings = [n[2] for n in nodes]
-        self._counts_per_unit = np.array([s.counts_per_unit for s in scalings])
-        self._rpm_per_unit = np.array([s.rpm_per_unit_velocity for s in scalings])
-        self._force_per_amp = np.array([s.force_per_amp for s in scalings])
+        self._units = AxesScaling([n[2] for n in nodes])
         self.sync_count = 0             # SYNC frames received
         self.syncs_done = 0             # SYNC cycles finished (the TPDOs sent, the plant stepped)
         self.sync_time = 0.0            # s, simulated time of the SYNC cycles finished
@@ -224,7 +221,7 @@ class SimulatedRig:
             self.network.bus = open_bus(BusConfig.from_mapping(settings, "simulated rig bus"))
         self.network.connect()
         self._serving.enter_context(frozen_gc())
-        counts = np.rint(self.plant.Theta * self._counts_per_unit).astype(np.int64)
+        counts = self._units.counts_from_position(self.plant.Theta)
         with self._lock:
             for drive, c in zip(self.drives, counts):
                 drive.offset = int(c)   # incremental encoders read 0 at power-up
@@ -336,17 +333,17 @@ class SimulatedRig:
             demand[:, j] = drive.plan(nominal)
         offsets = np.array([d.offset for d in self.drives], dtype=float)
         demand[0] += offsets
-        demand /= self._counts_per_unit
+        demand = self._units.position_from_counts(demand)
         enabled = np.array([d.powered for d in self.drives])
         limit_ma = [d.get(d.profile.current_limit.index, d.profile.current_limit.subindex) for d in self.drives]
-        limit = np.array(limit_ma, dtype=float) * 1e-3 * self._force_per_amp
+        limit = self._units.force_from_current(self._units.current_from_ma(limit_ma))
         plant = self.plant
         force = plant.control(demand[0], demand[1], enabled, limit)
-        milliamps = force / self._force_per_amp * 1e3
+        milliamps = self._units.current_from_force(force) * MA_PER_AMP     # before noise and rounding
         if self.current_noise_ma:
             milliamps += self._rng.normal(0.0, self.current_noise_ma, 6)
-        counts = np.rint(plant.Theta * self._counts_per_unit).astype(np.int64) - offsets.astype(np.int64)
-        rpm = np.rint(plant.Thetad * self._rpm_per_unit).astype(np.int64)
+        counts = self._units.counts_from_position(plant.Theta) - offsets.astype(np.int64)
+        rpm = self._units.rpm_from_velocity(plant.Thetad)
         milliamps = np.rint(milliamps).astype(np.int64)
         for j, drive in enumerate(self.drives):
             drive.update(int(counts[j]), int(rpm[j]), int(milliamps[j]), period)

@@ -151,8 +151,8 @@ def snapshot(group: DriveGroup) -> list[dict]:
         try:
             row["state"] = drive.state
             row["position"] = drive.position()
-            row["velocity"] = drive.read(p.velocity_actual) / s.rpm_per_unit_velocity
-            row["current"] = drive.read(p.current_actual) * 1e-3
+            row["velocity"] = s.velocity_from_rpm(drive.read(p.velocity_actual))
+            row["current"] = s.current_from_ma(drive.read(p.current_actual))
             row["error"] = drive.error_text()
         except NodeError as exc:
             row["state"] = f"no answer ({exc})"

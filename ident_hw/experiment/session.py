@@ -20,6 +20,7 @@ from drivers.bus import open_network
 from drivers.epos import DriveGroup
 from drivers.errors import BusOpenError
 from drivers.sim import SimulatedRig
+from drivers.units import MA_PER_AMP
 from ident_hw.config import Config
 
 
@@ -43,7 +44,7 @@ def simulated_rig(config: Config) -> SimulatedRig:
                               coulomb_width=robot.coulomb_width, bandwidth_hz=sim.bandwidth, damping=sim.damping,
                               **({"max_substep": sim.max_substep} if sim.max_substep else {}),
                               sync_period=1.0 / config.bus.sync_rate if lockstep else None,
-                              current_noise_ma=sim.current_noise * 1e3, seed=sim.seed, lockstep=lockstep,
+                              current_noise_ma=sim.current_noise * MA_PER_AMP, seed=sim.seed, lockstep=lockstep,
                               interface=config.bus.interface, channel=config.bus.channel, ignore_config=True)
 
 
