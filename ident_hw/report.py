@@ -747,18 +747,22 @@ def _html(folder: Path, results: Results, table: dict, images: list[tuple[str, P
     has_truth = p.truth is not None
     head = ["parameter", "unit", "initial (CAD)", "identified", "σ", "%σ"]
     head += ["truth", "error %"] if has_truth else []
-    head += ["bounds", "step / method"]
+    head += ["bounds", "step / method", "on this data"]
     rows, poor = [], []
     for r in p.rows():
         rel = r["rel_sigma_percent"]
-        if _poorly_identified(r, results):
+        flagged = _poorly_identified(r, results)
+        if flagged:
             poor.append(r["name"])
         cells = [r["name"], r["unit"], _fmt(r["initial"]), _fmt(r["identified"]) if r["step"] else "(held)",
-                 _fmt(r["sigma"]), _fmt(rel, ".2f")]
+                 _fmt(r["sigma"]), _fmt_rel(rel)]
         if has_truth:
             cells += [_fmt(r.get("truth")), _fmt(r.get("error_percent"), "+.2f")]
         cells += [f"[{_fmt(r['bounds'][0])}, {_fmt(r['bounds'][1])}]", f"{r['step']} / {r['method']}" if r["step"] else ""]
-        rows.append("<tr>" + "".join(f"<td>{esc(str(c))}</td>" for c in cells) + "</tr>")
+        cells.append("" if not r["step"] else
+                     f"poorly identified (%σ > {results.rel_sigma_threshold:g})" if flagged else "identified")
+        rows.append(("<tr class='poor'>" if flagged else "<tr>")
+                    + "".join(f"<td>{esc(str(c))}</td>" for c in cells) + "</tr>")
     metric_rows = []
     for name, m in table.items():
         for label, mm in [("step by step", m)] + ([("base fit", m["base_fit"])] if "base_fit" in m else []):
@@ -769,7 +773,7 @@ def _html(folder: Path, results: Results, table: dict, images: list[tuple[str, P
     if poor:
         notes.append(f"Poorly identified on their data (%σ > {results.rel_sigma_threshold:g} %): {', '.join(poor)}.")
     base = results.base_parameters or {}
-    if base.get("base_parameters"):
+    if base.get("base_parameters") and results.base_fit is None:     # else the base-fit table shows them
         items = "".join(f"<li><code>{esc(e)}</code></li>" for e in base["base_parameters"])
         unexcited = ", ".join(base.get("unexcited") or []) or "none"
         notes.append(f"Base parameters (rank {base.get('rank')} of {base.get('n_params')}):<ul>{items}</ul>"
@@ -784,7 +788,7 @@ def _html(folder: Path, results: Results, table: dict, images: list[tuple[str, P
 <html><head><meta charset="utf-8"><title>ident_hw report</title>
 <style>body{{font-family:sans-serif;max-width:1100px;margin:auto}} table{{border-collapse:collapse}}
 td,th{{border:1px solid #bbb;padding:2px 6px;text-align:right}} td:first-child{{text-align:left}}
-.partial{{color:#b00;font-weight:bold}} .ok{{color:#070}} img{{max-width:100%}}</style></head>
+.partial{{color:#b00;font-weight:bold}} .ok{{color:#070}} img{{max-width:100%}} tr.poor td{{color:#b00}}</style></head>
 <body><h1>3PRRR dynamic identification</h1>
 <p>Status: <span class="{status_class}">{esc(status)}</span></p>
 {verdict}
@@ -830,17 +834,23 @@ def _html_base_fit(fit: BaseFit) -> str:
     rows = []
     for r in fit.rows():
         cells = [r["base_parameter"], _fmt(r["initial"]), _fmt(r["identified"]), _fmt(r["sigma"]),
-                 _fmt(r["rel_sigma_percent"], ".2f")]
+                 _fmt_rel(r["rel_sigma_percent"])]
         if fit.truth is not None:
             cells += [_fmt(r.get("truth")), _fmt(r.get("error_percent"), "+.2f")]
         cells.append("identified" if r["well_identified"] else f"poorly identified (%σ > {fit.threshold:g})")
-        rows.append("<tr>" + "".join(f"<td>{esc(str(c))}</td>" for c in cells) + "</tr>")
+        rows.append(("<tr>" if r["well_identified"] else "<tr class='poor'>")
+                    + "".join(f"<td>{esc(str(c))}</td>" for c in cells) + "</tr>")
     held = f" Held at known values: {esc(', '.join(fit.held))}." if fit.held else ""
     unexcited = f" Not excited by the data: {esc(', '.join(fit.unexcited))}." if fit.unexcited else ""
     return (f"<h2>Base parameters: {esc(fit.method)} on {esc(', '.join(fit.trajectories))} (step {esc(fit.step)})</h2>"
             f"<p>Each combination is what the data determine (the SVD-DLS paper); σ from the least-squares statistics "
             f"(the power-model paper). Identified: %σ ≤ {fit.threshold:g}.{held}{unexcited}</p>"
             f"<table><tr>{''.join(f'<th>{esc(h)}</th>' for h in head)}</tr>{''.join(rows)}</table>")
+
+
+def _fmt_rel(value) -> str:
+    """A %σ: two decimals, or ``> 1e4`` for an estimate at zero (its bound)."""
+    return "> 1e4" if value is not None and math.isfinite(value) and value > 1e4 else _fmt(value, ".2f")
 
 
 def _fmt(value, spec: str = ".5g") -> str:

@@ -89,7 +89,11 @@ def test_results_folder_round_trip_and_metrics(tmp_path):
 
     text = page.read_text()
     assert "Table 1" in text and "m_l1" in text and "Poorly identified" in text
-    assert "I_l1 + 0.0225 m_l1" in text and "plots/forces_triangle.png" in text
+    # one base form: with a base fit its table's expressions, not the analysis list's
+    assert "-0.0225 m_l1 + I_l1" in text and "I_l1 + 0.0225 m_l1" not in text
+    assert "plots/forces_triangle.png" in text
+    # the poorly identified rows of both tables are marked in the row, not only in a note
+    assert text.count("<tr class='poor'>") >= 1 and "poorly identified (%σ &gt; 10)" in text
     lines = summary_lines(tmp_path)
     head = next(line for line in lines if line.split()[:1] == ["parameter"])
     assert "error %" in head and "initial" in head
