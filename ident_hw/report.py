@@ -39,14 +39,13 @@ import scipy.io
 import yaml
 from matplotlib.figure import Figure
 
+from ident_hw.identification.least_squares import POORLY_IDENTIFIED_PERCENT
 from ident_hw.identification.metrics import validation_metrics
 from ident_hw.model import ACTUATOR_NAMES
 
 FORCE_UNITS = ("N·m",) * 3 + ("N",) * 3
 POSITION_UNITS = ("rad",) * 3 + ("m",) * 3
 STATUS_FILE = "STATUS"
-#: default %sigma above which a parameter is reported as poorly identified on its data (the power-model paper)
-POOR_REL_SIGMA = 10.0
 
 
 def parameter_unit(name: str) -> str:
@@ -306,7 +305,7 @@ class Results:
     base_parameters: dict | None = None
     online: OnlineTrace | None = None
     base_fit: BaseFit | None = None
-    rel_sigma_threshold: float = POOR_REL_SIGMA
+    rel_sigma_threshold: float = POORLY_IDENTIFIED_PERCENT
     #: per trajectory: what its recording covered and what the fit used (``offline.coverage``)
     trajectories: dict = field(default_factory=dict)
     #: the quality verdict (``ident_hw.experiment.quality.verdict``); None: not judged
@@ -368,7 +367,7 @@ def load_results(folder: str | Path) -> Results:
     base_fit = BaseFit.from_dict(doc["base_fit"]) if doc.get("base_fit") else None
     return Results(parameters=ParameterTable.from_rows(doc["parameters"]), fits=fits,
                    steps=doc.get("steps") or [], base_parameters=doc.get("base_parameters"), online=online,
-                   base_fit=base_fit, rel_sigma_threshold=doc.get("rel_sigma_threshold_percent", POOR_REL_SIGMA),
+                   base_fit=base_fit, rel_sigma_threshold=doc.get("rel_sigma_threshold_percent", POORLY_IDENTIFIED_PERCENT),
                    trajectories=doc.get("trajectories") or {}, quality=doc.get("quality"))
 
 

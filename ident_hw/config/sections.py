@@ -18,6 +18,7 @@ import can
 import drivers.axis
 import drivers.bus
 from drivers.units import PRISMATIC, REVOLUTE, AxisScaling
+from ident_hw.identification.least_squares import POORLY_IDENTIFIED_PERCENT
 from ident_hw.model import ACTUATOR_NAMES, Geometry, InertialParams
 from ident_hw.signal import FilterSettings
 from trajectories.feasibility import Limits as FeasibilityLimits
@@ -448,7 +449,7 @@ class IdentificationConfig:
 
     steps: tuple[StepConfig, ...]
     validation: tuple[str, ...] = ()
-    rel_sigma_threshold: float = field(default=10.0, metadata=spec(
+    rel_sigma_threshold: float = field(default=POORLY_IDENTIFIED_PERCENT, metadata=spec(
         positive, unit="%", doc="estimates with a larger relative standard deviation are poorly identified"))
     min_speed: float = field(default=0.02, metadata=spec(
         in_range(0.0, 0.5), doc="an axis moving slower than this fraction of its velocity limit gives no row to the "
