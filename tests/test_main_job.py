@@ -13,6 +13,7 @@ about 1 % that σ does not cover.
 from __future__ import annotations
 
 import json
+import logging
 import re
 from html.parser import HTMLParser
 
@@ -242,3 +243,61 @@ def test_svd_dls_tracks_a_payload_added_mid_run(tmp_path):
     html = (folder / "report.html").read_text()
     assert "Online estimation" in html and "settling of 1.5 m_l2 + m_ee" in html
     assert (folder / "plots" / "online.png").is_file()
+
+
+@pytest.mark.parametrize("rate", [0.0002, 0.002])
+def test_identify_from_raw_logs_with_late_and_lost_frames_is_right_or_degraded(main_job, tmp_path, rate):
+    """The run's raw CAN logs with frames disturbed as a busy bus would: a share ``rate`` of the
+    drives' TPDOs lost and as many late past the next SYNC. ``identify`` decodes them, places no
+    frame in another cycle, leaves the disturbed cycles out, and either every well-identified
+    parameter is within the bounds of the clean run or the verdict says degraded (at 0.2 % the
+    short squares keep no stretch long enough to filter)."""
+    import can
+
+    from ident_hw.experiment.recordings import load_recording
+
+    config, folder = main_job
+    rng = np.random.default_rng(7)
+    recordings = {}
+    disturbed = {"lost": 0, "late": 0}
+    for name in ("sweep", "square1", "square2", "square3", "square4", "square5", "excitation", "triangle"):
+        with can.LogReader(folder / "data" / f"{name}.log") as reader:
+            messages = list(reader)
+        out, held = [], []
+        for msg in messages:
+            if msg.arbitration_id == 0x80:            # a SYNC: the held frames go out after it
+                out.append(msg)
+                out.extend(held)
+                held = []
+                continue
+            if msg.arbitration_id >> 7 in (3, 5):      # TPDO1 (0x18x) / TPDO2 (0x28x) of the drives
+                draw = rng.random()
+                if draw < rate:
+                    disturbed["lost"] += 1
+                    continue
+                if draw < 2 * rate:
+                    disturbed["late"] += 1
+                    held.append(msg)
+                    continue
+            out.append(msg)
+        path = tmp_path / f"{name}.log"
+        with can.Logger(path) as logger:
+            for msg in out:
+                logger.on_message_received(msg)
+        # the run's metadata (SYNC period, targets) from its .npz, the samples from the log
+        rec_name, rec = load_recording(path, config)
+        recordings[name] = rec
+    assert disturbed["lost"] > 20000 * rate and disturbed["late"] > 20000 * rate
+    results = identify(config, recordings)
+    save_results(tmp_path / "res", results)
+    doc = json.loads((tmp_path / "res" / "parameters.json").read_text())
+    truth = dict(zip(config.sim.truth.to_model().NAMES, config.sim.truth.to_model().as_vector()))
+    late = sum(r.metadata.get("late_frames", 0) for r in recordings.values())
+    logging.getLogger(__name__).warning(
+        "disturbed logs: %s; late frames placed %d; verdict %s %s", disturbed, late,
+        doc["quality"]["passed"], doc["quality"]["reasons"][:4])
+    assert late > 0 and all(r.metadata.get("unplaced_frames", 0) == 0 for r in recordings.values())
+    if doc["quality"]["passed"]:
+        assert accuracy_failures(doc, truth) == [], doc["quality"]
+    else:
+        assert doc["quality"]["reasons"]

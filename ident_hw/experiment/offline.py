@@ -255,23 +255,34 @@ def identify(config: Config, recordings: Mapping[str, Recording],
                                                          ident.rel_sigma_threshold)
             steps.append(record)
             continue
-        bounds = {p: ident.bounds[p] for p in step.parameters if p in ident.bounds}
-        fit = sqp_fit(Y, tau, NAMES, coef, free=step.parameters, bounds=bounds)
+        # a parameter its rows do not excite at all (e.g. a carriage whose every stretch was
+        # left out) is held at its current value, and the verdict says so
+        rows, _ = stack(*check_regression_data(Y, tau))
+        excited = [p for p in step.parameters if np.any(rows[:, NAMES.index(p)] != 0)]
+        unexcited = [p for p in step.parameters if p not in excited]
+        if not excited:
+            steps.append({"name": step.name, "trajectories": list(step.trajectories),
+                          "skipped": f"none of {', '.join(step.parameters)} excited by its data"})
+            continue
+        bounds = {p: ident.bounds[p] for p in excited if p in ident.bounds}
+        fit = sqp_fit(Y, tau, NAMES, coef, free=excited, bounds=bounds)
         coef = fit.coef
-        idx = [NAMES.index(p) for p in step.parameters]
+        idx = [NAMES.index(p) for p in excited]
         held = [i for i in range(n) if i not in idx]
         # sigma of the free parameters: WLS statistics of the same weighted problem
         record = {"name": step.name, "trajectories": list(step.trajectories), **fit.to_dict(),
                   "rows_left_out": {t: prepared[t].segments.left_out for t in step.trajectories},
                   "cond_scaled": scaled_condition(Y[:, :, idx], tau)}
+        if unexcited:
+            record["unexcited"] = unexcited
         try:
-            stats = wls(Y[:, :, idx], tau - Y[:, :, held] @ coef[held], step.parameters, output_std=fit.output_std)
+            stats = wls(Y[:, :, idx], tau - Y[:, :, held] @ coef[held], excited, output_std=fit.output_std)
         except ValueError as exc:  # rank deficient: the fit is bounded, but has no covariance
             record["statistics"] = str(exc)
         else:
             sigma[idx] = stats.std
             record["cond_W"] = stats.cond
-        for i, p in zip(idx, step.parameters):
+        for i, p in zip(idx, excited):
             lo, hi = bounds.get(p, (0.0, np.inf))
             lower[i], upper[i] = lo, hi
             step_of[i], method_of[i] = step.name, step.method

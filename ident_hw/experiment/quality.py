@@ -75,6 +75,9 @@ def verdict(results: Results, limits: QualityConfig) -> dict:
     for record in results.steps:
         if record.get("skipped"):
             reasons.append(f"step {record['name']}: not fitted ({record['skipped']})")
+        if record.get("unexcited"):
+            reasons.append(f"step {record['name']}: {', '.join(record['unexcited'])} not excited by its data "
+                           "(held at their previous values)")
         cond = record.get("cond_scaled")
         steps[record["name"]] = {"cond_scaled": cond}
         if cond is not None and not cond <= limits.max_condition:
