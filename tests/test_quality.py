@@ -127,3 +127,21 @@ def test_relative_difference_by_hand():
     a = np.array([[1.0, 1.0], [9.0, 9.0], [2.0, 0.0]])
     b = np.array([[1.0, 0.0], [0.0, 0.0], [0.0, 0.0]])          # differences 1 and 2
     assert relative_difference(tau, a, b) == pytest.approx(100 * (1 / 5 + 2 / 1) / 2)
+
+
+def test_a_parameter_its_data_do_not_excite_is_held_and_named(sweep):
+    """Every cycle in which carriage 3 moves came incomplete: its friction has no row to be
+    fitted from. It is held (not fitted, no sigma) and the verdict names it; the rest is fitted."""
+    path, rec = sweep
+    moving = np.abs(rec.velocity[:, 5]) > 0
+    # the cycles around its motion too: the filters' support at the ends of each stretch
+    moving = np.convolve(moving, np.ones(41), mode="same") > 0
+    valid = rec.valid & ~moving[:, None]
+    damaged = Recording(**{k: getattr(rec, k) for k in ("t", "cycle", "statusword", "target", "velocity")},
+                        position=np.where(valid, rec.position, np.nan), current=np.where(valid, rec.current, np.nan),
+                        valid=valid, metadata=dict(rec.metadata))
+    results = identify(load_config(path), {"sweep": damaged})
+    rows = {r["name"]: r for r in results.parameters.rows()}
+    assert rows["fv_zeta3"]["step"] == "" and rows["fc_zeta3"]["step"] == ""          # held
+    assert rows["m_c"]["step"] == "carriages" and rows["fv_zeta1"]["step"] == "carriages"
+    assert any(r.startswith("step carriages: fv_zeta3, fc_zeta3 not excited") for r in results.quality["reasons"])
