@@ -152,12 +152,13 @@ class _Stream:
     without one.
     """
 
-    __slots__ = ("cob_id", "axis", "unpack", "fields", "owed", "provisional")
+    __slots__ = ("cob_id", "axis", "unpack", "size", "fields", "owed", "provisional")
 
-    def __init__(self, cob_id: int, axis: int, unpack, fields: tuple[str, ...]):
+    def __init__(self, cob_id: int, axis: int, layout: struct.Struct, fields: tuple[str, ...]):
         self.cob_id = cob_id
         self.axis = axis
-        self.unpack = unpack
+        self.unpack = layout.unpack
+        self.size = layout.size
         self.fields = fields
         self.owed: list[int] = []
         self.provisional: list[int] = []
@@ -233,7 +234,7 @@ class CycleAssembler(can.Listener):
                 if frame.direction == "rpdo":
                     self._rpdo[cob_id] = (i, frame.struct.unpack, fields.index("target"))
                 elif frame.per_sync:
-                    self._streams[cob_id] = _Stream(cob_id, i, frame.struct.unpack, fields)
+                    self._streams[cob_id] = _Stream(cob_id, i, frame.struct, fields)
                 else:
                     self._events[cob_id] = (i, frame.struct.unpack, fields)
         self._status_field = {cob: s.fields.index("statusword") for cob, s in self._streams.items()
@@ -300,13 +301,11 @@ class CycleAssembler(can.Listener):
 
     def _tpdo_frame(self, cob_id: int, data: bytes) -> None:
         stream = self._streams[cob_id]
-        try:
-            values = stream.unpack(data)
-        except struct.error:
+        if len(data) != stream.size:
             return  # wrong length: treated as not received
         at = self._status_field.get(cob_id)
-        if at is not None:
-            self._status(stream.axis, values[at])
+        if at is not None:     # the values themselves are decoded once, when the row leaves
+            self._status(stream.axis, stream.unpack(data)[at])
         if self._open is None:
             return
         if self._open_counter is not None and self._last.get(cob_id) == data:

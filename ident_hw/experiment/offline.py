@@ -153,11 +153,10 @@ def prepare(config: Config, robot: ThreePRRR, name: str, rec: Recording) -> Prep
     for rows in segments.slices:
         t, Theta, current = uniform(segments.t[rows], rec.position[rows], rec.current[rows])
         samples = prepare_actuated(t, Theta, current, force_per_amp, settings)
-        X = robot.forward_kinematics(samples.Theta, guess[rows])
-        Y = robot.regressor_from_actuated(samples.Theta, samples.Thetad, samples.Thetadd, X)
-        Y, tau = parallel_decimate(settings, Y, samples.tau)
+        motion = robot.motion_from_actuated(samples.Theta, samples.Thetad, samples.Thetadd, guess[rows])
+        Y, tau = parallel_decimate(settings, robot.regressor_of(motion), samples.tau)
         kept = kept_samples(settings, len(t))
-        parts.append((t[kept], samples.Theta[kept], X[kept], Y, tau,
+        parts.append((t[kept], samples.Theta[kept], motion.X[kept], Y, tau,
                       np.abs(samples.Thetad[kept]) >= config.identification.min_speed * speed_limit))
     t, Theta, X, Y, tau, moving = (np.concatenate(column) for column in zip(*parts))
     return Prepared(name, t, Theta, X, Y, tau, moving, segments=segments)
