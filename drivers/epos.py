@@ -24,50 +24,17 @@ import numpy as np
 from canopen.profiles.p402 import Homing, State402
 from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
 
-from drivers.acquisition import (
-    AxisLayout,
-    CycleAssembler,
-    PdoFrame,
-    cycle_books,
-    cycle_frame_sizes,
-    event_bits_per_s,
-    pdo_layout,
-)
+from drivers.acquisition import (AxisLayout, CycleAssembler, PdoFrame, cycle_books, cycle_frame_sizes,
+                                 event_bits_per_s, pdo_layout)
 from drivers.axis import AxisConfig
 from drivers.bus import BusConfig, check_bus_load, frame_bits
-from drivers.cia import (
-    CW_CHANGE_IMMEDIATELY,
-    CW_ENABLE_OPERATION,
-    CW_FAULT_RESET,
-    CW_NEW_SETPOINT,
-    HEARTBEAT_CONSUMER,
-    MODE_HMM,
-    MODE_PPM,
-    NMT_ENTER_PRE_OPERATIONAL,
-    NMT_OPERATIONAL,
-    SW_BIT12,
-    SW_BIT13,
-    SW_FAULT,
-    SW_TARGET_REACHED,
-    SYNC_COB_ID,
-    state_of,
-)
+from drivers.cia import (CW_CHANGE_IMMEDIATELY, CW_ENABLE_OPERATION, CW_FAULT_RESET, CW_NEW_SETPOINT,
+                         HEARTBEAT_CONSUMER, MODE_HMM, MODE_PPM, NMT_ENTER_PRE_OPERATIONAL, NMT_OPERATIONAL, SW_BIT12,
+                         SW_BIT13, SW_FAULT, SW_TARGET_REACHED, SYNC_COB_ID, state_of)
 from drivers.emcy import describe
-from drivers.errors import (
-    BringUpError,
-    ConfigError,
-    DriveError,
-    DriveFault,
-    HeartbeatTimeout,
-    NodeError,
-)
+from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, HeartbeatTimeout, NodeError
 from drivers.gc_freeze import GcPauses, frozen_gc
-from drivers.profiles import (
-    VENDOR_ID_MAXON,
-    ObjectRef,
-    load_object_dictionary,
-    make_object_dictionary,
-)
+from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, load_object_dictionary, make_object_dictionary
 from drivers.recording import FlushingLogger, Recording, SampleRecorder
 from drivers.supervision import Supervisor
 from drivers.sync import SYNC_MODES, LockstepSync

@@ -57,8 +57,6 @@ class Segments:
 
     Attributes:
         t: (N,) sample times of all rows, s (from the first row).
-        period: the SYNC period, s.
-        good: (N,) rows no rule left out (before the edges are trimmed).
         slices: the stretches of consecutive good rows, long enough to filter.
         skipped_slots: SYNC slots without a row (gaps).
         gaps: places the recording is cut because slots were skipped.
@@ -66,16 +64,10 @@ class Segments:
     """
 
     t: np.ndarray
-    period: float
-    good: np.ndarray
     slices: list[slice]
     skipped_slots: int
     gaps: int
     left_out: dict[str, int] = field(default_factory=dict)
-
-    @property
-    def rows_left_out(self) -> int:
-        return sum(self.left_out.values())
 
     def describe(self) -> str:
         """``3 gaps (12 SYNC slots skipped); left out: 40 incomplete, 96 edges`` (or ``""``)."""
@@ -137,7 +129,7 @@ def split(t: np.ndarray, period: float, valid: np.ndarray, current: np.ndarray, 
             start = None
         if i < n and not bad[i] and start is None:
             start = i
-    return Segments(t=t - t[0] if n else t, period=period, good=~bad, slices=slices,
+    return Segments(t=t - t[0] if n else t, slices=slices,
                     skipped_slots=int(slots[-1] + 1 - n) if n else 0, gaps=int(cut_before.sum()),
                     left_out=left_out)
 

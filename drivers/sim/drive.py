@@ -42,23 +42,9 @@ from dataclasses import dataclass
 import canopen
 from canopen.sdo import SdoAbortedError
 
-from drivers.cia import (
-    CW_FAULT_RESET,
-    CW_HALT,
-    CW_NEW_SETPOINT,
-    CW_RELATIVE,
-    MODE_HMM,
-    MODE_PPM,
-    NMT_ENTER_PRE_OPERATIONAL,
-    NMT_OPERATIONAL,
-    NMT_STOPPED,
-    SW_BIT12,
-    SW_HOMED,
-    SW_REMOTE,
-    SW_TARGET_REACHED,
-    SW_VOLTAGE_ENABLED,
-    state_bits,
-)
+from drivers.cia import (CW_FAULT_RESET, CW_HALT, CW_NEW_SETPOINT, CW_RELATIVE, MODE_HMM, MODE_PPM,
+                         NMT_ENTER_PRE_OPERATIONAL, NMT_OPERATIONAL, NMT_STOPPED, SW_BIT12, SW_HOMED, SW_REMOTE,
+                         SW_TARGET_REACHED, SW_VOLTAGE_ENABLED, state_bits)
 from drivers.profiles import get_profile, make_object_dictionary
 from drivers.units import AxisScaling
 
