@@ -23,6 +23,14 @@ from ident_hw.experiment.plan import robot_model
 from ident_hw.model import InertialParams, ThreePRRR
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+#: a campaign of the paper's carriage sweep alone, identifying m_c and the carriage friction
+#: (YAML lines to append to a config that extends the main job's)
+SWEEP_CAMPAIGN = (
+    "trajectories: [{name: sweep, kind: carriage_sweep, size: 0.06}]\n"
+    "identification:\n"
+    "  steps: [{name: carriages, trajectories: [sweep],\n"
+    "           parameters: [m_c, fv_zeta1, fv_zeta2, fv_zeta3, fc_zeta1, fc_zeta2, fc_zeta3]}]\n"
+    "  validation: []\n")
 GEOMETRY = nominal.GEOMETRY
 ROBOT = ThreePRRR(GEOMETRY, coulomb_width=1e-3)
 NAMES = ROBOT.parameter_names

@@ -20,7 +20,7 @@ from drivers.cia import SYNC_COB_ID
 from ident_hw.config import load_config
 from ident_hw.experiment import runner
 from ident_hw.experiment.results import new_results_folder
-from ident_scenarios import CONFIGS
+from ident_scenarios import CONFIGS, SWEEP_CAMPAIGN
 
 log = logging.getLogger(__name__)
 
@@ -61,12 +61,7 @@ def test_a_disturbed_sync_ends_within_5_percent_or_degraded(tmp_path, monkeypatc
     path.write_text(
         f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n"
         f"bus: {{interface: virtual, channel: disturbed-{os.getpid()}-{time.monotonic_ns()}, sync_rate: 250.0, "
-        "sync: periodic}\n"
-        "trajectories: [{name: sweep, kind: carriage_sweep, size: 0.06}]\n"
-        "identification:\n"
-        "  steps: [{name: carriages, trajectories: [sweep],\n"
-        "           parameters: [m_c, fv_zeta1, fv_zeta2, fv_zeta3, fc_zeta1, fc_zeta2, fc_zeta3]}]\n"
-        "  validation: []\n")
+        "sync: periodic}\n" + SWEEP_CAMPAIGN)
     config = load_config(path)
     _disturb_sync(monkeypatch, seed=attempt)
     folder = new_results_folder(config, tmp_path / "res", "run")

@@ -27,7 +27,7 @@ from ident_hw.experiment.offline import identify
 from ident_hw.experiment.online import CampaignEstimator
 from ident_hw.experiment.results import new_results_folder
 from ident_hw.report import save_results
-from ident_scenarios import CONFIGS
+from ident_scenarios import CONFIGS, SWEEP_CAMPAIGN
 
 #: bias allowed beyond 3 sigma, as a fraction of the true value
 BIAS_BUDGET = 0.01
@@ -163,12 +163,7 @@ def test_an_epos2_rig_identifies_the_carriages(tmp_path):
     sim = tmp_path / "sim-epos2.yaml"
     sim.write_text((CONFIGS / "sim-3prrr.yaml").read_text().replace("extends: robot-3prrr.yaml", f"extends: {robot}"))
     path = tmp_path / "sweep.yaml"
-    path.write_text(f"extends: {sim}\n"
-                    "trajectories: [{name: sweep, kind: carriage_sweep, size: 0.06}]\n"
-                    "identification:\n"
-                    "  steps: [{name: carriages, trajectories: [sweep],\n"
-                    "           parameters: [m_c, fv_zeta1, fv_zeta2, fv_zeta3, fc_zeta1, fc_zeta2, fc_zeta3]}]\n"
-                    "  validation: []\n")
+    path.write_text(f"extends: {sim}\n" + SWEEP_CAMPAIGN)
     config = load_config(path)
     assert {a.profile for a in config.robot.actuators} == {"epos2"}
     folder = new_results_folder(config, tmp_path / "res", "run")
