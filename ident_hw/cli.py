@@ -62,9 +62,10 @@ def cmd_identify(args) -> int:
     from ident_hw.config import ConfigError
     from ident_hw.experiment.offline import identify
     from ident_hw.experiment.recordings import load_recording, require_trajectories
-    from ident_hw.experiment.results import new_results_folder
+    from ident_hw.experiment.folders import new_results_folder
     from ident_hw.experiment.signals import signal_name
-    from ident_hw.report import final_status, mark_status, save_results, summary_lines
+    from ident_hw.report import build_report, summary_lines
+    from ident_hw.results import final_status, mark_status, save_results
     config = _load(args.config)
     if config.identification is None:
         raise ConfigError("identification: missing section (the steps to run on the recordings)",
@@ -80,7 +81,7 @@ def cmd_identify(args) -> int:
     try:
         results = identify(config, recordings, progress=_logger(args))
         mark_status(folder, final_status(results))
-        page = save_results(folder, results)
+        page = build_report(save_results(folder, results))
     except BaseException as exc:
         why = f"interrupted ({signal_name(exc)})" if isinstance(exc, KeyboardInterrupt) else str(exc)
         mark_status(folder, f"failed: {why}")
@@ -114,7 +115,7 @@ def cmd_run(args) -> int:
     if _needs_arm(config, args, "checks passed; motion"):
         return Exit.CONFIG
     from ident_hw.experiment.online import CampaignEstimator
-    from ident_hw.experiment.results import discard_unused, new_results_folder
+    from ident_hw.experiment.folders import discard_unused, new_results_folder
     from ident_hw.experiment.runner import CampaignStopped, run_campaign
     from ident_hw.report import online_lines, summary_lines
     folder = new_results_folder(config, args.out, args.command)
@@ -297,19 +298,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 def exit_code(exc: BaseException) -> int:
     """The :class:`Exit` class of an exception."""
-    from drivers.errors import BusError, BusOpenError, DriveError, RecordingError
-    from drivers.errors import ConfigError as DriveConfigError
-    from ident_hw.config import ConfigError
+    from drivers.errors import BusError, BusOpenError, ConfigError, DriveError, RecordingError
     if isinstance(exc, KeyboardInterrupt):
         return Exit.INTERRUPTED
+    if isinstance(exc, (BusOpenError, BusError)):
+        return Exit.BUS
+    # the config file's errors (ident_hw.config.ConfigError) are drive-layer ConfigErrors too
     if isinstance(exc, (ConfigError, FileExistsError)):    # FileExistsError: --out holds results already
         return Exit.CONFIG
     if isinstance(exc, RecordingError):
         return Exit.DATA
-    if isinstance(exc, (BusOpenError, BusError)):
-        return Exit.BUS
-    if isinstance(exc, DriveConfigError):
-        return Exit.CONFIG
     if isinstance(exc, DriveError):
         return Exit.DRIVE_FAULT
     return Exit.FAILURE

@@ -25,8 +25,8 @@ from ident_hw.config import load_config
 from ident_hw.experiment import runner
 from ident_hw.experiment.offline import identify
 from ident_hw.experiment.online import CampaignEstimator
-from ident_hw.experiment.results import new_results_folder
-from ident_hw.report import save_results
+from ident_hw.experiment.folders import new_results_folder
+from ident_hw.results import save_results
 from ident_scenarios import CONFIGS, SWEEP_CAMPAIGN
 
 #: bias allowed beyond 3 sigma, as a fraction of the true value

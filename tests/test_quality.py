@@ -14,7 +14,8 @@ from drivers.recording import Recording
 from ident_hw.config import ConfigError, load_config
 from ident_hw.experiment.offline import identify
 from ident_hw.experiment.quality import relative_difference
-from ident_hw.report import final_status, mark_status, save_results, summary_lines
+from ident_hw.report import build_report, summary_lines
+from ident_hw.results import final_status, mark_status, save_results
 
 
 @pytest.fixture(scope="module")
@@ -110,7 +111,7 @@ def test_the_verdict_is_in_status_parameters_report_and_terminal(sweep, tmp_path
     folder = tmp_path / "res"
     folder.mkdir()
     mark_status(folder, final_status(results))
-    save_results(folder, results)
+    build_report(save_results(folder, results))
     status = (folder / "STATUS").read_text().strip()
     assert status == "degraded: " + results.quality["reasons"][0]
     doc = json.loads((folder / "parameters.json").read_text())
@@ -141,7 +142,7 @@ def test_a_parameter_its_data_do_not_excite_is_held_and_named(sweep):
                         position=np.where(valid, rec.position, np.nan), current=np.where(valid, rec.current, np.nan),
                         valid=valid, metadata=dict(rec.metadata))
     results = identify(load_config(path), {"sweep": damaged})
-    rows = {r["name"]: r for r in results.parameters.rows()}
-    assert rows["fv_zeta3"]["step"] == "" and rows["fc_zeta3"]["step"] == ""          # held
-    assert rows["m_c"]["step"] == "carriages" and rows["fv_zeta1"]["step"] == "carriages"
+    rows = {r.name: r for r in results.parameter_rows()}
+    assert rows["fv_zeta3"].step == "" and rows["fc_zeta3"].step == ""          # held
+    assert rows["m_c"].step == "carriages" and rows["fv_zeta1"].step == "carriages"
     assert any(r.startswith("step carriages: fv_zeta3, fc_zeta3 not excited") for r in results.quality["reasons"])

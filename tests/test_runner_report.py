@@ -10,8 +10,9 @@ import scipy.io
 import yaml
 
 from ident_hw.model import InertialParams
-from ident_hw.report import (BaseFit, OnlineTrace, ParameterTable, Results, TrajectoryFit, build_report,
-                             load_results, mark_status, read_status, save_results, summary_lines)
+from ident_hw.report import build_report, summary_lines
+from ident_hw.results import (BaseFit, OnlineTrace, ParameterTable, Results, TrajectoryFit, load_results, mark_status,
+                              read_status, save_results)
 
 NAMES = InertialParams.NAMES
 
@@ -51,7 +52,7 @@ def synthetic_results(rng) -> Results:
 def test_results_folder_round_trip_and_metrics(tmp_path):
     results = synthetic_results(np.random.default_rng(0))
     mark_status(tmp_path, "complete")
-    page = save_results(tmp_path, results)
+    page = build_report(save_results(tmp_path, results))
     assert page == tmp_path / "report.html"
     for name in ("parameters.json", "parameters.yaml", "metrics.yaml", "results.mat", "online.npz",
                  "plots/forces_sweep.png", "plots/residuals_triangle.png", "plots/motion_sweep.png",
@@ -105,7 +106,7 @@ def test_results_folder_round_trip_and_metrics(tmp_path):
 def test_base_fit_round_trip_table_and_metrics(tmp_path):
     results = synthetic_results(np.random.default_rng(2))
     mark_status(tmp_path, "complete")
-    save_results(tmp_path, results)
+    build_report(save_results(tmp_path, results))
     back = load_results(tmp_path).base_fit
     for key in ("H", "coef", "sigma", "initial", "truth"):
         np.testing.assert_array_equal(getattr(back, key), getattr(results.base_fit, key), err_msg=key)
@@ -134,7 +135,7 @@ def test_base_fit_round_trip_table_and_metrics(tmp_path):
 
 
 def test_report_rebuilds_from_the_folder_alone(tmp_path):
-    save_results(tmp_path, synthetic_results(np.random.default_rng(1)))
+    build_report(save_results(tmp_path, synthetic_results(np.random.default_rng(1))))
     mark_status(tmp_path, "partial: interrupted (SIGINT)")
     metrics_before = (tmp_path / "metrics.yaml").read_text()
     for built in ("report.html", "metrics.yaml", "results.mat"):

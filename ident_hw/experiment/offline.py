@@ -6,7 +6,7 @@ decimation of forces and regressor). The steps of ``identification.steps`` run i
 an SQP fit of its parameters with the others held at their current values (CAD at the start),
 so the sweep's ``m_c`` is used by the squares' step. A ``wls``/``ols`` step instead fits the
 base parameters of its parameters (:func:`fit_base`), reported beside the physical ones with
-its own prediction of every trajectory. The result is a :class:`ident_hw.report.Results` with
+its own prediction of every trajectory. The result is a :class:`ident_hw.results.Results` with
 standard deviations from the weighted least-squares statistics of each step, a
 base-parameter analysis of all identification data, what each recording covered
 (:func:`coverage`) and the quality verdict (:func:`ident_hw.experiment.quality.verdict`).
@@ -26,7 +26,8 @@ from ident_hw.identification.base_params import base_parameters, identify_base
 from ident_hw.identification.least_squares import check_regression_data, stack, wls
 from ident_hw.identification.mass_fit import sqp_fit
 from ident_hw.model import InertialParams, ThreePRRR
-from ident_hw.report import BaseFit, ParameterTable, Results, TrajectoryFit, coverage_text
+from ident_hw.report import coverage_text
+from ident_hw.results import BaseFit, ParameterTable, Results, TrajectoryFit
 from ident_hw.segments import Segments, slot_indices, split, uniform
 from ident_hw.signal import kept_samples, parallel_decimate, prepare_actuated
 

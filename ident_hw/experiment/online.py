@@ -27,7 +27,7 @@ from drivers.recording import Recording
 from ident_hw.config import Config
 from ident_hw.identification import RLS, SVDDLS, DampedRLS, base_parameters
 from ident_hw.model import InertialParams
-from ident_hw.report import BaseFit, OnlineTrace, parameter_unit
+from ident_hw.results import BaseFit, OnlineTrace, parameter_unit
 
 from .offline import prepare
 from .plan import robot_model

@@ -17,7 +17,7 @@ thresholds of ``identification.quality`` (:class:`ident_hw.config.QualityConfig`
 
 The verdict (a JSON-able dict, stored in ``parameters.json``) lists every figure, the
 thresholds and, when it fails, one reason per missed threshold; ``STATUS`` is then
-``degraded: <reasons>`` (:func:`ident_hw.report.final_status`).
+``degraded: <reasons>`` (:func:`ident_hw.results.final_status`).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import numpy as np
 
 from ident_hw.config import QualityConfig
 from ident_hw.identification.metrics import validation_metrics
-from ident_hw.report import Results
+from ident_hw.results import Results
 
 
 def relative_difference(tau: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -83,20 +83,20 @@ def verdict(results: Results, limits: QualityConfig) -> dict:
         if cond is not None and not cond <= limits.max_condition:
             reasons.append(f"step {record['name']}: condition number {cond:.3g} (> {limits.max_condition:g})")
 
-    rows = results.parameters.rows()
+    rows = results.parameter_rows()
     threshold = results.rel_sigma_threshold
-    fitted = [r for r in rows if r["step"]]
-    well = [r["name"] for r in fitted if r["rel_sigma_percent"] is not None and r["rel_sigma_percent"] <= threshold]
+    fitted: list = [r for r in rows if r.fitted]
+    well = [r.name for r in fitted if r.well_identified]
     if results.base_fit is not None:
         base_rows = results.base_fit.rows()
         fitted += base_rows
-        well += [r["base_parameter"] for r in base_rows if r["well_identified"]]
+        well += [r.expression for r in base_rows if r.well_identified]
     if fitted and len(well) < limits.min_well_identified:
         reasons.append(f"{len(well)} of {len(fitted)} fitted parameters well identified "
                        f"(%sigma <= {threshold:g}; at least {limits.min_well_identified} needed)")
 
     judged = [f for f in results.fits if f.role == "validation"] or results.fits
-    stepwise = any(r["step"] for r in rows)     # else the step-by-step table holds the CAD values only
+    stepwise = any(r.fitted for r in rows)     # else the step-by-step table holds the CAD values only
     for fit in judged:
         row = per_traj.setdefault(fit.name, {})
         row["role"] = fit.role

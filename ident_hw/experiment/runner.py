@@ -9,8 +9,8 @@ the home pose; on hardware ``ident-hw home`` does that first), and for each traj
 slowly to its start (unless the drives stand there already), streams it at the SYNC rate and
 records it (``data/<name>.npz`` decoded, ``data/<name><raw_log>`` raw CAN log). Then it
 identifies and validates (:func:`ident_hw.experiment.offline.identify`) and writes the results folder
-(:func:`ident_hw.report.save_results`). On Ctrl-C or a drive fault the drives are stopped and
-disabled by the driver, the recordings so far stay on disk, STATUS says ``partial: <why>`` and
+(:func:`ident_hw.results.save_results`, then :func:`ident_hw.report.build_report`). On Ctrl-C or a
+drive fault the drives are stopped and disabled by the driver, the recordings so far stay on disk, STATUS says ``partial: <why>`` and
 :class:`CampaignStopped` is raised (SIGTERM and SIGHUP are Ctrl-C too under
 :func:`ident_hw.experiment.signals.stop_on_signals`). ``data/drives.json`` holds the CiA 402
 state of every drive after the run, as the master read it (and as the in-process rig holds it).
@@ -32,10 +32,11 @@ from tqdm import tqdm
 
 from drivers.cia import SYNC_COB_ID
 from drivers.epos import DriveGroup
-from drivers.errors import BusOpenError, DriveError, NodeError
+from drivers.errors import BusOpenError, ConfigError, DriveError, NodeError
 from drivers.recording import Recording
 from ident_hw.config import Config
-from ident_hw.report import Results, final_status, mark_status, save_results
+from ident_hw.report import build_report
+from ident_hw.results import Results, final_status, mark_status, save_results
 
 from .offline import identify
 from .online import CampaignEstimator
@@ -180,7 +181,7 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
 
     Args:
         config: a config whose :func:`ident_hw.experiment.plan.check_campaign` passed.
-        folder: a results folder from :func:`ident_hw.experiment.results.new_results_folder`.
+        folder: a results folder from :func:`ident_hw.experiment.folders.new_results_folder`.
         show_progress: tqdm bars on stderr (the caller turns them off for --quiet / non-TTY).
         log: where progress messages go (``None``: nowhere).
         online: an SVD-DLS estimator fed with each recording as it is made; its trace is saved.
@@ -224,13 +225,15 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
         if online is not None:
             results.online = online.trace(results.base_fit)
         mark_status(folder, final_status(results))    # before the report, which shows it
-        save_results(folder, results)
+        build_report(save_results(folder, results))
     except BusOpenError as exc:
         mark_status(folder, f"failed: {exc}; nothing moved, nothing recorded")
         raise
     except BaseException as exc:
         if isinstance(exc, KeyboardInterrupt):
             reason = f"interrupted ({signal_name(exc)})"
+        elif isinstance(exc, ConfigError):
+            reason = f"config error: {exc}"
         elif isinstance(exc, DriveError):
             reason = f"drive fault: {exc}"
         else:

@@ -1,0 +1,52 @@
+"""The report of a results folder (:mod:`ident_hw.results`): terminal tables, PNG plots, one HTML
+page and a MATLAB export, built from the folder's files alone (``ident-hw report RESULTS``).
+
+Built files::
+
+    metrics.yaml     per trajectory and actuator: RMS, NRMS, d_tau, J_RMSE
+    plots/*.png      forces, residuals, trajectories, online estimates
+    report.html      the summary and verdict first, then everything above on one page
+    results.mat      parameters and fits for MATLAB (scipy.io.savemat)
+
+Modules: :mod:`.terminal` (lines printed at the end of a run), :mod:`.plots`, :mod:`.html`
+(Jinja2 template ``templates/report.html``), :mod:`.matlab`. Imports :mod:`ident_hw.results`,
+the model's names and the identification metrics; nothing of the runner or the drivers.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from ident_hw.results import load_results, metrics
+
+from . import plots
+from .html import render_html
+from .matlab import save_mat
+from .terminal import coverage_text, online_lines, summary_lines
+
+__all__ = ["build_report", "coverage_text", "online_lines", "summary_lines"]
+
+
+def build_report(folder: str | Path) -> Path:
+    """(Re)build metrics.yaml, plots, report.html and results.mat from the folder's files;
+    returns the page's path."""
+    folder = Path(folder)
+    results = load_results(folder)
+    table = metrics(results)
+    (folder / "metrics.yaml").write_text(yaml.safe_dump(table, sort_keys=False))
+    folder_plots = folder / "plots"
+    folder_plots.mkdir(exist_ok=True)
+    jobs = []
+    for fit in results.fits:
+        jobs.append((f"{fit.role}: {fit.name} — measured vs model", plots.plot_forces, (fit, folder_plots)))
+        jobs.append((f"{fit.name}: residuals", plots.plot_residuals, (fit, folder_plots)))
+        jobs.append((f"{fit.name}: motion", plots.plot_motion, (fit, folder_plots)))
+    if results.online is not None:
+        jobs.append(("online estimates", plots.plot_online, (results.online, results.parameters, folder_plots)))
+    images = list(zip([title for title, _, _ in jobs], plots.render([(f, a) for _, f, a in jobs])))
+    save_mat(folder / "results.mat", results)
+    page = folder / "report.html"
+    page.write_text(render_html(folder, results, table, images))
+    return page

@@ -1,0 +1,49 @@
+"""The report as one HTML page (``report.html``), rendered from ``templates/report.html`` with
+Jinja2 (every value escaped by the template engine, the page's layout readable in one file)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import jinja2
+
+from ident_hw.model import ACTUATOR_NAMES
+from ident_hw.results import SETTLED, Results, read_status
+
+from .terminal import accuracy_line, coverage_text
+
+_ENV = jinja2.Environment(loader=jinja2.PackageLoader("ident_hw.report", "templates"),
+                          autoescape=True, undefined=jinja2.StrictUndefined, keep_trailing_newline=True)
+
+
+def fmt(value, spec: str = ".5g") -> str:
+    """A number for a table cell, ``—`` when undefined."""
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "—"
+    return format(value, spec)
+
+
+def fmt_rel(value) -> str:
+    """A %σ: two decimals, or ``> 1e4`` for an estimate at zero (its bound)."""
+    return "> 1e4" if value is not None and math.isfinite(value) and value > 1e4 else fmt(value, ".2f")
+
+
+_ENV.filters.update(fmt=fmt, fmt_rel=fmt_rel)
+
+
+def render_html(folder: Path, results: Results, table: dict, images: list[tuple[str, Path]]) -> str:
+    """The page: summary and verdict first, then the parameter tables, the online comparison,
+    the force-prediction metrics per trajectory and the plots (``images``: title, PNG path)."""
+    rows = results.parameter_rows()
+    base = results.base_parameters or {}
+    return _ENV.get_template("report.html").render(
+        status=read_status(folder), results=results, rows=rows,
+        poor=[r.name for r in rows if r.poorly_identified],
+        has_truth=results.parameters.truth is not None,
+        accuracy=accuracy_line(rows, results.base_fit) if results.parameters.truth is not None else None,
+        coverage={name: coverage_text(u) for name, u in results.trajectories.items()},
+        base_list=base if base.get("base_parameters") and results.base_fit is None else None,
+        online=results.online, comparison=results.online.comparison() if results.online is not None else [],
+        settled_percent=100 * SETTLED, metrics=table, actuators=ACTUATOR_NAMES,
+        images=[(title, str(path.relative_to(folder))) for title, path in images])

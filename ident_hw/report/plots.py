@@ -1,0 +1,155 @@
+"""The report's PNG plots: forces measured against the model, residuals, motion, online estimates.
+
+Each plot function takes the typed results (:mod:`ident_hw.results`) and the plots folder and
+returns the PNG's path; :func:`render` draws several in parallel.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from ident_hw.model import ACTUATOR_NAMES
+from ident_hw.results import OnlineTrace, ParameterTable, TrajectoryFit
+
+FORCE_UNITS = ("N·m",) * 3 + ("N",) * 3
+#: s of a trajectory the forces plot shows (longer ones are unreadable at a page's width); the
+#: residuals plot shows the whole trajectory
+FORCES_WINDOW = 10.0
+
+
+def _figure(height: float) -> Figure:
+    """A figure 11 in wide with fixed margins (matplotlib's automatic layouts cost most of the
+    report's time: they measure every tick label of every panel)."""
+    fig = Figure(figsize=(11, height))
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.8 / height, top=1 - 0.55 / height,
+                        wspace=0.25, hspace=0.3)
+    return fig
+
+
+def _every(n: int, at_most: int = 3000) -> slice:
+    return slice(None, None, max(1, n // at_most))
+
+
+def plot_forces(fit: TrajectoryFit, plots: Path) -> Path:
+    fig = _figure(8)
+    axes = fig.subplots(3, 2, sharex=True)
+    shown = int(np.searchsorted(fit.t, fit.t[0] + FORCES_WINDOW, side="right")) if len(fit.t) else 0
+    s = slice(0, shown, _every(shown).step)
+    for j in range(6):
+        ax = axes[j % 3, j // 3]
+        ax.plot(fit.t[s], fit.tau[s, j], lw=0.8, label="measured")
+        ax.plot(fit.t[s], fit.tau_model[s, j], lw=1.0, ls="--", label="model")
+        if fit.tau_base is not None:
+            ax.plot(fit.t[s], fit.tau_base[s, j], lw=1.0, ls=":", label="base fit")
+        ax.set_ylabel(f"{ACTUATOR_NAMES[j]} [{FORCE_UNITS[j]}]")
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(loc="best", fontsize=8)
+    for ax in axes[-1]:
+        ax.set_xlabel("t [s]")
+    window = ""
+    if shown < len(fit.t):
+        window = f", first {FORCES_WINDOW:g} s of {fit.t[-1] - fit.t[0]:.0f} s (residuals: the whole trajectory)"
+    fig.suptitle(f"{fit.name} ({fit.role}): measured vs model forces{window}")
+    return _save(fig, plots / f"forces_{fit.name}.png")
+
+
+def plot_residuals(fit: TrajectoryFit, plots: Path) -> Path:
+    fig = _figure(6)
+    axes = fig.subplots(3, 2, sharex=True)
+    s = _every(len(fit.t))
+    for j in range(6):
+        ax = axes[j % 3, j // 3]
+        ax.plot(fit.t[s], (fit.tau - fit.tau_model)[s, j], lw=0.6, color="C3")
+        ax.set_ylabel(f"{ACTUATOR_NAMES[j]} [{FORCE_UNITS[j]}]")
+        ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("t [s]")
+    fig.suptitle(f"{fit.name}: residual measured − model")
+    return _save(fig, plots / f"residuals_{fit.name}.png")
+
+
+def plot_motion(fit: TrajectoryFit, plots: Path) -> Path:
+    fig = _figure(3.5)
+    ax_xy, ax_rev, ax_pri = fig.subplots(1, 3)
+    s = _every(len(fit.t))
+    if fit.X is not None:
+        ax_xy.plot(fit.X[s, 0], fit.X[s, 1], lw=1.0)
+        ax_xy.set_aspect("equal", adjustable="datalim")
+    ax_xy.set_xlabel("x [m]")
+    ax_xy.set_ylabel("y [m]")
+    ax_xy.set_title("end-effector path" if fit.X is not None else "(no pose recorded)")
+    for j in range(3):
+        ax_rev.plot(fit.t[s], fit.Theta[s, j], lw=0.8, label=ACTUATOR_NAMES[j])
+        ax_pri.plot(fit.t[s], fit.Theta[s, 3 + j], lw=0.8, label=ACTUATOR_NAMES[3 + j])
+    ax_rev.set_ylabel("theta [rad]")
+    ax_pri.set_ylabel("zeta [m]")
+    for ax in (ax_rev, ax_pri):
+        ax.set_xlabel("t [s]")
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"{fit.name}: motion")
+    return _save(fig, plots / f"motion_{fit.name}.png")
+
+
+def plot_online(online: OnlineTrace, params: ParameterTable, plots: Path) -> Path:
+    """The base parameters of the inertial parameters over time, every estimator, the truth
+    (stepping at a payload change) and the change."""
+    if online.H is None:           # an old trace: the physical masses and inertias of SVD-DLS
+        shown = [i for i, n in enumerate(online.names) if n.startswith(("m_", "I_"))]
+        values, labels, truth = next(iter(online.estimates.values())), list(online.names), None
+        curves = {"SVD-DLS": values}
+    else:
+        inertial = [j for j, n in enumerate(online.names) if n.startswith(("m_", "I_"))]
+        shown = [i for i in range(online.H.shape[0]) if np.any(online.H[i, inertial] != 0)]
+        labels = list(online.base_names)
+        curves = {k: online.base(v) for k, v in online.estimates.items()}
+        truth = online.base(online.truth) if online.truth is not None else None
+    cols = 2
+    rows = max(1, math.ceil(len(shown) / cols))
+    fig = _figure(2.2 * rows)
+    axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True)).ravel()
+    for ax, i in zip(axes, shown):
+        for label, values in reversed(curves.items()):     # SVD-DLS (the first) drawn on top
+            ax.plot(online.t, values[:, i], lw=1.3 if label == next(iter(curves)) else 0.8, label=label)
+        if truth is not None:
+            ax.plot(online.t, truth[:, i], color="k", ls=":", lw=0.9, label="truth")
+            # around the truth (±15 % of it, or of its change): early transients would hide the tracking
+            lo, hi = float(truth[:, i].min()), float(truth[:, i].max())
+            margin = max(0.15 * max(abs(lo), abs(hi)), 0.5 * (hi - lo), 1e-12)
+            ax.set_ylim(lo - margin, hi + margin)
+        if online.change_time is not None:
+            ax.axvline(online.change_time, color="r", lw=0.7, ls="--")
+        ax.set_ylabel(labels[i], fontsize=7)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=6)
+    for ax in axes[len(shown):]:
+        ax.set_visible(False)
+    fig.suptitle("online estimates over time" + (" (payload added at the dashed line)" if online.change_time else ""))
+    return _save(fig, plots / "online.png")
+
+
+def render(jobs: list[tuple]) -> list[Path]:
+    """Run the plot functions ``[(function, args), ...]``, on every core where the platform forks
+    (drawing the figures is most of a report's time); returns their paths in order."""
+    workers = min(len(jobs), os.cpu_count() or 1)
+    if workers < 2 or "fork" not in multiprocessing.get_all_start_methods():
+        return [function(*args) for function, args in jobs]
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
+        return list(pool.map(_call, jobs))
+
+
+def _call(job: tuple) -> Path:
+    function, args = job
+    return function(*args)
+
+
+def _save(fig: Figure, path: Path) -> Path:
+    fig.savefig(path, dpi=90)
+    return path

@@ -1,0 +1,154 @@
+"""The report as terminal lines: the parameter tables, coverage of the recordings, the online
+comparison and the quality verdict (printed at the end of ``ident-hw run``/``identify``/``online``)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from ident_hw.results import SETTLED, BaseFit, OnlineTrace, ParameterRow, load_results, metrics, read_status
+
+
+def summary_lines(folder: str | Path) -> list[str]:
+    """The numbers printed at the end of a run: a Table-1-like table of the fitted parameters
+    (initial, identified, truth, %sigma, error vs truth), the held ones, the validation errors."""
+    results = load_results(folder)
+    rows = results.parameter_rows()
+    truth = results.parameters.truth is not None
+    head = f"  {'parameter':>10} {'unit':>9} {'initial':>11} {'identified':>11} {'%sigma':>7}"
+    if truth:
+        head += f" {'truth':>11} {'error %':>8}"
+    lines = [f"status: {read_status(folder)}"]
+    if results.trajectories:
+        lines.append("recordings used:")
+        lines += [f"  {name}: {coverage_text(u)}" for name, u in results.trajectories.items()]
+    if any(r.fitted for r in rows):
+        lines.append("physical parameters, step by step (SQP mass fit of the 3PRRR paper):")
+    lines.append(head + "  step")
+    for row in rows:
+        if not row.fitted:
+            continue
+        text = (f"  {row.name:>10} {row.unit:>9} {row.initial:>11.5g} {row.identified:>11.5g} "
+                f"{percent(row.rel_sigma_percent):>7}")
+        if truth:
+            text += f" {row.truth:>11.5g} {_or_nan(row.error_percent):>+8.2f}"
+        lines.append(text + f"  {row.step}" + ("  poorly identified" if row.poorly_identified else ""))
+    held = [r.name for r in rows if not r.fitted]
+    if held:
+        lines.append(f"  held at their initial values (not fitted by any step): {', '.join(held)}")
+    if results.base_fit is not None:
+        lines += _base_fit_lines(results.base_fit)
+    if truth:
+        lines.append(accuracy_line(rows, results.base_fit))
+    for name, m in metrics(results).items():
+        text = f"  {m['role']:>14} {name}: d_tau = {m['d_tau_percent']:.2f} %, J_RMSE = {m['j_rmse']:.4g}"
+        if "base_fit" in m:
+            text += f"; base fit: d_tau = {m['base_fit']['d_tau_percent']:.2f} %"
+        lines.append(text)
+    if results.quality is not None:
+        lines += _verdict_lines(results.quality)
+    return lines
+
+
+def coverage_text(used: dict) -> str:
+    """``107 of 266 cycles (40 % of the trajectory), 99.1 % complete, ...`` for one recording."""
+    planned = used.get("cycles_planned")
+    text = f"{used['cycles']} of {planned} cycles" if planned else f"{used['cycles']} cycles"
+    if used.get("coverage") is not None and used["coverage"] < 1.0:
+        text += f" ({100 * used['coverage']:.0f} % of the trajectory)"
+    text += f", {100 * used['valid_fraction']:.1f} % complete"
+    if used.get("longest_gap_s"):
+        text += f", longest gap {used['longest_gap_s']:.3g} s"
+    if used.get("skipped_slots"):
+        text += f", {used['skipped_slots']} SYNC slots skipped"
+    if "samples_used" in used:
+        text += f"; {used['samples_used']} samples after decimation fitted"
+        if used.get("stretches", 1) > 1:
+            text += f" from {used['stretches']} stretches"
+        out = [f"{n} {rule.replace('_', ' ')}" for rule, n in (used.get("rows_left_out") or {}).items() if n]
+        if out:
+            text += f" (rows left out: {', '.join(out)})"
+    status = str(used.get("recording_status", ""))
+    if status.startswith("stopped"):
+        text += f"; partial recording ({status})"
+    elif status.startswith("running"):
+        text += "; checkpoint of a run that did not end (its process died): partial recording"
+    elif status not in ("complete", ""):
+        text += f"; {status}"
+    return text
+
+
+def online_lines(online: OnlineTrace) -> list[str]:
+    """The comparison of the online estimators, for the terminal: J_RMSE and, after a payload
+    change, the settling time of each tracked base parameter."""
+    summary = online.comparison()
+    settles = bool(summary and summary[0].settling)
+    lines = ["online estimators (J_RMSE: a-priori prediction error in units of the output noise"
+             + (f"; settling to within {100 * SETTLED:g} % after the payload change at {online.change_time:.1f} s"
+                if settles else "") + "):"]
+    for s in summary:
+        text = f"  {s.label:>10}: J_RMSE {s.j_rmse:8.3g}"
+        if s.diverged_at is not None:
+            text += f" (diverged at {s.diverged_at:.1f} s)"
+        for name, seconds in s.settling:
+            text += f"; {name}: " + ("not settled" if seconds is None else f"{seconds:.1f} s")
+        lines.append(text)
+    if online.unexcited:
+        lines.append(f"  SVD-DLS held (not excited at the end): {'; '.join(online.unexcited)}")
+    return lines
+
+
+def accuracy_line(rows: list[ParameterRow], base_fit: BaseFit | None) -> str:
+    """Against the simulated truth: the largest error among the well-identified estimates."""
+    def largest(errors: list[tuple[float, str]], what: str) -> str:
+        text = f"{len(errors)} {what}"
+        if errors:
+            worst = max(errors)
+            text += f" (largest error {worst[0]:.2f} %, {worst[1]})"
+        return text
+
+    text = "accuracy vs truth, well identified only: " + largest(
+        [(abs(r.error_percent), r.name) for r in rows if r.well_identified and r.error_percent is not None],
+        "physical parameters")
+    if base_fit is not None:
+        text += ", " + largest([(abs(r.error_percent), r.expression) for r in base_fit.rows()
+                                if r.well_identified and r.error_percent is not None], "base parameters")
+    return text
+
+
+def percent(value: float | None) -> str:
+    """A %σ for the terminal tables: two decimals, ``>1e4`` beyond, ``nan`` when undefined."""
+    if value is None or not math.isfinite(value):
+        return "nan"
+    return f"{value:.2f}" if value < 1e4 else ">1e4"
+
+
+def _or_nan(value: float | None) -> float:
+    return math.nan if value is None else value
+
+
+def _verdict_lines(quality: dict) -> list[str]:
+    """The quality verdict for the terminal: passed, or DEGRADED with one line per reason."""
+    if quality["passed"]:
+        return ["quality verdict: passed (identification.quality thresholds)"]
+    return ["quality verdict: DEGRADED (identification.quality thresholds):"] + [f"  {r}" for r in quality["reasons"]]
+
+
+def _base_fit_lines(fit: BaseFit) -> list[str]:
+    """The base-parameter table of :func:`summary_lines`."""
+    lines = [f"base parameters, {fit.method} on {', '.join(fit.trajectories)} (step {fit.step}; "
+             f"well identified: %sigma <= {fit.threshold:g}):"]
+    width = max(len(e) for e in fit.expressions) if fit.expressions else 10
+    head = f"  {'base parameter':<{width}} {'initial':>11} {'identified':>11} {'%sigma':>7}"
+    lines.append(head + (f" {'truth':>11} {'error %':>8}" if fit.truth is not None else ""))
+    for row in fit.rows():
+        text = (f"  {row.expression:<{width}} {row.initial:>11.5g} {row.identified:>11.5g} "
+                f"{percent(row.rel_sigma_percent):>7}")
+        if fit.truth is not None:
+            text += f" {row.truth:>11.5g} {_or_nan(row.error_percent):>+8.2f}"
+        lines.append(text + ("" if row.well_identified else "  poorly identified"))
+    if fit.held:
+        lines.append(f"  held at known values during this fit: {', '.join(fit.held)}")
+    if fit.unexcited:
+        lines.append(f"  not excited by {', '.join(fit.trajectories)}: {', '.join(fit.unexcited)}")
+    return lines

@@ -1,0 +1,494 @@
+"""The results of a campaign as typed objects, and the results folder that stores them.
+
+A results folder holds::
+
+    STATUS               "running", "identifying", then "complete" (the quality verdict passed),
+                         "degraded: <reasons>" (it did not), "partial: <why>" after a fault or a
+                         signal, "failed: <why>" when nothing could be identified
+    config.yaml          the config used, with every ``extends:`` merged in
+    parameters.json/.yaml  Table-1-like rows: initial, identified, truth, sigma, %sigma, bounds, step;
+                         the base-parameter least-squares fit (``base_fit``) when a step made one;
+                         ``trajectories``: what each recording covered and how much of it the fit
+                         used; ``quality``: the verdict, its figures, thresholds and reasons
+    fits/<name>.npz      measured and model forces along each trajectory (t, tau, tau_model, Theta, X,
+                         tau_base = the base fit's prediction)
+    online.npz           estimates over time of an online run (optional)
+    data/                the recordings (raw CAN log + decoded samples), written by the runner
+
+:func:`save_results` writes these files and :func:`load_results` reads them back;
+:mod:`ident_hw.report` renders them (tables, plots, HTML, MATLAB export) from the folder alone.
+The runner, :func:`ident_hw.experiment.identify` and the report share these classes.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ident_hw.identification.least_squares import POORLY_IDENTIFIED_PERCENT
+from ident_hw.identification.metrics import validation_metrics
+from ident_hw.model import ACTUATOR_NAMES
+
+STATUS_FILE = "STATUS"
+#: an online estimate has settled when it stays within this fraction of the true value
+SETTLED = 0.02
+
+
+def parameter_unit(name: str) -> str:
+    """SI unit of a parameter of :attr:`ident_hw.model.InertialParams.NAMES`."""
+    if name.startswith("m_"):
+        return "kg"
+    if name.startswith("I_"):
+        return "kg·m²"
+    revolute = "theta" in name
+    if name.startswith("fv_"):
+        return "N·m·s/rad" if revolute else "N·s/m"
+    return "N·m" if revolute else "N"
+
+
+def _well_identified(rel_sigma_percent: float | None, threshold: float) -> bool:
+    """%σ defined and at most ``threshold`` (an estimate of 0, at its bound or without statistics
+    has none)."""
+    return rel_sigma_percent is not None and rel_sigma_percent <= threshold
+
+
+def _error_percent(estimate: float, truth: float | None) -> float | None:
+    return 100.0 * (estimate - truth) / abs(truth) if truth else None
+
+
+@dataclass(frozen=True)
+class ParameterRow:
+    """One physical parameter of the results table (SI units, :func:`parameter_unit`).
+
+    ``step`` names the identification step that estimated it ("" = held at ``initial``);
+    ``truth``/``error_percent`` exist in simulation only; ``well_identified``: fitted with a %σ
+    at most the campaign's threshold.
+    """
+
+    name: str
+    unit: str
+    initial: float
+    identified: float
+    sigma: float | None
+    rel_sigma_percent: float | None
+    bounds: tuple[float | None, float | None]
+    step: str
+    method: str
+    well_identified: bool
+    truth: float | None = None
+    error_percent: float | None = None
+
+    @property
+    def fitted(self) -> bool:
+        return bool(self.step)
+
+    @property
+    def poorly_identified(self) -> bool:
+        """Fitted, but its %σ is above the threshold or undefined."""
+        return self.fitted and not self.well_identified
+
+    def to_json(self) -> dict:
+        doc = {"name": self.name, "unit": self.unit, "initial": self.initial, "identified": self.identified,
+               "sigma": self.sigma, "rel_sigma_percent": self.rel_sigma_percent, "bounds": list(self.bounds),
+               "step": self.step, "method": self.method}
+        if self.truth is not None:
+            doc.update(truth=self.truth, error_percent=self.error_percent)
+        return doc
+
+
+@dataclass(frozen=True)
+class BaseRow:
+    """One base parameter of a :class:`BaseFit`: a readable combination ``expression`` of the
+    physical parameters, its estimate and statistics (``truth``/``error_percent`` in simulation)."""
+
+    expression: str
+    initial: float
+    identified: float
+    sigma: float
+    rel_sigma_percent: float | None
+    well_identified: bool
+    truth: float | None = None
+    error_percent: float | None = None
+
+    def to_json(self) -> dict:
+        doc = {"base_parameter": self.expression, "initial": self.initial, "identified": self.identified,
+               "sigma": self.sigma, "rel_sigma_percent": self.rel_sigma_percent,
+               "well_identified": self.well_identified}
+        if self.truth is not None:
+            doc.update(truth=self.truth, error_percent=self.error_percent)
+        return doc
+
+
+@dataclass(frozen=True)
+class EstimatorSummary:
+    """How one online estimator did over a campaign (:meth:`OnlineTrace.comparison`).
+
+    ``j_rmse``: RMS a-priori prediction error in units of the output noise; ``diverged_at``: campaign
+    time (s) it failed numerically, None if it did not; ``settling``: per tracked base parameter,
+    s from the payload change until it stays within :data:`SETTLED` of its new truth (None: never).
+    """
+
+    label: str
+    j_rmse: float
+    diverged_at: float | None
+    settling: tuple[tuple[str, float | None], ...]
+
+
+@dataclass
+class ParameterTable:
+    """One row per parameter (n of them), arrays of shape (n,).
+
+    ``sigma`` is NaN where no standard deviation is known; ``truth`` is None outside simulation;
+    ``step`` names the identification step that estimated the parameter ("" = held at ``initial``).
+    """
+
+    names: tuple[str, ...]
+    initial: np.ndarray
+    identified: np.ndarray
+    sigma: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    step: tuple[str, ...]
+    method: tuple[str, ...]
+    truth: np.ndarray | None = None
+
+    def rows(self, threshold: float = POORLY_IDENTIFIED_PERCENT) -> list[ParameterRow]:
+        """The table's rows; ``threshold``: the %σ above which a fitted parameter is poorly identified."""
+        out = []
+        for i, name in enumerate(self.names):
+            ident, sigma = float(self.identified[i]), float(self.sigma[i])
+            rel = 100.0 * sigma / abs(ident) if ident and math.isfinite(sigma) else None
+            truth = None if self.truth is None else float(self.truth[i])
+            out.append(ParameterRow(
+                name=name, unit=parameter_unit(name), initial=float(self.initial[i]), identified=ident,
+                sigma=sigma if math.isfinite(sigma) else None, rel_sigma_percent=rel,
+                bounds=(_num(self.lower[i]), _num(self.upper[i])), step=self.step[i], method=self.method[i],
+                well_identified=bool(self.step[i]) and _well_identified(rel, threshold),
+                truth=truth, error_percent=None if truth is None else _error_percent(ident, truth)))
+        return out
+
+    @classmethod
+    def from_rows(cls, rows: list[dict]) -> ParameterTable:
+        def col(key, default=math.nan):
+            return np.array([default if r.get(key) is None else r[key] for r in rows], dtype=float)
+        has_truth = all("truth" in r for r in rows)
+        return cls(names=tuple(r["name"] for r in rows), initial=col("initial"), identified=col("identified"),
+                   sigma=col("sigma"), lower=np.array([_num_in(r["bounds"][0], -np.inf) for r in rows]),
+                   upper=np.array([_num_in(r["bounds"][1], np.inf) for r in rows]),
+                   step=tuple(r["step"] for r in rows), method=tuple(r["method"] for r in rows),
+                   truth=col("truth") if has_truth else None)
+
+
+@dataclass
+class BaseFit:
+    """Least-squares estimate of base parameters (the SVD-DLS paper) with statistics (the power-model paper).
+
+    ``r`` base parameters ``pi_b = H pi`` of the ``n`` physical ones: ``expressions`` (r,) read
+    them (e.g. ``"m_c + 0.5 m_l2"``); ``coef``, ``sigma`` (r,) estimate and standard deviation;
+    ``initial``, ``truth`` (r,) the same combinations of the CAD and true values (truth None
+    outside simulation). ``held``: physical parameters held at known values during the fit;
+    ``unexcited``: free ones the data says nothing of. A base parameter whose %σ exceeds
+    ``threshold`` is poorly identified on its data.
+    """
+
+    step: str
+    method: str
+    trajectories: tuple[str, ...]
+    expressions: tuple[str, ...]
+    H: np.ndarray
+    coef: np.ndarray
+    sigma: np.ndarray
+    initial: np.ndarray
+    truth: np.ndarray | None
+    held: tuple[str, ...]
+    unexcited: tuple[str, ...]
+    threshold: float
+
+    @property
+    def rel_sigma_percent(self) -> np.ndarray:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return 100.0 * self.sigma / np.abs(self.coef)
+
+    @property
+    def identified(self) -> np.ndarray:
+        """(r,) bool: %σ at most ``threshold``."""
+        return self.rel_sigma_percent <= self.threshold
+
+    def rows(self) -> list[BaseRow]:
+        out = []
+        for i, expr in enumerate(self.expressions):
+            rel = float(self.rel_sigma_percent[i])
+            truth = None if self.truth is None else float(self.truth[i])
+            out.append(BaseRow(
+                expression=expr, initial=float(self.initial[i]), identified=float(self.coef[i]),
+                sigma=float(self.sigma[i]), rel_sigma_percent=rel if math.isfinite(rel) else None,
+                well_identified=bool(self.identified[i]), truth=truth,
+                error_percent=None if truth is None else _error_percent(float(self.coef[i]), truth)))
+        return out
+
+    def to_dict(self) -> dict:
+        return {"step": self.step, "method": self.method, "trajectories": list(self.trajectories),
+                "threshold_rel_sigma_percent": self.threshold, "held": list(self.held),
+                "unexcited": list(self.unexcited), "H": self.H.tolist(),
+                "rows": [r.to_json() for r in self.rows()]}
+
+    @classmethod
+    def from_dict(cls, doc: dict) -> BaseFit:
+        rows = doc["rows"]
+        def col(key):
+            return np.array([math.nan if r.get(key) is None else r[key] for r in rows], dtype=float)
+        has_truth = all("truth" in r for r in rows)
+        return cls(step=doc["step"], method=doc["method"], trajectories=tuple(doc["trajectories"]),
+                   expressions=tuple(r["base_parameter"] for r in rows), H=np.array(doc["H"], dtype=float),
+                   coef=col("identified"), sigma=col("sigma"), initial=col("initial"),
+                   truth=col("truth") if has_truth else None, held=tuple(doc["held"]),
+                   unexcited=tuple(doc["unexcited"]), threshold=float(doc["threshold_rel_sigma_percent"]))
+
+
+@dataclass
+class TrajectoryFit:
+    """Measured and model forces along one trajectory (SI, after filtering/decimation).
+
+    Attributes:
+        name: trajectory name; role: ``"identification"`` or ``"validation"``.
+        t: (N,) s; tau, tau_model: (N, 6) N·m / N; Theta: (N, 6) rad / m;
+        X: (N, 3) end-effector pose [x m, y m, alpha rad], or None.
+        tau_base: (N, 6) the forces the base-parameter fit (:class:`BaseFit`) predicts, or None.
+    """
+
+    name: str
+    role: str
+    t: np.ndarray
+    tau: np.ndarray
+    tau_model: np.ndarray
+    Theta: np.ndarray
+    X: np.ndarray | None = None
+    tau_base: np.ndarray | None = None
+
+    def save(self, path: Path) -> None:
+        arrays = {k: getattr(self, k) for k in ("t", "tau", "tau_model", "Theta", "X", "tau_base")
+                  if getattr(self, k) is not None}
+        np.savez_compressed(path, name=self.name, role=self.role, **arrays)
+
+    @classmethod
+    def load(cls, path: Path) -> TrajectoryFit:
+        with np.load(path) as f:
+            return cls(name=str(f["name"]), role=str(f["role"]), t=f["t"], tau=f["tau"],
+                       tau_model=f["tau_model"], Theta=f["Theta"], X=f["X"] if "X" in f else None,
+                       tau_base=f["tau_base"] if "tau_base" in f else None)
+
+
+@dataclass
+class OnlineTrace:
+    """Estimates of an online run (:mod:`ident_hw.experiment.online`).
+
+    Attributes:
+        names: (n,) parameter names. t: (M,) campaign time of each sample, s.
+        estimates: per estimator (the first is SVD-DLS), (M, n) in the units of ``names``.
+        rank: (M,) excited directions of SVD-DLS after each sample (None: not recorded).
+        j_rmse: per estimator, RMS a-priori prediction error over the campaign, in units of the
+            output noise (``identification.online.output_noise``).
+        base_names, H: the base parameters of the data, ``pi_b = H @ pi`` (b, n).
+        truth: (M, n) the simulated truth at each sample (None on hardware).
+        change_time: campaign time of the payload change (s), None without one.
+        unexcited: the directions SVD-DLS holds at the end, readable.
+        diverged: per estimator that failed numerically, the campaign time (s) it stopped at.
+    """
+
+    names: tuple[str, ...]
+    t: np.ndarray
+    estimates: dict[str, np.ndarray]
+    rank: np.ndarray | None = None
+    j_rmse: dict[str, float] = field(default_factory=dict)
+    base_names: tuple[str, ...] = ()
+    H: np.ndarray | None = None
+    truth: np.ndarray | None = None
+    change_time: float | None = None
+    unexcited: tuple[str, ...] = ()
+    diverged: dict[str, float] = field(default_factory=dict)
+
+    def base(self, estimates: np.ndarray) -> np.ndarray:
+        """(M, b) the base parameters of ``estimates`` (M, n)."""
+        return estimates @ self.H.T
+
+    def tracked(self) -> list[int]:
+        """The base parameters whose truth changes at the payload change."""
+        if self.truth is None or self.change_time is None or self.H is None:
+            return []
+        b = self.base(self.truth)
+        return [i for i in range(b.shape[1]) if np.ptp(b[:, i]) > 1e-12 * max(np.abs(b[:, i]).max(), 1e-300)]
+
+    def settling_time(self, estimator: str, i: int) -> float | None:
+        """s from the payload change until base parameter ``i`` of ``estimator`` stays within
+        :data:`SETTLED` of its new true value (None: it does not, by the end)."""
+        after = self.t >= self.change_time
+        est = self.base(self.estimates[estimator])[after, i]
+        true = self.base(self.truth)[after, i]
+        off = ~(np.abs(est - true) <= SETTLED * np.abs(true))      # NaN (a diverged estimator) is off
+        if not len(off) or off[-1]:
+            return None
+        last_off = np.nonzero(off)[0]
+        k = last_off[-1] + 1 if len(last_off) else 0
+        return float(self.t[after][k] - self.change_time)
+
+    def comparison(self) -> list[EstimatorSummary]:
+        """Per estimator (SVD-DLS first): J_RMSE, divergence and the settling of each tracked
+        base parameter after the payload change."""
+        tracked = self.tracked()
+        return [EstimatorSummary(label, self.j_rmse.get(label, math.nan), self.diverged.get(label),
+                                 tuple((self.base_names[i], self.settling_time(label, i)) for i in tracked))
+                for label in self.estimates]
+
+    def save(self, path: Path) -> None:
+        labels = list(self.estimates)
+        arrays = {f"estimates_{i}": self.estimates[k] for i, k in enumerate(labels)}
+        np.savez_compressed(path, names=np.array(self.names), t=self.t, estimators=np.array(labels),
+                            j_rmse=np.array([self.j_rmse.get(k, np.nan) for k in labels]),
+                            rank=self.rank if self.rank is not None else np.zeros(0),
+                            base_names=np.array(self.base_names), H=self.H if self.H is not None else np.zeros((0, 0)),
+                            truth=self.truth if self.truth is not None else np.zeros((0, 0)),
+                            change_time=np.nan if self.change_time is None else self.change_time,
+                            unexcited=np.array(self.unexcited),
+                            diverged=np.array([self.diverged.get(k, np.nan) for k in labels]), **arrays)
+
+    @classmethod
+    def load(cls, path: Path) -> "OnlineTrace":
+        with np.load(path) as f:
+            names = tuple(str(n) for n in f["names"])
+            if "estimators" not in f:                  # written before the baselines were traced
+                return cls(names, f["t"], {"SVD-DLS": f["estimates"]})
+            labels = [str(k) for k in f["estimators"]]
+            change = float(f["change_time"])
+            return cls(names, f["t"], {k: f[f"estimates_{i}"] for i, k in enumerate(labels)},
+                       rank=f["rank"] if f["rank"].size else None,
+                       j_rmse=dict(zip(labels, (float(v) for v in f["j_rmse"]))),
+                       base_names=tuple(str(n) for n in f["base_names"]), H=f["H"] if f["H"].size else None,
+                       truth=f["truth"] if f["truth"].size else None,
+                       change_time=None if np.isnan(change) else change,
+                       unexcited=tuple(str(u) for u in f["unexcited"]),
+                       diverged={k: float(v) for k, v in zip(labels, f["diverged"]) if not np.isnan(v)})
+
+
+@dataclass
+class Results:
+    """Everything a results folder records about one campaign."""
+
+    parameters: ParameterTable
+    fits: list[TrajectoryFit] = field(default_factory=list)
+    steps: list[dict] = field(default_factory=list)
+    base_parameters: dict | None = None
+    online: OnlineTrace | None = None
+    base_fit: BaseFit | None = None
+    rel_sigma_threshold: float = POORLY_IDENTIFIED_PERCENT
+    #: per trajectory: what its recording covered and what the fit used (``offline.coverage``)
+    trajectories: dict = field(default_factory=dict)
+    #: the quality verdict (``ident_hw.experiment.quality.verdict``); None: not judged
+    quality: dict | None = None
+
+    def parameter_rows(self) -> list[ParameterRow]:
+        """The physical parameters, judged by this campaign's %σ threshold."""
+        return self.parameters.rows(self.rel_sigma_threshold)
+
+
+# ----------------------------------------------------------------------------- status
+def mark_status(folder: str | Path, status: str) -> None:
+    """Write STATUS (see the module docstring), atomically: a reader never sees half of it."""
+    path = Path(folder, STATUS_FILE)
+    tmp = path.with_name(STATUS_FILE + ".tmp")
+    tmp.write_text(status.strip() + "\n")
+    tmp.replace(path)
+
+
+def final_status(results: Results) -> str:
+    """``complete`` when the quality verdict passed (or there is none), else ``degraded: <reasons>``."""
+    if results.quality is None or results.quality["passed"]:
+        return "complete"
+    return "degraded: " + "; ".join(results.quality["reasons"])
+
+
+def read_status(folder: str | Path) -> str:
+    path = Path(folder, STATUS_FILE)
+    return path.read_text().strip() if path.is_file() else "unknown (no STATUS file)"
+
+
+# ----------------------------------------------------------------------------- saving
+def save_results(folder: str | Path, results: Results) -> Path:
+    """Write the parameters, fits and online trace into ``folder`` (returned); the report is
+    built from them by :func:`ident_hw.report.build_report`."""
+    folder = Path(folder)
+    (folder / "fits").mkdir(parents=True, exist_ok=True)
+    doc = {"parameters": [r.to_json() for r in results.parameter_rows()], "rel_sigma_threshold_percent": results.rel_sigma_threshold,
+           "base_fit": None if results.base_fit is None else results.base_fit.to_dict(),
+           "steps": results.steps, "base_parameters": results.base_parameters,
+           "trajectories": results.trajectories, "quality": results.quality}
+    (folder / "parameters.json").write_text(json.dumps(doc, indent=2, default=_jsonable))
+    (folder / "parameters.yaml").write_text(yaml.safe_dump(json.loads(json.dumps(doc, default=_jsonable)),
+                                                           sort_keys=False))
+    for fit in results.fits:
+        fit.save(folder / "fits" / f"{fit.name}.npz")
+    if results.online is not None:
+        results.online.save(folder / "online.npz")
+    return folder
+
+
+def load_results(folder: str | Path) -> Results:
+    """Read back what :func:`save_results` wrote."""
+    folder = Path(folder)
+    path = folder / "parameters.json"
+    if not path.is_file():
+        raise FileNotFoundError(f"{folder} is not a results folder: no parameters.json")
+    doc = json.loads(path.read_text())
+    fits = [TrajectoryFit.load(p) for p in sorted((folder / "fits").glob("*.npz"))]
+    fits.sort(key=lambda f: f.role != "identification")
+    online = None
+    if (folder / "online.npz").is_file():
+        online = OnlineTrace.load(folder / "online.npz")
+    base_fit = BaseFit.from_dict(doc["base_fit"]) if doc.get("base_fit") else None
+    return Results(parameters=ParameterTable.from_rows(doc["parameters"]), fits=fits,
+                   steps=doc.get("steps") or [], base_parameters=doc.get("base_parameters"), online=online,
+                   base_fit=base_fit, rel_sigma_threshold=doc.get("rel_sigma_threshold_percent", POORLY_IDENTIFIED_PERCENT),
+                   trajectories=doc.get("trajectories") or {}, quality=doc.get("quality"))
+
+
+# ----------------------------------------------------------------------------- figures
+def metrics(results: Results) -> dict:
+    """Per trajectory: role and the validation metrics per actuator (``identification.metrics``)
+    of the physical parameters, and under ``base_fit`` those of the base-parameter fit."""
+    out = {}
+    for fit in results.fits:
+        out[fit.name] = {"role": fit.role, "samples": int(len(fit.t)), **_metrics(fit.tau, fit.tau_model)}
+        if fit.tau_base is not None:
+            out[fit.name]["base_fit"] = _metrics(fit.tau, fit.tau_base)
+    return out
+
+
+def _metrics(tau: np.ndarray, tau_model: np.ndarray) -> dict:
+    if not len(tau):                # nothing of the trajectory could be fitted (the verdict says why)
+        nan = dict.fromkeys(ACTUATOR_NAMES, float("nan"))
+        return {"rms": nan, "nrms_percent": dict(nan), "d_tau_percent": float("nan"), "j_rmse": float("nan")}
+    m = validation_metrics(tau, tau_model)
+    return {"rms": dict(zip(ACTUATOR_NAMES, m.rms.tolist())),
+            "nrms_percent": dict(zip(ACTUATOR_NAMES, m.nrms_percent.tolist())),
+            "d_tau_percent": m.d_tau_percent, "j_rmse": m.j_rmse}
+
+
+
+def _num(value) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+def _num_in(value, default: float) -> float:
+    return default if value is None else float(value)
+
+
+def _jsonable(obj):
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    raise TypeError(f"cannot store {type(obj).__name__} in parameters.json")
