@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
+from drivers.cia import is_node_id
 from drivers.errors import ConfigError
 from drivers.profiles import DriveProfile, get_profile
 from drivers.units import AxisScaling
@@ -12,10 +13,11 @@ from drivers.units import AxisScaling
 
 @dataclass(frozen=True)
 class HomingConfig:
-    """CiA 402 homing of one axis.
+    """CiA 402 homing of one axis, joint side (also the ``homing:`` section of a config file:
+    the field metadata gives each key's SI unit).
 
     Args:
-        method: homing method (0x6098), e.g. 35/37 "actual position", 17/18 limit switches.
+        method: homing method (0x6098, I8), e.g. 35/37 "actual position", 17/18 limit switches.
         offset: joint position at home in rad or m (the maxon "home position", 0x2081 on
             the EPOS2, 0x30B0 on the EPOS4, which the drive assigns when homing completes).
         switch_speed: speed of the switch search in rad/s or m/s.
@@ -25,11 +27,18 @@ class HomingConfig:
     """
 
     method: int
-    offset: float = 0.0
-    switch_speed: float = 0.1
-    zero_speed: float = 0.01
-    acceleration: float = 1.0
-    timeout: float = 30.0
+    offset: float = field(default=0.0, metadata={"unit": "rad | m"})
+    switch_speed: float = field(default=0.1, metadata={"unit": "rad/s | m/s"})
+    zero_speed: float = field(default=0.01, metadata={"unit": "rad/s | m/s"})
+    acceleration: float = field(default=1.0, metadata={"unit": "rad/s^2 | m/s^2"})
+    timeout: float = field(default=30.0, metadata={"unit": "s"})
+
+    def __post_init__(self) -> None:
+        if not -128 <= self.method <= 127:
+            raise ConfigError(f"homing method: expected an I8 (-128..127), got {self.method}")
+        for name in ("switch_speed", "zero_speed", "acceleration", "timeout"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"homing {name}: expected a positive value, got {getattr(self, name)}")
 
 
 @dataclass(frozen=True)
@@ -66,7 +75,7 @@ class AxisConfig:
 
     def __post_init__(self) -> None:
         where = f"axis {self.name!r}"
-        if not (isinstance(self.node_id, int) and 1 <= self.node_id <= 127):
+        if not is_node_id(self.node_id):
             raise ConfigError(f"{where}: node_id must be an integer in 1..127, got {self.node_id!r}")
         try:
             get_profile(self.profile)

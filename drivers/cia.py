@@ -8,6 +8,15 @@ from __future__ import annotations
 from canopen.profiles.p402 import State402
 
 # -- CiA 301 -----------------------------------------------------------------------------------------
+#: the node-IDs a CANopen device may have
+NODE_ID_MIN, NODE_ID_MAX = 1, 127
+
+
+def is_node_id(value) -> bool:
+    """``value`` is an integer node-ID in 1..127."""
+    return isinstance(value, int) and not isinstance(value, bool) and NODE_ID_MIN <= value <= NODE_ID_MAX
+
+
 #: COB-ID of the SYNC frame (object 0x1005 default)
 SYNC_COB_ID = 0x080
 #: EMCY COB-ID is this plus the node-ID (object 0x1014 default)

@@ -30,7 +30,7 @@ from drivers.axis import AxisConfig
 from drivers.bus import BusConfig, check_bus_load, frame_bits
 from drivers.cia import (CW_CHANGE_IMMEDIATELY, CW_ENABLE_OPERATION, CW_FAULT_RESET, CW_NEW_SETPOINT,
                          HEARTBEAT_CONSUMER, MODE_HMM, MODE_PPM, NMT_ENTER_PRE_OPERATIONAL, NMT_OPERATIONAL, SW_BIT12,
-                         SW_BIT13, SW_FAULT, SW_TARGET_REACHED, SYNC_COB_ID, state_of)
+                         SW_BIT13, SW_FAULT, SW_TARGET_REACHED, SYNC_COB_ID, is_node_id, state_of)
 from drivers.emcy import describe
 from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, HeartbeatTimeout, NodeError
 from drivers.gc_freeze import GcPauses, frozen_gc
@@ -478,7 +478,7 @@ class DriveGroup:
                 raise ConfigError(f"axis {axis.name!r}: node_id {axis.node_id} already used by "
                                   f"axis {seen[axis.node_id]!r}")
             seen[axis.node_id] = axis.name
-        if not (isinstance(master_id, int) and 1 <= master_id <= 127) or master_id in seen:
+        if not is_node_id(master_id) or master_id in seen:
             raise ConfigError(f"master_id must be a node-ID in 1..127 that no drive uses, got "
                               f"{master_id!r} (drives: {sorted(seen)})")
         if sync not in SYNC_MODES:

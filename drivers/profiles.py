@@ -49,7 +49,7 @@ from canopen.objectdictionary import (
     datatypes,
 )
 
-from drivers.cia import EMCY_COB_BASE, SYNC_COB_ID, pdo_cob_id
+from drivers.cia import EMCY_COB_BASE, SYNC_COB_ID, is_node_id, pdo_cob_id
 
 VENDOR_ID_MAXON = 0x000000FB
 
@@ -387,7 +387,7 @@ def make_object_dictionary(profile_name: str, node_id: int) -> ObjectDictionary:
         ValueError: unknown profile name or a node-ID out of range.
     """
     prof = get_profile(profile_name)
-    if not (isinstance(node_id, int) and 1 <= node_id <= 127):
+    if not is_node_id(node_id):
         raise ValueError(f"CANopen node-ID must be an integer in 1..127, got {node_id!r}")
     od = ObjectDictionary()
     od.node_id = node_id

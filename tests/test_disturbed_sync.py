@@ -19,7 +19,7 @@ from drivers import bus as bus_module
 from drivers.cia import SYNC_COB_ID
 from ident_hw.config import load_config
 from ident_hw.experiment import runner
-from ident_hw.experiment.results import new_results_folder
+from ident_hw.experiment.folders import new_results_folder
 from ident_scenarios import CONFIGS, SWEEP_CAMPAIGN
 
 log = logging.getLogger(__name__)

@@ -330,7 +330,7 @@ def test_a_silent_node_is_reported_as_state_unknown_not_as_disabled(tmp_path, mo
     through the session the runner opens): the run stops on its heartbeat, and neither STATUS,
     drives.json nor the stop message claim it was disabled."""
     from ident_hw.experiment import runner
-    from ident_hw.experiment.results import new_results_folder
+    from ident_hw.experiment.folders import new_results_folder
     config = load_config(short_config(tmp_path, cycles=3))
     folder = new_results_folder(config, tmp_path / "res", "run")
     real = runner.open_session
@@ -368,7 +368,7 @@ def test_dropped_pdo_frames_end_the_run_degraded_not_complete(tmp_path, monkeypa
     cycle again): about half the cycles come incomplete; the run ends ``degraded`` with that
     reason, never ``complete``."""
     from ident_hw.experiment import runner
-    from ident_hw.experiment.results import new_results_folder
+    from ident_hw.experiment.folders import new_results_folder
     config = load_config(short_config(tmp_path, sync="periodic"))
     folder = new_results_folder(config, tmp_path / "res", "run")
     real = runner.open_session

@@ -4,6 +4,9 @@ Public API::
 
     from trajectories import Trajectory, Limits, check_trajectory, load, save
     from trajectories import carriage_sweep, five_squares, validation_triangle
+
+Imports :mod:`ident_hw.model` (kinematics for the checks and the excitation's regressor), nothing
+else of the project.
 """
 
 from .feasibility import InfeasibleTrajectory, Limits, Report, Violation, check_trajectory

@@ -4,6 +4,10 @@
     cfg = load_config("configs/sim-3prrr.yaml")     # raises ConfigError naming file, line, key
     cfg.robot.geometry.to_model()                    # ident_hw.model.Geometry
     cfg.robot.actuators[3].scaling()                 # drivers.units.AxisScaling
+
+Sections turn into the objects of the layers below (model geometry and parameters, drive axis
+and bus settings, trajectory limits, filter settings), so the config imports those; it imports
+nothing of the runner, the report or the CLI.
 """
 
 from __future__ import annotations

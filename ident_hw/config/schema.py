@@ -27,6 +27,8 @@ from typing import Any, Callable, Literal, Union
 
 import yaml
 
+import drivers.errors
+
 _TAG_NULL = "tag:yaml.org,2002:null"
 _TAG_BOOL = "tag:yaml.org,2002:bool"
 _TAG_INT = "tag:yaml.org,2002:int"
@@ -34,8 +36,11 @@ _TAG_FLOAT = "tag:yaml.org,2002:float"
 _TAG_STR = "tag:yaml.org,2002:str"
 
 
-class ConfigError(ValueError):
-    """A config file is invalid: names the file, line, key path and what was expected."""
+class ConfigError(drivers.errors.ConfigError):
+    """A config file is invalid: names the file, line, key path and what was expected.
+
+    A :class:`drivers.errors.ConfigError` (the drive layer's, raised for an invalid axis setting),
+    so that one ``except`` catches a bad value wherever it is found."""
 
     def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
                  key: str | None = None) -> None:

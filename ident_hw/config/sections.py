@@ -17,6 +17,8 @@ import can
 
 import drivers.axis
 import drivers.bus
+from drivers.cia import NODE_ID_MAX, NODE_ID_MIN
+from drivers.axis import HomingConfig
 from drivers.units import PRISMATIC, REVOLUTE, AxisScaling
 from ident_hw.identification.least_squares import POORLY_IDENTIFIED_PERCENT
 from ident_hw.model import ACTUATOR_NAMES, Geometry, InertialParams
@@ -90,27 +92,12 @@ class LimitsConfig:
 
 
 @dataclass(frozen=True)
-class HomingConfig:
-    """CiA 402 homing (0x6098 method), joint side: offset = joint position at home."""
-
-    method: int = field(metadata=spec(in_range(-128, 127)))
-    offset: float = field(default=0.0, metadata=spec(unit="rad | m"))
-    switch_speed: float = field(default=0.1, metadata=spec(positive, unit="rad/s | m/s"))
-    zero_speed: float = field(default=0.01, metadata=spec(positive, unit="rad/s | m/s"))
-    acceleration: float = field(default=1.0, metadata=spec(positive, unit="rad/s^2 | m/s^2"))
-    timeout: float = field(default=30.0, metadata=spec(positive, unit="s"))
-
-    def to_driver(self) -> drivers.axis.HomingConfig:
-        return drivers.axis.HomingConfig(**dataclasses.asdict(self))
-
-
-@dataclass(frozen=True)
 class ActuatorConfig:
     """One motor + drive. Actuators are listed in the order theta1..3, zeta1..3."""
 
     name: str
     kind: Literal["revolute", "prismatic"]
-    node_id: int = field(metadata=spec(in_range(1, 127)))
+    node_id: int = field(metadata=spec(in_range(NODE_ID_MIN, NODE_ID_MAX)))
     profile: Literal["epos2", "epos4"]
     torque_constant: float = field(metadata=spec(positive, unit="N m/A"))
     counts_per_turn: int = field(metadata=spec(positive, doc="quadrature counts per motor turn"))
@@ -146,7 +133,7 @@ class ActuatorConfig:
             position_min=self.limits.position[0], position_max=self.limits.position[1],
             max_velocity=self.limits.velocity, max_current=self.limits.current,
             following_error_window=self.limits.following_error, product_code=self.product_code,
-            homing=self.homing.to_driver(), object_dictionary=od_file)
+            homing=self.homing, object_dictionary=od_file)
 
 
 @dataclass(frozen=True)
@@ -245,7 +232,7 @@ class SimFaultConfig:
 
     trajectory: str
     after: float = field(metadata=spec(non_negative, unit="s"))
-    node_id: int = field(metadata=spec(in_range(1, 127)))
+    node_id: int = field(metadata=spec(in_range(NODE_ID_MIN, NODE_ID_MAX)))
     code: int = field(default=0x2310, metadata=spec(in_range(0x1000, 0xFFFF), doc="EMCY error code"))
 
 

@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 
 from ident_hw.config import Config, resolved_yaml
-from ident_hw.report import mark_status
+from ident_hw.results import mark_status
 
 
 def new_results_folder(config: Config, out: str | Path | None, label: str) -> Path:

@@ -14,7 +14,8 @@ Public API::
 - :func:`power_rows`, :func:`energy_rows`: power and energy models (no accelerations).
 - :func:`validation_metrics`: RMS, NRMS, d_tau and J_RMSE on held-out data.
 
-Every result has ``to_dict()``.
+Every result has ``to_dict()``. Imports :mod:`ident_hw.model` and :mod:`ident_hw.signal`,
+nothing of the drivers, trajectories, config or runner.
 """
 
 from .base_params import BaseParameters, base_parameters, identify_base
