@@ -1,5 +1,6 @@
-"""Online estimators: per-sample update cost (n = 19, k = 6) and the J_RMSE table of the
-SVD-DLS / RLS / damped-RLS comparison of ``tests/test_ident_online.py`` (same stream).
+"""Online estimators: per-sample update cost (3PRRR n = 19, k = 6; Delta base parameters n = 40,
+k = 3 on the SVD-DLS paper's training path) and the J_RMSE table of the SVD-DLS / RLS /
+damped-RLS comparison of ``tests/test_ident_online.py`` (same stream).
 
 Run from the repository root: ``python benchmarks/bench_ident_online.py``.
 """
@@ -26,6 +27,26 @@ for est in (RLS(N), DampedRLS(N), SVDDLS(N, threshold=1e-6)):
     est.partial_fit(Y, tau)
     per_sample = (time.perf_counter() - start) / SAMPLES
     print(f"  {type(est).__name__:10s} {per_sample * 1e6:7.1f} us/sample  ({1e-3 / per_sample:5.1f} x real time at 1 kHz)")
+
+from ident_hw.model.delta import PARAM_NAMES, Delta, base_parameters, nominal_parameters  # noqa: E402
+from trajectories.delta_paper import training_path  # noqa: E402
+
+delta = Delta()
+base = base_parameters(delta.geometry)
+q, qd, qdd = training_path(np.arange(6000) / 100.0)
+Yd = delta.regressor(q, qd, qdd)[:, :, [PARAM_NAMES.index(k) for k in base.kept]]
+taud = Yd @ (base.H @ nominal_parameters()) + rng.normal(0, 0.01, size=(len(Yd), 3))   # N·m
+scale = np.maximum(np.abs(base.H @ nominal_parameters()), 1e-2)
+print("update cost, Delta base parameters, n = 40, k = 3, training path at 100 Hz, torque noise 0.01 N·m "
+      "(first 10 s not timed):")
+std = np.full(3, 0.01)
+for est in (RLS(40, 0.998, scale=scale, output_std=std), DampedRLS(40, 0.998, scale=scale, output_std=std),
+            SVDDLS(40, 0.998, scale=scale, output_std=std)):
+    est.partial_fit(Yd[:1000], taud[:1000])
+    start = time.perf_counter()
+    est.partial_fit(Yd[1000:], taud[1000:])
+    per_sample = (time.perf_counter() - start) / (len(Yd) - 1000)
+    print(f"  {type(est).__name__:10s} {per_sample * 1e6:7.1f} us/sample  (rank {getattr(est, 'rank_', 40)})")
 
 sc = online_scenario()
 traces = run_all(sc)

@@ -35,9 +35,10 @@ Information matrix with forgetting ``lambda`` (eq. 65): ``R_t = lambda R_{t−1}
   (eigenvalues at or above ``threshold``):
   ``theta_t = theta_{t−1} + V_p Lambda_p⁻¹ V_pᵀ D_t e_t`` (eq. 77), which is eq. 83 (the
   projector removes nothing from a vector already in span V_p): the component in the
-  unexcited directions is held. The eigen-decomposition (LAPACK ``dsyevd`` of the n × n
-  ``R_t``, about 20 µs at n = 19) is redone at every sample, so the subspace is never stale;
-  the whole update costs well under 100 µs (``benchmarks/bench_ident_online.py``).
+  unexcited directions is held. The excited subspace is recomputed at every sample, so it is
+  never stale: with few held directions LAPACK ``dsyevr`` finds only those and the rest is a
+  Cholesky solve, otherwise the full decomposition (``dsyevd``) is used; the update's cost is
+  in ``benchmarks/README.md``.
   Threshold (absolute, in the scaled units above): a direction ``v`` of ``R_t`` with
   eigenvalue ``mu`` is known to a standard deviation ``1/sqrt(mu)`` in units of the
   parameter scale (outputs in units of their noise). It counts as excited while
@@ -53,7 +54,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import lapack, solve
+from scipy.linalg import cho_factor, cho_solve, lapack, solve
 
 class _RecursiveEstimator:
     """Shared bookkeeping: shapes, scaling, block handling, prediction, warm start.
@@ -275,10 +276,37 @@ class SVDDLS(_RecursiveEstimator):
         R = self._R
         R *= self.forgetting
         R += D @ D.T
-        lam, Vp = self._excited()
-        if lam.size:
-            g = D @ (s - D.T @ self._theta)
-            self._theta = self._theta + Vp @ ((Vp.T @ g) / lam)
+        # eq. 77. With few held directions (the previous sample's rank tells) only they are
+        # computed (LAPACK dsyevr, about half the cost of the full decomposition): lifting them to
+        # the threshold gives a positive definite R' whose inverse is V_p Lambda_p^-1 V_p^T on the
+        # excited subspace plus U U^T / threshold on the held one, which is then taken away.
+        below = np.nextafter(self.threshold, -np.inf)
+        n = self.n_params
+        if 2 * self.rank_ < n:     # many held: the full decomposition (faster than dsyevr's subset here)
+            lam, Vp = self._excited()
+            if lam.size:
+                g = D @ (s - D.T @ self._theta)
+                self._theta = self._theta + Vp @ ((Vp.T @ g) / lam)
+            return
+        lam, U, m, _, info = lapack.dsyevr(R, compute_v=1, range="V", vl=-np.inf, vu=below, lower=1)
+        _check(info)
+        self.rank_ = n - m
+        if not self.rank_:
+            return
+        g = D @ (s - D.T @ self._theta)
+        if m:
+            U = U[:, :m]
+            lifted = R + (U * (self.threshold - lam[:m])) @ U.T
+            step = cho_solve(cho_factor(lifted, lower=True, check_finite=False), g, check_finite=False)
+            step -= U @ (U.T @ g) / self.threshold
+        else:
+            step = cho_solve(cho_factor(R, lower=True, check_finite=False), g, check_finite=False)
+        self._theta = self._theta + step
+
+
+def _check(info: int) -> None:
+    if info != 0:
+        raise np.linalg.LinAlgError(f"LAPACK dsyevr failed with info={info}")
 
 
 @dataclass(frozen=True)

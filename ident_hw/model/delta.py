@@ -69,6 +69,48 @@ def nominal_parameters(geometry: DeltaGeometry = DeltaGeometry()) -> np.ndarray:
     return np.concatenate([arm, arm, arm, rod, rod, rod, plat, np.zeros(9)])
 
 
+@dataclass(frozen=True)
+class BaseParameters:
+    """The readable base parameters of the Delta (the spec's set; any geometry, generic path).
+
+    ``kept`` (r,): the parameter whose regressor column carries each base parameter;
+    ``H`` (r, 79): ``pi_b = H @ pi``, so that ``Y @ pi == Y[..., kept] @ (H @ pi)``;
+    ``expressions`` (r,): each row written out (e.g. ``"arm1.mx + 0.5193 rod1.mx"``).
+    """
+
+    kept: tuple[str, ...]
+    H: np.ndarray
+    expressions: tuple[str, ...]
+
+
+def base_parameters(geometry: DeltaGeometry = DeltaGeometry(), drive_terms: bool = True) -> BaseParameters:
+    """34 base parameters of the bodies (one common, eleven per limb), plus ``fv_i``, ``fc_i``
+    with the drive terms (40; ``Jm_i`` joins ``arm_i.Iyy``)."""
+    L1, L2 = geometry.L1, geometry.L2
+    index = {name: k for k, name in enumerate(PARAM_NAMES)}
+    rows: list[tuple[str, dict[str, float]]] = [
+        ("plat.m", {"plat.m": 1.0, **{f"rod{i}.m": 1.0 for i in (1, 2, 3)},
+                    **{f"rod{i}.mx": -1.0 / L2 for i in (1, 2, 3)}})]
+    for i in (1, 2, 3):
+        arm, rod = f"arm{i}.", f"rod{i}."
+        rows.append((arm + "mx", {arm + "mx": 1.0, rod + "mx": L1 / L2}))
+        rows.append((arm + "mz", {arm + "mz": 1.0}))
+        rows.append((arm + "Iyy", {arm + "Iyy": 1.0, rod + "mx": L1**2 / L2,
+                                   **({f"Jm_{i}": 1.0} if drive_terms else {})}))
+        rows += [(rod + p, {rod + p: 1.0}) for p in ("my", "mz", "Ixx", "Ixy", "Ixz", "Iyz")]
+        rows.append((rod + "Iyy", {rod + "Iyy": 1.0, rod + "mx": -L2}))
+        rows.append((rod + "Izz", {rod + "Izz": 1.0, rod + "mx": -L2}))
+    if drive_terms:
+        rows += [(f"{kind}_{i}", {f"{kind}_{i}": 1.0}) for i in (1, 2, 3) for kind in ("fv", "fc")]
+    H = np.zeros((len(rows), N_PARAMS))
+    for r, (_, terms) in enumerate(rows):
+        for name, coef in terms.items():
+            H[r, index[name]] = coef
+    expressions = tuple(" + ".join(name if coef == 1.0 else f"{coef:.6g} {name}" for name, coef in terms.items())
+                        .replace("+ -", "- ") for _, terms in rows)
+    return BaseParameters(tuple(k for k, _ in rows), H, expressions)
+
+
 @dataclass
 class Bodies:
     """The seven bodies' motion along a batch (N samples), in the order of :data:`BODIES`.
