@@ -80,10 +80,9 @@ def test_a_disturbed_sync_ends_within_5_percent_or_degraded(tmp_path, monkeypatc
     skipped = used["skipped_slots"] / slots
     assert skipped > 10 * STALL_PROBABILITY ** 2, used     # the disturbance happened
     status = (folder / "STATUS").read_text()
-    rows = [r for r in results.parameters.rows() if r["step"]]
-    well = [r for r in rows if r["rel_sigma_percent"] is not None
-            and r["rel_sigma_percent"] <= results.rel_sigma_threshold]
-    errors = {r["name"]: r["error_percent"] for r in well}
+    well = [r for r in results.parameter_rows()
+            if r.fitted and r.rel_sigma_percent is not None and r.rel_sigma_percent <= results.rel_sigma_threshold]
+    errors = {r.name: r.error_percent for r in well}
     log.warning("attempt %d: %.1f %% of the SYNC slots skipped, %.1f %% of the rows complete, %s; "
                 "status %s; errors of the well identified (%%): %s", attempt, 100 * skipped,
                 100 * used["valid_fraction"], used.get("rows_left_out"), status.splitlines()[0][:80],
