@@ -258,6 +258,12 @@ class CycleAssembler(can.Listener):
         self._last: dict[int, bytes] = {}  # last frame per COB-ID in the open window
         self._held: dict[int, list] = {}   # cycle -> [timestamp, target, statusword, {cob: [state, data]}]
 
+    @property
+    def progress(self) -> int:
+        """Cycles closed, plus one while a SYNC's window is open: grows with every SYNC seen
+        (what a stall watchdog watches)."""
+        return self.cycles + (self._open is not None)
+
     def on_message_received(self, msg: can.Message) -> None:
         for listener in self._forward:
             listener.on_message_received(msg)

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import logging
 import time
-from contextlib import ExitStack
 from typing import Any, Callable, Sequence
 
 import canopen
@@ -24,21 +23,19 @@ import numpy as np
 from canopen.profiles.p402 import Homing, State402
 from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
 
-from drivers.acquisition import (AxisLayout, CycleAssembler, PdoFrame, cycle_books, cycle_frame_sizes,
-                                 event_bits_per_s, pdo_layout)
+from drivers.acquisition import AxisLayout, PdoFrame, cycle_frame_sizes, event_bits_per_s, pdo_layout
 from drivers.axis import AxisConfig
 from drivers.bus import BusConfig, check_bus_load, frame_bits
 from drivers.cia import (CW_CHANGE_IMMEDIATELY, CW_ENABLE_OPERATION, CW_FAULT_RESET, CW_NEW_SETPOINT,
                          HEARTBEAT_CONSUMER, MODE_HMM, MODE_PPM, NMT_ENTER_PRE_OPERATIONAL, NMT_OPERATIONAL, SW_BIT12,
-                         SW_BIT13, SW_FAULT, SW_TARGET_REACHED, SYNC_COB_ID, is_node_id, state_of)
+                         SW_BIT13, SW_FAULT, SW_TARGET_REACHED, is_node_id, state_of)
 from drivers.emcy import describe
-from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, HeartbeatTimeout, NodeError
-from drivers.gc_freeze import GcPauses, frozen_gc
+from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, NodeError
 from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, load_object_dictionary, make_object_dictionary
-from drivers.recording import FlushingLogger, Recording, SampleRecorder
+from drivers.recording import Recording
+from drivers.stream import CyclicStream
 from drivers.supervision import Supervisor
 from drivers.sync import SYNC_MODES, LockstepSync
-from drivers.units import AxesScaling
 
 logger = logging.getLogger(__name__)
 
@@ -400,36 +397,6 @@ def _name(ref) -> str:
     return f"0x{ref[0]:04X}:{ref[1]:02X}"
 
 
-class _TargetStreamer:
-    """Sends the set-points of cycle k+1 as RPDO frames when SYNC k is seen (notifier thread);
-    after the last cycle it repeats the last set-points, until the SYNC stops (the drives hold
-    them, and their RPDO deadline is met, while they are switched out of the cyclic mode)."""
-
-    def __init__(self, network: canopen.Network, drives: Sequence[EposDrive], counts: np.ndarray,
-                 supervisor: Supervisor):
-        self.network = network
-        self.counts = counts.tolist()
-        self.supervisor = supervisor
-        self.rpdos = []
-        for drive in drives:
-            frame = next(f for f in drive.frames if f.direction == "rpdo")
-            self.rpdos.append((frame.cob_id(drive.axis.node_id), frame.struct.pack))
-        self.failed = False
-
-    def send(self, k: int) -> None:
-        if self.failed:
-            return
-        try:
-            for (cob_id, pack), value in zip(self.rpdos, self.counts[min(k, len(self.counts) - 1)]):
-                self.network.send_message(cob_id, pack(value, CW_ENABLE_OPERATION))
-        except Exception as exc:  # noqa: BLE001 - any send failure stops the run
-            self.failed = True
-            self.supervisor.bus_error(f"sending the set-points of cycle {k} failed: {exc!r}")
-
-    def on_sync(self, k: int) -> None:
-        self.send(k + 1)
-
-
 class DriveGroup:
     """The drives of the rig, brought up, commanded and streamed together.
 
@@ -722,109 +689,4 @@ class DriveGroup:
             sync_timeout: s without a SYNC before the run is declared stalled
                 (default: max(0.5 s, 50 periods)).
         """
-        targets = np.asarray(targets, dtype=float)
-        self._check_positions(targets, "run_cyclic targets")
-        self.supervisor.raise_if_fault()
-        load = self.check_bus_load(period)
-        units = AxesScaling([a.scaling for a in self.axes])
-        counts = units.counts_from_position(targets)
-        if np.abs(counts).max() >= 2**31:
-            raise ConfigError("run_cyclic targets: beyond the I32 range of the drives' counts")
-        sync_timeout = sync_timeout or max(0.5, 50 * period)
-
-        actual = self.positions()
-        for i, a in enumerate(self.axes):
-            if abs(actual[i] - targets[0, i]) > a.following_error_window:
-                raise ConfigError(f"{a.label} is at {actual[i]:.6g}, the trajectory starts at "
-                                  f"{targets[0, i]:.6g}: move_to() the start first")
-        # set-point first, so that the drive holds its position when the cyclic mode starts
-        for d, c in zip(self.drives, counts[0]):
-            d.write(d.profile.cyclic_target, int(c))
-        self._guarded(lambda: [d.prepare_cyclic(period) for d in self.drives])
-        lockstep = self.lockstep
-        if lockstep is not None and abs(lockstep.period - period) > 1e-12:
-            raise ConfigError(f"run_cyclic: period {period} s differs from the lockstep SYNC period "
-                              f"{lockstep.period} s")
-        # a drive watching its set-points (an RPDO deadline) must leave the cyclic mode while the
-        # SYNC still runs; in lockstep the rig keeps no deadline (see drivers.sim.rig)
-        hold_at_end = lockstep is None and any(d.watches_setpoints() for d in self.drives)
-        self.enable()
-
-        meta = dict(metadata or {}, sync_period=period, with_velocity=self.with_velocity,
-                    bus_load=load,
-                    bitrate=self.bitrate, n_targets=len(targets), sync=self.sync_mode)
-        recorder = SampleRecorder(self.axes, output, meta, maxsize=queue_size).start()
-        raw = FlushingLogger(raw_log) if raw_log else None
-        streamer = _TargetStreamer(self.network, self.drives, counts, self.supervisor)
-        assembler = CycleAssembler(
-            self.layouts, recorder.put, on_sync=None if lockstep else streamer.on_sync,
-            period=period if lockstep else None,
-            on_status=lambda i, sw: self.supervisor.report(DriveFault(
-                self.drives[i].label, None, f"statusword 0x{sw:04X}: " +
-                ("fault bit" if sw & SW_FAULT else "following error bit"))),
-            on_bus_error=self.supervisor.bus_error, max_cycles=len(targets),
-            forward=[raw] if raw else [])
-        self.network.notifier.add_listener(assembler)
-        error: BaseException | None = None
-        gc_section = ExitStack()  # no full collection stalls the threads while the SYNC runs
-        gc_section.enter_context(frozen_gc())
-        pauses = gc_section.enter_context(GcPauses())
-        sync = None
-        try:
-            if lockstep is not None:
-                # SYNC k goes out once cycle k-1 is in; one more closes the last row (the drives
-                # get the last set-point again)
-                for k in range(len(targets) + 1):
-                    lockstep.step(lambda k=k: streamer.send(k), poll=self.supervisor.raise_if_fault)
-                    self.supervisor.raise_if_fault()
-            else:
-                streamer.send(0)
-                sync = self.network.send_periodic(SYNC_COB_ID, b"", period)
-            last_count, last_progress = -1, time.monotonic()
-            while not assembler.done and lockstep is None:
-                if self.supervisor.fault_event.wait(min(0.05, 10 * period)):
-                    break
-                self.supervisor.check_heartbeats()
-                progress = assembler.cycles + (assembler._open is not None)
-                now = time.monotonic()
-                if progress != last_count:
-                    last_count, last_progress = progress, now
-                elif now - last_progress > sync_timeout:
-                    hint = " (is the bus opened with receive_own_messages=True?)" if progress == 0 else ""
-                    raise DriveError(f"no SYNC cycle seen for {now - last_progress:.2f} s{hint}")
-            self.supervisor.raise_if_fault()
-            if hold_at_end:
-                for d, c in zip(self.drives, counts[-1]):
-                    d.hold_position(int(c))
-                self.supervisor.raise_if_fault()
-        except BaseException as exc:
-            error = exc
-        finally:
-            if sync is not None:
-                sync.stop()
-            gc_section.close()
-            if error is not None:
-                if lockstep is not None and isinstance(error, HeartbeatTimeout):
-                    lockstep.forget(error.node)      # a lost node answers no SYNC
-                error = self._with_error_code(error)
-                self.stop_motion()
-            self.network.notifier.remove_listener(assembler)
-            assembler.flush()
-            if raw is not None:
-                raw.stop()
-            status = "complete" if error is None else f"stopped: {error}"
-            recording = recorder.close(status, **cycle_books(assembler),
-                                       raw_log=str(raw_log) if raw_log else None,
-                                       gc_collections=len(pauses.durations),
-                                       gc_longest_pause=pauses.longest,
-                                       sync_slots_skipped=getattr(sync, "skipped", None),
-                                       lockstep_retries=lockstep.retries if lockstep else None)
-        if len(recording.t):
-            sent = units.position_from_counts(counts[: len(recording.t)])
-            late = np.any(np.abs(recording.target - sent) > units.position_from_counts(0.5), axis=1)
-            recording.metadata["late_setpoints"] = int(np.count_nonzero(late))
-        if error is not None:
-            if isinstance(error, DriveFault):
-                error.recording = output
-            raise error
-        return recording
+        return CyclicStream(self, targets, period, output, raw_log, metadata, queue_size, sync_timeout).run()

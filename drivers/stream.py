@@ -1,0 +1,228 @@
+"""One streamed run of set-points, one per SYNC, recorded: the steps of
+:meth:`drivers.epos.DriveGroup.run_cyclic` as a session object.
+
+    stream = CyclicStream(group, targets, period, output="run.npz")
+    recording = stream.run()          # check, prepare, start, wait, hold, close
+
+:meth:`CyclicStream.run` is the only caller of the steps; they are methods so that each reads on
+its own: :meth:`~CyclicStream.check` (set-points in range, bus load, the drives at the start),
+:meth:`~CyclicStream.prepare` (first set-point, cyclic mode, enable), :meth:`~CyclicStream.start`
+(recorder, raw log, set-point streamer, cycle assembler, SYNC), :meth:`~CyclicStream.wait` (the
+SYNC cycles in lockstep, or a stall watchdog on a periodic SYNC),
+:meth:`~CyclicStream.hold` (leave the cyclic mode while the SYNC still runs, where a drive
+watches its set-points) and :meth:`~CyclicStream.close` (stop the SYNC, stop the motion after an
+error, save the samples).
+"""
+
+from __future__ import annotations
+
+import time
+from contextlib import ExitStack
+from typing import Sequence
+
+import canopen
+import numpy as np
+
+from drivers.acquisition import CycleAssembler, cycle_books
+from drivers.cia import CW_ENABLE_OPERATION, SW_FAULT, SYNC_COB_ID
+from drivers.errors import ConfigError, DriveError, DriveFault, HeartbeatTimeout
+from drivers.gc_freeze import GcPauses, frozen_gc
+from drivers.recording import FlushingLogger, Recording, SampleRecorder
+from drivers.supervision import Supervisor
+from drivers.units import AxesScaling
+
+
+class TargetStreamer:
+    """Sends the set-points of cycle k+1 as RPDO frames when SYNC k is seen (notifier thread);
+    after the last cycle it repeats the last set-points, until the SYNC stops (the drives hold
+    them, and their RPDO deadline is met, while they are switched out of the cyclic mode)."""
+
+    def __init__(self, network: canopen.Network, drives: Sequence, counts: np.ndarray,
+                 supervisor: Supervisor):
+        self.network = network
+        self.counts = counts.tolist()
+        self.supervisor = supervisor
+        self.rpdos = []
+        for drive in drives:
+            frame = next(f for f in drive.frames if f.direction == "rpdo")
+            self.rpdos.append((frame.cob_id(drive.axis.node_id), frame.struct.pack))
+        self.failed = False
+
+    def send(self, k: int) -> None:
+        if self.failed:
+            return
+        try:
+            for (cob_id, pack), value in zip(self.rpdos, self.counts[min(k, len(self.counts) - 1)]):
+                self.network.send_message(cob_id, pack(value, CW_ENABLE_OPERATION))
+        except Exception as exc:  # noqa: BLE001 - any send failure stops the run
+            self.failed = True
+            self.supervisor.bus_error(f"sending the set-points of cycle {k} failed: {exc!r}")
+
+    def on_sync(self, k: int) -> None:
+        self.send(k + 1)
+
+
+class CyclicStream:
+    """The set-points ``targets`` (n_cycles, n_axes) in rad|m streamed by ``group`` (a
+    :class:`drivers.epos.DriveGroup`, brought up) at ``period`` s, recorded; the arguments and
+    the contract are :meth:`DriveGroup.run_cyclic`'s."""
+
+    def __init__(self, group, targets, period: float, output: str | None = None,
+                 raw_log: str | None = None, metadata: dict | None = None, queue_size: int = 100_000,
+                 sync_timeout: float | None = None):
+        self.group = group
+        self.targets = np.asarray(targets, dtype=float)
+        self.period = period
+        self.output, self.raw_log, self.metadata = output, raw_log, metadata
+        self.queue_size = queue_size
+        self.sync_timeout = sync_timeout or max(0.5, 50 * period)
+        self.units = AxesScaling([a.scaling for a in group.axes])
+        self.counts: np.ndarray | None = None
+        self.load = 0.0
+        self.hold_at_end = False
+        self.recorder: SampleRecorder | None = None
+        self.raw: FlushingLogger | None = None
+        self.streamer: TargetStreamer | None = None
+        self.assembler: CycleAssembler | None = None
+        self.sync = None                 # the periodic SYNC task, None in lockstep
+        self._gc = ExitStack()
+        self._pauses: GcPauses | None = None
+
+    def run(self) -> Recording:
+        """Every step in order; on any exception (Ctrl-C included) the motion is stopped, the
+        samples so far saved and the exception raised."""
+        self.check()
+        self.prepare()
+        self.start()
+        error: BaseException | None = None
+        try:
+            self.stream()
+            self.wait()
+            self.hold()
+        except BaseException as exc:
+            error = exc
+        return self.close(error)
+
+    # -- steps ------------------------------------------------------------------------------------
+    def check(self) -> None:
+        """Set-points in range, no fault pending, the bus load within the bitrate, the drives at
+        the first set-point (within their following-error window)."""
+        group, targets = self.group, self.targets
+        group._check_positions(targets, "run_cyclic targets")
+        group.supervisor.raise_if_fault()
+        self.load = group.check_bus_load(self.period)
+        self.counts = self.units.counts_from_position(targets)
+        if np.abs(self.counts).max() >= 2**31:
+            raise ConfigError("run_cyclic targets: beyond the I32 range of the drives' counts")
+        actual = group.positions()
+        for i, a in enumerate(group.axes):
+            if abs(actual[i] - targets[0, i]) > a.following_error_window:
+                raise ConfigError(f"{a.label} is at {actual[i]:.6g}, the trajectory starts at "
+                                  f"{targets[0, i]:.6g}: move_to() the start first")
+        lockstep = group.lockstep
+        if lockstep is not None and abs(lockstep.period - self.period) > 1e-12:
+            raise ConfigError(f"run_cyclic: period {self.period} s differs from the lockstep SYNC period "
+                              f"{lockstep.period} s")
+
+    def prepare(self) -> None:
+        """The first set-point, then the cyclic mode (the drive holds its position when it starts),
+        then enable. A drive watching its set-points (an RPDO deadline) must leave the cyclic
+        mode while the SYNC still runs: :meth:`hold`; in lockstep the rig keeps no deadline."""
+        group = self.group
+        for d, c in zip(group.drives, self.counts[0]):
+            d.write(d.profile.cyclic_target, int(c))
+        group._guarded(lambda: [d.prepare_cyclic(self.period) for d in group.drives])
+        self.hold_at_end = group.lockstep is None and any(d.watches_setpoints() for d in group.drives)
+        group.enable()
+
+    def start(self) -> None:
+        """Recorder, raw log, set-point streamer and cycle assembler on the notifier; the garbage
+        collector frozen (no full collection stalls the threads while the SYNC runs)."""
+        group, lockstep = self.group, self.group.lockstep
+        meta = dict(self.metadata or {}, sync_period=self.period, with_velocity=group.with_velocity,
+                    bus_load=self.load, bitrate=group.bitrate, n_targets=len(self.targets), sync=group.sync_mode)
+        self.recorder = SampleRecorder(group.axes, self.output, meta, maxsize=self.queue_size).start()
+        self.raw = FlushingLogger(self.raw_log) if self.raw_log else None
+        self.streamer = TargetStreamer(group.network, group.drives, self.counts, group.supervisor)
+        self.assembler = CycleAssembler(
+            group.layouts, self.recorder.put, on_sync=None if lockstep else self.streamer.on_sync,
+            period=self.period if lockstep else None,
+            on_status=lambda i, sw: group.supervisor.report(DriveFault(
+                group.drives[i].label, None, f"statusword 0x{sw:04X}: " +
+                ("fault bit" if sw & SW_FAULT else "following error bit"))),
+            on_bus_error=group.supervisor.bus_error, max_cycles=len(self.targets),
+            forward=[self.raw] if self.raw else [])
+        group.network.notifier.add_listener(self.assembler)
+        self._gc.enter_context(frozen_gc())
+        self._pauses = self._gc.enter_context(GcPauses())
+
+    def stream(self) -> None:
+        """In lockstep: SYNC k goes out once cycle k-1 is in, and one more closes the last row
+        (the drives get the last set-point again). Periodic: the first set-point, then the SYNC."""
+        group, lockstep, streamer = self.group, self.group.lockstep, self.streamer
+        if lockstep is not None:
+            for k in range(len(self.targets) + 1):
+                lockstep.step(lambda k=k: streamer.send(k), poll=group.supervisor.raise_if_fault)
+                group.supervisor.raise_if_fault()
+        else:
+            streamer.send(0)
+            self.sync = group.network.send_periodic(SYNC_COB_ID, b"", self.period)
+
+    def wait(self) -> None:
+        """On a periodic SYNC: until the last cycle is recorded, watching faults, heartbeats and
+        a stall (no new cycle for ``sync_timeout`` s)."""
+        group, assembler = self.group, self.assembler
+        last_count, last_progress = -1, time.monotonic()
+        while not assembler.done and group.lockstep is None:
+            if group.supervisor.fault_event.wait(min(0.05, 10 * self.period)):
+                break
+            group.supervisor.check_heartbeats()
+            progress = assembler.progress
+            now = time.monotonic()
+            if progress != last_count:
+                last_count, last_progress = progress, now
+            elif now - last_progress > self.sync_timeout:
+                hint = " (is the bus opened with receive_own_messages=True?)" if progress == 0 else ""
+                raise DriveError(f"no SYNC cycle seen for {now - last_progress:.2f} s{hint}")
+        group.supervisor.raise_if_fault()
+
+    def hold(self) -> None:
+        """Where a drive watches its set-points: every drive to profile position holding the last
+        set-point, before the SYNC stops (:meth:`EposDrive.hold_position`)."""
+        if self.hold_at_end:
+            for d, c in zip(self.group.drives, self.counts[-1]):
+                d.hold_position(int(c))
+            self.group.supervisor.raise_if_fault()
+
+    def close(self, error: BaseException | None) -> Recording:
+        """Stop the SYNC; after an error stop the motion (quick stop, disable); save the samples
+        with the cycle books; raise ``error`` (a :class:`DriveFault` carries the NPZ path)."""
+        group, lockstep = self.group, self.group.lockstep
+        if self.sync is not None:
+            self.sync.stop()
+        self._gc.close()
+        if error is not None:
+            if lockstep is not None and isinstance(error, HeartbeatTimeout):
+                lockstep.forget(error.node)      # a lost node answers no SYNC
+            error = group._with_error_code(error)
+            group.stop_motion()
+        group.network.notifier.remove_listener(self.assembler)
+        self.assembler.flush()
+        if self.raw is not None:
+            self.raw.stop()
+        status = "complete" if error is None else f"stopped: {error}"
+        recording = self.recorder.close(status, **cycle_books(self.assembler),
+                                        raw_log=str(self.raw_log) if self.raw_log else None,
+                                        gc_collections=len(self._pauses.durations),
+                                        gc_longest_pause=self._pauses.longest,
+                                        sync_slots_skipped=getattr(self.sync, "skipped", None),
+                                        lockstep_retries=lockstep.retries if lockstep else None)
+        if len(recording.t):
+            sent = self.units.position_from_counts(self.counts[: len(recording.t)])
+            late = np.any(np.abs(recording.target - sent) > self.units.position_from_counts(0.5), axis=1)
+            recording.metadata["late_setpoints"] = int(np.count_nonzero(late))
+        if error is not None:
+            if isinstance(error, DriveFault):
+                error.recording = self.output
+            raise error
+        return recording
