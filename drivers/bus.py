@@ -67,28 +67,35 @@ class BusConfig:
 
 
 class VirtualBus(can.interfaces.virtual.VirtualBus):
-    """python-can's in-process ``virtual`` bus, delivering each frame without ``copy.deepcopy``.
+    """python-can's in-process ``virtual`` bus, delivering each frame without ``copy.deepcopy``
+    and its own echo first.
 
     python-can's :meth:`can.interfaces.virtual.VirtualBus.send` deep-copies the message once per
     receiver, which is most of the cost of a frame (a lockstep cycle of six drives carries about
     twenty). Here each receiver gets a new :class:`can.Message` built from the sent one's fields,
-    the same content the deep copy gives. It shares python-can's channels, so it talks to any
-    other ``virtual`` bus of the process.
+    the same content the deep copy gives.
+
+    The echo (``receive_own_messages``) is queued before the frame reaches any other bus, as a
+    CAN controller loops back its frame before any node can answer it: python-can puts it in the
+    order the buses were opened, so a receiver opened earlier (the simulated rig's thread) could
+    answer a SYNC before the sender saw its own SYNC, and the answer would fall into the cycle
+    before. It shares python-can's channels, so it talks to any other ``virtual`` bus of the
+    process.
     """
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         self._check_if_open()
         timestamp = msg.timestamp if self.preserve_timestamps else time.time()
         data = bytes(msg.data)
+        receivers = [q for q in self.channel if q is not self.queue]
+        if self.receive_own_messages:
+            receivers.insert(0, self.queue)
         all_sent = True
-        for bus_queue in self.channel:
-            own = bus_queue is self.queue
-            if own and not self.receive_own_messages:
-                continue
+        for bus_queue in receivers:
             copy = can.Message(timestamp=timestamp, arbitration_id=msg.arbitration_id,
                                is_extended_id=msg.is_extended_id, is_remote_frame=msg.is_remote_frame,
                                is_error_frame=msg.is_error_frame, channel=self.channel_id, dlc=msg.dlc,
-                               data=bytearray(data), is_fd=msg.is_fd, is_rx=not own,
+                               data=bytearray(data), is_fd=msg.is_fd, is_rx=bus_queue is not self.queue,
                                bitrate_switch=msg.bitrate_switch,
                                error_state_indicator=msg.error_state_indicator)
             try:

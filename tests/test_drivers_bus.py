@@ -7,13 +7,14 @@ send lock, so the producer thread blocks in its send as it would behind a busy G
 """
 
 import itertools
+import queue
 import time
 
 import can
 import numpy as np
 import pytest
 
-from drivers.bus import BusConfig, GridPeriodicTask, open_network
+from drivers.bus import BusConfig, GridPeriodicTask, open_bus, open_network
 from drivers.cia import SYNC_COB_ID
 
 PERIOD = 0.005
@@ -75,3 +76,33 @@ def test_python_cans_thread_task_would_burst_after_the_same_stall(network_and_li
     finally:
         task.stop()
     assert np.count_nonzero(np.diff(stamps) < 0.4 * PERIOD) >= 5
+
+
+@pytest.mark.parametrize("ours", [True, False])
+def test_the_virtual_bus_queues_its_own_echo_before_another_bus_gets_the_frame(ours):
+    """A receiver opened earlier (the in-process rig) must not be able to answer a SYNC before
+    the master's own SYNC echo is queued: the answer would fall into the cycle before. python-can's
+    bus delivers in the order the buses were opened; ours puts the echo first."""
+    channel = f"bus-test-{next(_channels)}"
+    earlier = can.Bus(interface="virtual", channel=channel, ignore_config=True)
+    config = BusConfig("virtual", channel, ignore_config=True)
+    sender = open_bus(config) if ours else can.Bus(interface="virtual", channel=channel,
+                                                   receive_own_messages=True, ignore_config=True)
+    echo_queued = []
+
+    class Spy(queue.Queue):    # the earlier bus's queue, noting whether the echo was already there
+        def put(self, item, block=True, timeout=None):
+            echo_queued.append(not sender.queue.empty())
+            super().put(item, block, timeout)
+
+    spy = Spy()
+    earlier.channel[earlier.channel.index(earlier.queue)] = spy
+    earlier.queue = spy
+    try:
+        for counter in (1, 2, 3):
+            sender.send(can.Message(arbitration_id=SYNC_COB_ID, data=[counter], is_extended_id=False))
+            assert sender.recv(1.0).data[0] == counter and earlier.recv(1.0).data[0] == counter
+    finally:
+        earlier.shutdown()
+        sender.shutdown()
+    assert echo_queued == [ours] * 3
