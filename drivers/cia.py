@@ -27,6 +27,10 @@ NMT_ENTER_PRE_OPERATIONAL = 0x80
 NMT_OPERATIONAL, NMT_STOPPED = 0x05, 0x04
 #: consumer heartbeat time, sub-index 1: ``node-ID << 16 | time in ms``
 HEARTBEAT_CONSUMER = (0x1016, 1)
+#: error register, pre-defined error field (history), EMCY COB-ID objects
+ERROR_REGISTER, ERROR_HISTORY, EMCY_COB_ID = 0x1001, 0x1003, 0x1014
+#: first communication / mapping parameter object of the RPDOs and TPDOs (+ n for PDO n + 1)
+RPDO_COMM, RPDO_MAP, TPDO_COMM, TPDO_MAP = 0x1400, 0x1600, 0x1800, 0x1A00
 
 
 def pdo_cob_id(direction: str, number: int, node_id: int) -> int:

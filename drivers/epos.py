@@ -27,8 +27,8 @@ from drivers.acquisition import AxisLayout, PdoFrame, cycle_frame_sizes, event_b
 from drivers.axis import AxisConfig
 from drivers.bus import BusConfig, check_bus_load, frame_bits
 from drivers.cia import (CW_CHANGE_IMMEDIATELY, CW_ENABLE_OPERATION, CW_FAULT_RESET, CW_NEW_SETPOINT,
-                         HEARTBEAT_CONSUMER, MODE_HMM, MODE_PPM, NMT_ENTER_PRE_OPERATIONAL, NMT_OPERATIONAL, SW_BIT12,
-                         SW_BIT13, SW_FAULT, SW_TARGET_REACHED, is_node_id, state_of)
+                         HEARTBEAT_CONSUMER, MODE_HMM, MODE_PPM, NMT_ENTER_PRE_OPERATIONAL, NMT_OPERATIONAL, RPDO_COMM,
+                         SW_BIT12, SW_BIT13, SW_FAULT, SW_TARGET_REACHED, is_node_id, state_of)
 from drivers.emcy import describe
 from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, NodeError
 from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, load_object_dictionary, make_object_dictionary
@@ -325,7 +325,7 @@ class EposDrive:
         """The drive has a deadline on its set-point RPDO (``0x1400:05`` > 0, ms): it faults with
         EMCY 0x8250 when the set-points stop in a cyclic mode. A drive without the object has none."""
         try:
-            return bool(self._var((0x1400, 5)).raw)
+            return bool(self._var((RPDO_COMM, 5)).raw)
         except (SdoAbortedError, KeyError):
             return False
         except SdoCommunicationError as exc:

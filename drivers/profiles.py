@@ -123,6 +123,7 @@ class DriveProfile:
     profile_acceleration: ObjectRef
     profile_deceleration: ObjectRef
     quick_stop_deceleration: ObjectRef
+    quick_stop_option_code: ObjectRef
     target_position: ObjectRef
     error_code: ObjectRef
     software_limit_error: int
@@ -160,6 +161,7 @@ _COMMON = dict(
     profile_acceleration=_r(0x6083, 0, "UNSIGNED32", "rpm/s"),
     profile_deceleration=_r(0x6084, 0, "UNSIGNED32", "rpm/s"),
     quick_stop_deceleration=_r(0x6085, 0, "UNSIGNED32", "rpm/s"),
+    quick_stop_option_code=_r(0x605A, 0, "INTEGER16"),
     target_position=_r(0x607A, 0, "INTEGER32", "qc"),
     error_code=_r(0x603F, 0, "UNSIGNED16"),
 )

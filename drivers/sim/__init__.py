@@ -6,6 +6,10 @@
     with rig:
         ...   # a canopen master on the same bus sees six drives
 
+:mod:`drivers.sim.rig` holds the rig (bus, clock, SYNC handling, fault injection),
+:mod:`drivers.sim.plant` the simulated 3PRRR, :mod:`drivers.sim.drive` one emulated drive, built
+from :mod:`~drivers.sim.objects` (object values), :mod:`~drivers.sim.pdo` (PDOs),
+:mod:`~drivers.sim.state_machine` (CiA 402) and :mod:`~drivers.sim.modes` (the demand);
 :mod:`drivers.sim.nominal` holds the project's nominal rig. Run standalone with
 ``python -m drivers.sim --interface socketcan --channel vcan0``.
 """
