@@ -20,9 +20,10 @@ the motion itself, 2 periods late, plus a constant offset ``a T^2 / 6``; a targe
 S-curve over 4 periods. Continuous acceleration matters: a C1 demand (e.g. the cubic Hermite
 segment through the last targets' midpoint, 1.5 periods of delay) has an acceleration step at
 every SYNC, hence a force ripple at the SYNC rate that the current sampled at each SYNC catches
-at the same phase, aliased into the identification data (link viscous friction +25..+33 %,
-``tests/test_sim_links.py``). When streaming starts the spline's earlier control points are the
-held demand, so it leaves the standstill with no jump of position, velocity or acceleration.
+at the same phase, aliased into the identification data as a bias of the link friction
+(``tests/test_sim_links.py`` checks it is absent). When streaming starts the spline's earlier
+control points are the held demand, so it leaves the standstill with no jump of position,
+velocity or acceleration.
 
 Positions here are drive units (counts); the rig converts to and from the SI plant. Every
 handler runs under the rig's lock, called from the network's notifier thread (SDO, RPDO, NMT,

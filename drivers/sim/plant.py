@@ -9,8 +9,8 @@ of that instant, not a one-sided value. There is no acceleration feed-forward. T
 the closed-chain forward dynamics of :class:`ident_hw.model.ThreePRRR` with the *true*
 parameters (friction included). The reduced mass matrix ``M`` and the velocity terms are
 evaluated once per period, at its start (the expensive part), and extrapolated linearly over the
-period from the previous period's start (held constant, they made the motion drift from the
-model by O(period): 5 % of link friction at 100 Hz); the controller and the friction are
+period from the previous period's start (held constant, they would make the motion drift from
+the model by O(period), a bias of the identified link friction); the controller and the friction are
 re-evaluated at every substep of at most ``max_substep``, and
 the state advances by Heun's method (second order: the position loops and the smoothed Coulomb
 friction are the stiff part, and first-order Euler at 0.5 ms left force errors of a few percent).
@@ -264,8 +264,7 @@ class Plant:
         low = -high
         Kp, Kd = self.Kp, self.Kd
         # M^-1 and the velocity terms: exact at the period start (logged), extrapolated linearly
-        # over the period from the previous period's start (second order in the period; holding
-        # the start's values over a 10 ms period biased the identified link friction by 5 %)
+        # over the period from the previous period's start (second order in the period)
         M_inv0 = np.linalg.inv(M)
         M_slope, bias_slope = np.zeros((6, 6)), np.zeros(6)      # per s of the period
         previous, self._previous = self._previous, (period, M_inv0, bias)

@@ -12,9 +12,9 @@ order is available, give no row). Energy model: the same integrated between samp
 
 Why fourth order: one scalar equation per sample makes the fit of the 18 base parameters
 ill-conditioned, and it amplifies the differentiation or integration error of ``h`` by
-thousands. On exact model data (10 s, ``tests/test_ident_power.py``) second-order differences
-left the worst base parameter 70 % off at 200 Hz (18 % at 400 Hz), the trapezoid rule 39 %;
-fourth order leaves 0.19 % and 0.03 %.
+thousands: second-order differences or the trapezoid rule leave base parameters tens of
+percent off on exact model data, fourth order a fraction of a percent
+(``tests/test_ident_power.py`` holds the fits to that).
 
 Inputs are sampled (N,) time-major: ``t`` (N,), energy regressor ``H`` (N, 7) from
 ``robot.energy_regressor``, ``Thetad`` (N, 6), ``tau`` (N, 6). The parameter vector is
