@@ -63,7 +63,7 @@ def split(rig: SimulatedRig, period: float, n: int = 2000) -> str:
 
 
 def run(rate_hz: float, seconds: float, with_master: bool) -> None:
-    rig = SimulatedRig.build(nominal.GEOMETRY, nominal.TRUE_PARAMS, nominal.axes("epos4"), sync_period=1.0 / rate_hz,
+    rig = SimulatedRig.build(nominal.ROBOT, nominal.TRUE_PARAMS, nominal.axes("epos4"), sync_period=1.0 / rate_hz,
                              interface="virtual", channel=CHANNEL, ignore_config=True)
     master = canopen.Network()
     master.connect(interface="virtual", channel=CHANNEL, ignore_config=True)

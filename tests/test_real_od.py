@@ -23,6 +23,7 @@ from drivers.errors import ConfigError
 from drivers.profiles import make_object_dictionary
 from drivers.sim import SimulatedRig
 from ident_hw.config import load_config
+from ident_hw.experiment.plan import robot_model
 
 CONFIG = load_config(Path(__file__).resolve().parent.parent / "configs" / "sim-3prrr.yaml")
 PERIOD = 0.004
@@ -103,7 +104,7 @@ def test_the_master_writes_only_objects_a_real_epos4_has(tmp_path):
     none is one maxon's files say an EPOS4 lacks or keeps read-only (a real drive would abort)."""
     axes = [dataclasses.replace(a.to_driver(), profile="epos4") for a in CONFIG.robot.actuators]
     channel = f"real-od-{next(_channels)}"
-    rig = SimulatedRig.build(CONFIG.robot.geometry.to_model(), CONFIG.sim.truth.to_model(),
+    rig = SimulatedRig.build(robot_model(CONFIG), CONFIG.sim.truth.to_model(),
                              [(a.node_id, a.profile, a.scaling) for a in axes], sync_period=PERIOD,
                              lockstep=True, interface="virtual", channel=channel, ignore_config=True).start()
     spy_bus = can.Bus(interface="virtual", channel=channel, ignore_config=True)
@@ -153,7 +154,7 @@ def test_the_master_uses_the_drives_own_eds_and_names_what_it_lacks(tmp_path):
     axes = [dataclasses.replace(a.to_driver(), profile="epos4") for a in CONFIG.robot.actuators]
     own = [dataclasses.replace(a, object_dictionary=str(_exported_eds(tmp_path, a.node_id))) for a in axes]
     channel = f"real-od-{next(_channels)}"
-    rig = SimulatedRig.build(CONFIG.robot.geometry.to_model(), CONFIG.sim.truth.to_model(),
+    rig = SimulatedRig.build(robot_model(CONFIG), CONFIG.sim.truth.to_model(),
                              [(a.node_id, a.profile, a.scaling) for a in axes], sync_period=PERIOD,
                              lockstep=True, interface="virtual", channel=channel, ignore_config=True).start()
     network = open_network(BusConfig("virtual", channel, ignore_config=True))

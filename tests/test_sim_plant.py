@@ -147,7 +147,7 @@ def test_payload_changes_the_forces_as_the_model_predicts():
 
 def test_truth_log_keeps_the_last_rows_in_numpy_chunks():
     """The log of a long run is bounded and holds no Python object per period (garbage collector)."""
-    log = TruthLog(5000)
+    log = TruthLog(5000, n=6, pose_size=3)
     for k in range(9000):
         log.append(float(k), np.full(3, k), np.full(6, k), np.full(6, -k), np.full(6, 2 * k), np.full(6, 3 * k))
     kept = np.arange(4000, 9000, dtype=float)
@@ -157,4 +157,4 @@ def test_truth_log_keeps_the_last_rows_in_numpy_chunks():
     for name, sign in (("X", 1), ("Theta", 1), ("Thetad", -1), ("Thetadd", 2), ("force", 3)):
         np.testing.assert_array_equal(arrays[name], sign * np.repeat(kept[:, None], arrays[name].shape[1], 1))
     assert not any(gc.is_tracked(chunk) for chunk in log._chunks)
-    assert TruthLog(3).arrays()["force"].shape == (0, 6)
+    assert TruthLog(3, n=6, pose_size=3).arrays()["force"].shape == (0, 6)

@@ -21,7 +21,7 @@ class Bench:
     def __init__(self, profiles=("epos4",) * 6, node_class=canopen.RemoteNode, **rig_kwargs):
         channel = f"sim-rig-test-{next(_channels)}"
         nodes = [(i + 1, profiles[i], REV if i < 3 else PRI) for i in range(6)]
-        self.rig = SimulatedRig.build(nominal.GEOMETRY, nominal.TRUE_PARAMS, nodes, interface="virtual",
+        self.rig = SimulatedRig.build(nominal.ROBOT, nominal.TRUE_PARAMS, nodes, interface="virtual",
                                       channel=channel, ignore_config=True, **rig_kwargs)
         self.master = canopen.Network()
         self.master.connect(interface="virtual", channel=channel, ignore_config=True)

@@ -38,7 +38,7 @@ def main(argv=None) -> None:
     bus_kwargs = {"interface": args.interface, "channel": args.channel}
     if args.bitrate:
         bus_kwargs["bitrate"] = args.bitrate
-    rig = SimulatedRig.build(nominal.GEOMETRY, nominal.TRUE_PARAMS, nominal.axes(args.profile, args.node_ids),
+    rig = SimulatedRig.build(nominal.ROBOT, nominal.TRUE_PARAMS, nominal.axes(args.profile, args.node_ids),
                              max_substep=args.max_substep, lockstep=args.lockstep,
                              sync_period=args.sync_period, current_noise_ma=args.current_noise_ma, **bus_kwargs)
     done = threading.Event()

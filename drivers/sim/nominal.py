@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 
 from drivers.units import AxisScaling
-from ident_hw.model import Geometry, InertialParams
+from ident_hw.model import Geometry, InertialParams, ThreePRRR
 
 GEOMETRY = Geometry(l1=0.30, l2=0.30, s1=0.15, s2=0.15, h=0.12, a=0.40,
                     gamma=(0.0, 2 * math.pi / 3, 4 * math.pi / 3))
@@ -18,6 +18,8 @@ GEOMETRY = Geometry(l1=0.30, l2=0.30, s1=0.15, s2=0.15, h=0.12, a=0.40,
 TRUE_PARAMS = InertialParams(m_c=603.62, m_l1=0.30, I_l1=0.00225, m_l2=0.5723, I_l2=0.00429225,
                              m_ee=0.2269, I_ee=0.00163368,
                              f_v=(0.02,) * 3 + (40.0,) * 3, f_c=(0.05,) * 3 + (5.0,) * 3)
+#: the nominal model (Coulomb smoothing as the configs' ``robot.coulomb_width``)
+ROBOT = ThreePRRR(GEOMETRY, coulomb_width=1e-3)
 REVOLUTE = AxisScaling("revolute", 2048, 0.0369, gear_ratio=26.0)
 PRISMATIC = AxisScaling("prismatic", 2048, 0.0603, screw_lead=0.002)
 

@@ -1,4 +1,4 @@
-"""The simulated rig: six emulated EPOS drives on one CANopen network, driving one plant.
+"""The simulated rig: one emulated EPOS drive per actuator on one CANopen network, driving one plant.
 
 One SYNC callback does the whole cycle for all drives: apply the synchronous RPDOs, plan each
 drive's demand, sample the sensors (positions in counts, velocities in rpm, currents in mA),
@@ -55,7 +55,7 @@ from drivers.gc_freeze import frozen_gc
 from drivers.sim.drive import EMCY_FOLLOWING_ERROR, FAULT, FAULT_REACTION, EmulatedDrive
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP, Plant, PlantJammed
 from drivers.units import MA_PER_AMP, AxesScaling, AxisScaling
-from ident_hw.model import Geometry, InertialParams, ThreePRRR
+from ident_hw.model.interface import RobotModel
 
 logger = logging.getLogger(__name__)
 
@@ -119,11 +119,11 @@ class _RigNetwork(canopen.Network):
 
 
 class SimulatedRig:
-    """Six emulated EPOS drives (one per actuator) and the simulated 3PRRR behind them.
+    """Emulated EPOS drives (one per actuator) and the simulated robot behind them.
 
     Args:
-        nodes: six ``(node_id, profile_name, AxisScaling)`` or :class:`drivers.axis.AxisConfig`,
-            in the actuator order ``theta1, theta2, theta3, zeta1, zeta2, zeta3``.
+        nodes: one ``(node_id, profile_name, AxisScaling)`` or :class:`drivers.axis.AxisConfig`
+            per actuator, in the plant's actuator order (the 3PRRR: ``theta1..3, zeta1..3``).
         plant: the :class:`Plant` (robot, true parameters, position loops).
         bus: an open python-can bus to use (left open on :meth:`stop`); otherwise one is opened
             from ``bus_kwargs`` (e.g. ``interface="virtual", channel="rig", ignore_config=True``).
@@ -139,10 +139,11 @@ class SimulatedRig:
     def __init__(self, nodes, plant: Plant, *, bus=None, sync_period=None, current_noise_ma: float = 0.0,
                  seed=None, initial_states=None, lockstep: bool = False, **bus_kwargs):
         nodes = [(n.node_id, n.profile, n.scaling) if isinstance(n, AxisConfig) else tuple(n) for n in nodes]
-        if len(nodes) != 6:
-            raise ValueError(f"the rig needs six drives (theta1..3, zeta1..3), got {len(nodes)}")
+        names = plant.robot.actuator_names
+        if len(nodes) != len(names):
+            raise ValueError(f"the rig needs one drive per actuator ({', '.join(names)}), got {len(nodes)}")
         ids = [n[0] for n in nodes]
-        if len(set(ids)) != 6:
+        if len(set(ids)) != len(ids):
             raise ValueError(f"node-IDs must be distinct, got {ids}")
         for node_id, _, scaling in nodes:
             if not isinstance(scaling, AxisScaling):
@@ -189,22 +190,20 @@ class SimulatedRig:
         self._serving = ExitStack()
 
     @classmethod
-    def build(cls, geometry: Geometry, truth: InertialParams, axes, *, coulomb_width: float = 1e-3,
-              bandwidth_hz: float = 20.0, damping: float = 1.0, max_substep: float = DEFAULT_MAX_SUBSTEP, Theta0=None,
-              **rig_kwargs) -> SimulatedRig:
+    def build(cls, robot: RobotModel, truth, axes, *, bandwidth_hz: float = 20.0, damping: float = 1.0,
+              max_substep: float = DEFAULT_MAX_SUBSTEP, Theta0=None, **rig_kwargs) -> SimulatedRig:
         """A rig from plain settings (what a config file holds); not started.
 
         Args:
-            geometry: the robot's geometry.
-            truth: the plant's TRUE parameters.
-            axes: the six drives, as for ``nodes`` of the constructor.
-            coulomb_width: smoothing of the Coulomb friction (rad/s, m/s).
+            robot: the robot's model (:class:`~ident_hw.model.interface.RobotModel`).
+            truth: the plant's TRUE parameters, as the model takes them.
+            axes: one drive per actuator, as for ``nodes`` of the constructor.
             bandwidth_hz, damping, max_substep, Theta0: the position loops, integration step (s) and
                 initial pose of the :class:`Plant`.
             rig_kwargs: ``sync_period``, ``lockstep``, ``current_noise_ma``, ``seed``, ``initial_states``, ``bus``
                 or the python-can bus settings (``interface``, ``channel``, ...).
         """
-        plant = Plant(ThreePRRR(geometry, coulomb_width=coulomb_width), truth, Theta0,
+        plant = Plant(robot, truth, Theta0,
                       bandwidth_hz=bandwidth_hz, damping=damping, max_substep=max_substep)
         return cls(axes, plant, **rig_kwargs)
 
@@ -326,7 +325,7 @@ class SimulatedRig:
 
     def _cycle(self, period: float, sync_count=None) -> None:
         """One period: RPDOs, demands, sensor sampling, TPDOs (if ``sync_count``), plant step."""
-        demand = np.empty((4, 6))     # q_d(t) = sum_i demand[i] t^i over the period
+        demand = np.empty((4, len(self.drives)))     # q_d(t) = sum_i demand[i] t^i over the period
         nominal = (self._nominal_period() or period) if sync_count is not None else period
         for j, drive in enumerate(self.drives):
             drive.apply_pending_rpdos()
@@ -341,7 +340,7 @@ class SimulatedRig:
         force = plant.control(demand[0], demand[1], enabled, limit)
         milliamps = self._units.current_from_force(force) * MA_PER_AMP     # before noise and rounding
         if self.current_noise_ma:
-            milliamps += self._rng.normal(0.0, self.current_noise_ma, 6)
+            milliamps += self._rng.normal(0.0, self.current_noise_ma, len(self.drives))
         counts = self._units.counts_from_position(plant.Theta) - offsets.astype(np.int64)
         rpm = self._units.rpm_from_velocity(plant.Thetad)
         milliamps = np.rint(milliamps).astype(np.int64)
@@ -404,13 +403,13 @@ class SimulatedRig:
             self.plant.set_payload(mass, inertia)
 
     def set_external_force(self, forces) -> None:
-        """Disturbance forces (6,) on the actuated joints (N·m, N), e.g. a hand pushing a carriage."""
+        """Disturbance forces (n,) on the actuated joints (N·m, N), e.g. a hand pushing a carriage."""
         with self._lock:
-            self.plant.external_force = np.array(forces, dtype=float).reshape(6)
+            self.plant.external_force = np.array(forces, dtype=float).reshape(self.plant.n)
 
     @property
     def true_forces(self) -> np.ndarray:
-        """Actuator forces (N, 6) at each logged period start (N·m, N), without sensor noise."""
+        """Actuator forces (N, n) at each logged period start (N·m, N), without sensor noise."""
         return self.plant.truth()["force"]
 
     # -- fault injection ------------------------------------------------------------------------------

@@ -22,6 +22,7 @@ from drivers.errors import BusOpenError
 from drivers.sim import SimulatedRig
 from drivers.units import MA_PER_AMP
 from ident_hw.config import Config
+from ident_hw.experiment.plan import robot_model
 
 
 def simulated_rig(config: Config) -> SimulatedRig:
@@ -40,8 +41,8 @@ def simulated_rig(config: Config) -> SimulatedRig:
     sim, robot = config.sim, config.robot
     lockstep = config.sync_mode == "lockstep"
     axes = [(a.node_id, a.profile, a.scaling()) for a in robot.actuators]
-    return SimulatedRig.build(robot.geometry.to_model(), sim.truth.to_model(), axes,
-                              coulomb_width=robot.coulomb_width, bandwidth_hz=sim.bandwidth, damping=sim.damping,
+    return SimulatedRig.build(robot_model(config), sim.truth.to_model(), axes,
+                              bandwidth_hz=sim.bandwidth, damping=sim.damping,
                               **({"max_substep": sim.max_substep} if sim.max_substep else {}),
                               sync_period=1.0 / config.bus.sync_rate if lockstep else None,
                               current_noise_ma=sim.current_noise * MA_PER_AMP, seed=sim.seed, lockstep=lockstep,

@@ -1,5 +1,7 @@
 """Robot models (pure math): the 3PRRR (kinematics, Lagrange-multiplier dynamics, regressor) and
-the Delta of the SVD-DLS paper (:mod:`ident_hw.model.delta`: kinematics, virtual-work regressor).
+the Delta of the SVD-DLS paper (:mod:`ident_hw.model.delta`: kinematics, virtual-work regressor),
+both implementing :class:`~ident_hw.model.interface.RobotModel` (what the simulated rig's plant
+asks of a robot).
 
 This package imports nothing else of the project.
 """
@@ -7,6 +9,7 @@ This package imports nothing else of the project.
 from .delta import Delta, DeltaGeometry
 from .errors import KinematicsError, SingularityError
 from .kinematics import Motion, SingularityMargins
+from .interface import RobotModel
 from .parameters import ACTUATOR_NAMES, Geometry, InertialParams
 from .robot import Simulation, ThreePRRR
 
@@ -18,6 +21,7 @@ __all__ = [
     "InertialParams",
     "KinematicsError",
     "Motion",
+    "RobotModel",
     "Simulation",
     "SingularityError",
     "SingularityMargins",

@@ -138,6 +138,10 @@ class Delta:
         gravity: m/s², acting along ``-z``.
     """
 
+    actuator_names = ACTUATOR_NAMES
+    parameter_names = PARAM_NAMES
+    pose_size = 3
+
     def __init__(self, geometry: DeltaGeometry = DeltaGeometry(), coulomb_width: float = 0.01,
                  gravity: float = GRAVITY) -> None:
         self.geometry = geometry
@@ -379,6 +383,42 @@ class Delta:
         qdd = np.linalg.solve(self.mass_matrix(q, pi), (tau - bias)[..., None])[..., 0]
         return qdd[0] if single else qdd
 
+
+    # ------------------------------------------------------------------ the robot interface
+    # (ident_hw.model.interface.RobotModel)
+    def home_actuated(self) -> np.ndarray:
+        """Arms horizontal, ``q = 0`` (3,): the centre of the paper's paths."""
+        return np.zeros(3)
+
+    def pose(self, Theta, guess=None) -> np.ndarray:
+        """Platform position (3,) m: the closed-form forward kinematics needs no guess."""
+        return self.fk(np.asarray(Theta, float))
+
+    def plant_dynamics(self, Theta, Thetad, params, guess=None):
+        """``M`` (3, 3) kg·m², bias torques (3,) N·m (gravity and velocity terms, no friction) and
+        the platform position (3,) m, from one regressor evaluation of five stacked samples."""
+        q, qd = np.asarray(Theta, float), np.asarray(Thetad, float)
+        pi = np.array(params, float)
+        pi[N_BODY_PARAMS:N_BODY_PARAMS + 6] = 0.0            # fv, fc: the plant adds the friction
+        zero = np.zeros(3)
+        qdd = np.vstack([zero, np.eye(3), zero])
+        tau = self.regressor(np.tile(q, (5, 1)), np.vstack([np.zeros((4, 3)), qd]), qdd) @ pi
+        M = (tau[1:4] - tau[0]).T
+        return M, tau[4], self.pose(q)
+
+    def friction_coefficients(self, params):
+        """``fv_1..3`` (N·m·s/rad) and ``fc_1..3`` (N·m) from the parameter vector."""
+        pi = np.asarray(params, float)
+        return pi[N_BODY_PARAMS:N_BODY_PARAMS + 3].copy(), pi[N_BODY_PARAMS + 3:N_BODY_PARAMS + 6].copy()
+
+    def with_payload(self, params, mass: float, inertia: float = 0.0) -> np.ndarray:
+        """``pi`` with a point-like payload at the platform's origin: ``mass`` kg added to the
+        platform's mass, ``inertia`` kg·m² to its ``Izz`` (first moments unchanged)."""
+        pi = np.array(params, float)
+        plat = 10 * BODIES.index("plat")
+        pi[plat + BODY_PARAMS.index("m")] += mass
+        pi[plat + BODY_PARAMS.index("Izz")] += inertia
+        return pi
 
 # ---------------------------------------------------------------------- helpers
 def _batch(x) -> tuple[np.ndarray, bool]:

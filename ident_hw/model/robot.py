@@ -9,7 +9,8 @@ from scipy.integrate import solve_ivp
 
 from . import dynamics
 from .kinematics import Kinematics, Motion, SingularityMargins, batch
-from .parameters import Geometry, InertialParams
+from .parameters import ACTUATOR_NAMES, Geometry, InertialParams
+from .single import SingleState
 
 
 @dataclass
@@ -35,8 +36,10 @@ class ThreePRRR:
     carriages.
     """
 
+    actuator_names = ACTUATOR_NAMES
     parameter_names = InertialParams.NAMES
     n_params = len(InertialParams.NAMES)
+    pose_size = 3
 
     def __init__(self, geometry: Geometry, coulomb_width: float = 1e-3):
         if not coulomb_width > 0:
@@ -44,6 +47,7 @@ class ThreePRRR:
         self.geometry = geometry
         self.coulomb_width = coulomb_width
         self.kinematics = Kinematics(geometry)
+        self._single = SingleState(self.kinematics)
 
     # -- kinematics ---------------------------------------------------------------------------
     def inverse_kinematics(self, X, zeta):
@@ -141,6 +145,29 @@ class ThreePRRR:
         M, c = self.reduced_dynamics(Theta, Thetad, params, X_guess)
         tau = batch(tau, 6, "tau")
         return np.linalg.solve(M, (tau - c)[..., None])[..., 0]
+
+    # -- the robot interface (ident_hw.model.interface.RobotModel) -------------------------------
+    def home_actuated(self) -> np.ndarray:
+        """``Theta`` (6,) of the home pose: end-effector at the origin, carriages at mid-stroke."""
+        theta, _ = self.inverse_kinematics(np.zeros((1, 3)), np.zeros((1, 3)))
+        return np.concatenate([theta[0], np.zeros(3)])
+
+    def pose(self, Theta, guess) -> np.ndarray:
+        """The pose ``X`` (3,) of one ``Theta`` (6,), continuing from ``guess`` (3,)."""
+        return self.forward_kinematics(np.asarray(Theta, dtype=float)[None], guess)[0]
+
+    def plant_dynamics(self, Theta, Thetad, params: InertialParams, guess):
+        """``M_r`` (6, 6), velocity terms (6,) without friction and ``X`` (3,) of one state (the
+        scalar path of :class:`~ident_hw.model.single.SingleState`: what the plant calls every period)."""
+        return self._single.reduced_dynamics(Theta, Thetad, params, guess)
+
+    def friction_coefficients(self, params: InertialParams):
+        """``f_v``, ``f_c`` (6,) each."""
+        return np.asarray(params.f_v, dtype=float), np.asarray(params.f_c, dtype=float)
+
+    def with_payload(self, params: InertialParams, mass: float, inertia: float) -> InertialParams:
+        """The end-effector's ``m_ee``, ``I_ee`` increased by the payload."""
+        return params.replace(m_ee=params.m_ee + mass, I_ee=params.I_ee + inertia)
 
     def simulate(self, t, Theta0, Thetad0, force, params: InertialParams, X0, rtol=1e-10, atol=1e-12) -> Simulation:
         """Integrate the closed-chain dynamics (SciPy ``solve_ivp``, DOP853).

@@ -1,0 +1,57 @@
+"""What the rest of the project may ask of a robot model: :class:`RobotModel`.
+
+A robot is ``n`` actuated coordinates ``Theta`` (rad or m, in actuator order), a pose (the
+end-effector's coordinates, from the forward kinematics) and a parameter vector or object
+``params`` whose meaning only the model knows. The simulated rig's plant
+(:mod:`drivers.sim.plant`) moves any robot through these members; the 3PRRR
+(:class:`ident_hw.model.ThreePRRR`) and the Delta (:class:`ident_hw.model.Delta`) implement them.
+Everything is SI: rad, m, N·m, N, kg, s.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+
+@runtime_checkable
+class RobotModel(Protocol):
+    """A robot as the plant of the simulated rig sees it.
+
+    Attributes:
+        actuator_names: one name per actuated coordinate, in actuator order (``n`` of them).
+        parameter_names: the names of the model's parameters, in the order of its regressor.
+        pose_size: number of pose coordinates.
+        coulomb_width: velocity scale (rad/s, m/s) of the smooth Coulomb sign ``tanh(qd / w)``.
+    """
+
+    actuator_names: tuple[str, ...]
+    parameter_names: tuple[str, ...]
+    pose_size: int
+    coulomb_width: float
+
+    def home_actuated(self) -> np.ndarray:
+        """The actuated coordinates (n,) of the robot's home pose."""
+
+    def pose(self, Theta, guess) -> np.ndarray:
+        """The pose (pose_size,) of actuated coordinates ``Theta`` (n,); ``guess`` (pose_size,)
+        selects the assembly mode where there are several (the last pose of a series)."""
+
+    def plant_dynamics(self, Theta, Thetad, params: Any, guess) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The dynamics in the actuated coordinates at one state: ``M(Theta) Thetadd + bias + friction = tau``.
+
+        Returns the mass matrix ``M`` (n, n), the bias forces (n,) (velocity terms and gravity,
+        without friction) and the pose (pose_size,).
+
+        Raises:
+            KinematicsError: no pose closes the chains at ``Theta``.
+        """
+
+    def friction_coefficients(self, params: Any) -> tuple[np.ndarray, np.ndarray]:
+        """Viscous ``f_v`` and Coulomb ``f_c`` coefficients (n,) each: the friction force of
+        actuator ``j`` is ``f_v[j] Thetad[j] + f_c[j] tanh(Thetad[j] / coulomb_width)``."""
+
+    def with_payload(self, params: Any, mass: float, inertia: float) -> Any:
+        """``params`` with a payload added at the end-effector point: ``mass`` kg, ``inertia``
+        kg·m² about the axis the robot's end-effector turns about (its vertical axis)."""
