@@ -32,23 +32,12 @@ import yaml
 
 from ident_hw.identification.least_squares import POORLY_IDENTIFIED_PERCENT
 from ident_hw.identification.metrics import validation_metrics
-from ident_hw.model import ACTUATOR_NAMES
+from ident_hw.model import ThreePRRR
+from ident_hw.model.interface import FORCE_UNITS, POSITION_UNITS
 
 STATUS_FILE = "STATUS"
 #: an online estimate has settled when it stays within this fraction of the true value
 SETTLED = 0.02
-
-
-def parameter_unit(name: str) -> str:
-    """SI unit of a parameter of :attr:`ident_hw.model.InertialParams.NAMES`."""
-    if name.startswith("m_"):
-        return "kg"
-    if name.startswith("I_"):
-        return "kg·m²"
-    revolute = "theta" in name
-    if name.startswith("fv_"):
-        return "N·m·s/rad" if revolute else "N·s/m"
-    return "N·m" if revolute else "N"
 
 
 def _well_identified(rel_sigma_percent: float | None, threshold: float) -> bool:
@@ -63,7 +52,7 @@ def _error_percent(estimate: float, truth: float | None) -> float | None:
 
 @dataclass(frozen=True)
 class ParameterRow:
-    """One physical parameter of the results table (SI units, :func:`parameter_unit`).
+    """One physical parameter of the results table (SI unit from the robot model).
 
     ``step`` names the identification step that estimated it ("" = held at ``initial``);
     ``truth``/``error_percent`` exist in simulation only; ``well_identified``: fitted with a %σ
@@ -144,10 +133,12 @@ class ParameterTable:
     """One row per parameter (n of them), arrays of shape (n,).
 
     ``sigma`` is NaN where no standard deviation is known; ``truth`` is None outside simulation;
-    ``step`` names the identification step that estimated the parameter ("" = held at ``initial``).
+    ``step`` names the identification step that estimated the parameter ("" = held at ``initial``);
+    ``units`` the SI unit of each (the model's ``parameter_unit``).
     """
 
     names: tuple[str, ...]
+    units: tuple[str, ...]
     initial: np.ndarray
     identified: np.ndarray
     sigma: np.ndarray
@@ -165,7 +156,7 @@ class ParameterTable:
             rel = 100.0 * sigma / abs(ident) if ident and math.isfinite(sigma) else None
             truth = None if self.truth is None else float(self.truth[i])
             out.append(ParameterRow(
-                name=name, unit=parameter_unit(name), initial=float(self.initial[i]), identified=ident,
+                name=name, unit=self.units[i], initial=float(self.initial[i]), identified=ident,
                 sigma=sigma if math.isfinite(sigma) else None, rel_sigma_percent=rel,
                 bounds=(_num(self.lower[i]), _num(self.upper[i])), step=self.step[i], method=self.method[i],
                 well_identified=bool(self.step[i]) and _well_identified(rel, threshold),
@@ -177,7 +168,7 @@ class ParameterTable:
         def col(key, default=math.nan):
             return np.array([default if r.get(key) is None else r[key] for r in rows], dtype=float)
         has_truth = all("truth" in r for r in rows)
-        return cls(names=tuple(r["name"] for r in rows), initial=col("initial"), identified=col("identified"),
+        return cls(names=tuple(r["name"] for r in rows), units=tuple(r["unit"] for r in rows), initial=col("initial"), identified=col("identified"),
                    sigma=col("sigma"), lower=np.array([_num_in(r["bounds"][0], -np.inf) for r in rows]),
                    upper=np.array([_num_in(r["bounds"][1], np.inf) for r in rows]),
                    step=tuple(r["step"] for r in rows), method=tuple(r["method"] for r in rows),
@@ -379,6 +370,9 @@ class Results:
     """Everything a results folder records about one campaign."""
 
     parameters: ParameterTable
+    #: the robot's actuators in the order of every (N, n) array: names and kinds (``revolute``, ``prismatic``)
+    actuators: tuple[str, ...]
+    actuator_kinds: tuple[str, ...]
     fits: list[TrajectoryFit] = field(default_factory=list)
     steps: list[dict] = field(default_factory=list)
     base_parameters: dict | None = None
@@ -389,6 +383,16 @@ class Results:
     trajectories: dict = field(default_factory=dict)
     #: the quality verdict (``ident_hw.experiment.quality.verdict``); None: not judged
     quality: dict | None = None
+
+    @property
+    def force_units(self) -> tuple[str, ...]:
+        """SI unit of each actuator's force (N·m, N)."""
+        return tuple(FORCE_UNITS[k] for k in self.actuator_kinds)
+
+    @property
+    def position_units(self) -> tuple[str, ...]:
+        """SI unit of each actuator's position (rad, m)."""
+        return tuple(POSITION_UNITS[k] for k in self.actuator_kinds)
 
     def parameter_rows(self) -> list[ParameterRow]:
         """The physical parameters, judged by this campaign's %σ threshold."""
@@ -425,7 +429,8 @@ def save_results(folder: str | Path, results: Results) -> Path:
     doc = {"parameters": [r.to_json() for r in results.parameter_rows()], "rel_sigma_threshold_percent": results.rel_sigma_threshold,
            "base_fit": None if results.base_fit is None else results.base_fit.to_dict(),
            "steps": results.steps, "base_parameters": results.base_parameters,
-           "trajectories": results.trajectories, "quality": results.quality}
+           "trajectories": results.trajectories, "quality": results.quality,
+           "actuators": [{"name": n, "kind": k} for n, k in zip(results.actuators, results.actuator_kinds)]}
     (folder / "parameters.json").write_text(json.dumps(doc, indent=2, default=_jsonable))
     (folder / "parameters.yaml").write_text(yaml.safe_dump(json.loads(json.dumps(doc, default=_jsonable)),
                                                            sort_keys=False))
@@ -449,7 +454,11 @@ def load_results(folder: str | Path) -> Results:
     if (folder / "online.npz").is_file():
         online = OnlineTrace.load(folder / "online.npz")
     base_fit = BaseFit.from_dict(doc["base_fit"]) if doc.get("base_fit") else None
-    return Results(parameters=ParameterTable.from_rows(doc["parameters"]), fits=fits,
+    # a folder written before the actuators were recorded holds the 3PRRR, the only robot then
+    actuators = doc.get("actuators") or [{"name": n, "kind": k}
+                                         for n, k in zip(ThreePRRR.actuator_names, ThreePRRR.actuator_kinds)]
+    return Results(actuators=tuple(a["name"] for a in actuators), actuator_kinds=tuple(a["kind"] for a in actuators),
+                   parameters=ParameterTable.from_rows(doc["parameters"]), fits=fits,
                    steps=doc.get("steps") or [], base_parameters=doc.get("base_parameters"), online=online,
                    base_fit=base_fit, rel_sigma_threshold=doc.get("rel_sigma_threshold_percent", POORLY_IDENTIFIED_PERCENT),
                    trajectories=doc.get("trajectories") or {}, quality=doc.get("quality"))
@@ -461,19 +470,20 @@ def metrics(results: Results) -> dict:
     of the physical parameters, and under ``base_fit`` those of the base-parameter fit."""
     out = {}
     for fit in results.fits:
-        out[fit.name] = {"role": fit.role, "samples": int(len(fit.t)), **_metrics(fit.tau, fit.tau_model)}
+        out[fit.name] = {"role": fit.role, "samples": int(len(fit.t)),
+                         **_metrics(results.actuators, fit.tau, fit.tau_model)}
         if fit.tau_base is not None:
-            out[fit.name]["base_fit"] = _metrics(fit.tau, fit.tau_base)
+            out[fit.name]["base_fit"] = _metrics(results.actuators, fit.tau, fit.tau_base)
     return out
 
 
-def _metrics(tau: np.ndarray, tau_model: np.ndarray) -> dict:
+def _metrics(actuators: tuple[str, ...], tau: np.ndarray, tau_model: np.ndarray) -> dict:
     if not len(tau):                # nothing of the trajectory could be fitted (the verdict says why)
-        nan = dict.fromkeys(ACTUATOR_NAMES, float("nan"))
+        nan = dict.fromkeys(actuators, float("nan"))
         return {"rms": nan, "nrms_percent": dict(nan), "d_tau_percent": float("nan"), "j_rmse": float("nan")}
     m = validation_metrics(tau, tau_model)
-    return {"rms": dict(zip(ACTUATOR_NAMES, m.rms.tolist())),
-            "nrms_percent": dict(zip(ACTUATOR_NAMES, m.nrms_percent.tolist())),
+    return {"rms": dict(zip(actuators, m.rms.tolist())),
+            "nrms_percent": dict(zip(actuators, m.nrms_percent.tolist())),
             "d_tau_percent": m.d_tau_percent, "j_rmse": m.j_rmse}
 
 

@@ -9,7 +9,7 @@ import pytest
 import scipy.io
 import yaml
 
-from ident_hw.model import InertialParams
+from ident_hw.model import InertialParams, ThreePRRR
 from ident_hw.report import build_report, summary_lines
 from ident_hw.results import (BaseFit, OnlineTrace, ParameterTable, Results, TrajectoryFit, load_results, mark_status,
                               read_status, save_results)
@@ -24,7 +24,7 @@ def synthetic_results(rng) -> Results:
     sigma = np.full(n, np.nan)
     sigma[:7] = 0.001 * np.arange(1, 8)
     sigma[1] = 0.5  # 0.5 / 1.05... -> %sigma far above 10: flagged as poor
-    table = ParameterTable(names=NAMES, initial=truth * 1.3, identified=identified, sigma=sigma,
+    table = ParameterTable(names=NAMES, units=tuple(ThreePRRR.parameter_unit(p) for p in NAMES), initial=truth * 1.3, identified=identified, sigma=sigma,
                            lower=np.zeros(n), upper=np.full(n, np.inf),
                            step=("carriages",) + ("links",) * 6 + ("",) * 12, method=("sqp",) * 7 + ("",) * 12,
                            truth=truth)
@@ -44,7 +44,8 @@ def synthetic_results(rng) -> Results:
                        expressions=("m_c", "-0.0225 m_l1 + I_l1"), H=H, coef=np.array([2.0, 0.5]),
                        sigma=np.array([0.02, 0.1]), initial=H @ (truth * 1.3), truth=H @ truth,
                        held=("fv_zeta1",), unexcited=(), threshold=10.0)
-    return Results(parameters=table, fits=fits, steps=[{"name": "carriages", "method": "sqp", "free": ["m_c"]}],
+    return Results(parameters=table, actuators=ThreePRRR.actuator_names, actuator_kinds=ThreePRRR.actuator_kinds,
+                   fits=fits, steps=[{"name": "carriages", "method": "sqp", "free": ["m_c"]}],
                    base_parameters={"rank": 18, "n_params": 19, "base_parameters": ["I_l1 + 0.0225 m_l1"],
                                     "unexcited": ["m_c"]}, online=online, base_fit=base_fit)
 

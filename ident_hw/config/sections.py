@@ -21,7 +21,11 @@ from drivers.cia import NODE_ID_MAX, NODE_ID_MIN
 from drivers.axis import HomingConfig
 from drivers.units import PRISMATIC, REVOLUTE, AxisScaling
 from ident_hw.identification.least_squares import POORLY_IDENTIFIED_PERCENT
-from ident_hw.model import ACTUATOR_NAMES, Geometry, InertialParams
+import numpy as np
+
+from ident_hw.model import ACTUATOR_NAMES, Delta, DeltaGeometry, Geometry, InertialParams, ThreePRRR
+from ident_hw.model.delta import BODY_PARAMS, BODIES, nominal_parameters
+from ident_hw.model.interface import RobotModel
 from ident_hw.signal import FilterSettings
 from trajectories.feasibility import Limits as FeasibilityLimits
 
@@ -81,6 +85,57 @@ class InertialConfig:
 
 
 @dataclass(frozen=True)
+class DeltaGeometryConfig:
+    """Geometry of the Delta, per ``docs/delta-model.md`` (defaults: the SVD-DLS paper's Table 1)."""
+
+    L1: float = field(default=DeltaGeometry.L1, metadata=spec(positive, unit="m", doc="upper arm"))
+    L2: float = field(default=DeltaGeometry.L2, metadata=spec(positive, unit="m", doc="parallelogram rods"))
+    R: float = field(default=DeltaGeometry.R, metadata=spec(positive, unit="m", doc="radius of the actuated joints"))
+    r: float = field(default=DeltaGeometry.r, metadata=spec(positive, unit="m", doc="radius of the platform joints"))
+    psi: tuple[float, float, float] = field(default=DeltaGeometry.psi, metadata=spec(
+        unit="rad", angle=True, doc="azimuths of the three limbs"))
+
+    def to_model(self) -> DeltaGeometry:
+        return DeltaGeometry(L1=self.L1, L2=self.L2, R=self.R, r=self.r, psi=self.psi)
+
+
+@dataclass(frozen=True)
+class DeltaParametersConfig:
+    """The Delta's 79 parameters: the nominal bodies of its geometry (``docs/delta-model.md``)
+    with ``factors`` applied by name (``plat.m: 1.2`` = 20 % heavier), and the drive terms per arm."""
+
+    fv: tuple[float, float, float] = field(default=(0.0,) * 3, metadata=spec(non_negative, unit="N m s/rad"))
+    fc: tuple[float, float, float] = field(default=(0.0,) * 3, metadata=spec(non_negative, unit="N m"))
+    Jm: tuple[float, float, float] = field(default=(0.0,) * 3, metadata=spec(
+        non_negative, unit="kg m^2", doc="rotor inertia reflected through the gear"))
+    factors: dict[str, float] = field(default_factory=dict)
+
+    def _check(self) -> None:
+        bodies = {f"{b}.{p}" for b in BODIES for p in BODY_PARAMS}
+        for name in self.factors:
+            if name not in bodies:
+                raise FieldError(f"factors.{name}", "unknown body parameter; expected <body>.<parameter>, "
+                                 f"bodies {list(BODIES)}, parameters {list(BODY_PARAMS)}")
+
+    def vector(self, geometry: DeltaGeometry) -> np.ndarray:
+        """(79,) in the order of :data:`ident_hw.model.delta.PARAM_NAMES`."""
+        pi = nominal_parameters(geometry)
+        names = Delta.parameter_names
+        for name, factor in self.factors.items():
+            pi[names.index(name)] *= factor
+        pi[-9:] = [*self.fv, *self.fc, *self.Jm]
+        return pi
+
+
+@dataclass(frozen=True)
+class DeltaConfig:
+    """The Delta: geometry and CAD parameters (the start and reference of the identification)."""
+
+    geometry: DeltaGeometryConfig = DeltaGeometryConfig()
+    cad: DeltaParametersConfig = DeltaParametersConfig()
+
+
+@dataclass(frozen=True)
 class LimitsConfig:
     """Joint-side limits of one actuator: rad / m, rad/s / m/s, rad/s² / m/s², motor current A."""
 
@@ -93,7 +148,7 @@ class LimitsConfig:
 
 @dataclass(frozen=True)
 class ActuatorConfig:
-    """One motor + drive. Actuators are listed in the order theta1..3, zeta1..3."""
+    """One motor + drive, in the robot's actuator order (the 3PRRR: theta1..3, zeta1..3)."""
 
     name: str
     kind: Literal["revolute", "prismatic"]
@@ -147,17 +202,37 @@ class SafetyConfig:
 
 @dataclass(frozen=True)
 class RobotConfig:
-    """The rig: geometry, carriage stroke, CAD inertial values and the six actuators."""
+    """The rig: which robot (``kind``), its model's settings and its actuators.
 
-    geometry: GeometryConfig
-    stroke: float = field(metadata=spec(positive, unit="m", doc="carriage travel +- stroke"))
-    cad: InertialConfig
+    ``3prrr``: ``geometry``, carriage ``stroke``, ``cad`` values, ``safety`` margins and six
+    actuators theta1..3, zeta1..3. ``delta``: the ``delta`` section (geometry, CAD parameters)
+    and three revolute actuators q1..3.
+    """
+
     actuators: tuple[ActuatorConfig, ...]
+    kind: Literal["3prrr", "delta"] = "3prrr"
+    geometry: GeometryConfig | None = None
+    stroke: float | None = field(default=None, metadata=spec(positive, unit="m", doc="carriage travel +- stroke"))
+    cad: InertialConfig | None = None
+    delta: DeltaConfig | None = None
     safety: SafetyConfig = SafetyConfig()
     coulomb_width: float = field(default=1e-3, metadata=spec(positive, unit="rad/s | m/s"))
 
+    def to_model(self) -> RobotModel:
+        """The robot's model (:class:`~ident_hw.model.interface.RobotModel`)."""
+        if self.kind == "delta":
+            return Delta(self.delta.geometry.to_model(), coulomb_width=self.coulomb_width)
+        return ThreePRRR(self.geometry.to_model(), coulomb_width=self.coulomb_width)
+
+    def initial_parameters(self) -> np.ndarray:
+        """The CAD values (n,) in the order of the model's ``parameter_names``."""
+        if self.kind == "delta":
+            return self.delta.cad.vector(self.delta.geometry.to_model())
+        return self.cad.to_model().as_vector()
+
     def feasibility_limits(self) -> FeasibilityLimits:
-        """Limits for :func:`trajectories.feasibility.check_trajectory` (the tightest axis of each kind)."""
+        """Limits for :func:`trajectories.feasibility.check_trajectory` of the 3PRRR (the tightest
+        axis of each kind)."""
         rev, pri = self.actuators[:3], self.actuators[3:]
         return FeasibilityLimits(
             carriage_stroke=self.stroke,
@@ -169,12 +244,21 @@ class RobotConfig:
             max_cond_A=self.safety.max_cond_A)
 
     def _check(self) -> None:
-        if len(self.actuators) != 6:
-            raise FieldError("actuators", f"expected 6 actuators (theta1..3, zeta1..3), got {len(self.actuators)}")
-        for i, (act, kind) in enumerate(zip(self.actuators, AXIS_KINDS)):
+        if self.kind == "delta":
+            if self.delta is None:
+                raise FieldError("delta", "missing key: a Delta needs its delta section (geometry, cad)")
+            names, kinds = Delta.actuator_names, Delta.actuator_kinds
+        else:
+            for key in ("geometry", "stroke", "cad"):
+                if getattr(self, key) is None:
+                    raise FieldError(key, "missing key (a 3PRRR needs geometry, stroke and cad)")
+            names, kinds = ACTUATOR_NAMES, AXIS_KINDS
+        if len(self.actuators) != len(names):
+            raise FieldError("actuators", f"expected {len(names)} actuators ({', '.join(names)}), got {len(self.actuators)}")
+        for i, (act, kind) in enumerate(zip(self.actuators, kinds)):
             if act.kind != kind:
                 raise FieldError(f"actuators[{i}].kind",
-                                 f"actuator {i} ({ACTUATOR_NAMES[i]}) must be {kind!r}, got {act.kind!r}")
+                                 f"actuator {i} ({names[i]}) must be {kind!r}, got {act.kind!r}")
         seen: dict[int, int] = {}
         for i, act in enumerate(self.actuators):
             if act.node_id in seen:
@@ -242,7 +326,8 @@ class SimConfig:
     position loops and the measurement noise (currents are reported in whole mA, positions in
     encoder counts, as by the real drives)."""
 
-    truth: InertialConfig
+    truth: InertialConfig | None = field(default=None, metadata=spec(doc="the 3PRRR's true parameters"))
+    delta_truth: DeltaParametersConfig | None = field(default=None, metadata=spec(doc="the Delta's true parameters"))
     current_noise: float = field(default=0.0, metadata=spec(non_negative, unit="A", doc="Gaussian std"))
     bandwidth: float = field(default=20.0, metadata=spec(positive, unit="Hz", doc="position loops"))
     damping: float = field(default=1.0, metadata=spec(positive))
@@ -346,10 +431,6 @@ class StepConfig:
     parameters: tuple[str, ...]
     method: Literal["sqp", "ols", "wls"] = "sqp"
 
-    def _check(self) -> None:
-        for i, p in enumerate(self.parameters):
-            if p not in InertialParams.NAMES:
-                raise FieldError(f"parameters[{i}]", f"unknown parameter {p!r}; expected one of {list(InertialParams.NAMES)}")
 
 
 #: typical magnitudes of the friction coefficients by kind (they have no CAD value): the online
@@ -384,17 +465,14 @@ class OnlineConfig:
         positive, doc="regularisation of the damped-RLS baseline, in the scaled units of the threshold"))
 
     def _check(self) -> None:
-        kinds = set(InertialParams.NAMES) | set(FRICTION_SCALES)
         for name, value in self.scales.items():
-            if name not in kinds:
-                raise FieldError(f"scales.{name}", f"unknown parameter or kind; expected one of {sorted(kinds)}")
             if not value > 0:
                 raise FieldError(f"scales.{name}", f"must be positive, got {value}")
 
-    def parameter_scales(self, cad) -> tuple[float, ...]:
-        """(n,) the scale of every parameter of ``InertialParams.NAMES`` (see the class)."""
+    def parameter_scales(self, names, cad) -> tuple[float, ...]:
+        """(n,) the scale of every parameter ``names`` (n,) with CAD values ``cad`` (see the class)."""
         out = []
-        for name, value in zip(InertialParams.NAMES, cad):
+        for name, value in zip(names, cad):
             kind = parameter_kind(name)
             scale = self.scales.get(name, self.scales.get(kind, abs(value) or FRICTION_SCALES.get(kind, 0.0)))
             if not scale > 0:
@@ -453,8 +531,6 @@ class IdentificationConfig:
                              f"only one step may fit base parameters by least squares (steps "
                              f"{[self.steps[i].name for i in least_squares]} are 'wls'/'ols')")
         for name, pair in self.bounds.items():
-            if name not in InertialParams.NAMES:
-                raise FieldError(f"bounds.{name}", f"unknown parameter; expected one of {list(InertialParams.NAMES)}")
             if not pair[0] <= pair[1]:
                 raise FieldError(f"bounds.{name}", f"expected [min, max] with min <= max, got {list(pair)}")
 
@@ -481,6 +557,15 @@ class Config:
     source: str = field(default="", init=False, compare=False)
 
     def _check(self) -> None:
+        self._check_parameter_names()
+        if self.sim is not None:
+            key = "delta_truth" if self.robot.kind == "delta" else "truth"
+            other = "truth" if key == "delta_truth" else "delta_truth"
+            if getattr(self.sim, key) is None:
+                raise FieldError(f"sim.{key}", f"missing key: the simulated {self.robot.kind}'s true parameters")
+            if getattr(self.sim, other) is not None:
+                raise FieldError(f"sim.{other}", f"belongs to another robot than robot.kind {self.robot.kind!r} "
+                                 f"(its true parameters are sim.{key})")
         names: dict[str, int] = {}
         for i, t in enumerate(self.trajectories):
             if t.name in names:
@@ -513,6 +598,41 @@ class Config:
             if t.payload is not None and (self.sim is None or not self.sim.in_process):
                 raise FieldError(f"trajectories[{i}].payload", "a payload is put on by the in-process simulated "
                                  "rig (sim.in_process: true)")
+
+    def _check_parameter_names(self) -> None:
+        """Parameter names of the identification section: those of the robot's model."""
+        known = self.robot.to_model().parameter_names
+        if self.identification is None:
+            return
+        for s, step in enumerate(self.identification.steps):
+            for i, p in enumerate(step.parameters):
+                if p not in known:
+                    close = difflib.get_close_matches(p, known, n=1)
+                    hint = f"did you mean {close[0]!r}?" if close else f"expected one of {list(known)}"
+                    raise FieldError(f"identification.steps[{s}].parameters[{i}]", f"unknown parameter {p!r}; {hint}")
+        for name in self.identification.bounds:
+            if name not in known:
+                raise FieldError(f"identification.bounds.{name}", f"unknown parameter; expected one of {list(known)}")
+        kinds = set(known) | {parameter_kind(n) for n in known}
+        for name in self.identification.online.scales:
+            if name not in kinds:
+                raise FieldError(f"identification.online.scales.{name}",
+                                 f"unknown parameter or kind; expected one of {sorted(kinds)}")
+
+    def true_parameters(self) -> np.ndarray | None:
+        """The simulated rig's true parameters (n,) in the model's order; None without ``sim``."""
+        if self.sim is None:
+            return None
+        if self.robot.kind == "delta":
+            return self.sim.delta_truth.vector(self.robot.delta.geometry.to_model())
+        return self.sim.truth.to_model().as_vector()
+
+    def true_model_parameters(self):
+        """The true parameters as the model takes them (the plant's): an ``InertialParams`` of the
+        3PRRR, the vector of the Delta."""
+        if self.robot.kind == "delta":
+            return self.true_parameters()
+        return self.sim.truth.to_model()
 
     @property
     def simulated(self) -> bool:

@@ -25,7 +25,7 @@ from ident_hw.config import Config
 from ident_hw.identification.base_params import base_parameters, identify_base
 from ident_hw.identification.least_squares import check_regression_data, stack, wls
 from ident_hw.identification.mass_fit import sqp_fit
-from ident_hw.model import InertialParams, ThreePRRR
+from ident_hw.model.interface import RobotModel
 from ident_hw.report import coverage_text
 from ident_hw.results import BaseFit, ParameterTable, Results, TrajectoryFit
 from ident_hw.segments import Segments, slot_indices, split, uniform
@@ -35,16 +35,15 @@ from .plan import motion_bandwidth, robot_model
 from .quality import verdict
 from .recordings import planned_cycles, require_trajectories
 
-NAMES = InertialParams.NAMES
 #: rows a stretch needs beyond the filters' support at its two ends
 MIN_FILTERED = 8
 
 
 @dataclass
 class Prepared:
-    """One trajectory after preparation and decimation: t (M,), Theta (M, 6), X (M, 3),
-    regressor Y (M, 6, n), forces tau (M, 6);
-    ``moving`` (M, 6) marks the rows the fits use (:attr:`tau_fit`); ``segments``: how the
+    """One trajectory after preparation and decimation: t (M,), Theta (M, a), X (M, pose size),
+    regressor Y (M, a, n), forces tau (M, a) (``a`` actuators, ``n`` parameters);
+    ``moving`` (M, a) marks the rows the fits use (:attr:`tau_fit`); ``segments``: how the
     recording's rows were used (cuts, rows left out per rule)."""
 
     name: str
@@ -129,7 +128,7 @@ def _bridged(t: np.ndarray, values: np.ndarray) -> np.ndarray:
     return out
 
 
-def prepare(config: Config, robot: ThreePRRR, name: str, rec: Recording) -> Prepared:
+def prepare(config: Config, robot: RobotModel, name: str, rec: Recording) -> Prepared:
     """Recording → filtered motion, regressor and forces, decimated in parallel, stretch by
     stretch (:func:`segments_of`: cut at gaps and at rows left out, each stretch filtered on
     its own and trimmed at both ends)."""
@@ -142,22 +141,22 @@ def prepare(config: Config, robot: ThreePRRR, name: str, rec: Recording) -> Prep
     settings = config.identification.filter.settings(1.0 / recording_period(rec), motion_bandwidth(config, name))
     segments = segments_of(config, rec, settings.trim, 2 * settings.trim + MIN_FILTERED)
     if not segments.slices:      # nothing to fit; the quality verdict says why
-        m = len(NAMES)
-        return Prepared(name, np.zeros(0), np.zeros((0, 6)), np.zeros((0, 3)), np.zeros((0, 6, m)),
-                        np.zeros((0, 6)), np.zeros((0, 6), bool), segments=segments)
+        a, m = len(robot.actuator_names), len(robot.parameter_names)
+        return Prepared(name, np.zeros(0), np.zeros((0, a)), np.zeros((0, robot.pose_size)), np.zeros((0, a, m)),
+                        np.zeros((0, a)), np.zeros((0, a), bool), segments=segments)
     force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
     speed_limit = np.array([a.limits.velocity for a in config.robot.actuators])
     # start poses for the forward kinematics of each stretch: a continuation from the home pose
     # along the whole recording, across its gaps (a Newton start only, never data)
-    guess = robot.forward_kinematics(_bridged(segments.t, rec.position), np.zeros(3))
+    guess = robot.pose_series(_bridged(segments.t, rec.position), np.zeros(robot.pose_size))
     parts = []
     for rows in segments.slices:
         t, Theta, current = uniform(segments.t[rows], rec.position[rows], rec.current[rows])
         samples = prepare_actuated(t, Theta, current, force_per_amp, settings)
-        motion = robot.motion_from_actuated(samples.Theta, samples.Thetad, samples.Thetadd, guess[rows])
-        Y, tau = parallel_decimate(settings, robot.regressor_of(motion), samples.tau)
+        regressor, X = robot.identification_regressor(samples.Theta, samples.Thetad, samples.Thetadd, guess[rows])
+        Y, tau = parallel_decimate(settings, regressor, samples.tau)
         kept = kept_samples(settings, len(t))
-        parts.append((t[kept], samples.Theta[kept], motion.X[kept], Y, tau,
+        parts.append((t[kept], samples.Theta[kept], X[kept], Y, tau,
                       np.abs(samples.Thetad[kept]) >= config.identification.min_speed * speed_limit))
     t, Theta, X, Y, tau, moving = (np.concatenate(column) for column in zip(*parts))
     return Prepared(name, t, Theta, X, Y, tau, moving, segments=segments)
@@ -180,29 +179,29 @@ def scaled_condition(Y: np.ndarray, tau: np.ndarray) -> float:
     return float(np.linalg.cond(W * column_scale(W[:, None, :])))
 
 
-def fit_base(step, Y: np.ndarray, tau: np.ndarray, coef: np.ndarray, initial: np.ndarray,
+def fit_base(step, names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray, coef: np.ndarray, initial: np.ndarray,
              truth: np.ndarray | None, threshold: float) -> tuple[BaseFit, np.ndarray, dict]:
     """Least squares (``step.method`` ``wls``/``ols``) of the base parameters of ``step.parameters``
-    on ``Y`` (N, 6, n), ``tau`` (N, 6), the other parameters held at ``coef``.
+    on ``Y`` (N, a, n), ``tau`` (N, a), the other parameters (``names``, n) held at ``coef``.
 
     Returns the :class:`BaseFit`, the physical vector (n,) that predicts the same forces (each
     kept parameter carries its base value, the eliminated ones 0, the held ones ``coef``) and the
     step's record for the results.
     """
-    free = [NAMES.index(p) for p in step.parameters]
-    held = [i for i in range(len(NAMES)) if i not in free]
+    free = [names.index(p) for p in step.parameters]
+    held = [i for i in range(len(names)) if i not in free]
     Yf = Y[:, :, free]
     base, fit = identify_base(Yf, tau - Y[:, :, held] @ coef[held], step.parameters, scale=column_scale(Yf),
                               weighted=step.method == "wls")
-    H = np.zeros((base.rank, len(NAMES)))
+    H = np.zeros((base.rank, len(names)))
     H[:, free] = np.where(np.abs(base.H) > 1e-10, base.H, 0.0)   # rounding of N1 N2^-1, not a coefficient
     equivalent = coef.copy()
     equivalent[free] = 0.0
-    equivalent[[NAMES.index(k) for k in base.kept]] = fit.coef
+    equivalent[[names.index(k) for k in base.kept]] = fit.coef
     result = BaseFit(step=step.name, method=fit.method, trajectories=tuple(step.trajectories),
                      expressions=base.expressions, H=H, coef=fit.coef, sigma=fit.std,
                      initial=H @ initial, truth=None if truth is None else H @ truth,
-                     held=tuple(NAMES[i] for i in held), unexcited=base.unexcited, threshold=threshold)
+                     held=tuple(names[i] for i in held), unexcited=base.unexcited, threshold=threshold)
     record = {"name": step.name, "trajectories": list(step.trajectories), "free": list(step.parameters),
               "method": f"{fit.method} of the base parameters ({base.rank} of {len(free)})",
               "eliminated": list(base.eliminated), **{k: v for k, v in fit.to_dict().items() if k != "parameters"},
@@ -217,6 +216,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     if ident is None:
         raise ValueError(f"{config.source}: identification: missing section")
     robot = robot_model(config)
+    names = robot.parameter_names
     needed = [n for s in ident.steps for n in s.trajectories] + list(ident.validation)
     require_trajectories(config, recordings)
     used = {name: coverage(config, name, recordings[name]) for name in dict.fromkeys(needed)}
@@ -231,13 +231,13 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         if progress and prepared[name].segments.describe():
             progress(f"  {name}: {prepared[name].segments.describe()}")
 
-    n = len(NAMES)
-    initial = config.robot.cad.to_model().as_vector()
+    n = len(names)
+    initial = config.robot.initial_parameters()
     coef = initial.copy()
     sigma = np.full(n, np.nan)
     lower, upper = np.full(n, -np.inf), np.full(n, np.inf)
     step_of, method_of = [""] * n, [""] * n
-    truth = config.sim.truth.to_model().as_vector() if config.sim is not None else None
+    truth = config.true_parameters()
     steps = []
     base_fit, base_equivalent = None, None
     for step in ident.steps:
@@ -251,23 +251,23 @@ def identify(config: Config, recordings: Mapping[str, Recording],
                           "skipped": "no stretch of its recordings could be filtered"})
             continue
         if step.method != "sqp":
-            base_fit, base_equivalent, record = fit_base(step, Y, tau, coef, initial, truth,
+            base_fit, base_equivalent, record = fit_base(step, names, Y, tau, coef, initial, truth,
                                                          ident.rel_sigma_threshold)
             steps.append(record)
             continue
         # a parameter its rows do not excite at all (e.g. a carriage whose every stretch was
         # left out) is held at its current value, and the verdict says so
         rows, _ = stack(*check_regression_data(Y, tau))
-        excited = [p for p in step.parameters if np.any(rows[:, NAMES.index(p)] != 0)]
+        excited = [p for p in step.parameters if np.any(rows[:, names.index(p)] != 0)]
         unexcited = [p for p in step.parameters if p not in excited]
         if not excited:
             steps.append({"name": step.name, "trajectories": list(step.trajectories),
                           "skipped": f"none of {', '.join(step.parameters)} excited by its data"})
             continue
         bounds = {p: ident.bounds[p] for p in excited if p in ident.bounds}
-        fit = sqp_fit(Y, tau, NAMES, coef, free=excited, bounds=bounds)
+        fit = sqp_fit(Y, tau, names, coef, free=excited, bounds=bounds)
         coef = fit.coef
-        idx = [NAMES.index(p) for p in excited]
+        idx = [names.index(p) for p in excited]
         held = [i for i in range(n) if i not in idx]
         # sigma of the free parameters: WLS statistics of the same weighted problem
         record = {"name": step.name, "trajectories": list(step.trajectories), **fit.to_dict(),
@@ -291,19 +291,21 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     id_names = list(dict.fromkeys(t for s in ident.steps for t in s.trajectories))
     W, _ = stack(*check_regression_data(np.concatenate([prepared[t].Y for t in id_names]),
                                         np.concatenate([prepared[t].tau_fit for t in id_names])))
-    base = base_parameters(W, NAMES, scale=np.maximum(np.abs(initial), 1e-3)).to_dict()
+    base = base_parameters(W, names, scale=np.maximum(np.abs(initial), 1e-3)).to_dict()
 
     fits = []
     for name, p in prepared.items():
         role = "validation" if name in ident.validation and name not in id_names else "identification"
         fits.append(TrajectoryFit(name, role, p.t, p.tau, p.Y @ coef, p.Theta, p.X,
                                   tau_base=None if base_fit is None else p.Y @ base_equivalent))
-    table = ParameterTable(names=NAMES, initial=initial, identified=coef, sigma=sigma, lower=lower, upper=upper,
+    table = ParameterTable(names=names, units=tuple(robot.parameter_unit(p) for p in names), initial=initial,
+                           identified=coef, sigma=sigma, lower=lower, upper=upper,
                            step=tuple(step_of), method=tuple(method_of), truth=truth)
     for name, p in prepared.items():
         used[name].update(samples_used=len(p.t), rows_left_out=p.segments.left_out, gaps=p.segments.gaps,
                           stretches=len(p.segments.slices))
-    results = Results(parameters=table, fits=fits, steps=steps, base_parameters=base, base_fit=base_fit,
+    results = Results(parameters=table, actuators=robot.actuator_names, actuator_kinds=robot.actuator_kinds,
+                      fits=fits, steps=steps, base_parameters=base, base_fit=base_fit,
                       rel_sigma_threshold=ident.rel_sigma_threshold, trajectories=used)
     results.quality = verdict(results, ident.quality)
     return results

@@ -26,13 +26,11 @@ import numpy as np
 from drivers.recording import Recording
 from ident_hw.config import Config
 from ident_hw.identification import RLS, SVDDLS, DampedRLS, base_parameters
-from ident_hw.model import InertialParams
-from ident_hw.results import BaseFit, OnlineTrace, parameter_unit
+from ident_hw.results import BaseFit, OnlineTrace
 
 from .offline import prepare
 from .plan import robot_model
 
-NAMES = InertialParams.NAMES
 #: the estimator whose estimates are printed and judged; the others are baselines
 MAIN = "SVD-DLS"
 
@@ -45,13 +43,14 @@ class CampaignEstimator:
             raise ValueError(f"{config.source}: identification: missing section")
         self.config = config
         self.robot = robot_model(config)
+        self.names = self.robot.parameter_names
         self.show = show
         online = config.identification.online
-        self.cad = config.robot.cad.to_model().as_vector()
-        self.scale = np.array(online.parameter_scales(self.cad))
+        self.cad = config.robot.initial_parameters()
+        self.scale = np.array(online.parameter_scales(self.names, self.cad))
         force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
         self.output_std = online.output_noise * force_per_amp
-        n = len(NAMES)
+        n = len(self.names)
         common = {"forgetting": online.forgetting, "scale": self.scale, "output_std": self.output_std}
         self.estimators = {
             MAIN: SVDDLS(n, threshold=online.threshold, **common),
@@ -74,15 +73,14 @@ class CampaignEstimator:
 
     def _truth_at(self, name: str, t: np.ndarray) -> np.ndarray | None:
         """(M, n) the simulated truth at the trajectory's times ``t`` (s from its start)."""
-        sim = self.config.sim
-        if sim is None:
+        true = self.config.true_parameters()
+        if true is None:
             return None
-        truth = np.tile(sim.truth.to_model().as_vector(), (len(t), 1))
+        truth = np.tile(true, (len(t), 1))
         payload = self.config.trajectory(name).payload
         if payload is not None:
             after = t >= payload.after
-            truth[after, NAMES.index("m_ee")] += payload.mass
-            truth[after, NAMES.index("I_ee")] += payload.inertia
+            truth[after] = self.robot.with_payload(true, payload.mass, payload.inertia)
             self.change_time = self._elapsed + payload.after
         return truth
 
@@ -93,7 +91,7 @@ class CampaignEstimator:
         tau = np.where(p.moving, p.tau, 0.0)
         m = len(p.t)
         for label, est in self.estimators.items():
-            coef = np.full((m, len(NAMES)), np.nan)
+            coef = np.full((m, len(self.names)), np.nan)
             rank = np.zeros(m, dtype=int)
             sq = 0.0
             for k in range(m if label not in self.diverged else 0):
@@ -105,7 +103,7 @@ class CampaignEstimator:
                     self.diverged[label] = float(self._elapsed + p.t[k])
                     break
                 coef[k] = est.coef_
-                rank[k] = getattr(est, "rank_", len(NAMES))
+                rank[k] = getattr(est, "rank_", len(self.names))
             self._coef[label].append(coef)
             self._sq_error[label] += sq
             if label == MAIN:
@@ -135,16 +133,16 @@ class CampaignEstimator:
         out = []
         for v in self.estimators[MAIN].held_directions().T:
             order = np.argsort(-np.abs(v))[:3]
-            out.append(" ".join(f"{v[i]:+.2f} {NAMES[i]}" for i in order if abs(v[i]) >= 0.1).lstrip("+"))
+            out.append(" ".join(f"{v[i]:+.2f} {self.names[i]}" for i in order if abs(v[i]) >= 0.1).lstrip("+"))
         return out
 
     def table(self, title: str) -> str:
         """The current SVD-DLS estimates with their %σ, one line per parameter."""
         est = self.estimators[MAIN]
         rel = self.relative_std()
-        lines = [f"{MAIN} estimates {title} (excited rank {est.rank_} of {len(NAMES)}):"]
-        lines += [f"  {n:>10} = {v:12.6g} {parameter_unit(n):<10}" + ("" if np.isnan(r) else f" %sigma {r:7.2f}")
-                  for n, v, r in zip(NAMES, est.coef_, rel)]
+        lines = [f"{MAIN} estimates {title} (excited rank {est.rank_} of {len(self.names)}):"]
+        lines += [f"  {n:>10} = {v:12.6g} {self.robot.parameter_unit(n):<10}" + ("" if np.isnan(r) else f" %sigma {r:7.2f}")
+                  for n, v, r in zip(self.names, est.coef_, rel)]
         held = self.unexcited()
         if held:
             lines.append(f"  held (not excited): {'; '.join(held)}")
@@ -154,18 +152,18 @@ class CampaignEstimator:
         """The estimates of every estimator over the campaign's time (trajectories back to back),
         with the base parameters of the offline ``base_fit`` (the same combinations as the
         report's), else those of the data fed here."""
-        n = len(NAMES)
+        n = len(self.names)
         if not self._t:
-            return OnlineTrace(NAMES, np.zeros(0), {k: np.zeros((0, n)) for k in self.estimators})
+            return OnlineTrace(self.names, np.zeros(0), {k: np.zeros((0, n)) for k in self.estimators})
         if base_fit is not None and not base_fit.held:
             H, expressions = base_fit.H, base_fit.expressions
         else:
-            base = base_parameters(np.concatenate(self._Y), NAMES, scale=np.maximum(np.abs(self.cad), 1e-3))
+            base = base_parameters(np.concatenate(self._Y), self.names, scale=np.maximum(np.abs(self.cad), 1e-3))
             H, expressions = base.H, base.expressions
         rms = {k: float("nan") if k in self.diverged else float(np.sqrt(v / max(self._entries, 1)))
                for k, v in self._sq_error.items()}
         return OnlineTrace(
-            names=NAMES, t=np.concatenate(self._t),
+            names=self.names, t=np.concatenate(self._t),
             estimates={k: np.concatenate(v) for k, v in self._coef.items()},
             rank=np.concatenate(self._rank), j_rmse=rms, base_names=expressions, H=H,
             truth=np.concatenate(self._truth) if self._truth else None, change_time=self.change_time,

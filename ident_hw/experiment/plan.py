@@ -12,6 +12,7 @@ import numpy as np
 import trajectories
 from ident_hw.config import Config, TrajectoryConfig
 from ident_hw.model import KinematicsError, ThreePRRR
+from ident_hw.model.interface import RobotModel
 
 
 #: the Fourier excitation optimised for the nominal rig, shipped with ``trajectories``
@@ -41,8 +42,9 @@ class PlannedTrajectory:
         return "\n    note: ".join([f"{self.config.name}: ok ({t.duration:.1f} s, {len(t.t)} samples)", *self.notes])
 
 
-def robot_model(config: Config) -> ThreePRRR:
-    return ThreePRRR(config.robot.geometry.to_model(), coulomb_width=config.robot.coulomb_width)
+def robot_model(config: Config) -> RobotModel:
+    """The model of the config's robot (``robot.kind``)."""
+    return config.robot.to_model()
 
 
 def sample_rate(config: Config) -> float:

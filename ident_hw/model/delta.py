@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .dynamics import smooth_sign
+from .interface import REVOLUTE
 from .errors import KinematicsError, SingularityError
 
 GRAVITY = 9.81  # m/s²
@@ -139,6 +140,7 @@ class Delta:
     """
 
     actuator_names = ACTUATOR_NAMES
+    actuator_kinds = (REVOLUTE,) * 3
     parameter_names = PARAM_NAMES
     pose_size = 3
 
@@ -386,6 +388,21 @@ class Delta:
 
     # ------------------------------------------------------------------ the robot interface
     # (ident_hw.model.interface.RobotModel)
+    @staticmethod
+    def parameter_unit(name: str) -> str:
+        """SI unit of a parameter of :data:`PARAM_NAMES`."""
+        kind = name.split(".")[-1].split("_")[0]
+        return {"m": "kg", "mx": "kg·m", "my": "kg·m", "mz": "kg·m", "fv": "N·m·s/rad", "fc": "N·m",
+                "Jm": "kg·m²"}.get(kind, "kg·m²")
+
+    def pose_series(self, Theta, start=None) -> np.ndarray:
+        """Platform positions (N, 3) m: closed form, no series needed."""
+        return self.fk(Theta)
+
+    def identification_regressor(self, Theta, Thetad, Thetadd, guess=None):
+        """``Y`` (N, 3, 79) and the platform positions (N, 3)."""
+        return self.regressor(Theta, Thetad, Thetadd), self.fk(Theta)
+
     def home_actuated(self) -> np.ndarray:
         """Arms horizontal, ``q = 0`` (3,): the centre of the paper's paths."""
         return np.zeros(3)

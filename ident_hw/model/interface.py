@@ -1,11 +1,12 @@
 """What the rest of the project may ask of a robot model: :class:`RobotModel`.
 
 A robot is ``n`` actuated coordinates ``Theta`` (rad or m, in actuator order), a pose (the
-end-effector's coordinates, from the forward kinematics) and a parameter vector or object
-``params`` whose meaning only the model knows. The simulated rig's plant
-(:mod:`drivers.sim.plant`) moves any robot through these members; the 3PRRR
-(:class:`ident_hw.model.ThreePRRR`) and the Delta (:class:`ident_hw.model.Delta`) implement them.
-Everything is SI: rad, m, N·m, N, kg, s.
+end-effector's coordinates, from the forward kinematics) and parameters ``params`` whose meaning
+only the model knows (a vector in the order of ``parameter_names`` for the regressor). The
+simulated rig's plant (:mod:`drivers.sim.plant`) moves any robot through these members, the
+offline identification (:mod:`ident_hw.experiment.offline`) builds its regressor through them;
+the 3PRRR (:class:`ident_hw.model.ThreePRRR`) and the Delta (:class:`ident_hw.model.Delta`)
+implement them. Everything is SI: rad, m, N·m, N, kg, s.
 """
 
 from __future__ import annotations
@@ -14,6 +15,11 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+#: the kinds of actuated joint, and the SI units of their position and force
+REVOLUTE, PRISMATIC = "revolute", "prismatic"
+POSITION_UNITS = {REVOLUTE: "rad", PRISMATIC: "m"}
+FORCE_UNITS = {REVOLUTE: "N·m", PRISMATIC: "N"}
+
 
 @runtime_checkable
 class RobotModel(Protocol):
@@ -21,15 +27,20 @@ class RobotModel(Protocol):
 
     Attributes:
         actuator_names: one name per actuated coordinate, in actuator order (``n`` of them).
+        actuator_kinds: :data:`REVOLUTE` or :data:`PRISMATIC` per actuator.
         parameter_names: the names of the model's parameters, in the order of its regressor.
         pose_size: number of pose coordinates.
         coulomb_width: velocity scale (rad/s, m/s) of the smooth Coulomb sign ``tanh(qd / w)``.
     """
 
     actuator_names: tuple[str, ...]
+    actuator_kinds: tuple[str, ...]
     parameter_names: tuple[str, ...]
     pose_size: int
     coulomb_width: float
+
+    def parameter_unit(self, name: str) -> str:
+        """SI unit of parameter ``name`` (one of ``parameter_names``)."""
 
     def home_actuated(self) -> np.ndarray:
         """The actuated coordinates (n,) of the robot's home pose."""
@@ -37,6 +48,14 @@ class RobotModel(Protocol):
     def pose(self, Theta, guess) -> np.ndarray:
         """The pose (pose_size,) of actuated coordinates ``Theta`` (n,); ``guess`` (pose_size,)
         selects the assembly mode where there are several (the last pose of a series)."""
+
+    def pose_series(self, Theta, start) -> np.ndarray:
+        """Poses (N, pose_size) of actuated coordinates ``Theta`` (N, n) along a continuous
+        series, starting the assembly-mode choice from ``start`` (pose_size,)."""
+
+    def identification_regressor(self, Theta, Thetad, Thetadd, guess) -> tuple[np.ndarray, np.ndarray]:
+        """``Y`` (N, n, len(parameter_names)) with ``tau = Y @ params`` of a measured actuated
+        motion (each (N, n)), and the poses (N, pose_size); ``guess`` (N, pose_size) per sample."""
 
     def plant_dynamics(self, Theta, Thetad, params: Any, guess) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The dynamics in the actuated coordinates at one state: ``M(Theta) Thetadd + bias + friction = tau``.

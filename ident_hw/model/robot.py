@@ -8,6 +8,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from . import dynamics
+from .interface import PRISMATIC, REVOLUTE
 from .kinematics import Kinematics, Motion, SingularityMargins, batch
 from .parameters import ACTUATOR_NAMES, Geometry, InertialParams
 from .single import SingleState
@@ -37,6 +38,7 @@ class ThreePRRR:
     """
 
     actuator_names = ACTUATOR_NAMES
+    actuator_kinds = (REVOLUTE,) * 3 + (PRISMATIC,) * 3
     parameter_names = InertialParams.NAMES
     n_params = len(InertialParams.NAMES)
     pose_size = 3
@@ -147,6 +149,28 @@ class ThreePRRR:
         return np.linalg.solve(M, (tau - c)[..., None])[..., 0]
 
     # -- the robot interface (ident_hw.model.interface.RobotModel) -------------------------------
+    @staticmethod
+    def parameter_unit(name: str) -> str:
+        """SI unit of a parameter of ``InertialParams.NAMES``: masses, inertias, and the
+        friction of a link (``theta``) or a carriage (``zeta``)."""
+        if name.startswith("m_"):
+            return "kg"
+        if name.startswith("I_"):
+            return "kg·m²"
+        revolute = "theta" in name
+        if name.startswith("fv_"):
+            return "N·m·s/rad" if revolute else "N·s/m"
+        return "N·m" if revolute else "N"
+
+    def pose_series(self, Theta, start) -> np.ndarray:
+        """Poses ``X`` (N, 3) of ``Theta`` (N, 6), each Newton start the previous pose."""
+        return self.forward_kinematics(Theta, start)
+
+    def identification_regressor(self, Theta, Thetad, Thetadd, guess):
+        """``Y`` (N, 6, 19) and ``X`` (N, 3) of a measured actuated motion."""
+        motion = self.motion_from_actuated(Theta, Thetad, Thetadd, guess)
+        return self.regressor_of(motion), motion.X
+
     def home_actuated(self) -> np.ndarray:
         """``Theta`` (6,) of the home pose: end-effector at the origin, carriages at mid-stroke."""
         theta, _ = self.inverse_kinematics(np.zeros((1, 3)), np.zeros((1, 3)))
@@ -165,9 +189,15 @@ class ThreePRRR:
         """``f_v``, ``f_c`` (6,) each."""
         return np.asarray(params.f_v, dtype=float), np.asarray(params.f_c, dtype=float)
 
-    def with_payload(self, params: InertialParams, mass: float, inertia: float) -> InertialParams:
-        """The end-effector's ``m_ee``, ``I_ee`` increased by the payload."""
-        return params.replace(m_ee=params.m_ee + mass, I_ee=params.I_ee + inertia)
+    def with_payload(self, params, mass: float, inertia: float):
+        """The end-effector's ``m_ee``, ``I_ee`` increased by the payload, in ``params``' form
+        (:class:`InertialParams` or the vector (19,) of ``parameter_names``)."""
+        if isinstance(params, InertialParams):
+            return params.replace(m_ee=params.m_ee + mass, I_ee=params.I_ee + inertia)
+        vector = np.array(params, dtype=float)
+        vector[self.parameter_names.index("m_ee")] += mass
+        vector[self.parameter_names.index("I_ee")] += inertia
+        return vector
 
     def simulate(self, t, Theta0, Thetad0, force, params: InertialParams, X0, rtol=1e-10, atol=1e-12) -> Simulation:
         """Integrate the closed-chain dynamics (SciPy ``solve_ivp``, DOP853).

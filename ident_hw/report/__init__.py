@@ -39,10 +39,11 @@ def build_report(folder: str | Path) -> Path:
     folder_plots = folder / "plots"
     folder_plots.mkdir(exist_ok=True)
     jobs = []
+    actuators = plots.Actuators(results.actuators, results.actuator_kinds)
     for fit in results.fits:
-        jobs.append((f"{fit.role}: {fit.name} — measured vs model", plots.plot_forces, (fit, folder_plots)))
-        jobs.append((f"{fit.name}: residuals", plots.plot_residuals, (fit, folder_plots)))
-        jobs.append((f"{fit.name}: motion", plots.plot_motion, (fit, folder_plots)))
+        jobs.append((f"{fit.role}: {fit.name} — measured vs model", plots.plot_forces, (fit, actuators, folder_plots)))
+        jobs.append((f"{fit.name}: residuals", plots.plot_residuals, (fit, actuators, folder_plots)))
+        jobs.append((f"{fit.name}: motion", plots.plot_motion, (fit, actuators, folder_plots)))
     if results.online is not None:
         jobs.append(("online estimates", plots.plot_online, (results.online, results.parameters, folder_plots)))
     images = list(zip([title for title, _, _ in jobs], plots.render([(f, a) for _, f, a in jobs])))

@@ -8,7 +8,6 @@ from pathlib import Path
 
 import jinja2
 
-from ident_hw.model import ACTUATOR_NAMES
 from ident_hw.results import SETTLED, Results, read_status
 
 from .terminal import accuracy_line, coverage_text
@@ -45,5 +44,5 @@ def render_html(folder: Path, results: Results, table: dict, images: list[tuple[
         coverage={name: coverage_text(u) for name, u in results.trajectories.items()},
         base_list=base if base.get("base_parameters") and results.base_fit is None else None,
         online=results.online, comparison=results.online.comparison() if results.online is not None else [],
-        settled_percent=100 * SETTLED, metrics=table, actuators=ACTUATOR_NAMES,
+        settled_percent=100 * SETTLED, metrics=table, actuators=results.actuators,
         images=[(title, str(path.relative_to(folder))) for title, path in images])

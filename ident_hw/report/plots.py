@@ -1,7 +1,8 @@
 """The report's PNG plots: forces measured against the model, residuals, motion, online estimates.
 
-Each plot function takes the typed results (:mod:`ident_hw.results`) and the plots folder and
-returns the PNG's path; :func:`render` draws several in parallel.
+Each plot function takes the typed results (:mod:`ident_hw.results`), the robot's actuators
+(:class:`Actuators`) where it draws one panel per actuator, and the plots folder, and returns the
+PNG's path; :func:`render` draws several in parallel.
 """
 
 from __future__ import annotations
@@ -10,15 +11,15 @@ import math
 import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
-from ident_hw.model import ACTUATOR_NAMES
+from ident_hw.model.interface import FORCE_UNITS, POSITION_UNITS
 from ident_hw.results import OnlineTrace, ParameterTable, TrajectoryFit
 
-FORCE_UNITS = ("N·m",) * 3 + ("N",) * 3
 #: s of a trajectory the forces plot shows (longer ones are unreadable at a page's width); the
 #: residuals plot shows the whole trajectory
 FORCES_WINDOW = 10.0
@@ -33,25 +34,44 @@ def _figure(height: float) -> Figure:
     return fig
 
 
+@dataclass(frozen=True)
+class Actuators:
+    """The robot's actuators, in the column order of the fits: names and kinds (``revolute``, ``prismatic``)."""
+
+    names: tuple[str, ...]
+    kinds: tuple[str, ...]
+
+    def label(self, j: int) -> str:
+        """``theta1 [N·m]``: actuator ``j`` and the unit of its force."""
+        return f"{self.names[j]} [{FORCE_UNITS[self.kinds[j]]}]"
+
+
+def _panels(fig: Figure, n: int):
+    """One panel per actuator, in columns of three (the 3PRRR: links left, carriages right)."""
+    rows = min(n, 3)
+    cols = math.ceil(n / rows)
+    axes = np.atleast_2d(fig.subplots(rows, cols, sharex=True).reshape(rows, cols))
+    return [axes[j % rows, j // rows] for j in range(n)], axes[-1]
+
+
 def _every(n: int, at_most: int = 3000) -> slice:
     return slice(None, None, max(1, n // at_most))
 
 
-def plot_forces(fit: TrajectoryFit, plots: Path) -> Path:
+def plot_forces(fit: TrajectoryFit, actuators: Actuators, plots: Path) -> Path:
     fig = _figure(8)
-    axes = fig.subplots(3, 2, sharex=True)
+    panels, bottom = _panels(fig, len(actuators.names))
     shown = int(np.searchsorted(fit.t, fit.t[0] + FORCES_WINDOW, side="right")) if len(fit.t) else 0
     s = slice(0, shown, _every(shown).step)
-    for j in range(6):
-        ax = axes[j % 3, j // 3]
+    for j, ax in enumerate(panels):
         ax.plot(fit.t[s], fit.tau[s, j], lw=0.8, label="measured")
         ax.plot(fit.t[s], fit.tau_model[s, j], lw=1.0, ls="--", label="model")
         if fit.tau_base is not None:
             ax.plot(fit.t[s], fit.tau_base[s, j], lw=1.0, ls=":", label="base fit")
-        ax.set_ylabel(f"{ACTUATOR_NAMES[j]} [{FORCE_UNITS[j]}]")
+        ax.set_ylabel(actuators.label(j))
         ax.grid(alpha=0.3)
-    axes[0, 0].legend(loc="best", fontsize=8)
-    for ax in axes[-1]:
+    panels[0].legend(loc="best", fontsize=8)
+    for ax in bottom:
         ax.set_xlabel("t [s]")
     window = ""
     if shown < len(fit.t):
@@ -60,24 +80,25 @@ def plot_forces(fit: TrajectoryFit, plots: Path) -> Path:
     return _save(fig, plots / f"forces_{fit.name}.png")
 
 
-def plot_residuals(fit: TrajectoryFit, plots: Path) -> Path:
+def plot_residuals(fit: TrajectoryFit, actuators: Actuators, plots: Path) -> Path:
     fig = _figure(6)
-    axes = fig.subplots(3, 2, sharex=True)
+    panels, bottom = _panels(fig, len(actuators.names))
     s = _every(len(fit.t))
-    for j in range(6):
-        ax = axes[j % 3, j // 3]
+    for j, ax in enumerate(panels):
         ax.plot(fit.t[s], (fit.tau - fit.tau_model)[s, j], lw=0.6, color="C3")
-        ax.set_ylabel(f"{ACTUATOR_NAMES[j]} [{FORCE_UNITS[j]}]")
+        ax.set_ylabel(actuators.label(j))
         ax.grid(alpha=0.3)
-    for ax in axes[-1]:
+    for ax in bottom:
         ax.set_xlabel("t [s]")
     fig.suptitle(f"{fit.name}: residual measured − model")
     return _save(fig, plots / f"residuals_{fit.name}.png")
 
 
-def plot_motion(fit: TrajectoryFit, plots: Path) -> Path:
+def plot_motion(fit: TrajectoryFit, actuators: Actuators, plots: Path) -> Path:
+    """The end-effector's path seen from above (x, y) and the actuated coordinates, one panel per kind."""
+    kinds = list(dict.fromkeys(actuators.kinds))
     fig = _figure(3.5)
-    ax_xy, ax_rev, ax_pri = fig.subplots(1, 3)
+    ax_xy, *ax_kinds = fig.subplots(1, 1 + len(kinds))
     s = _every(len(fit.t))
     if fit.X is not None:
         ax_xy.plot(fit.X[s, 0], fit.X[s, 1], lw=1.0)
@@ -85,12 +106,12 @@ def plot_motion(fit: TrajectoryFit, plots: Path) -> Path:
     ax_xy.set_xlabel("x [m]")
     ax_xy.set_ylabel("y [m]")
     ax_xy.set_title("end-effector path" if fit.X is not None else "(no pose recorded)")
-    for j in range(3):
-        ax_rev.plot(fit.t[s], fit.Theta[s, j], lw=0.8, label=ACTUATOR_NAMES[j])
-        ax_pri.plot(fit.t[s], fit.Theta[s, 3 + j], lw=0.8, label=ACTUATOR_NAMES[3 + j])
-    ax_rev.set_ylabel("theta [rad]")
-    ax_pri.set_ylabel("zeta [m]")
-    for ax in (ax_rev, ax_pri):
+    for ax, kind in zip(ax_kinds, kinds):
+        for j, name in enumerate(actuators.names):
+            if actuators.kinds[j] == kind:
+                ax.plot(fit.t[s], fit.Theta[s, j], lw=0.8, label=name)
+        ax.set_ylabel(f"{kind} [{POSITION_UNITS[kind]}]")
+    for ax in ax_kinds:
         ax.set_xlabel("t [s]")
         ax.legend(fontsize=7)
         ax.grid(alpha=0.3)
