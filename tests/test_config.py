@@ -51,7 +51,9 @@ def expect_error(path: Path, key: str, line: int, *words: str) -> ConfigError:
 @pytest.mark.parametrize("name", sorted(p.name for p in CONFIGS.glob("*.yaml")))
 def test_every_shipped_config_loads(name):
     cfg = load_config(CONFIGS / name)
-    assert len(cfg.robot.actuators) == 6
+    model = cfg.robot.to_model()
+    assert [a.kind for a in cfg.robot.actuators] == list(model.actuator_kinds)
+    assert len(cfg.robot.initial_parameters()) == len(model.parameter_names)
 
 
 def test_robot_values_map_to_model_and_drive_scaling():

@@ -53,3 +53,86 @@ def held_arm_path(t):
 def training_path(t):
     """Eq. 84 with Table 2's frequencies and the chosen amplitudes ``a = 0.05 w``, ``b = 0``."""
     return _harmonics(t, np.full_like(TRAINING_FREQUENCIES, TRAINING_GAIN), TRAINING_FREQUENCIES)
+
+
+# ----------------------------------------------------------------------------- campaign trajectories
+#: the paths of the campaign by trajectory kind (``trajectories[].kind`` of a Delta config)
+PATHS = {"delta_verification": verification_path, "delta_training": training_path, "delta_held_arm": held_arm_path}
+
+
+def _smoothstep(u: np.ndarray):
+    """Quintic ``s(u) = u³ (10 − 15u + 6u²)`` on [0, 1] (0 → 1 at rest, zero acceleration at both
+    ends) with its first and second derivatives."""
+    u = np.clip(u, 0.0, 1.0)
+    return u**3 * (10 - 15 * u + 6 * u**2), 30 * u**2 * (1 - u) ** 2, 60 * u * (1 - u) * (1 - 2 * u)
+
+
+def faded(path, t: np.ndarray, fade: float):
+    """``path(t)`` (q, qd, qdd, each (N, 3)) multiplied by a window that rises over the first
+    ``fade`` s and falls over the last: the arms leave ``q = 0`` at rest and come back to it at
+    rest (the paper's paths start moving). Exact rates by the product rule."""
+    t = np.asarray(t, dtype=float)
+    q, qd, qdd = path(t)
+    if fade <= 0:
+        return q, qd, qdd
+    end = t[-1]
+    rise, rise_d, rise_dd = _smoothstep((t - t[0]) / fade)
+    fall, fall_d, fall_dd = _smoothstep((end - t) / fade)
+    w = rise * fall
+    wd = (rise_d * fall - rise * fall_d) / fade
+    wdd = (rise_dd * fall - 2 * rise_d * fall_d + rise * fall_dd) / fade**2
+    w, wd, wdd = w[:, None], wd[:, None], wdd[:, None]
+    return w * q, wd * q + w * qd, wdd * q + 2 * wd * qd + w * qdd
+
+
+def delta_trajectory(robot, kind: str, duration: float, rate: float, fade: float = 1.0, name: str | None = None,
+                     amplitude: float = 1.0):
+    """The campaign trajectory ``kind`` (a key of :data:`PATHS`) of ``duration`` s sampled at
+    ``rate`` Hz, its angles scaled by ``amplitude``, faded in and out (:func:`faded`), as a :class:`~trajectories.Trajectory` whose
+    pose is the platform position (``robot.fk``; its rates by the Jacobian, its acceleration by
+    central differences: the pose is for plots, the drives follow ``Theta``).
+
+    Raises:
+        ValueError: an unknown kind, or a duration shorter than the two fades.
+    """
+    from .trajectory import Trajectory
+
+    if kind not in PATHS:
+        raise ValueError(f"unknown Delta path {kind!r}; known: {', '.join(PATHS)}")
+    if not duration > 2 * fade:
+        raise ValueError(f"duration {duration} s must exceed the fade in and out, 2 x {fade} s")
+    t = np.arange(int(np.floor(duration * rate + 1e-9)) + 1) / rate
+    q, qd, qdd = (amplitude * x for x in faded(PATHS[kind], t, fade))
+    X = robot.fk(q)
+    Xd = np.einsum("nij,nj->ni", robot.jacobian(q), qd)
+    Xdd = np.gradient(Xd, t, axis=0)
+    return Trajectory(name or kind, t, X, Xd, Xdd, q, qd, qdd,
+                      metadata={"generator": kind, "duration_s": duration, "fade_s": fade, "rate_hz": rate,
+                                "amplitude": amplitude})
+
+
+def check_delta_trajectory(traj, robot, limits, min_serial: float, max_parallel: float):
+    """The feasibility report of a Delta trajectory: the actuator limits
+    (:func:`trajectories.feasibility.check_actuator_limits`), reach (the forward kinematics) and
+    the singularity measures of :meth:`ident_hw.model.Delta.singularity` (serial at least
+    ``min_serial``, parallel condition at most ``max_parallel``)."""
+    from ident_hw.model import KinematicsError
+
+    from .feasibility import Violation, check_actuator_limits
+
+    report = check_actuator_limits(traj, limits)
+    try:
+        serial, parallel = robot.singularity(traj.Theta)
+    except KinematicsError as exc:
+        k = exc.sample or 0
+        report.violations.append(Violation(float(traj.t[k]), k, None, "reach", f"q = {np.round(traj.Theta[k], 4).tolist()} rad",
+                                           np.nan, np.nan))
+    else:
+        for quantity, bad, value, limit in (("serial margin", serial < min_serial, serial, min_serial),
+                                            ("cond(A)", parallel[:, None] > max_parallel, parallel[:, None], max_parallel)):
+            if bad.any():
+                k, col = np.argwhere(bad)[0]
+                report.violations.append(Violation(float(traj.t[k]), int(k), int(col) + 1 if quantity == "serial margin" else None,
+                                                   quantity, "Delta singularity measure", float(value[k, col]), limit))
+    report.violations.sort(key=lambda v: v.sample)
+    return report

@@ -128,6 +128,43 @@ class Report:
                          + [f"  {v}" for v in self.violations])
 
 
+@dataclass(frozen=True)
+class ActuatorLimits:
+    """Per actuator (a,): ``names``, position range ``low``/``high`` (rad or m), ``speed`` and
+    ``accel`` limits (per s, per s²), ``units`` of the positions."""
+
+    names: tuple[str, ...]
+    low: np.ndarray
+    high: np.ndarray
+    speed: np.ndarray
+    accel: np.ndarray
+    units: tuple[str, ...]
+
+
+def check_actuator_limits(traj: Trajectory, limits: ActuatorLimits) -> Report:
+    """Any robot: every actuator within its position range, speed and acceleration limits (the
+    stored rates and the finite differences of the positions), the earliest violation of each."""
+    found: list[Violation] = []
+    t = traj.t
+    dt = np.diff(t)[:, None]
+    rate = {"rad": "rad/s", "m": "m/s"}
+    checks = [("position", traj.Theta, limits.high, limits.units, traj.Theta > limits.high),
+              ("position", traj.Theta, limits.low, limits.units, traj.Theta < limits.low)]
+    for quantity, value, position, limit, per in (("speed", traj.Thetad, traj.Theta, limits.speed, ""),
+                                                  ("acceleration", traj.Thetadd, traj.Thetad, limits.accel, "/s")):
+        units = tuple(rate.get(u, u) + per for u in limits.units)
+        step = np.vstack([np.zeros((1, value.shape[1])), np.abs(np.diff(position, axis=0)) / dt])
+        checks += [(quantity, np.abs(value), limit, units, np.abs(value) > limit),
+                   (quantity, step, limit, units, step > limit)]
+    for quantity, value, limit, units, bad in checks:
+        if bad.any():
+            k, j = np.argwhere(bad)[0]
+            found.append(Violation(float(t[k]), int(k), int(j) + 1, quantity, limits.names[j],
+                                   float(value[k, j]), float(np.broadcast_to(limit, value.shape[1:])[j]), units[j]))
+    found.sort(key=lambda v: v.sample)
+    return Report(traj.name, found)
+
+
 def check_trajectory(traj: Trajectory, robot: ThreePRRR, limits: Limits) -> Report:
     """Check every sample of ``traj`` against ``limits`` on ``robot``; see the module docstring."""
     found: list[Violation] = []

@@ -32,6 +32,10 @@ def save(traj: Trajectory, path: str | Path) -> Path:
     """Write ``traj`` to ``path`` (``.csv`` or ``.npz``); returns the path."""
     path = Path(path)
     arrays = {key: getattr(traj, key) for key in COLUMNS}
+    wrong = [key for key, cols in COLUMNS.items() if key != "t" and arrays[key].shape[1] != len(cols)]
+    if wrong:
+        raise ValueError(f"trajectory {traj.name!r}: the file format holds the 3PRRR's columns; "
+                         f"{wrong[0]} has {arrays[wrong[0]].shape[1]}")
     if path.suffix == ".npz":
         np.savez(path, name=traj.name, metadata=json.dumps(traj.metadata), **arrays)
     elif path.suffix == ".csv":
@@ -64,6 +68,10 @@ def load(path: str | Path) -> Trajectory:
 
 
 def _build(path: Path, name: str, metadata: dict, arrays: dict[str, np.ndarray]) -> Trajectory:
+    for key, cols in COLUMNS.items():
+        shape = np.shape(arrays[key])
+        if key != "t" and (len(shape) != 2 or shape[1] != len(cols)):
+            raise TrajectoryFileError(f"{path}: {key} has shape {shape}, expected (N, {len(cols)})")
     try:
         return Trajectory(name=name, metadata=metadata, **arrays)
     except ValueError as exc:

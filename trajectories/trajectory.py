@@ -1,4 +1,5 @@
-"""The :class:`Trajectory`: sampled pose and actuator motion of the 3PRRR."""
+"""The :class:`Trajectory`: sampled pose and actuator motion of a robot (the 3PRRR's columns
+name the file format, :mod:`trajectories.files`)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,8 @@ from scipy.interpolate import BPoly
 if TYPE_CHECKING:
     from ident_hw.model import ThreePRRR
 
-#: Array fields of a trajectory, in file order, with the names and units of their columns.
+#: Array fields of a trajectory, in file order, with the names and units of their columns in the
+#: trajectory files (the 3PRRR's: six actuators, a planar pose).
 COLUMNS: dict[str, list[tuple[str, str]]] = {
     "t": [("t", "s")],
     "X": [("x", "m"), ("y", "m"), ("alpha", "rad")],
@@ -39,9 +41,10 @@ class Trajectory:
     Attributes:
         name: short identifier (e.g. ``"square-2"``).
         t: ``(N,)`` strictly increasing sample times, s.
-        X, Xd, Xdd: ``(N, 3)`` end-effector pose ``[x, y, alpha]`` (m, m, rad) and its derivatives.
-        Theta, Thetad, Thetadd: ``(N, 6)`` actuator coordinates ``[theta1..3 (rad), zeta1..3 (m)]``
-            and their derivatives.
+        X, Xd, Xdd: ``(N, p)`` end-effector pose and its derivatives (the 3PRRR: ``[x, y, alpha]``
+            in m, m, rad; the Delta: the platform position ``[x, y, z]`` in m).
+        Theta, Thetad, Thetadd: ``(N, a)`` actuator coordinates in the robot's actuator order (the
+            3PRRR: ``[theta1..3 (rad), zeta1..3 (m)]``) and their derivatives.
         metadata: free-form JSON-serialisable description (generator, parameters, limits used).
     """
 
@@ -56,9 +59,12 @@ class Trajectory:
     metadata: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        for key, cols in COLUMNS.items():
+        widths = {}
+        for key in COLUMNS:
             value = np.asarray(getattr(self, key), dtype=float)
-            expected = (len(self.t),) if key == "t" else (len(self.t), len(cols))
+            family = "Theta" if key.startswith("Theta") else key[:1]
+            width = value.shape[1] if value.ndim == 2 else 0
+            expected = (len(self.t),) if key == "t" else (len(self.t), widths.setdefault(family, width) or 1)
             if value.shape != expected:
                 raise ValueError(f"trajectory {self.name!r}: {key} has shape {value.shape}, expected {expected}")
             if not np.all(np.isfinite(value)):

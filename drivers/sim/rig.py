@@ -134,10 +134,13 @@ class SimulatedRig:
         seed: seed of the current noise and of the frame-loss draws.
         initial_states: ``{node_id: "FAULT" | "STOPPED"}``: drives in the wrong state at start.
         lockstep: the plant moves only on SYNC (see the module docstring); needs ``sync_period``.
+        brakes: every axis has a holding brake that holds it where it stands while its drive's
+            power stage is off (a robot whose arms carry their weight, such as a Delta, does not
+            fall when the run ends and the drives are disabled).
     """
 
     def __init__(self, nodes, plant: Plant, *, bus=None, sync_period=None, current_noise_ma: float = 0.0,
-                 seed=None, initial_states=None, lockstep: bool = False, **bus_kwargs):
+                 seed=None, initial_states=None, lockstep: bool = False, brakes: bool = False, **bus_kwargs):
         nodes = [(n.node_id, n.profile, n.scaling) if isinstance(n, AxisConfig) else tuple(n) for n in nodes]
         names = plant.robot.actuator_names
         if len(nodes) != len(names):
@@ -157,6 +160,8 @@ class SimulatedRig:
         if lockstep and sync_period is None:
             raise ValueError("a lockstep rig needs its sync_period")
         self.lockstep = lockstep
+        self.brakes = brakes
+        self._braked_at: dict[int, float] = {}   # axis -> position its brake holds (rad, m)
         self.plant = plant
         self.sync_period = sync_period
         self.current_noise_ma = float(current_noise_ma)
@@ -333,11 +338,14 @@ class SimulatedRig:
         offsets = np.array([d.offset for d in self.drives], dtype=float)
         demand[0] += offsets
         demand = self._units.position_from_counts(demand)
-        enabled = np.array([d.powered for d in self.drives])
+        powered = np.array([d.powered for d in self.drives])
         limit_ma = [d.get(d.profile.current_limit.index, d.profile.current_limit.subindex) for d in self.drives]
         limit = self._units.force_from_current(self._units.current_from_ma(limit_ma))
         plant = self.plant
-        force = plant.control(demand[0], demand[1], enabled, limit)
+        enabled = powered
+        if self.brakes:
+            demand, enabled, limit = self._brake(demand, powered, limit)
+        force = np.where(powered, plant.control(demand[0], demand[1], enabled, limit), 0.0)
         milliamps = self._units.current_from_force(force) * MA_PER_AMP     # before noise and rounding
         if self.current_noise_ma:
             milliamps += self._rng.normal(0.0, self.current_noise_ma, len(self.drives))
@@ -361,6 +369,19 @@ class SimulatedRig:
                     if drive.powered:
                         drive.emcy(EMCY_FOLLOWING_ERROR)
         self._last_step = self.time
+
+    def _brake(self, demand, powered, limit):
+        """The holding brakes: an axis whose power stage is off is held where it stood when it went
+        off, as by a stiff position loop with no force limit; its drive measures no current."""
+        demand, enabled, limit = demand.copy(), powered.copy(), limit.copy()
+        for j, on in enumerate(powered):
+            if on:
+                self._braked_at.pop(j, None)
+                continue
+            demand[:, j] = 0.0
+            demand[0, j] = self._braked_at.setdefault(j, float(self.plant.Theta[j]))
+            enabled[j], limit[j] = True, np.inf
+        return demand, enabled, limit
 
     @property
     def sync_driven(self) -> bool:

@@ -334,6 +334,9 @@ class SimConfig:
     max_substep: float | None = field(default=None, metadata=spec(
         in_range(1e-5, 0.01), unit="s", doc="integration step of the plant (Heun, second order; default "
                                             "drivers.sim.plant.DEFAULT_MAX_SUBSTEP, 0.5 ms)"))
+    brakes: bool = field(default=False, metadata=spec(
+        doc="holding brakes: an axis whose drive is disabled stays where it stands (a robot carrying "
+            "its weight, such as the Delta, does not fall when the drives are disabled)"))
     in_process: bool = True
     seed: int = 0
     fault: SimFaultConfig | None = None
@@ -366,13 +369,18 @@ class TrajectoryConfig:
     timing); the motion is repeated ``cycles`` times. ``bandwidth`` (Hz), the highest frequency
     the motion has, sets the identification filter of this trajectory (default: the highest
     harmonic of a Fourier excitation, else ``identification.filter.bandwidth``).
+    The Delta's paths (the SVD-DLS paper, :mod:`trajectories.delta_paper`): ``delta_training``
+    (Table 2), ``delta_verification`` (eq. 60), ``delta_held_arm`` (eq. 60 with arm 3 held), each
+    ``duration`` s long, its angles scaled by ``amplitude``, faded in and out over ``fade`` s
+    from and back to the arms at rest.
     ``online_only``: streamed only by ``ident-hw online``, after the others; ``run`` leaves it
     out. ``payload``: on the in-process simulated rig, a payload added during this trajectory
     (:class:`PayloadConfig`), e.g. on an ``online_only`` one for the online estimators to track.
     """
 
     name: str
-    kind: Literal["carriage_sweep", "square", "triangle", "fourier", "file"]
+    kind: Literal["carriage_sweep", "square", "triangle", "fourier", "file",
+                  "delta_training", "delta_verification", "delta_held_arm"]
     size: float | None = field(default=None, metadata=spec(positive, unit="m"))
     rotation: float = field(default=0.0, metadata=spec(unit="rad", angle=True))
     speed_scale: float = field(default=1.0, metadata=spec(in_range(0.01, 1.0)))
@@ -380,10 +388,15 @@ class TrajectoryConfig:
     cycles: int = field(default=1, metadata=spec(in_range(1, 1000)))
     path: str | None = None
     bandwidth: float | None = field(default=None, metadata=spec(positive, unit="Hz"))
+    duration: float | None = field(default=None, metadata=spec(positive, unit="s"))
+    fade: float = field(default=1.0, metadata=spec(non_negative, unit="s"))
+    amplitude: float = field(default=1.0, metadata=spec(in_range(0.01, 10.0)))
     online_only: bool = False
     payload: PayloadConfig | None = None
 
     def _check(self) -> None:
+        if self.kind.startswith("delta_") and self.duration is None:
+            raise FieldError("duration", f"missing key: a {self.kind!r} trajectory needs duration (s)")
         if self.kind == "file" and self.path is None:
             raise FieldError("path", "missing key: a 'file' trajectory needs path")
         if self.kind not in ("file", "fourier") and self.path is not None:
@@ -428,8 +441,12 @@ class StepConfig:
 
     name: str
     trajectories: tuple[str, ...]
-    parameters: tuple[str, ...]
+    parameters: tuple[str, ...] = field(metadata=spec(doc="parameter names, or [all]: every parameter of the model"))
     method: Literal["sqp", "ols", "wls"] = "sqp"
+
+    def parameter_names(self, names: tuple[str, ...]) -> tuple[str, ...]:
+        """The step's parameters among the model's ``names`` (``[all]``: every one)."""
+        return tuple(names) if self.parameters == ("all",) else self.parameters
 
 
 
@@ -594,6 +611,11 @@ class Config:
                 raise FieldError("sim.fault.node_id", f"no actuator with node id {fault.node_id}")
             if not self.sim.in_process:
                 raise FieldError("sim.fault", "fault injection needs the in-process rig (sim.in_process: true)")
+        delta = self.robot.kind == "delta"
+        for i, t in enumerate(self.trajectories):
+            if t.kind.startswith("delta_") != delta and t.kind != "file":
+                raise FieldError(f"trajectories[{i}].kind", f"a {t.kind!r} trajectory is not one of the "
+                                 f"{self.robot.kind}'s (robot.kind)")
         for i, t in enumerate(self.trajectories):
             if t.payload is not None and (self.sim is None or not self.sim.in_process):
                 raise FieldError(f"trajectories[{i}].payload", "a payload is put on by the in-process simulated "
@@ -605,7 +627,7 @@ class Config:
         if self.identification is None:
             return
         for s, step in enumerate(self.identification.steps):
-            for i, p in enumerate(step.parameters):
+            for i, p in enumerate(step.parameter_names(known)):
                 if p not in known:
                     close = difflib.get_close_matches(p, known, n=1)
                     hint = f"did you mean {close[0]!r}?" if close else f"expected one of {list(known)}"

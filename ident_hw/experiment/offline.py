@@ -162,11 +162,18 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording) -> Pre
     return Prepared(name, t, Theta, X, Y, tau, moving, segments=segments)
 
 
+#: a regressor column whose RMS is below this fraction of the largest column's is rounding (a
+#: structurally zero column computed through the kinematics), not data: it is not scaled up
+NUMERICALLY_ZERO = 1e-10
+
+
 def column_scale(Y: np.ndarray) -> np.ndarray:
     """(n,) inverse RMS of each regressor column over all samples and outputs (1 for a zero
-    column): scaling by it makes the rank decision of the base parameters unit-free."""
+    column, or one below :data:`NUMERICALLY_ZERO` of the largest): scaling by it makes the rank
+    decision of the base parameters unit-free without lifting rounding to unit size."""
     rms = np.sqrt(np.mean(Y.reshape(-1, Y.shape[-1]) ** 2, axis=0))
-    return np.divide(1.0, rms, out=np.ones_like(rms), where=rms > 0)
+    real = rms > NUMERICALLY_ZERO * (rms.max() if rms.size else 0.0)
+    return np.divide(1.0, rms, out=np.ones_like(rms), where=real & (rms > 0))
 
 
 def scaled_condition(Y: np.ndarray, tau: np.ndarray) -> float:
@@ -179,20 +186,23 @@ def scaled_condition(Y: np.ndarray, tau: np.ndarray) -> float:
     return float(np.linalg.cond(W * column_scale(W[:, None, :])))
 
 
-def fit_base(step, names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray, coef: np.ndarray, initial: np.ndarray,
-             truth: np.ndarray | None, threshold: float) -> tuple[BaseFit, np.ndarray, dict]:
-    """Least squares (``step.method`` ``wls``/``ols``) of the base parameters of ``step.parameters``
-    on ``Y`` (N, a, n), ``tau`` (N, a), the other parameters (``names``, n) held at ``coef``.
+def fit_base(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
+             coef: np.ndarray, initial: np.ndarray, truth: np.ndarray | None, threshold: float,
+             basis: tuple | None = None) -> tuple[BaseFit, np.ndarray, dict]:
+    """Least squares (``step.method`` ``wls``/``ols``) of the base parameters of ``free_names``
+    on ``Y`` (N, a, n), ``tau`` (N, a), the other parameters (``names``, n) held at ``coef``;
+    ``basis``: the model's readable base parameters (``RobotModel.readable_base``), used when
+    every parameter is free and the data identifies them all.
 
     Returns the :class:`BaseFit`, the physical vector (n,) that predicts the same forces (each
     kept parameter carries its base value, the eliminated ones 0, the held ones ``coef``) and the
     step's record for the results.
     """
-    free = [names.index(p) for p in step.parameters]
+    free = [names.index(p) for p in free_names]
     held = [i for i in range(len(names)) if i not in free]
     Yf = Y[:, :, free]
-    base, fit = identify_base(Yf, tau - Y[:, :, held] @ coef[held], step.parameters, scale=column_scale(Yf),
-                              weighted=step.method == "wls")
+    base, fit = identify_base(Yf, tau - Y[:, :, held] @ coef[held], free_names, scale=column_scale(Yf),
+                              weighted=step.method == "wls", basis=None if held else basis)
     H = np.zeros((base.rank, len(names)))
     H[:, free] = np.where(np.abs(base.H) > 1e-10, base.H, 0.0)   # rounding of N1 N2^-1, not a coefficient
     equivalent = coef.copy()
@@ -202,10 +212,10 @@ def fit_base(step, names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray, coef:
                      expressions=base.expressions, H=H, coef=fit.coef, sigma=fit.std,
                      initial=H @ initial, truth=None if truth is None else H @ truth,
                      held=tuple(names[i] for i in held), unexcited=base.unexcited, threshold=threshold)
-    record = {"name": step.name, "trajectories": list(step.trajectories), "free": list(step.parameters),
+    record = {"name": step.name, "trajectories": list(step.trajectories), "free": list(free_names),
               "method": f"{fit.method} of the base parameters ({base.rank} of {len(free)})",
               "eliminated": list(base.eliminated), **{k: v for k, v in fit.to_dict().items() if k != "parameters"},
-              "cond_scaled": scaled_condition(Yf[:, :, [list(step.parameters).index(k) for k in base.kept]], tau)}
+              "cond_scaled": scaled_condition(Yf[:, :, [list(free_names).index(k) for k in base.kept]], tau)}
     return result, equivalent, record
 
 
@@ -241,8 +251,10 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     steps = []
     base_fit, base_equivalent = None, None
     for step in ident.steps:
+        free_names = step.parameter_names(names)
         if progress:
-            progress(f"step {step.name}: fitting {', '.join(step.parameters)}"
+            progress(f"step {step.name}: fitting "
+                     + ("all parameters" if step.parameters == ("all",) else ", ".join(free_names))
                      + (f" (base parameters, {step.method.upper()})" if step.method != "sqp" else ""))
         Y = np.concatenate([prepared[t].Y for t in step.trajectories])
         tau = np.concatenate([prepared[t].tau_fit for t in step.trajectories])
@@ -251,15 +263,15 @@ def identify(config: Config, recordings: Mapping[str, Recording],
                           "skipped": "no stretch of its recordings could be filtered"})
             continue
         if step.method != "sqp":
-            base_fit, base_equivalent, record = fit_base(step, names, Y, tau, coef, initial, truth,
-                                                         ident.rel_sigma_threshold)
+            base_fit, base_equivalent, record = fit_base(step, free_names, names, Y, tau, coef, initial, truth,
+                                                         ident.rel_sigma_threshold, robot.readable_base())
             steps.append(record)
             continue
         # a parameter its rows do not excite at all (e.g. a carriage whose every stretch was
         # left out) is held at its current value, and the verdict says so
         rows, _ = stack(*check_regression_data(Y, tau))
-        excited = [p for p in step.parameters if np.any(rows[:, names.index(p)] != 0)]
-        unexcited = [p for p in step.parameters if p not in excited]
+        excited = [p for p in free_names if np.any(rows[:, names.index(p)] != 0)]
+        unexcited = [p for p in free_names if p not in excited]
         if not excited:
             steps.append({"name": step.name, "trajectories": list(step.trajectories),
                           "skipped": f"none of {', '.join(step.parameters)} excited by its data"})

@@ -10,8 +10,10 @@ from pathlib import Path
 import numpy as np
 
 import trajectories
+from trajectories import delta_paper
+from trajectories.feasibility import ActuatorLimits
 from ident_hw.config import Config, TrajectoryConfig
-from ident_hw.model import KinematicsError, ThreePRRR
+from ident_hw.model import KinematicsError
 from ident_hw.model.interface import RobotModel
 
 
@@ -52,9 +54,13 @@ def sample_rate(config: Config) -> float:
     return config.bus.sync_rate if config.bus is not None else 250.0
 
 
-def build(config: Config, tcfg: TrajectoryConfig, robot: ThreePRRR) -> trajectories.Trajectory:
+def build(config: Config, tcfg: TrajectoryConfig, robot: RobotModel) -> trajectories.Trajectory:
     """Generate one trajectory (all cycles) at the SYNC rate."""
     rate = sample_rate(config)
+    if tcfg.kind.startswith("delta_"):
+        traj = delta_paper.delta_trajectory(robot, tcfg.kind, tcfg.duration, rate, tcfg.fade, name=tcfg.name,
+                                            amplitude=tcfg.amplitude)
+        return repeat(traj, tcfg.cycles)
     limits = config.robot.feasibility_limits()
     k = tcfg.speed_scale
     timing = dataclasses.replace(limits, carriage_speed=limits.carriage_speed * k,
@@ -114,7 +120,6 @@ def plan(config: Config, names: list[str] | None = None, online: bool = False) -
     """Build and check the config's trajectories (``names``: a subset, in campaign order), the
     ``online_only`` ones where ``online`` (``ident-hw online``, ``check``) or named, after the others."""
     robot = robot_model(config)
-    limits = config.robot.feasibility_limits()
     out = []
     ordered = [t for t in config.trajectories if not t.online_only] + [t for t in config.trajectories if t.online_only]
     for tcfg in ordered:
@@ -124,12 +129,28 @@ def plan(config: Config, names: list[str] | None = None, online: bool = False) -
             continue
         try:
             traj = build(config, tcfg, robot)
+            report = check(config, traj, robot)
         except (ValueError, KinematicsError, trajectories.TrajectoryFileError, OSError) as exc:
             out.append(PlannedTrajectory(tcfg, None, None, error=str(exc)))
             continue
-        out.append(PlannedTrajectory(tcfg, traj, trajectories.check_trajectory(traj, robot, limits),
-                                     notes=quantisation_notes(config, traj)))
+        out.append(PlannedTrajectory(tcfg, traj, report, notes=quantisation_notes(config, traj)))
     return out
+
+
+def check(config: Config, traj: trajectories.Trajectory, robot: RobotModel) -> trajectories.Report:
+    """The feasibility report of ``traj`` on the config's robot (its actuators and safety margins)."""
+    acts = config.robot.actuators
+    if traj.Theta.shape[1] != len(acts):
+        raise ValueError(f"trajectory {traj.name!r} moves {traj.Theta.shape[1]} actuators, the robot has {len(acts)}")
+    if config.robot.kind == "delta":
+        limits = ActuatorLimits(names=tuple(a.name for a in acts),
+                                low=np.array([a.limits.position[0] for a in acts]),
+                                high=np.array([a.limits.position[1] for a in acts]),
+                                speed=np.array([a.limits.velocity for a in acts]),
+                                accel=np.array([a.limits.acceleration for a in acts]), units=("rad",) * len(acts))
+        safety = config.robot.safety
+        return delta_paper.check_delta_trajectory(traj, robot, limits, safety.min_serial_margin, safety.max_cond_A)
+    return trajectories.check_trajectory(traj, robot, config.robot.feasibility_limits())
 
 
 def quantisation_notes(config: Config, traj: trajectories.Trajectory) -> tuple[str, ...]:

@@ -45,7 +45,7 @@ def simulated_rig(config: Config) -> SimulatedRig:
                               bandwidth_hz=sim.bandwidth, damping=sim.damping,
                               **({"max_substep": sim.max_substep} if sim.max_substep else {}),
                               sync_period=1.0 / config.bus.sync_rate if lockstep else None,
-                              current_noise_ma=sim.current_noise * MA_PER_AMP, seed=sim.seed, lockstep=lockstep,
+                              current_noise_ma=sim.current_noise * MA_PER_AMP, seed=sim.seed, lockstep=lockstep, brakes=sim.brakes,
                               interface=config.bus.interface, channel=config.bus.channel, ignore_config=True)
 
 

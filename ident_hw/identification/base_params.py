@@ -134,17 +134,38 @@ def base_parameters(W: np.ndarray, names, rtol: float = DEFAULT_RTOL, scale=None
     )
 
 
+def with_basis(numeric: BaseParameters, kept, H: np.ndarray) -> BaseParameters | None:
+    """The base parameters ``numeric`` found by SVD, written in a basis the robot's model gives
+    (``kept`` (r,) names, ``H`` (r, n): e.g. the Delta's readable combinations), or None when
+    the data does not identify all of them (numeric rank below r) or the basis does not span the
+    data's identifiable space."""
+    H = np.asarray(H, dtype=float)
+    if numeric.rank != len(kept) or H.shape != (len(kept), len(numeric.names)):
+        return None
+    # the data's null space must be the basis's: H annihilates it
+    if np.abs(H @ numeric.null_space).max(initial=0.0) > 1e-6 * np.abs(H).max() * np.abs(numeric.null_space).max(initial=1.0):
+        return None
+    return BaseParameters(
+        names=numeric.names, rank=numeric.rank, rtol=numeric.rtol, singular_values=numeric.singular_values,
+        kept=tuple(kept), eliminated=tuple(n for n in numeric.names if n not in kept), H=H,
+        null_space=numeric.null_space)
+
+
 def identify_base(
-    Y: np.ndarray, tau: np.ndarray, names, rtol: float = DEFAULT_RTOL, scale=None, weighted: bool = False
+    Y: np.ndarray, tau: np.ndarray, names, rtol: float = DEFAULT_RTOL, scale=None, weighted: bool = False,
+    basis: tuple | None = None,
 ) -> tuple[BaseParameters, LeastSquaresResult]:
     """Base parameters of the data and their OLS (or WLS) estimate with statistics.
 
     ``W pi = W1 pi_b`` with ``W1`` the columns of the kept parameters, so the estimate of
     ``pi_b`` is the least-squares fit on those columns. The result's names are the readable
-    expressions of the base parameters.
+    expressions of the base parameters. ``basis``: ``(kept, H)`` of the robot's model, used
+    where the data identifies all of them (:func:`with_basis`).
     """
     Y, tau = check_regression_data(Y, tau, names)
     base = base_parameters(stack(Y, tau)[0], names, rtol=rtol, scale=scale)
+    if basis is not None:
+        base = with_basis(base, *basis) or base
     cols = [base.names.index(k) for k in base.kept]
     fit = (wls if weighted else ols)(Y[:, :, cols], tau, base.expressions)
     return base, fit

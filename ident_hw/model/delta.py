@@ -395,6 +395,11 @@ class Delta:
         return {"m": "kg", "mx": "kg·m", "my": "kg·m", "mz": "kg·m", "fv": "N·m·s/rad", "fc": "N·m",
                 "Jm": "kg·m²"}.get(kind, "kg·m²")
 
+    def readable_base(self):
+        """The spec's 40 readable base parameters with the drive terms (:func:`base_parameters`)."""
+        base = base_parameters(self.geometry, drive_terms=True)
+        return base.kept, base.H
+
     def pose_series(self, Theta, start=None) -> np.ndarray:
         """Platform positions (N, 3) m: closed form, no series needed."""
         return self.fk(Theta)

@@ -42,6 +42,10 @@ class RobotModel(Protocol):
     def parameter_unit(self, name: str) -> str:
         """SI unit of parameter ``name`` (one of ``parameter_names``)."""
 
+    def readable_base(self) -> tuple[tuple[str, ...], np.ndarray] | None:
+        """The model's own base parameters ``(kept (r,), H (r, n))``, ``pi_b = H pi`` written as
+        readable combinations, for data that excites all of them; None: found by SVD from the data."""
+
     def home_actuated(self) -> np.ndarray:
         """The actuated coordinates (n,) of the robot's home pose."""
 

@@ -162,6 +162,11 @@ class ThreePRRR:
             return "N·m·s/rad" if revolute else "N·s/m"
         return "N·m" if revolute else "N"
 
+    def readable_base(self) -> None:
+        """None: the 3PRRR's base parameters are found by SVD from the data (18 of 19 on a rich
+        excitation, ``docs/identification.md``)."""
+        return None
+
     def pose_series(self, Theta, start) -> np.ndarray:
         """Poses ``X`` (N, 3) of ``Theta`` (N, 6), each Newton start the previous pose."""
         return self.forward_kinematics(Theta, start)

@@ -24,18 +24,20 @@ def summary_lines(folder: str | Path) -> list[str]:
         lines += [f"  {name}: {coverage_text(u)}" for name, u in results.trajectories.items()]
     if any(r.fitted for r in rows):
         lines.append("physical parameters, step by step (SQP mass fit of the 3PRRR paper):")
-    lines.append(head + "  step")
-    for row in rows:
-        if not row.fitted:
-            continue
-        text = (f"  {row.name:>10} {row.unit:>9} {row.initial:>11.5g} {row.identified:>11.5g} "
-                f"{percent(row.rel_sigma_percent):>7}")
-        if truth:
-            text += f" {row.truth:>11.5g} {_or_nan(row.error_percent):>+8.2f}"
-        lines.append(text + f"  {row.step}" + ("  poorly identified" if row.poorly_identified else ""))
-    held = [r.name for r in rows if not r.fitted]
-    if held:
-        lines.append(f"  held at their initial values (not fitted by any step): {', '.join(held)}")
+        lines.append(head + "  step")
+        for row in rows:
+            if not row.fitted:
+                continue
+            text = (f"  {row.name:>10} {row.unit:>9} {row.initial:>11.5g} {row.identified:>11.5g} "
+                    f"{percent(row.rel_sigma_percent):>7}")
+            if truth:
+                text += f" {row.truth:>11.5g} {_or_nan(row.error_percent):>+8.2f}"
+            lines.append(text + f"  {row.step}" + ("  poorly identified" if row.poorly_identified else ""))
+        held = [r.name for r in rows if not r.fitted]
+        if held:
+            lines.append(f"  held at their initial values (not fitted by any step): {', '.join(held)}")
+    else:
+        lines.append("physical parameters: none fitted (the steps fit base parameters only)")
     if results.base_fit is not None:
         lines += _base_fit_lines(results.base_fit)
     if truth:
