@@ -457,8 +457,13 @@ FRICTION_SCALES = {"fv_theta": 0.01, "fc_theta": 0.01, "fv_zeta": 10.0, "fc_zeta
 
 
 def parameter_kind(name: str) -> str:
-    """``fv_theta1`` → ``fv_theta``; an inertial parameter is its own kind."""
-    return name.rstrip("0123456789") if name.startswith(("fv_", "fc_")) else name
+    """The kind of a parameter, for scales given per kind: ``fv_theta1`` → ``fv_theta``,
+    ``fv_1`` → ``fv``, ``rod2.Ixy`` → ``Ixy``; an inertial parameter of the 3PRRR is its own kind."""
+    if "." in name:
+        return name.split(".", 1)[1]
+    if name.startswith(("fv_", "fc_", "Jm_")):
+        return name.rstrip("0123456789").rstrip("_")
+    return name
 
 
 @dataclass(frozen=True)

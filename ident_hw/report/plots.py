@@ -20,6 +20,10 @@ from matplotlib.figure import Figure
 from ident_hw.model.interface import FORCE_UNITS, POSITION_UNITS
 from ident_hw.results import OnlineTrace, ParameterTable, TrajectoryFit
 
+#: units of the inertial parameters (masses, first moments, inertias): the online plot shows them
+INERTIAL_UNITS = ("kg", "kg·m", "kg·m²")
+#: most panels of the online plot (those a payload changes first)
+ONLINE_PANELS = 8
 #: s of a trajectory the forces plot shows (longer ones are unreadable at a page's width); the
 #: residuals plot shows the whole trajectory
 FORCES_WINDOW = 10.0
@@ -121,17 +125,22 @@ def plot_motion(fit: TrajectoryFit, actuators: Actuators, plots: Path) -> Path:
 
 def plot_online(online: OnlineTrace, params: ParameterTable, plots: Path) -> Path:
     """The base parameters of the inertial parameters over time, every estimator, the truth
-    (stepping at a payload change) and the change."""
+    (stepping at a payload change) and the change; at most :data:`ONLINE_PANELS`, those the
+    payload changes first."""
+    units = dict(zip(params.names, params.units))
+    inertial = [j for j, n in enumerate(online.names) if units.get(n) in INERTIAL_UNITS]
     if online.H is None:           # an old trace: the physical masses and inertias of SVD-DLS
-        shown = [i for i, n in enumerate(online.names) if n.startswith(("m_", "I_"))]
+        shown = inertial
         values, labels, truth = next(iter(online.estimates.values())), list(online.names), None
         curves = {"SVD-DLS": values}
     else:
-        inertial = [j for j, n in enumerate(online.names) if n.startswith(("m_", "I_"))]
         shown = [i for i in range(online.H.shape[0]) if np.any(online.H[i, inertial] != 0)]
         labels = list(online.base_names)
         curves = {k: online.base(v) for k, v in online.estimates.items()}
         truth = online.base(online.truth) if online.truth is not None else None
+    if truth is not None:     # stable: those the payload changes first, then those not zero
+        shown.sort(key=lambda i: (np.ptp(truth[:, i]) == 0, not np.any(truth[:, i])))
+    shown = shown[:ONLINE_PANELS]
     cols = 2
     rows = max(1, math.ceil(len(shown) / cols))
     fig = _figure(2.2 * rows)
@@ -141,10 +150,16 @@ def plot_online(online: OnlineTrace, params: ParameterTable, plots: Path) -> Pat
             ax.plot(online.t, values[:, i], lw=1.3 if label == next(iter(curves)) else 0.8, label=label)
         if truth is not None:
             ax.plot(online.t, truth[:, i], color="k", ls=":", lw=0.9, label="truth")
-            # around the truth (±15 % of it, or of its change): early transients would hide the tracking
+            # around the truth (±15 % of it, or of its change): early transients would hide the
+            # tracking; a true value of 0: the middle 90 % of the main estimator's values
             lo, hi = float(truth[:, i].min()), float(truth[:, i].max())
-            margin = max(0.15 * max(abs(lo), abs(hi)), 0.5 * (hi - lo), 1e-12)
-            ax.set_ylim(lo - margin, hi + margin)
+            margin = max(0.15 * max(abs(lo), abs(hi)), 0.5 * (hi - lo))
+            if margin == 0:
+                main = next(iter(curves.values()))[:, i]
+                main = main[np.isfinite(main)]
+                margin = float(np.percentile(np.abs(main), 90)) if main.size else 0.0
+            if margin > 0:
+                ax.set_ylim(lo - margin, hi + margin)
         if online.change_time is not None:
             ax.axvline(online.change_time, color="r", lw=0.7, ls="--")
         ax.set_ylabel(labels[i], fontsize=7)
