@@ -26,6 +26,7 @@ import numpy as np
 from drivers.recording import Recording
 from ident_hw.config import Config
 from ident_hw.identification import RLS, SVDDLS, DampedRLS, base_parameters
+from ident_hw.identification.base_params import format_combination
 from ident_hw.results import BaseFit, OnlineTrace
 
 from .offline import prepare
@@ -43,11 +44,21 @@ class CampaignEstimator:
             raise ValueError(f"{config.source}: identification: missing section")
         self.config = config
         self.robot = robot_model(config)
-        self.names = self.robot.parameter_names
         self.show = show
         online = config.identification.online
-        self.cad = config.robot.initial_parameters()
-        self.scale = np.array(online.parameter_scales(self.names, self.cad))
+        physical = self.robot.parameter_names
+        cad = config.robot.initial_parameters()
+        scale = np.array(online.parameter_scales(physical, cad))
+        basis = self.robot.readable_base()
+        if basis is None:      # the physical parameters (their base ones follow from the data)
+            self._columns, self._H = None, None
+            self.names, self.units, self.cad, self.scale = physical, tuple(map(self.robot.parameter_unit, physical)), cad, scale
+        else:                  # the model's base parameters: no structurally unidentifiable direction enters
+            kept, self._H = basis
+            self._columns = [physical.index(k) for k in kept]
+            self.names = tuple(format_combination(h, physical) for h in self._H)
+            self.units = tuple(map(self.robot.parameter_unit, kept))
+            self.cad, self.scale = self._H @ cad, np.abs(self._H) @ scale
         force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
         self.output_std = online.output_noise * force_per_amp
         n = len(self.names)
@@ -87,7 +98,8 @@ class CampaignEstimator:
     def update(self, name: str, rec: Recording) -> None:
         """Feed one recorded trajectory, sample by sample, to every estimator; print the table."""
         p = prepare(self.config, self.robot, name, rec)
-        Y = np.where(p.moving[:, :, None], p.Y, 0.0)      # rows of axes near rest: no information
+        Y = p.Y if self._columns is None else p.Y[:, :, self._columns]
+        Y = np.where(p.moving[:, :, None], Y, 0.0)      # rows of axes near rest: no information
         tau = np.where(p.moving, p.tau, 0.0)
         m = len(p.t)
         for label, est in self.estimators.items():
@@ -119,6 +131,15 @@ class CampaignEstimator:
         if self.show is not None:
             self.show(self.table(f"after {name}"))
 
+    def _physical(self, coef: np.ndarray) -> np.ndarray:
+        """Estimates (M, r) of the estimators as physical vectors (M, n): each base parameter on
+        its kept parameter, the others 0 (``H`` of the basis gives the base values back)."""
+        if self._columns is None:
+            return coef
+        out = np.zeros((len(coef), len(self.robot.parameter_names)))
+        out[:, self._columns] = coef
+        return out
+
     def relative_std(self) -> np.ndarray:
         """(n,) %σ of the SVD-DLS estimates (NaN in the unexcited directions' parameters)."""
         est = self.estimators[MAIN]
@@ -141,8 +162,8 @@ class CampaignEstimator:
         est = self.estimators[MAIN]
         rel = self.relative_std()
         lines = [f"{MAIN} estimates {title} (excited rank {est.rank_} of {len(self.names)}):"]
-        lines += [f"  {n:>10} = {v:12.6g} {self.robot.parameter_unit(n):<10}" + ("" if np.isnan(r) else f" %sigma {r:7.2f}")
-                  for n, v, r in zip(self.names, est.coef_, rel)]
+        lines += [f"  {n:>10} = {v:12.6g} {u:<10}" + ("" if np.isnan(r) else f" %sigma {r:7.2f}")
+                  for n, u, v, r in zip(self.names, self.units, est.coef_, rel)]
         held = self.unexcited()
         if held:
             lines.append(f"  held (not excited): {'; '.join(held)}")
@@ -151,11 +172,15 @@ class CampaignEstimator:
     def trace(self, base_fit: BaseFit | None = None) -> OnlineTrace:
         """The estimates of every estimator over the campaign's time (trajectories back to back),
         with the base parameters of the offline ``base_fit`` (the same combinations as the
-        report's), else those of the data fed here."""
-        n = len(self.names)
+        report's), else those of the data fed here. Estimates of base parameters (a model with
+        a readable basis) are written as physical vectors: each base value on its kept parameter."""
+        physical = self.robot.parameter_names
+        n = len(physical)
         if not self._t:
-            return OnlineTrace(self.names, np.zeros(0), {k: np.zeros((0, n)) for k in self.estimators})
-        if base_fit is not None and not base_fit.held:
+            return OnlineTrace(physical, np.zeros(0), {k: np.zeros((0, n)) for k in self.estimators})
+        if self._H is not None:
+            H, expressions = self._H, self.names
+        elif base_fit is not None and not base_fit.held:
             H, expressions = base_fit.H, base_fit.expressions
         else:
             base = base_parameters(np.concatenate(self._Y), self.names, scale=np.maximum(np.abs(self.cad), 1e-3))
@@ -163,8 +188,8 @@ class CampaignEstimator:
         rms = {k: float("nan") if k in self.diverged else float(np.sqrt(v / max(self._entries, 1)))
                for k, v in self._sq_error.items()}
         return OnlineTrace(
-            names=self.names, t=np.concatenate(self._t),
-            estimates={k: np.concatenate(v) for k, v in self._coef.items()},
+            names=physical, t=np.concatenate(self._t),
+            estimates={k: self._physical(np.concatenate(v)) for k, v in self._coef.items()},
             rank=np.concatenate(self._rank), j_rmse=rms, base_names=expressions, H=H,
             truth=np.concatenate(self._truth) if self._truth else None, change_time=self.change_time,
             unexcited=tuple(self.unexcited()), diverged=dict(self.diverged))
