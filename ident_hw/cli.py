@@ -120,7 +120,11 @@ def cmd_run(args) -> int:
     from ident_hw.report import online_lines, summary_lines
     folder = new_results_folder(config, args.out, args.command)
     print(f"results folder: {folder}", file=sys.stderr)
-    online = CampaignEstimator(config, show=print) if args.command == "online" else None
+    online = None
+    if args.command == "online":
+        online = CampaignEstimator(config, show=print)
+    elif config.identification.online.in_run:
+        online = CampaignEstimator(config)
     try:
         results = run_campaign(config, folder, show_progress=_progress_bars(args), log=_logger(args), online=online)
     except BusOpenError:

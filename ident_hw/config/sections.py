@@ -373,8 +373,8 @@ class TrajectoryConfig:
     (Table 2), ``delta_verification`` (eq. 60), ``delta_held_arm`` (eq. 60 with arm 3 held), each
     ``duration`` s long, its angles scaled by ``amplitude``, faded in and out over ``fade`` s
     from and back to the arms at rest.
-    ``online_only``: streamed only by ``ident-hw online``, after the others; ``run`` leaves it
-    out. ``payload``: on the in-process simulated rig, a payload added during this trajectory
+    ``online_only``: streamed only for the online estimators (``ident-hw online``, or ``run``
+    with ``identification.online.in_run``), after the others; otherwise ``run`` leaves it out. ``payload``: on the in-process simulated rig, a payload added during this trajectory
     (:class:`PayloadConfig`), e.g. on an ``online_only`` one for the online estimators to track.
     """
 
@@ -485,6 +485,9 @@ class OnlineConfig:
     scales: dict[str, float] = field(default_factory=dict)
     damping: float = field(default=100.0, metadata=spec(
         positive, doc="regularisation of the damped-RLS baseline, in the scaled units of the threshold"))
+    in_run: bool = field(default=False, metadata=spec(
+        doc="run the estimators in `ident-hw run` too, as `ident-hw online` does (the online_only "
+            "trajectories streamed after the others, the comparison printed and in the report)"))
 
     def _check(self) -> None:
         for name, value in self.scales.items():
