@@ -15,6 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ident_hw.model import KinematicsError
+
+from .feasibility import ActuatorLimits, Report, Violation, _first, check_actuator_limits
+from .trajectory import Trajectory
+
 #: eq. 60: amplitudes (rad) and angular frequencies (rad/s) of the verification path
 VERIFICATION_AMPLITUDES = np.array([0.5, 0.4, 0.3])
 VERIFICATION_FREQUENCIES = np.array([3 * np.pi / 4, 6 * np.pi / 5, 5 * np.pi / 3])
@@ -88,15 +93,13 @@ def faded(path, t: np.ndarray, fade: float):
 def delta_trajectory(robot, kind: str, duration: float, rate: float, fade: float = 1.0, name: str | None = None,
                      amplitude: float = 1.0):
     """The campaign trajectory ``kind`` (a key of :data:`PATHS`) of ``duration`` s sampled at
-    ``rate`` Hz, its angles scaled by ``amplitude``, faded in and out (:func:`faded`), as a :class:`~trajectories.Trajectory` whose
-    pose is the platform position (``robot.fk``; its rates by the Jacobian, its acceleration by
+    ``rate`` Hz, its angles scaled by ``amplitude``, faded in and out (:func:`faded`), as a
+    :class:`~trajectories.Trajectory` whose pose is the platform position (``robot.fk``; its rates by the Jacobian, its acceleration by
     central differences: the pose is for plots, the drives follow ``Theta``).
 
     Raises:
         ValueError: an unknown kind, or a duration shorter than the two fades.
     """
-    from .trajectory import Trajectory
-
     if kind not in PATHS:
         raise ValueError(f"unknown Delta path {kind!r}; known: {', '.join(PATHS)}")
     if not duration > 2 * fade:
@@ -111,28 +114,25 @@ def delta_trajectory(robot, kind: str, duration: float, rate: float, fade: float
                                 "amplitude": amplitude})
 
 
-def check_delta_trajectory(traj, robot, limits, min_serial: float, max_parallel: float):
+def check_delta_trajectory(traj: Trajectory, robot, limits: ActuatorLimits, min_serial: float,
+                           max_parallel: float) -> Report:
     """The feasibility report of a Delta trajectory: the actuator limits
     (:func:`trajectories.feasibility.check_actuator_limits`), reach (the forward kinematics) and
     the singularity measures of :meth:`ident_hw.model.Delta.singularity` (serial at least
     ``min_serial``, parallel condition at most ``max_parallel``)."""
-    from ident_hw.model import KinematicsError
-
-    from .feasibility import Violation, check_actuator_limits
-
     report = check_actuator_limits(traj, limits)
+    found = report.violations
     try:
         serial, parallel = robot.singularity(traj.Theta)
     except KinematicsError as exc:
         k = exc.sample or 0
-        report.violations.append(Violation(float(traj.t[k]), k, None, "reach", f"q = {np.round(traj.Theta[k], 4).tolist()} rad",
-                                           np.nan, np.nan))
+        found.append(Violation(float(traj.t[k]), k, None, "reach", f"q = {np.round(traj.Theta[k], 4).tolist()} rad",
+                               np.nan, np.nan))
     else:
-        for quantity, bad, value, limit in (("serial margin", serial < min_serial, serial, min_serial),
-                                            ("cond(A)", parallel[:, None] > max_parallel, parallel[:, None], max_parallel)):
-            if bad.any():
-                k, col = np.argwhere(bad)[0]
-                report.violations.append(Violation(float(traj.t[k]), int(k), int(col) + 1 if quantity == "serial margin" else None,
-                                                   quantity, "Delta singularity measure", float(value[k, col]), limit))
-    report.violations.sort(key=lambda v: v.sample)
+        measure = "Delta singularity measure"
+        _first(found, traj.t, "serial margin", serial < min_serial, serial, [min_serial] * 3, [measure] * 3,
+               [""] * 3, [1, 2, 3])
+        cond = parallel[:, None]
+        _first(found, traj.t, "cond(A)", cond > max_parallel, cond, [max_parallel], [measure], [""], [None])
+    found.sort(key=lambda v: v.sample)
     return report

@@ -74,8 +74,8 @@ class Violation:
 
     Attributes:
         time: s; sample: index; chain: 1..3, or ``None`` for the platform (cond(A)).
-        quantity: ``"reach"``, ``"consistency"``, ``"stroke"``, ``"speed"``, ``"acceleration"``,
-            ``"serial margin"`` or ``"cond(A)"``.
+        quantity: ``"reach"``, ``"consistency"``, ``"stroke"``, ``"position"``, ``"speed"``,
+            ``"acceleration"``, ``"serial margin"`` or ``"cond(A)"``.
         name: what was measured (e.g. ``"zeta2d"``); value and limit in ``unit``.
     """
 
@@ -92,7 +92,7 @@ class Violation:
         where = f"chain {self.chain}" if self.chain else "platform" if self.quantity == "cond(A)" else "all chains"
         if self.quantity == "reach":
             return f"t = {self.time:.4f} s, {where}: pose out of reach ({self.name})"
-        relation = "below" if self.quantity == "serial margin" else "exceeds"
+        relation = "below" if self.value < self.limit else "exceeds"    # a margin, a lower bound
         unit = f" {self.unit}" if self.unit else ""
         return (f"t = {self.time:.4f} s, {where}: {self.quantity} {self.name} = {self.value:.6g}{unit} "
                 f"{relation} limit {self.limit:.6g}{unit}")
@@ -128,10 +128,38 @@ class Report:
                          + [f"  {v}" for v in self.violations])
 
 
+def _first(found: list[Violation], t: np.ndarray, quantity: str, bad: np.ndarray, value: np.ndarray, limit,
+           names, units, chains) -> None:
+    """Record in ``found`` the earliest sample where the ``(N, k)`` mask ``bad`` is set (``limit``,
+    ``names``, ``units``, ``chains``: per column)."""
+    if not bad.any():
+        return
+    sample, col = np.argwhere(bad)[0]
+    found.append(Violation(float(t[sample]), int(sample), chains[col], quantity, names[col],
+                           float(value[sample, col]), float(limit[col]), units[col]))
+
+
+def _rate_violations(found: list[Violation], traj: Trajectory, speed, accel, names, units, chains) -> None:
+    """Speed and acceleration limits (per actuator) of the stored rates and of the finite
+    differences of the positions and velocities; ``names`` and ``units``: ``(of the speeds, of
+    the accelerations)``, each (a,)."""
+    dt = np.diff(traj.t)[:, None]
+    for quantity, derivative, position, limit, name, unit in (
+            ("speed", traj.Thetad, traj.Theta, speed, names[0], units[0]),
+            ("acceleration", traj.Thetadd, traj.Thetad, accel, names[1], units[1])):
+        value = np.abs(derivative)
+        _first(found, traj.t, quantity, value > limit, value, limit, name, unit, chains)
+        # Mean rate over each step (finite difference), reported at the step's end: exceeds the
+        # limit only if the true rate does within the step, or if the positions jump (hand edit).
+        step = np.vstack([np.zeros((1, value.shape[1])), np.abs(np.diff(position, axis=0)) / dt])
+        _first(found, traj.t, quantity, step > limit, step, limit, [f"{n} (finite difference)" for n in name],
+               unit, chains)
+
+
 @dataclass(frozen=True)
 class ActuatorLimits:
     """Per actuator (a,): ``names``, position range ``low``/``high`` (rad or m), ``speed`` and
-    ``accel`` limits (per s, per s²), ``units`` of the positions."""
+    ``accel`` limits (per s, per s²), ``units`` of the positions (``rad``, ``m``)."""
 
     names: tuple[str, ...]
     low: np.ndarray
@@ -145,22 +173,11 @@ def check_actuator_limits(traj: Trajectory, limits: ActuatorLimits) -> Report:
     """Any robot: every actuator within its position range, speed and acceleration limits (the
     stored rates and the finite differences of the positions), the earliest violation of each."""
     found: list[Violation] = []
-    t = traj.t
-    dt = np.diff(t)[:, None]
-    rate = {"rad": "rad/s", "m": "m/s"}
-    checks = [("position", traj.Theta, limits.high, limits.units, traj.Theta > limits.high),
-              ("position", traj.Theta, limits.low, limits.units, traj.Theta < limits.low)]
-    for quantity, value, position, limit, per in (("speed", traj.Thetad, traj.Theta, limits.speed, ""),
-                                                  ("acceleration", traj.Thetadd, traj.Thetad, limits.accel, "/s")):
-        units = tuple(rate.get(u, u) + per for u in limits.units)
-        step = np.vstack([np.zeros((1, value.shape[1])), np.abs(np.diff(position, axis=0)) / dt])
-        checks += [(quantity, np.abs(value), limit, units, np.abs(value) > limit),
-                   (quantity, step, limit, units, step > limit)]
-    for quantity, value, limit, units, bad in checks:
-        if bad.any():
-            k, j = np.argwhere(bad)[0]
-            found.append(Violation(float(t[k]), int(k), int(j) + 1, quantity, limits.names[j],
-                                   float(value[k, j]), float(np.broadcast_to(limit, value.shape[1:])[j]), units[j]))
+    chains = list(range(1, len(limits.names) + 1))
+    for bad, limit in ((traj.Theta > limits.high, limits.high), (traj.Theta < limits.low, limits.low)):
+        _first(found, traj.t, "position", bad, traj.Theta, limit, limits.names, limits.units, chains)
+    rates = ([f"{u}/s" for u in limits.units], [f"{u}/s^2" for u in limits.units])
+    _rate_violations(found, traj, limits.speed, limits.accel, (limits.names,) * 2, rates, chains)
     found.sort(key=lambda v: v.sample)
     return Report(traj.name, found)
 
@@ -170,16 +187,9 @@ def check_trajectory(traj: Trajectory, robot: ThreePRRR, limits: Limits) -> Repo
     found: list[Violation] = []
     t = traj.t
 
-    def first(quantity: str, bad: np.ndarray, value: np.ndarray, limit: np.ndarray, names: list[str],
-              units: list[str], chains: list[int | None]) -> None:
-        """Record the earliest sample where the ``(N, k)`` mask ``bad`` is set."""
-        if not bad.any():
-            return
-        sample, col = np.argwhere(bad)[0]
-        found.append(Violation(float(t[sample]), int(sample), chains[col], quantity, names[col],
-                               float(value[sample, col]), float(limit[col]), units[col]))
+    def first(quantity, bad, value, limit, names, units, chains) -> None:
+        _first(found, t, quantity, bad, value, limit, names, units, chains)
 
-    chains6: list[int | None] = [1, 2, 3, 1, 2, 3]
     reachable = len(t)
     try:
         margins = robot.singularity_margins(traj.X, traj.zeta)
@@ -202,16 +212,8 @@ def check_trajectory(traj: Trajectory, robot: ThreePRRR, limits: Limits) -> Repo
     stroke = np.abs(traj.zeta)
     first("stroke", stroke > limits.carriage_stroke, stroke, np.full(3, limits.carriage_stroke),
           ACTUATORS[3:], ["m"] * 3, [1, 2, 3])
-    dt = np.diff(t)[:, None]
-    for quantity, derivative, position, limit in (("speed", "Thetad", "Theta", limits.max_speed),
-                                                  ("acceleration", "Thetadd", "Thetad", limits.max_accel)):
-        names = [n for n, _ in COLUMNS[derivative]]
-        value = np.abs(getattr(traj, derivative))
-        first(quantity, value > limit, value, limit, names, UNITS[derivative], chains6)
-        # Mean rate over each step (finite difference), reported at the step's end: exceeds the
-        # limit only if the true rate does within the step, or if the positions jump (hand edit).
-        step = np.vstack([np.zeros((1, 6)), np.abs(np.diff(getattr(traj, position), axis=0)) / dt])
-        first(quantity, step > limit, step, limit, [f"{n} (finite difference)" for n in names],
-              UNITS[derivative], chains6)
+    _rate_violations(found, traj, limits.max_speed, limits.max_accel,
+                     tuple([n for n, _ in COLUMNS[key]] for key in ("Thetad", "Thetadd")),
+                     (UNITS["Thetad"], UNITS["Thetadd"]), [1, 2, 3, 1, 2, 3])
     found.sort(key=lambda v: v.sample)
     return Report(traj.name, found)

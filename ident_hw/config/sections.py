@@ -25,8 +25,9 @@ import numpy as np
 
 from ident_hw.model import ACTUATOR_NAMES, Delta, DeltaGeometry, Geometry, InertialParams, ThreePRRR
 from ident_hw.model.delta import BODY_PARAMS, BODIES, nominal_parameters
-from ident_hw.model.interface import RobotModel
+from ident_hw.model.interface import POSITION_UNITS, RobotModel
 from ident_hw.signal import FilterSettings
+from trajectories.feasibility import ActuatorLimits
 from trajectories.feasibility import Limits as FeasibilityLimits
 
 from .schema import FieldError, in_range, non_negative, ordered_pair, positive, spec
@@ -229,6 +230,17 @@ class RobotConfig:
         if self.kind == "delta":
             return self.delta.cad.vector(self.delta.geometry.to_model())
         return self.cad.to_model().as_vector()
+
+    def actuator_limits(self) -> ActuatorLimits:
+        """Every actuator's position range, speed and acceleration limits, for
+        :func:`trajectories.feasibility.check_actuator_limits`."""
+        acts = self.actuators
+        return ActuatorLimits(names=tuple(a.name for a in acts),
+                              low=np.array([a.limits.position[0] for a in acts]),
+                              high=np.array([a.limits.position[1] for a in acts]),
+                              speed=np.array([a.limits.velocity for a in acts]),
+                              accel=np.array([a.limits.acceleration for a in acts]),
+                              units=tuple(POSITION_UNITS[a.kind] for a in acts))
 
     def feasibility_limits(self) -> FeasibilityLimits:
         """Limits for :func:`trajectories.feasibility.check_trajectory` of the 3PRRR (the tightest

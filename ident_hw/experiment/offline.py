@@ -172,8 +172,8 @@ def column_scale(Y: np.ndarray) -> np.ndarray:
     column, or one below :data:`NUMERICALLY_ZERO` of the largest): scaling by it makes the rank
     decision of the base parameters unit-free without lifting rounding to unit size."""
     rms = np.sqrt(np.mean(Y.reshape(-1, Y.shape[-1]) ** 2, axis=0))
-    real = rms > NUMERICALLY_ZERO * (rms.max() if rms.size else 0.0)
-    return np.divide(1.0, rms, out=np.ones_like(rms), where=real & (rms > 0))
+    real = rms > NUMERICALLY_ZERO * (rms.max() if rms.size else 0.0)     # never a zero column
+    return np.divide(1.0, rms, out=np.ones_like(rms), where=real)
 
 
 def scaled_condition(Y: np.ndarray, tau: np.ndarray) -> float:

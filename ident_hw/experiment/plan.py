@@ -11,7 +11,6 @@ import numpy as np
 
 import trajectories
 from trajectories import delta_paper
-from trajectories.feasibility import ActuatorLimits
 from ident_hw.config import Config, TrajectoryConfig
 from ident_hw.model import KinematicsError
 from ident_hw.model.interface import RobotModel
@@ -143,13 +142,9 @@ def check(config: Config, traj: trajectories.Trajectory, robot: RobotModel) -> t
     if traj.Theta.shape[1] != len(acts):
         raise ValueError(f"trajectory {traj.name!r} moves {traj.Theta.shape[1]} actuators, the robot has {len(acts)}")
     if config.robot.kind == "delta":
-        limits = ActuatorLimits(names=tuple(a.name for a in acts),
-                                low=np.array([a.limits.position[0] for a in acts]),
-                                high=np.array([a.limits.position[1] for a in acts]),
-                                speed=np.array([a.limits.velocity for a in acts]),
-                                accel=np.array([a.limits.acceleration for a in acts]), units=("rad",) * len(acts))
         safety = config.robot.safety
-        return delta_paper.check_delta_trajectory(traj, robot, limits, safety.min_serial_margin, safety.max_cond_A)
+        return delta_paper.check_delta_trajectory(traj, robot, config.robot.actuator_limits(),
+                                                  safety.min_serial_margin, safety.max_cond_A)
     return trajectories.check_trajectory(traj, robot, config.robot.feasibility_limits())
 
 
