@@ -22,7 +22,7 @@ import numpy as np
 from drivers.errors import RecordingError
 from drivers.recording import Recording
 from ident_hw.config import Config
-from ident_hw.identification.base_params import base_parameters, identify_base
+from ident_hw.identification.base_params import base_parameters, identify_base, on_kept
 from ident_hw.identification.least_squares import check_regression_data, stack, wls
 from ident_hw.identification.mass_fit import sqp_fit
 from ident_hw.model.interface import RobotModel
@@ -206,8 +206,7 @@ def fit_base(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.nd
     H = np.zeros((base.rank, len(names)))
     H[:, free] = np.where(np.abs(base.H) > 1e-10, base.H, 0.0)   # rounding of N1 N2^-1, not a coefficient
     equivalent = coef.copy()
-    equivalent[free] = 0.0
-    equivalent[[names.index(k) for k in base.kept]] = fit.coef
+    equivalent[free] = on_kept(free_names, base.kept, fit.coef)
     result = BaseFit(step=step.name, method=fit.method, trajectories=tuple(step.trajectories),
                      expressions=base.expressions, H=H, coef=fit.coef, sigma=fit.std,
                      initial=H @ initial, truth=None if truth is None else H @ truth,

@@ -26,7 +26,7 @@ import numpy as np
 from drivers.recording import Recording
 from ident_hw.config import Config
 from ident_hw.identification import RLS, SVDDLS, DampedRLS, base_parameters
-from ident_hw.identification.base_params import format_combination
+from ident_hw.identification.base_params import format_combination, on_kept
 from ident_hw.results import BaseFit, OnlineTrace
 
 from .offline import prepare
@@ -51,13 +51,13 @@ class CampaignEstimator:
         scale = np.array(online.parameter_scales(physical, cad))
         basis = self.robot.readable_base()
         if basis is None:      # the physical parameters (their base ones follow from the data)
-            self._columns, self._H = None, None
+            self._kept, self._columns, self._H = None, None, None
             self.names, self.units, self.cad, self.scale = physical, tuple(map(self.robot.parameter_unit, physical)), cad, scale
         else:                  # the model's base parameters: no structurally unidentifiable direction enters
-            kept, self._H = basis
-            self._columns = [physical.index(k) for k in kept]
+            self._kept, self._H = basis
+            self._columns = [physical.index(k) for k in self._kept]
             self.names = tuple(format_combination(h, physical) for h in self._H)
-            self.units = tuple(map(self.robot.parameter_unit, kept))
+            self.units = tuple(map(self.robot.parameter_unit, self._kept))
             self.cad, self.scale = self._H @ cad, np.abs(self._H) @ scale
         force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
         self.output_std = online.output_noise * force_per_amp
@@ -136,9 +136,7 @@ class CampaignEstimator:
         its kept parameter, the others 0 (``H`` of the basis gives the base values back)."""
         if self._columns is None:
             return coef
-        out = np.zeros((len(coef), len(self.robot.parameter_names)))
-        out[:, self._columns] = coef
-        return out
+        return on_kept(self.robot.parameter_names, self._kept, coef)
 
     def relative_std(self) -> np.ndarray:
         """(n,) %σ of the SVD-DLS estimates (NaN in the unexcited directions' parameters)."""

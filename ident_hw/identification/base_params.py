@@ -76,6 +76,18 @@ class BaseParameters:
         }
 
 
+def on_kept(names, kept, values) -> np.ndarray:
+    """A physical vector (..., n) that predicts what base values ``values`` (..., r) predict:
+    each value on its kept parameter (``kept`` (r,) among ``names`` (n,)), every other
+    parameter 0. Row i of a base matrix ``H`` has 1 at ``kept[i]`` and 0 at the other kept
+    parameters, so ``H @`` it gives ``values`` back."""
+    values = np.asarray(values, dtype=float)
+    names = list(names)
+    out = np.zeros(values.shape[:-1] + (len(names),))
+    out[..., [names.index(k) for k in kept]] = values
+    return out
+
+
 def format_combination(row: np.ndarray, names, digits: int = 4) -> str:
     """``[1, 0.25]``, ``["m_l1", "m_l2"]`` → ``"m_l1 + 0.25 m_l2"`` (terms below 1e-10 dropped)."""
     terms = []
