@@ -7,6 +7,7 @@ adapter, or the in-process ``virtual`` bus).
 
 from __future__ import annotations
 
+import ipaddress
 import logging
 import math
 import queue
@@ -106,6 +107,21 @@ class VirtualBus(can.interfaces.virtual.VirtualBus):
             raise can.CanOperationError("Could not send message to one or more recipients")
 
 
+def is_local(interface: str, channel: str | int) -> bool:
+    """True for a bus that cannot reach hardware, where only a simulated rig can answer:
+    python-can ``virtual``, a SocketCAN ``vcan*``, or ``udp_multicast`` on an interface-local
+    IPv6 group (scope 1, ``ff01::/16`` and ``ffX1``: RFC 4291, loopback only, no datagram leaves
+    the host; python-can's default groups are site-wide and are not)."""
+    channel = str(channel)
+    if interface == "udp_multicast":
+        try:
+            group = ipaddress.ip_address(channel)
+        except ValueError:
+            return False
+        return group.version == 6 and group.is_multicast and group.packed[1] & 0x0F == 1
+    return interface == "virtual" or (interface == "socketcan" and channel.startswith("vcan"))
+
+
 def open_bus(config: BusConfig) -> can.BusABC:
     """Open the python-can bus described by ``config`` (``virtual``: :class:`VirtualBus`)."""
     kwargs = dict(config.options)
@@ -115,8 +131,10 @@ def open_bus(config: BusConfig) -> can.BusABC:
         if config.interface == "virtual":
             return VirtualBus(channel=config.channel, receive_own_messages=config.receive_own_messages,
                               **kwargs)
-        return can.Bus(interface=config.interface, channel=config.channel,
-                       receive_own_messages=config.receive_own_messages,
+        # udp_multicast refuses receive_own_messages, yet the kernel's multicast loopback (on
+        # by default) hands every datagram a socket sends back to it, in sending order
+        own = {} if config.interface == "udp_multicast" else {"receive_own_messages": config.receive_own_messages}
+        return can.Bus(interface=config.interface, channel=config.channel, **own,
                        ignore_config=config.ignore_config, **kwargs)
     except (can.CanError, OSError, ValueError, ImportError) as exc:
         raise BusOpenError(

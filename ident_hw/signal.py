@@ -21,6 +21,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 from scipy import signal as sps
 
 
@@ -146,6 +147,28 @@ def parallel_decimate(settings: FilterSettings, *arrays: np.ndarray) -> tuple[np
     return tuple(
         lowpass(a, settings.sample_rate, settings.decimation_cutoff_hz, settings.order)[window] for a in arrays
     )
+
+
+def main_lobe(settings: FilterSettings) -> int:
+    """Half-width (samples at the input rate) of the main lobe of the parallel filter's impulse
+    response (:func:`parallel_decimate`): a filtered sample is a weighted mean of the input
+    over about this many samples on each side (about half a period of the cut-off for the
+    zero-phase Butterworth)."""
+    n = 4 * math.ceil(settings.sample_rate / settings.decimation_cutoff_hz) + 1
+    impulse = np.zeros(2 * n + 1)
+    impulse[n] = 1.0
+    response = lowpass(impulse, settings.sample_rate, settings.decimation_cutoff_hz, settings.order)[n:]
+    return int(np.argmax(response <= 0.0))
+
+
+def near(mask: np.ndarray, width: int) -> np.ndarray:
+    """``mask`` (N, ...) bool widened by ``width`` samples on each side along axis 0: True
+    where a True of ``mask`` lies within ``width`` samples."""
+    if width <= 0 or not mask.any():
+        return mask.copy()
+    structure = np.zeros((2 * width + 1,) + (1,) * (mask.ndim - 1), bool)
+    structure[:, ...] = True
+    return ndimage.binary_dilation(mask, structure=structure)
 
 
 def kept_samples(settings: FilterSettings, n: int) -> slice:

@@ -249,3 +249,29 @@ def test_one_least_squares_step_only(tmp_path):
     path = write(tmp_path, "sim.yaml", text)
     with pytest.raises(ConfigError, match=r"identification.steps\[3\].method.*only one step"):
         load_config(path)
+
+
+@pytest.mark.parametrize("interface, channel, local", [
+    ("virtual", "anything", True),
+    ("socketcan", "vcan0", True),
+    ("socketcan", "can0", False),
+    ("pcan", "PCAN_USBBUS1", False),
+    ("udp_multicast", "ff11::4944", True),                  # interface-local (scope 1): loopback only
+    ("udp_multicast", "ff01::1", True),
+    ("udp_multicast", "ff15:7079:7468:6f6e:6465:6d6f:6d63:6173", False),   # python-can's default, site scope
+    ("udp_multicast", "ff02::1", False),                    # link-local: reaches the LAN
+    ("udp_multicast", "239.74.163.2", False),               # IPv4 has no interface-local scope
+    ("udp_multicast", "not-an-address", False),
+])
+def test_lockstep_only_on_a_bus_that_cannot_reach_hardware(tmp_path, interface, channel, local):
+    path = write(tmp_path, "bus.yaml", f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n"
+                                       f"bus: {{interface: {interface}, channel: '{channel}', sync: lockstep}}\n")
+    if local:
+        config = load_config(path)
+        assert config.simulated and config.sync_mode == "lockstep"
+    else:
+        with pytest.raises(ConfigError) as info:
+            load_config(path)
+        assert info.value.key == "bus.sync" and "may carry real drives" in str(info.value)
+        path.write_text(path.read_text().replace(", sync: lockstep", ""))
+        assert load_config(path).sync_mode == "periodic"     # and --arm is what moves it

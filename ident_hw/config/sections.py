@@ -317,8 +317,8 @@ class BusConfig:
 
     @property
     def is_local(self) -> bool:
-        """True for buses that cannot reach hardware: python-can ``virtual`` or a SocketCAN ``vcan*``."""
-        return self.interface == "virtual" or (self.interface == "socketcan" and self.channel.startswith("vcan"))
+        """True for buses that cannot reach hardware (:func:`drivers.bus.is_local`)."""
+        return drivers.bus.is_local(self.interface, self.channel)
 
 
 @dataclass(frozen=True)

@@ -2,10 +2,9 @@
 
 Everything here runs inside the emulated guest of ``tools/vcan-vm``, where Python is ~25 times
 slower than on a host (``import can, canopen`` ~7 s, ``numpy``+``scipy`` ~25 s): hence the generous
-time limits below. They bound a hang, they do not judge speed.
+time limits (:mod:`processes`). They bound a hang, they do not judge speed.
 """
 
-import select
 import subprocess
 import sys
 import time
@@ -14,57 +13,11 @@ from pathlib import Path
 import can
 import pytest
 
+from processes import START_TIMEOUT, STOP_TIMEOUT
+
 VCAN_CHANNEL = "vcan0"
 PEERS = Path(__file__).with_name("peers.py")
-START_TIMEOUT = 300.0  # s until a started process is listening on the bus (the guest compiles the plant: minutes)
-STOP_TIMEOUT = 30.0  # s for a process to end once asked to
 MARKER_ID = 0x7FF  # frame the candump fixture sends until it sees it, to know candump is listening
-
-
-def wait_for_line(proc: subprocess.Popen, prefix: str, timeout: float) -> None:
-    """Read ``proc``'s stdout lines until one starts with ``prefix``; fail with its stderr otherwise."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        readable, _, _ = select.select([proc.stdout], [], [], 0.2)
-        if readable:
-            line = proc.stdout.readline()
-            if line.startswith(prefix):
-                return
-            if not line:  # EOF: the process ended
-                break
-    proc.kill()
-    _, err = proc.communicate()
-    pytest.fail(f"{proc.args} did not print {prefix!r} within {timeout} s (exit code {proc.returncode}); "
-                f"stderr:\n{err}")
-
-
-def stop_process(proc: subprocess.Popen) -> None:
-    """End ``proc`` with SIGTERM (killing it if it does not end within STOP_TIMEOUT) and reap it."""
-    if proc.poll() is None:
-        proc.terminate()
-        try:
-            proc.communicate(timeout=STOP_TIMEOUT)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.communicate()
-
-
-@pytest.fixture
-def start_process():
-    """``start(argv, ready)`` runs ``argv`` as another process and returns it once it printed a line
-    starting with ``ready`` (it is then on the bus); all are stopped after the test."""
-    procs = []
-
-    def start(argv: list, ready: str) -> subprocess.Popen:
-        proc = subprocess.Popen([str(arg) for arg in argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                text=True)
-        procs.append(proc)
-        wait_for_line(proc, ready, START_TIMEOUT)
-        return proc
-
-    yield start
-    for proc in procs:
-        stop_process(proc)
 
 
 def start_peer(start_process, *args: str) -> subprocess.Popen:
