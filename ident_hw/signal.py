@@ -21,7 +21,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 from scipy import signal as sps
 
 
@@ -161,14 +160,44 @@ def main_lobe(settings: FilterSettings) -> int:
     return int(np.argmax(response <= 0.0))
 
 
+def runs_at_least(mask: np.ndarray, length: int) -> np.ndarray:
+    """``mask`` (N, ...) bool keeping only its runs of at least ``length`` consecutive True along axis 0."""
+    if length <= 1 or not mask.any():
+        return mask.copy()
+    # True where the ``length`` samples starting here are all True, then widened forward over the run
+    count = np.concatenate([np.zeros((1,) + mask.shape[1:], np.int64), np.cumsum(mask, axis=0)])
+    starts = np.zeros_like(mask)
+    starts[:len(mask) - length + 1] = count[length:] - count[:len(mask) - length + 1] == length
+    count = np.concatenate([np.zeros((1,) + mask.shape[1:], np.int64), np.cumsum(starts, axis=0)])
+    index = np.arange(len(mask))
+    return count[index + 1] > count[np.maximum(index - length + 1, 0)]
+
+
 def near(mask: np.ndarray, width: int) -> np.ndarray:
     """``mask`` (N, ...) bool widened by ``width`` samples on each side along axis 0: True
     where a True of ``mask`` lies within ``width`` samples."""
     if width <= 0 or not mask.any():
         return mask.copy()
-    structure = np.zeros((2 * width + 1,) + (1,) * (mask.ndim - 1), bool)
-    structure[:, ...] = True
-    return ndimage.binary_dilation(mask, structure=structure)
+    n = len(mask)
+    count = np.concatenate([np.zeros((1,) + mask.shape[1:], np.int64), np.cumsum(mask, axis=0)])
+    index = np.arange(n)
+    return count[np.minimum(index + width + 1, n)] > count[np.maximum(index - width, 0)]
+
+
+def near_rest(slow: np.ndarray, settings: FilterSettings) -> np.ndarray:
+    """(N, a) bool: the samples the fits leave out of an axis's rows, given ``slow`` (N, a): the
+    axis slower than its threshold (``identification.min_speed``) at the input rate.
+
+    A slow sample itself, and every sample within the parallel filter's main lobe
+    (:func:`main_lobe`) of a *stop*: a slow stretch at least half that lobe long, where the
+    axis lingers near zero speed (the corners of a rest-to-rest path). There Coulomb friction
+    switches at an ill-defined time (the drive may overshoot zero speed while the filtered
+    encoder does not), and the parallel filter would spread the mismatch over its window. A
+    shorter slow stretch is a clean reversal through zero speed: its sign switch is sharp and
+    the rows around it, with the largest accelerations, are kept.
+    """
+    lobe = main_lobe(settings)
+    return slow | near(runs_at_least(slow, lobe // 2), lobe)
 
 
 def kept_samples(settings: FilterSettings, n: int) -> slice:

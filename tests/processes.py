@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-START_TIMEOUT = 300.0  # s until a started process is listening on the bus (the guest compiles the plant: minutes)
+START_TIMEOUT = 600.0  # s until a started process is listening on the bus (the guest compiles the plant: minutes)
 STOP_TIMEOUT = 30.0  # s for a process to end once asked to
 
 

@@ -12,7 +12,7 @@ from ident_hw.experiment.offline import identify, prepare
 from ident_hw.segments import split, uniform
 from ident_hw.experiment.plan import excitation_of, motion_bandwidth, plan, robot_model
 from ident_hw.identification.least_squares import ols, output_noise_std, wls
-from ident_hw.signal import FilterSettings, central_derivatives, main_lobe, near
+from ident_hw.signal import FilterSettings, central_derivatives, main_lobe, near, near_rest, runs_at_least
 
 from ident_scenarios import CONFIGS, NAMES, exact_recording
 
@@ -125,10 +125,45 @@ def test_near_widens_a_mask_like_a_brute_force_loop():
         np.testing.assert_array_equal(near(mask, width), expected)
 
 
+def test_runs_at_least_keeps_the_long_runs_like_a_brute_force_loop():
+    rng = np.random.default_rng(5)
+    mask = rng.random((300, 2)) < 0.6
+    for length in (1, 2, 4, 7):
+        expected = np.zeros_like(mask)
+        for j in range(2):
+            i = 0
+            while i < 300:
+                if mask[i, j]:
+                    end = i
+                    while end < 300 and mask[end, j]:
+                        end += 1
+                    expected[i:end, j] = end - i >= length
+                    i = end
+                else:
+                    i += 1
+        np.testing.assert_array_equal(runs_at_least(mask, length), expected)
+
+
+def test_a_stop_is_widened_by_the_filter_lobe_a_clean_reversal_is_not():
+    """250 Hz, 15 Hz cut-off: a velocity through zero at 20 rad/s² is below 0.05 rad/s for a sample
+    or two (a reversal: only those are left out); a rest-to-rest corner lingers (v ~ t^2) and every
+    sample within the main lobe around it is left out too."""
+    settings = FilterSettings.for_sample_rate(250.0, 1.5)
+    lobe = main_lobe(settings)
+    t = np.arange(-0.5, 0.5, 1 / 250.0)
+    reversal = np.abs(20.0 * t)[:, None] < 0.05
+    stop = np.abs(40.0 * t**2)[:, None] < 0.05
+    assert 1 <= reversal.sum() < lobe // 2 <= stop.sum()
+    np.testing.assert_array_equal(near_rest(reversal, settings), reversal)
+    slow = np.flatnonzero(stop[:, 0])
+    expected = (np.arange(len(t)) >= slow[0] - lobe) & (np.arange(len(t)) <= slow[-1] + lobe)
+    np.testing.assert_array_equal(near_rest(stop, settings)[:, 0], expected)
+
+
 def test_rows_of_axes_near_rest_are_left_out_of_the_fits():
     """The carriage sweep (links held): every link row is left out, a carriage row only where the
     carriage moves at >= min_speed x its velocity limit throughout the parallel filter's main lobe
-    around it (where friction switches, the filter would spread the mismatch); plots and metrics
+    around it (the sweep's slow stretches are all stops: rest-to-rest moves); plots and metrics
     keep every row."""
     config = load_config(CONFIGS / "sim-3prrr.yaml")
     robot = robot_model(config)

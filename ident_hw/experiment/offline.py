@@ -29,7 +29,7 @@ from ident_hw.model.interface import RobotModel
 from ident_hw.report import coverage_text
 from ident_hw.results import BaseFit, ParameterTable, Results, TrajectoryFit
 from ident_hw.segments import Segments, slot_indices, split, uniform
-from ident_hw.signal import kept_samples, main_lobe, near, parallel_decimate, prepare_actuated
+from ident_hw.signal import kept_samples, near_rest, parallel_decimate, prepare_actuated
 
 from .plan import motion_bandwidth, robot_model
 from .quality import verdict
@@ -149,7 +149,6 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording) -> Pre
     # start poses for the forward kinematics of each stretch: a continuation from the home pose
     # along the whole recording, across its gaps (a Newton start only, never data)
     guess = robot.pose_series(_bridged(segments.t, rec.position), np.zeros(robot.pose_size))
-    lobe = main_lobe(settings)
     parts = []
     for rows in segments.slices:
         t, Theta, current = uniform(segments.t[rows], rec.position[rows], rec.current[rows])
@@ -157,11 +156,8 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording) -> Pre
         regressor, X = robot.identification_regressor(samples.Theta, samples.Thetad, samples.Thetadd, guess[rows])
         Y, tau = parallel_decimate(settings, regressor, samples.tau)
         kept = kept_samples(settings, len(t))
-        # a row of an axis near rest is left out (Coulomb friction switches there, and the drive
-        # may overshoot zero speed where the filtered encoder does not), and so is every row
-        # whose filter window reaches such a sample: the parallel filter spreads the mismatch
         slow = np.abs(samples.Thetad) < config.identification.min_speed * speed_limit
-        parts.append((t[kept], samples.Theta[kept], X[kept], Y, tau, ~near(slow, lobe)[kept]))
+        parts.append((t[kept], samples.Theta[kept], X[kept], Y, tau, ~near_rest(slow, settings)[kept]))
     t, Theta, X, Y, tau, moving = (np.concatenate(column) for column in zip(*parts))
     return Prepared(name, t, Theta, X, Y, tau, moving, segments=segments)
 
