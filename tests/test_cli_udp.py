@@ -1,5 +1,5 @@
-"""The rig in its own process on a host without SocketCAN: ``ident-hw sim`` and ``ident-hw run``
-meet on python-can's ``udp_multicast`` bus, on an interface-local IPv6 group (loopback only, so a
+"""The rig in its own process on a host without SocketCAN (``configs/udp-3prrr.yaml``): ``ident-hw sim``
+and ``ident-hw run`` meet on python-can's ``udp_multicast`` bus, on an interface-local IPv6 group (loopback only, so a
 bus that cannot reach hardware: lockstep, no --arm). UDP may drop a frame; lockstep asks the cycle
 again, so the answer is the one of the same config with the rig in the master's process."""
 
@@ -44,10 +44,8 @@ def test_run_against_the_rig_in_another_process_over_udp_gives_the_in_process_an
     group = interface_local_group()
     if not socket.has_ipv6 or not loopback_multicast_works(group):
         pytest.skip(f"this host does not loop IPv6 multicast back to its own sockets ({group})")
-    config_path = tmp_path / "udp.yaml"
-    config_path.write_text(f"extends: {CONFIGS / 'vcan-3prrr.yaml'}\n"
-                           f"bus: {{interface: udp_multicast, channel: '{group}', sdo_timeout: 5.0,"
-                           f" heartbeat: 0.1, heartbeat_timeout: 2.0, bring_up_timeout: 30.0}}\n")
+    config_path = tmp_path / "udp.yaml"     # the shipped config on a group of its own
+    config_path.write_text(f"extends: {CONFIGS / 'udp-3prrr.yaml'}\nbus: {{channel: '{group}'}}\n")
     config = load_config(config_path)
     assert config.simulated and config.sync_mode == "lockstep"
     start_process(["ident-hw", "sim", config_path], ready="simulated rig:")
