@@ -17,6 +17,7 @@ holds exactly after it: parallel filtering removes noise without biasing the est
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -148,6 +149,7 @@ def parallel_decimate(settings: FilterSettings, *arrays: np.ndarray) -> tuple[np
     )
 
 
+@functools.lru_cache(maxsize=None)
 def main_lobe(settings: FilterSettings) -> int:
     """Half-width (samples at the input rate) of the main lobe of the parallel filter's impulse
     response (:func:`parallel_decimate`): a filtered sample is a weighted mean of the input
@@ -160,28 +162,27 @@ def main_lobe(settings: FilterSettings) -> int:
     return int(np.argmax(response <= 0.0))
 
 
+def _window_count(mask: np.ndarray, before: int, after: int) -> np.ndarray:
+    """(N, ...) int: how many True of ``mask`` (N, ...) lie in samples ``i - before .. i + after``
+    along axis 0 (the window clipped at the ends)."""
+    n = len(mask)
+    count = np.concatenate([np.zeros((1,) + mask.shape[1:], np.int64), np.cumsum(mask, axis=0)])
+    index = np.arange(n)
+    return count[np.minimum(index + after + 1, n)] - count[np.maximum(index - before, 0)]
+
+
 def runs_at_least(mask: np.ndarray, length: int) -> np.ndarray:
     """``mask`` (N, ...) bool keeping only its runs of at least ``length`` consecutive True along axis 0."""
-    if length <= 1 or not mask.any():
+    if length <= 1:
         return mask.copy()
-    # True where the ``length`` samples starting here are all True, then widened forward over the run
-    count = np.concatenate([np.zeros((1,) + mask.shape[1:], np.int64), np.cumsum(mask, axis=0)])
-    starts = np.zeros_like(mask)
-    starts[:len(mask) - length + 1] = count[length:] - count[:len(mask) - length + 1] == length
-    count = np.concatenate([np.zeros((1,) + mask.shape[1:], np.int64), np.cumsum(starts, axis=0)])
-    index = np.arange(len(mask))
-    return count[index + 1] > count[np.maximum(index - length + 1, 0)]
+    starts = _window_count(mask, 0, length - 1) == length     # the ``length`` samples from here all True
+    return _window_count(starts, length - 1, 0) > 0
 
 
 def near(mask: np.ndarray, width: int) -> np.ndarray:
     """``mask`` (N, ...) bool widened by ``width`` samples on each side along axis 0: True
     where a True of ``mask`` lies within ``width`` samples."""
-    if width <= 0 or not mask.any():
-        return mask.copy()
-    n = len(mask)
-    count = np.concatenate([np.zeros((1,) + mask.shape[1:], np.int64), np.cumsum(mask, axis=0)])
-    index = np.arange(n)
-    return count[np.minimum(index + width + 1, n)] > count[np.maximum(index - width, 0)]
+    return _window_count(mask, max(width, 0), max(width, 0)) > 0
 
 
 def near_rest(slow: np.ndarray, settings: FilterSettings) -> np.ndarray:

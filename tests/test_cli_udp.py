@@ -24,7 +24,6 @@ def interface_local_group() -> str:
 
 def loopback_multicast_works(group: str) -> bool:
     import can
-    import can.interfaces.udp_multicast  # noqa: F401  (registers nothing; fails early without msgpack)
     try:
         with can.Bus(interface="udp_multicast", channel=group) as a, can.Bus(interface="udp_multicast", channel=group) as b:
             a.send(can.Message(arbitration_id=0x7FF, data=b"", is_extended_id=False))

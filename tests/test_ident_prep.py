@@ -142,6 +142,7 @@ def test_runs_at_least_keeps_the_long_runs_like_a_brute_force_loop():
                 else:
                     i += 1
         np.testing.assert_array_equal(runs_at_least(mask, length), expected)
+    assert not runs_at_least(np.ones((3, 1), bool), 5).any()      # a stretch shorter than the run asked for
 
 
 def test_a_stop_is_widened_by_the_filter_lobe_a_clean_reversal_is_not():
