@@ -3,13 +3,14 @@ and ``ident-hw run`` meet on python-can's ``udp_multicast`` bus, on an interface
 bus that cannot reach hardware: lockstep, no --arm). UDP may drop a frame; lockstep asks the cycle
 again, so the answer is the one of the same config with the rig in the master's process."""
 
-import json
 import secrets
 import socket
 import subprocess
 from pathlib import Path
 
 import pytest
+
+from rig_runs import assert_step_identified, parameter_rows, rows_in_one_process
 
 pytest.importorskip("msgpack", reason="python-can's udp_multicast interface needs msgpack (pip install -e '.[test]')")
 
@@ -30,10 +31,6 @@ def loopback_multicast_works(group: str) -> bool:
             return b.recv(2.0) is not None
     except (OSError, can.CanError):
         return False
-
-
-def identified(folder: Path) -> dict:
-    return {r["name"]: r["identified"] for r in json.loads((folder / "parameters.json").read_text())["parameters"]}
 
 
 def test_run_against_the_rig_in_another_process_over_udp_gives_the_in_process_answer(start_process, tmp_path):
@@ -58,17 +55,8 @@ def test_run_against_the_rig_in_another_process_over_udp_gives_the_in_process_an
     assert recorded.metadata.get("sync") == "lockstep" and recorded.n_invalid == 0
     print(f"cycles asked again (frames UDP dropped, or a slow rig): {recorded.metadata.get('lockstep_retries')}")
 
-    local = tmp_path / "in-process.yaml"
-    local.write_text(f"extends: {config_path}\nbus: {{interface: virtual, channel: in-process}}\nsim: {{in_process: true}}\n")
-    alone = subprocess.run(["ident-hw", "run", local, "--quiet", "--out", tmp_path / "alone"],
-                           capture_output=True, text=True, timeout=RUN_TIMEOUT)
-    assert alone.returncode == 0, alone.stderr
+    rows = parameter_rows(tmp_path / "udp")
+    assert_step_identified(config, rows)
+    alone = rows_in_one_process(config_path, tmp_path / "alone", RUN_TIMEOUT)
     (step,) = config.identification.steps
-    over_udp, in_process = identified(tmp_path / "udp"), identified(tmp_path / "alone")
-    assert {p: over_udp[p] for p in step.parameters} == {p: in_process[p] for p in step.parameters}
-    # and the answer is right: within 2 % of the simulated truth, or 3 sigma where the sweep excites less
-    rows = {r["name"]: r for r in json.loads((tmp_path / "udp" / "parameters.json").read_text())["parameters"]}
-    truth = dict(zip(config.robot.to_model().parameter_names, config.true_parameters()))
-    for name in step.parameters:
-        error = abs(rows[name]["identified"] - truth[name])
-        assert error <= max(0.02 * abs(truth[name]), 3 * rows[name]["sigma"]), (name, rows[name]["identified"], truth[name])
+    assert {p: rows[p]["identified"] for p in step.parameters} == {p: alone[p]["identified"] for p in step.parameters}

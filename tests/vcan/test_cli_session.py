@@ -6,6 +6,8 @@ from pathlib import Path
 
 import pytest
 
+from rig_runs import assert_step_identified, parameter_rows, rows_in_one_process
+
 pytestmark = pytest.mark.vcan
 
 CONFIG = Path(__file__).parents[2] / "configs" / "vcan-3prrr.yaml"
@@ -14,8 +16,6 @@ CLI_TIMEOUT = 600.0  # s; numpy/scipy/matplotlib alone take a minute to import i
 
 def test_cli_run_against_rig_process_matches_candump(start_process, candump, tmp_path):
     # imported here, not at collection: numpy/scipy cost ~25 s in the guest even when the test is skipped
-    import json
-
     import numpy as np
 
     from drivers.recording import Recording, decode_log
@@ -45,28 +45,13 @@ def test_cli_run_against_rig_process_matches_candump(start_process, candump, tmp
     print(f"recorded {n} cycles at {config.bus.sync_rate:g} Hz in {recorded.metadata.get('sync')}, "
           f"{recorded.n_invalid} incomplete, cycles asked again {recorded.metadata.get('lockstep_retries')}")
     assert recorded.metadata.get("sync") == "lockstep" and recorded.n_invalid == 0
-    # the identification is right: every fitted parameter within 2 % of the simulated truth, or within
-    # 3 sigma where the sweep excites it less (the viscous friction: %sigma ~3)
-    rows = {r["name"]: r for r in json.loads((out / "parameters.json").read_text())["parameters"]}
+    # the identification is right, and it is the answer of the same config with the rig in the master's
+    # process (lockstep: the process boundary, the kernel's sockets and the guest's speed reach no sample)
+    rows = parameter_rows(out)
+    assert_step_identified(config, rows)
+    alone = rows_in_one_process(CONFIG, tmp_path / "alone", CLI_TIMEOUT)
     (step,) = config.identification.steps
-    model = config.sim.truth.to_model()
-    truth = dict(zip(model.NAMES, model.as_vector()))
-    for name in step.parameters:
-        row = rows[name]
-        assert row["step"] == step.name, name
-        error = abs(row["identified"] - truth[name])
-        assert error <= max(0.02 * abs(truth[name]), 3 * row["sigma"]), (name, row["identified"], truth[name])
-    # and it is the answer of the same config with the rig in the master's process (lockstep: the
-    # process boundary, the kernel's sockets and the guest's speed reach no sample)
-    local = tmp_path / "in-process.yaml"
-    local.write_text(f"extends: {CONFIG}\nbus: {{interface: virtual, channel: in-process}}\n"
-                     "sim: {in_process: true}\n")
-    alone = subprocess.run(["ident-hw", "run", local, "--quiet", "--out", tmp_path / "alone"], capture_output=True,
-                           text=True, timeout=CLI_TIMEOUT)
-    assert alone.returncode == 0, alone.stderr
-    same = {r["name"]: r["identified"] for r in
-            json.loads((tmp_path / "alone" / "parameters.json").read_text())["parameters"]}
-    assert {name: rows[name]["identified"] for name in step.parameters} == {name: same[name] for name in step.parameters}
+    assert {p: rows[p]["identified"] for p in step.parameters} == {p: alone[p]["identified"] for p in step.parameters}
 
     # candump saw the same frames on the bus: the project's decoder gives the same samples from candump's log,
     # from where the run's own raw log starts (the master records from the start of the stream; the kernel
