@@ -106,9 +106,10 @@ def cmd_report(args) -> int:
 def cmd_run(args) -> int:
     """The campaign: checks, then (simulated rig, or hardware with --arm) motion and identification."""
     from drivers.errors import BusOpenError
-    from ident_hw.experiment.plan import check_campaign
+    from ident_hw.experiment.plan import check_campaign, plan
     config = _load(args.config)
-    problems = check_campaign(config)
+    planned = plan(config, online=True)
+    problems = check_campaign(config, planned)
     if problems:
         print("checks failed, nothing moved:\n  " + "\n  ".join(problems), file=sys.stderr)
         return Exit.CONFIG
@@ -126,7 +127,8 @@ def cmd_run(args) -> int:
     elif config.identification.online.in_run:
         online = CampaignEstimator(config)
     try:
-        results = run_campaign(config, folder, show_progress=_progress_bars(args), log=_logger(args), online=online)
+        results = run_campaign(config, folder, show_progress=_progress_bars(args), log=_logger(args), online=online,
+                               planned=planned)
     except BusOpenError:
         if discard_unused(folder):
             print(f"nothing moved, nothing recorded: {folder} removed", file=sys.stderr)

@@ -42,14 +42,14 @@ from ident_hw.model.interface import RobotModel
 DEFAULT_MAX_SUBSTEP = 5e-4
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _heun(Theta, Thetad, dt, n_sub, M_inv0, M_slope, bias0, bias_slope, loop_demand, Kp, Kd, low, high,
           f_v, f_c, width):
     """``n_sub`` Heun steps of ``dt`` s (Euler predictor, trapezoid corrector) of
     ``Thetadd = M^-1(t) (F - bias(t) - f_v Thetad - f_c tanh(Thetad / width))`` with the loop force
     ``F = clip(loop_demand[k] - Kp Theta - Kd Thetad, low, high)`` at substep boundary ``k`` and
     ``M^-1``, ``bias`` linear in ``t``. Returns the end state, and the force and acceleration at
-    the start. Compiled (numba): it is most of the simulated rig's work per SYNC."""
+    the start."""
     n = Theta.shape[0]
     F = np.empty(n)
     u = np.empty(n)
@@ -71,30 +71,101 @@ def _heun(Theta, Thetad, dt, n_sub, M_inv0, M_slope, bias0, bias_slope, loop_dem
 
     force0 = np.empty(n)
     q, qd = Theta.copy(), Thetad.copy()
+    q_p, qd_p = np.empty(n), np.empty(n)
     a1 = acceleration(q, qd, 0, force0)
     a0 = a1.copy()
     for k in range(n_sub):
         if k:
             a1 = acceleration(q, qd, k, F)
-        qd_p = qd + dt * a1
-        a2 = acceleration(q + dt * qd, qd_p, k + 1, F)
-        q = q + 0.5 * dt * (qd + qd_p)
-        qd = qd + 0.5 * dt * (a1 + a2)
+        for j in range(n):
+            qd_p[j] = qd[j] + dt * a1[j]
+            q_p[j] = q[j] + dt * qd[j]
+        a2 = acceleration(q_p, qd_p, k + 1, F)
+        for j in range(n):
+            q[j] += 0.5 * dt * (qd[j] + qd_p[j])
+            qd[j] += 0.5 * dt * (a1[j] + a2[j])
     return q, qd, force0, a0
 
 
-_compiled = False
+@numba.njit(cache=True, nogil=True)
+def _inverse(M):
+    """``M^-1`` of a square, invertible ``M`` (n, n) by Gauss-Jordan elimination with partial
+    pivoting, as a C-ordered array (:func:`numpy.linalg.inv` in numba returns Fortran order)."""
+    n = M.shape[0]
+    a = M.copy()
+    inv = np.eye(n)
+    for col in range(n):
+        pivot = col
+        for r in range(col + 1, n):
+            if abs(a[r, col]) > abs(a[pivot, col]):
+                pivot = r
+        if pivot != col:
+            for k in range(n):
+                a[col, k], a[pivot, k] = a[pivot, k], a[col, k]
+                inv[col, k], inv[pivot, k] = inv[pivot, k], inv[col, k]
+        scale = 1.0 / a[col, col]
+        for k in range(n):
+            a[col, k] *= scale
+            inv[col, k] *= scale
+        for r in range(n):
+            if r != col:
+                factor = a[r, col]
+                if factor != 0.0:
+                    for k in range(n):
+                        a[r, k] -= factor * a[col, k]
+                        inv[r, k] -= factor * inv[col, k]
+    return inv
 
 
-def _compile_heun() -> None:
-    """Compile :func:`_heun` (or load it from numba's cache) now, with the argument types of
-    :meth:`Plant.step`, so that a rig's first SYNC does not wait for the compiler (seconds on a
-    host, minutes in an emulated guest without a cache)."""
-    global _compiled
-    if not _compiled:
-        z6, z66 = np.zeros(6), np.zeros((6, 6))
-        _heun(z6, z6, 1e-3, 1, z66, z66, z6, z6, np.zeros((2, 6)), z6, z6, z6, z6, z6, z6, 1e-3)
-        _compiled = True
+_V, _M = numba.float64[::1], numba.float64[:, ::1]
+
+
+# the argument types given: a call with other types (e.g. a non-contiguous array) is refused
+# instead of compiling a new version while a rig waits for its SYNC
+@numba.njit((_V, _V, numba.float64, numba.int64, _M, _V, _V, numba.float64, _M, _V, _M, _V, _V,
+             numba.boolean[::1], _V, _V, _V, numba.float64), cache=True, nogil=True)
+def _period(Theta, Thetad, period, n_sub, M, bias, external, previous_period, previous_M_inv, previous_bias,
+            demand, Kp, Kd, enabled, force_limit, f_v, f_c, width):
+    """One period of :meth:`Plant.step`, compiled and without the GIL (most of the simulated
+    rig's work per SYNC; the master's thread runs meanwhile).
+
+    ``M`` (n, n), ``bias`` (n,): the dynamics at the period start (``external`` (n,): a force on
+    the actuators, held over the period, subtracted from ``bias``); ``previous_*``: those of the
+    previous period's start (``previous_period`` 0: none), from which ``M^-1`` and ``bias`` are
+    extrapolated linearly over the period. ``demand`` (k, n): the demand polynomial's
+    coefficients. Returns the end state ``Theta``, ``Thetad``, the force and the acceleration at
+    the start, and ``M^-1`` (for the next period).
+    """
+    n = Theta.shape[0]
+    dt = period / n_sub
+    M_inv0 = _inverse(M)
+    M_slope, bias_slope = np.zeros((n, n)), np.zeros(n)      # per s of the period
+    if 0.5 * period <= previous_period <= 2.0 * period:       # not after a much shorter step
+        for r in range(n):
+            bias_slope[r] = (bias[r] - previous_bias[r]) / previous_period
+            for k in range(n):
+                M_slope[r, k] = (M_inv0[r, k] - previous_M_inv[r, k]) / previous_period
+    # the loop's demand part at every substep boundary: Kp q_d(t_k) + Kd qd_d(t_k)
+    loop_demand = np.empty((n_sub + 1, n))
+    for k in range(n_sub + 1):
+        t = k * dt
+        for j in range(n):
+            q_d, v_d, t_i = 0.0, 0.0, 1.0
+            for i in range(demand.shape[0]):
+                q_d += demand[i, j] * t_i
+                if i + 1 < demand.shape[0]:
+                    v_d += (i + 1) * demand[i + 1, j] * t_i
+                t_i *= t
+            loop_demand[k, j] = Kp[j] * q_d + Kd[j] * v_d
+    # a disabled loop gives no force: clipped to [0, 0]
+    low, high, bias0 = np.empty(n), np.empty(n), np.empty(n)
+    for j in range(n):
+        high[j] = force_limit[j] if enabled[j] else 0.0
+        low[j] = -high[j]
+        bias0[j] = bias[j] - external[j]
+    q, qd, force0, a0 = _heun(Theta, Thetad, dt, n_sub, M_inv0, M_slope, bias0, bias_slope, loop_demand,
+                              Kp, Kd, low, high, f_v, f_c, width)
+    return q, qd, force0, a0, M_inv0
 
 
 class PlantJammed(RuntimeError):
@@ -186,15 +257,15 @@ class Plant:
         self.external_force = np.zeros(n)
         self.t = 0.0
         self._previous = None   # (period, M^-1, velocity terms) of the last step, at its start
+        self._friction = (None, None, None)   # (params, f_v, f_c) of the last step
         self.max_substep = max_substep
+        M, _ = self._dynamics()     # also compiles the robot's plant dynamics now, not at the first SYNC
         if gains is None:
-            M, _ = self._dynamics()
             w = 2.0 * np.pi * bandwidth_hz
             diag = np.diag(M)
             gains = (diag * w**2, 2.0 * damping * diag * w)
         self.Kp, self.Kd = (np.array(g, dtype=float).reshape(n) for g in gains)
         self.log = TruthLog(log_length, n, robot.pose_size)
-        _compile_heun()
 
     # -- configuration ---------------------------------------------------------------------------
     def set_payload(self, mass: float, inertia: float = 0.0) -> None:
@@ -250,31 +321,19 @@ class Plant:
         demand = np.asarray(demand, dtype=float).reshape(-1, n)
         M, bias = self._dynamics()
         n_sub = max(1, int(np.ceil(period / self.max_substep - 1e-9)))
-        dt = period / n_sub
-        # the demand and its slope at every substep boundary, in one product each: (n_sub + 1, n)
-        powers = np.arange(len(demand))
-        t_pow = (np.arange(n_sub + 1) * dt)[:, None] ** powers
-        q_d = t_pow @ demand
-        v_d = t_pow[:, :-1] @ (demand[1:] * powers[1:, None])
-        # a disabled loop gives no force: clipped to [0, 0]
-        high = np.where(enabled, force_limit, 0.0)
-        low = -high
-        Kp, Kd = self.Kp, self.Kd
+        previous_period, previous_M_inv, previous_bias = self._previous or (0.0, M, bias)
+        if self._friction[0] is not self.params:
+            self._friction = (self.params, *(np.ascontiguousarray(v, dtype=float)
+                                             for v in self.robot.friction_coefficients(self.params)))
+        _, f_v, f_c = self._friction
+        c = np.ascontiguousarray
+        Theta, Thetad, self.force, a0, M_inv0 = _period(
+            c(self.Theta), c(self.Thetad), float(period), n_sub, c(M), c(bias), c(self.external_force),
+            float(previous_period), c(previous_M_inv), c(previous_bias), c(demand), c(self.Kp), c(self.Kd),
+            c(enabled, dtype=bool), c(force_limit, dtype=float), f_v, f_c, float(self.robot.coulomb_width))
         # M^-1 and the velocity terms: exact at the period start (logged), extrapolated linearly
         # over the period from the previous period's start (second order in the period)
-        M_inv0 = np.linalg.inv(M)
-        M_slope, bias_slope = np.zeros((n, n)), np.zeros(n)      # per s of the period
-        previous, self._previous = self._previous, (period, M_inv0, bias)
-        if previous is not None and 0.5 * period <= previous[0] <= 2 * period:   # not after a much shorter step
-            M_slope = (M_inv0 - previous[1]) / previous[0]              # previous[0]: its period
-            bias_slope = (bias - previous[2]) / previous[0]
-        # the hot loop (two evaluations per substep), compiled: the loop's demand part computed
-        # once per period, the loop force and the friction as in _loop_force and friction_coefficients
-        loop_demand = Kp * q_d + Kd * v_d
-        f_v, f_c = self.robot.friction_coefficients(self.params)
-        Theta, Thetad, self.force, a0 = _heun(
-            self.Theta, self.Thetad, dt, n_sub, M_inv0, M_slope, bias - self.external_force, bias_slope,
-            loop_demand, Kp, Kd, low, high, f_v, f_c, float(self.robot.coulomb_width))
+        self._previous = (period, M_inv0, bias)
         self.log.append(self.t, self.X, self.Theta, self.Thetad, a0, self.force)
         self.Theta, self.Thetad = Theta, Thetad
         self.t += period

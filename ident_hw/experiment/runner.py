@@ -176,7 +176,8 @@ def stream(session: Session, group: DriveGroup, planned: PlannedTrajectory, data
 
 def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = True,
                  log: Callable[[str], None] | None = None,
-                 online: CampaignEstimator | None = None) -> Results:
+                 online: CampaignEstimator | None = None,
+                 planned: list[PlannedTrajectory] | None = None) -> Results:
     """Record every trajectory of ``config`` on its bus, identify, validate, save into ``folder``.
 
     Args:
@@ -185,6 +186,9 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
         show_progress: tqdm bars on stderr (the caller turns them off for --quiet / non-TTY).
         log: where progress messages go (``None``: nowhere).
         online: an SVD-DLS estimator fed with each recording as it is made; its trace is saved.
+        planned: the config's :func:`~ident_hw.experiment.plan.plan` with ``online=True`` if the
+            caller has made it (for its checks); planned here otherwise. Without ``online``, its
+            ``online_only`` trajectories are left out.
 
     Raises:
         CampaignStopped: Ctrl-C or a fault; the folder is marked ``partial: <reason>``.
@@ -192,7 +196,10 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
     folder = Path(folder)
     data = folder / "data"
     say = log or (lambda _message: None)
-    planned = plan(config, online=online is not None)
+    if planned is None:
+        planned = plan(config, online=online is not None)
+    elif online is None:
+        planned = [p for p in planned if not p.config.online_only]
     recordings: dict[str, Recording] = {}
     states: dict = {}
     try:
