@@ -10,7 +10,10 @@ Prints the cycles per wall-clock second and the split of one cycle's wall time:
 * of which the plant step (forward kinematics, reduced dynamics, Heun substeps), timed alone;
 * the rest: the master (set-points, decoding, recording), the bus and the threads' hand-offs.
 
-    python benchmarks/bench_lockstep.py [seconds=20] [rate_hz=250]
+As in the main job, the threads run on one CPU (:func:`drivers.affinity.one_cpu`); ``spread``
+lets them run on every CPU, for comparison.
+
+    python benchmarks/bench_lockstep.py [seconds=20] [rate_hz=250] [spread]
 """
 
 from __future__ import annotations
@@ -18,10 +21,12 @@ from __future__ import annotations
 import dataclasses
 import sys
 import timeit
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
 
+from drivers.affinity import one_cpu
 from drivers.bus import BusConfig, open_network
 from drivers.epos import DriveGroup
 from ident_hw.config import load_config
@@ -30,7 +35,13 @@ from ident_hw.experiment.session import simulated_rig
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "sim-3prrr.yaml"
 
 
-def main(seconds: float, rate_hz: float) -> None:
+def main(seconds: float, rate_hz: float, spread: bool) -> None:
+    with nullcontext(None) if spread else one_cpu() as cpu:
+        print(f"threads on CPU {cpu}" if cpu is not None else "threads on every CPU")
+        run(seconds, rate_hz)
+
+
+def run(seconds: float, rate_hz: float) -> None:
     config = load_config(CONFIG)
     config = dataclasses.replace(config, bus=dataclasses.replace(config.bus, sync_rate=rate_hz,
                                                                  channel="bench-lockstep"))
@@ -70,4 +81,5 @@ def main(seconds: float, rate_hz: float) -> None:
 
 
 if __name__ == "__main__":
-    main(float(sys.argv[1]) if len(sys.argv) > 1 else 20.0, float(sys.argv[2]) if len(sys.argv) > 2 else 250.0)
+    args = [a for a in sys.argv[1:] if a != "spread"]
+    main(float(args[0]) if args else 20.0, float(args[1]) if len(args) > 1 else 250.0, "spread" in sys.argv[1:])

@@ -8,7 +8,7 @@ config, the simulated rig serving the same python-can bus.
 
 from __future__ import annotations
 
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
@@ -16,6 +16,7 @@ from typing import Iterator
 import can
 import canopen
 
+from drivers.affinity import one_cpu
 from drivers.bus import open_network
 from drivers.epos import DriveGroup
 from drivers.errors import BusOpenError
@@ -69,9 +70,24 @@ class Session:
 
 @contextmanager
 def open_session(config: Config) -> Iterator[Session]:
-    """Open the config's bus (and start the in-process rig first when ``sim.in_process``)."""
+    """Open the config's bus (and start the in-process rig first when ``sim.in_process``).
+
+    With the rig in this process and the SYNC in lockstep, the session's threads (master and
+    rig) run on one CPU (:func:`drivers.affinity.one_cpu`): the cycles' thread hand-offs are
+    cheaper there, and the results are the same.
+    """
     if config.bus is None:
         raise ValueError(f"{config.source}: bus: missing section (needed to open the bus)")
+    with ExitStack() as stack:
+        if config.sim is not None and config.sim.in_process and config.sync_mode == "lockstep":
+            stack.enter_context(one_cpu())
+        with _open_session(config) as session:
+            yield session
+
+
+@contextmanager
+def _open_session(config: Config) -> Iterator[Session]:
+    """:func:`open_session` without the choice of CPUs."""
     rig = None
     if config.sim is not None and config.sim.in_process:
         if not config.simulated:

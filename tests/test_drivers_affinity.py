@@ -1,0 +1,73 @@
+"""drivers.affinity.one_cpu: the calling thread and the threads it starts run on one CPU, the
+CPU set comes back after; the experiment session uses it for the in-process lockstep rig only."""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from drivers.affinity import one_cpu
+from ident_hw.config import load_config
+from ident_hw.experiment.session import open_session
+
+SIM = Path(__file__).resolve().parents[1] / "configs" / "sim-3prrr.yaml"
+
+needs_two_cpus = pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
+                                    reason="needs Linux and at least two CPUs this process may use")
+
+
+def cpus_of(thread: threading.Thread) -> set[int]:
+    """The CPU set the kernel holds for a running thread (by its native thread ID)."""
+    return os.sched_getaffinity(thread.native_id)
+
+
+@needs_two_cpus
+def test_threads_started_inside_run_on_the_one_cpu_and_the_set_comes_back():
+    before = os.sched_getaffinity(0)
+    seen = {}
+    with one_cpu() as cpu:
+        assert cpu in before
+        worker = threading.Thread(target=lambda: seen.setdefault("cpus", os.sched_getaffinity(0)))
+        worker.start()
+        worker.join()
+        assert os.sched_getaffinity(0) == {cpu}
+    assert seen["cpus"] == {cpu}
+    assert os.sched_getaffinity(0) == before
+
+
+@needs_two_cpus
+def test_the_set_comes_back_when_the_section_raises():
+    before = os.sched_getaffinity(0)
+    with pytest.raises(RuntimeError), one_cpu():
+        raise RuntimeError("stop")
+    assert os.sched_getaffinity(0) == before
+
+
+def session_config(folder: Path, sync: str):
+    path = folder / f"{sync}.yaml"
+    path.write_text(f"extends: {SIM}\n"
+                    f"bus: {{interface: virtual, channel: affinity-{os.getpid()}-{time.monotonic_ns()}, "
+                    f"sync_rate: 100.0, sync: {sync}}}\n")
+    return load_config(path)
+
+
+@needs_two_cpus
+@pytest.mark.parametrize("sync, pinned", [("lockstep", True), ("periodic", False)])
+def test_the_session_runs_the_in_process_lockstep_rig_and_master_on_one_cpu(tmp_path, sync, pinned):
+    """Every thread the session starts (the rig's notifier and clock, the master's notifier) is on
+    one CPU with the lockstep rig in the process; with a periodic SYNC (real time) nothing is."""
+    before = os.sched_getaffinity(0)
+    existing = set(threading.enumerate())
+    with open_session(session_config(tmp_path, sync)) as session:
+        started = [t for t in threading.enumerate() if t not in existing and t.is_alive()]
+        assert session.rig is not None and len(started) >= 3
+        sets = {frozenset(cpus_of(t)) for t in started} | {frozenset(os.sched_getaffinity(0))}
+        if pinned:
+            assert len(sets) == 1 and len(next(iter(sets))) == 1
+        else:
+            assert sets == {frozenset(before)}
+    assert os.sched_getaffinity(0) == before
