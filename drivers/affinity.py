@@ -20,7 +20,9 @@ from typing import Iterator
 
 @contextmanager
 def one_cpu() -> Iterator[int | None]:
-    """Run the calling thread (and the threads it starts meanwhile) on one CPU of those it may use.
+    """Run the calling thread (and the threads it starts meanwhile) on one CPU of those it may use:
+    the one it runs on now, where the kernel's load balancing put it (two runs started side by side
+    then mostly end up on different CPUs; a fixed choice would put both on the same one).
 
     Yields that CPU's number, or ``None`` where affinity cannot be set (not Linux, a single CPU
     allowed, or the call refused); the previous CPU set is restored on exit.
@@ -33,7 +35,9 @@ def one_cpu() -> Iterator[int | None]:
     if len(allowed) < 2:
         yield None
         return
-    cpu = min(allowed)
+    cpu = _current_cpu()
+    if cpu not in allowed:
+        cpu = min(allowed)
     try:
         os.sched_setaffinity(0, {cpu})
     except OSError:
@@ -43,3 +47,12 @@ def one_cpu() -> Iterator[int | None]:
         yield cpu
     finally:
         os.sched_setaffinity(0, allowed)
+
+
+def _current_cpu() -> int | None:
+    """The CPU the calling thread last ran on (field 39 of ``/proc/thread-self/stat``), None if unknown."""
+    try:
+        with open("/proc/thread-self/stat") as stat:
+            return int(stat.read().rsplit(")", 1)[1].split()[36])
+    except (OSError, IndexError, ValueError):
+        return None

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from drivers.affinity import one_cpu
+from drivers.affinity import _current_cpu, one_cpu
 from ident_hw.config import load_config
 from ident_hw.experiment.session import open_session
 
@@ -37,6 +37,23 @@ def test_threads_started_inside_run_on_the_one_cpu_and_the_set_comes_back():
         assert os.sched_getaffinity(0) == {cpu}
     assert seen["cpus"] == {cpu}
     assert os.sched_getaffinity(0) == before
+
+
+@needs_two_cpus
+def test_the_one_cpu_is_the_one_the_thread_runs_on():
+    """Moved onto each allowed CPU in turn (the kernel migrates the calling thread before
+    ``sched_setaffinity`` returns), the thread reads that CPU back; ``one_cpu`` pins to a CPU the
+    thread may use and runs on."""
+    before = os.sched_getaffinity(0)
+    try:
+        for cpu in sorted(before):
+            os.sched_setaffinity(0, {cpu})
+            assert _current_cpu() == cpu
+            os.sched_setaffinity(0, before)
+            with one_cpu() as chosen:     # the thread may have moved meanwhile: where it is now
+                assert os.sched_getaffinity(0) == {chosen} and _current_cpu() == chosen
+    finally:
+        os.sched_setaffinity(0, before)
 
 
 @needs_two_cpus
