@@ -7,23 +7,43 @@ import time
 from pathlib import Path
 
 from ident_hw.config import Config, resolved_yaml
-from ident_hw.results import mark_status
+from ident_hw.results import STATUS_FILE, mark_status
 
 
 def new_results_folder(config: Config, out: str | Path | None, label: str) -> Path:
-    """``out`` if given (must not hold results already), else ``<output.dir>/<label>-<timestamp>``.
+    """``out`` if given (must not hold results already), else ``<output.dir>/<label>-<timestamp>``
+    (``-2``, ``-3``, ... appended when a run started in the same second took that name).
 
-    Writes STATUS ``running`` and ``config.yaml`` (the config with its bases merged in).
+    The folder is claimed by creating its STATUS exclusively, so two runs started at once never
+    share one. Writes STATUS ``running`` and ``config.yaml`` (the config with its bases merged in).
+
+    Raises:
+        FileExistsError: ``out`` holds results (a STATUS) already.
     """
-    if out is None:
-        out = Path(config.output.dir) / f"{label}-{time.strftime('%Y%m%d-%H%M%S')}"
-    folder = Path(out)
-    if (folder / "STATUS").exists():
-        raise FileExistsError(f"{folder} already holds results; choose another --out")
-    (folder / "data").mkdir(parents=True, exist_ok=True)
+    if out is not None:
+        folder = Path(out)
+        if not _claim(folder):
+            raise FileExistsError(f"{folder} already holds results; choose another --out")
+    else:
+        base = Path(config.output.dir) / f"{label}-{time.strftime('%Y%m%d-%H%M%S')}"
+        folder, n = base, 1
+        while not _claim(folder):
+            n += 1
+            folder = base.with_name(f"{base.name}-{n}")
+    (folder / "data").mkdir(exist_ok=True)
     mark_status(folder, "running")
     (folder / "config.yaml").write_text(resolved_yaml(config.source))
     return folder
+
+
+def _claim(folder: Path) -> bool:
+    """Create ``folder`` (if needed) and its STATUS, exclusively: False if a STATUS was there."""
+    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        (folder / STATUS_FILE).open("x").close()
+    except FileExistsError:
+        return False
+    return True
 
 
 def discard_unused(folder: Path) -> bool:
