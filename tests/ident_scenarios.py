@@ -218,9 +218,10 @@ def exact_recording(config, traj, max_substep: float | None) -> Recording:
     SYNC rate, sampled exactly at every period start: positions, velocities, forces as currents."""
     period = 1.0 / config.bus.sync_rate
     sim = config.sim
-    plant = Plant(robot_model(config), sim.truth.to_model(), traj.Theta[0], bandwidth_hz=sim.bandwidth,
+    plant = Plant(robot_model(config), config.true_model_parameters(), traj.Theta[0], bandwidth_hz=sim.bandwidth,
                   damping=sim.damping, max_substep=max_substep or DEFAULT_MAX_SUBSTEP)
-    enabled, limit = np.ones(6, bool), np.full(6, 1e6)
+    axes = traj.Theta.shape[1]
+    enabled, limit = np.ones(axes, bool), np.full(axes, 1e6)
     for k in range(len(traj.t) - 1):
         # the demand of the period: the cubic through the trajectory's positions and velocities
         q0, q1, v0, v1 = traj.Theta[k], traj.Theta[k + 1], traj.Thetad[k], traj.Thetad[k + 1]
@@ -231,5 +232,5 @@ def exact_recording(config, traj, max_substep: float | None) -> Recording:
     n = len(truth["t"])
     force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
     return Recording(t=truth["t"], cycle=np.arange(n), position=truth["Theta"], velocity=truth["Thetad"],
-                     current=truth["force"] / force_per_amp, statusword=np.zeros((n, 6), np.int32),
-                     target=traj.Theta[:n], valid=np.ones((n, 6), bool), metadata={"sync_period": period})
+                     current=truth["force"] / force_per_amp, statusword=np.zeros((n, axes), np.int32),
+                     target=traj.Theta[:n], valid=np.ones((n, axes), bool), metadata={"sync_period": period})
