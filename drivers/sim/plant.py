@@ -87,36 +87,6 @@ def _heun(Theta, Thetad, dt, n_sub, M_inv0, M_slope, bias0, bias_slope, loop_dem
     return q, qd, force0, a0
 
 
-@numba.njit(cache=True, nogil=True)
-def _inverse(M):
-    """``M^-1`` of a square, invertible ``M`` (n, n) by Gauss-Jordan elimination with partial
-    pivoting, as a C-ordered array (:func:`numpy.linalg.inv` in numba returns Fortran order)."""
-    n = M.shape[0]
-    a = M.copy()
-    inv = np.eye(n)
-    for col in range(n):
-        pivot = col
-        for r in range(col + 1, n):
-            if abs(a[r, col]) > abs(a[pivot, col]):
-                pivot = r
-        if pivot != col:
-            for k in range(n):
-                a[col, k], a[pivot, k] = a[pivot, k], a[col, k]
-                inv[col, k], inv[pivot, k] = inv[pivot, k], inv[col, k]
-        scale = 1.0 / a[col, col]
-        for k in range(n):
-            a[col, k] *= scale
-            inv[col, k] *= scale
-        for r in range(n):
-            if r != col:
-                factor = a[r, col]
-                if factor != 0.0:
-                    for k in range(n):
-                        a[r, k] -= factor * a[col, k]
-                        inv[r, k] -= factor * inv[col, k]
-    return inv
-
-
 _V, _M = numba.float64[::1], numba.float64[:, ::1]
 
 
@@ -138,7 +108,7 @@ def _period(Theta, Thetad, period, n_sub, M, bias, external, previous_period, pr
     """
     n = Theta.shape[0]
     dt = period / n_sub
-    M_inv0 = _inverse(M)
+    M_inv0 = np.ascontiguousarray(np.linalg.inv(M))    # C order, as the next period's argument type
     M_slope, bias_slope = np.zeros((n, n)), np.zeros(n)      # per s of the period
     if 0.5 * period <= previous_period <= 2.0 * period:       # not after a much shorter step
         for r in range(n):
