@@ -8,7 +8,7 @@ config, the simulated rig serving the same python-can bus.
 
 from __future__ import annotations
 
-from contextlib import ExitStack, contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
@@ -78,36 +78,28 @@ def open_session(config: Config) -> Iterator[Session]:
     """
     if config.bus is None:
         raise ValueError(f"{config.source}: bus: missing section (needed to open the bus)")
-    with ExitStack() as stack:
-        if config.sim is not None and config.sim.in_process and config.sync_mode == "lockstep":
-            stack.enter_context(one_cpu())
-        with _open_session(config) as session:
-            yield session
-
-
-@contextmanager
-def _open_session(config: Config) -> Iterator[Session]:
-    """:func:`open_session` without the choice of CPUs."""
-    rig = None
-    if config.sim is not None and config.sim.in_process:
-        if not config.simulated:
-            raise ValueError(f"{config.source}: sim.in_process: the simulated rig only serves a virtual "
-                             f"or vcan bus, not {config.bus.interface}:{config.bus.channel}")
-        rig = simulated_rig(config)
+    in_process = config.sim is not None and config.sim.in_process
+    with one_cpu() if in_process and config.sync_mode == "lockstep" else nullcontext():
+        rig = None
+        if in_process:
+            if not config.simulated:
+                raise ValueError(f"{config.source}: sim.in_process: the simulated rig only serves a virtual "
+                                 f"or vcan bus, not {config.bus.interface}:{config.bus.channel}")
+            rig = simulated_rig(config)
+            try:
+                rig.start()
+            except (can.CanError, OSError) as exc:
+                raise BusOpenError(f"simulated rig: cannot open CAN bus interface={config.bus.interface!r} "
+                                   f"channel={config.bus.channel!r}: {exc}") from exc
         try:
-            rig.start()
-        except (can.CanError, OSError) as exc:
-            raise BusOpenError(f"simulated rig: cannot open CAN bus interface={config.bus.interface!r} "
-                               f"channel={config.bus.channel!r}: {exc}") from exc
-    try:
-        network = open_network(config.bus.to_driver())
-    except BaseException:
-        if rig is not None:
-            rig.stop()
-        raise
-    try:
-        yield Session(config, network, rig)
-    finally:
-        network.disconnect()
-        if rig is not None:
-            rig.stop()
+            network = open_network(config.bus.to_driver())
+        except BaseException:
+            if rig is not None:
+                rig.stop()
+            raise
+        try:
+            yield Session(config, network, rig)
+        finally:
+            network.disconnect()
+            if rig is not None:
+                rig.stop()
