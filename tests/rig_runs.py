@@ -26,6 +26,15 @@ def assert_step_identified(config, rows: dict) -> None:
         assert error <= max(0.02 * abs(truth[name]), 3 * row["sigma"]), (name, row["identified"], truth[name])
 
 
+def assert_same_in_one_process(config, config_path: Path, rows: dict, folder: Path, timeout: float) -> None:
+    """The step's values in ``rows`` are those of the same config run with the rig in the master's
+    process (:func:`rows_in_one_process` into ``folder``), exactly: in lockstep the process
+    boundary, the sockets and the host's speed reach no sample."""
+    alone = rows_in_one_process(config_path, folder, timeout)
+    (step,) = config.identification.steps
+    assert {p: rows[p]["identified"] for p in step.parameters} == {p: alone[p]["identified"] for p in step.parameters}
+
+
 def rows_in_one_process(config_path: Path, folder: Path, timeout: float) -> dict:
     """``ident-hw run`` of ``config_path`` with the rig in the master's process (``virtual`` bus)
     into ``folder``; its :func:`parameter_rows`."""

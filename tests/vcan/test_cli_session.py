@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from rig_runs import assert_step_identified, parameter_rows, rows_in_one_process
+from rig_runs import assert_same_in_one_process, assert_step_identified, parameter_rows
 
 pytestmark = pytest.mark.vcan
 
@@ -49,9 +49,7 @@ def test_cli_run_against_rig_process_matches_candump(start_process, candump, tmp
     # process (lockstep: the process boundary, the kernel's sockets and the guest's speed reach no sample)
     rows = parameter_rows(out)
     assert_step_identified(config, rows)
-    alone = rows_in_one_process(CONFIG, tmp_path / "alone", CLI_TIMEOUT)
-    (step,) = config.identification.steps
-    assert {p: rows[p]["identified"] for p in step.parameters} == {p: alone[p]["identified"] for p in step.parameters}
+    assert_same_in_one_process(config, CONFIG, rows, tmp_path / "alone", CLI_TIMEOUT)
 
     # candump saw the same frames on the bus: the project's decoder gives the same samples from candump's log,
     # from where the run's own raw log starts (the master records from the start of the stream; the kernel
