@@ -18,6 +18,7 @@ import numpy as np
 
 from drivers.recording import Recording
 from drivers.sim import Plant, nominal
+from drivers.sim.modes import Demand, cyclic_segment
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
 from ident_hw.experiment.plan import robot_model
 from ident_hw.model import InertialParams, ThreePRRR
@@ -214,20 +215,23 @@ def identify_paper_steps(data: dict, initial: np.ndarray) -> list:
 
 def exact_recording(config, traj, max_substep: float | None) -> Recording:
     """The plant of ``config``'s rig (integration step ``max_substep``, s, ``None``: the plant's
-    default) following ``traj`` at the
-    SYNC rate, sampled exactly at every period start: positions, velocities, forces as currents."""
+    default) following ``traj`` at the SYNC rate under the emulated drives' cyclic demand (the
+    cubic B-spline of the targets, :func:`drivers.sim.modes.cyclic_segment`), sampled exactly at
+    every period start: positions, velocities, forces as currents. No drive units, no noise."""
     period = 1.0 / config.bus.sync_rate
     sim = config.sim
     plant = Plant(robot_model(config), config.true_model_parameters(), traj.Theta[0], bandwidth_hz=sim.bandwidth,
                   damping=sim.damping, max_substep=max_substep or DEFAULT_MAX_SUBSTEP)
     axes = traj.Theta.shape[1]
     enabled, limit = np.ones(axes, bool), np.full(axes, 1e6)
+    demands = [Demand(position=float(q)) for q in traj.Theta[0]]
+    history = [None] * axes
     for k in range(len(traj.t) - 1):
-        # the demand of the period: the cubic through the trajectory's positions and velocities
-        q0, q1, v0, v1 = traj.Theta[k], traj.Theta[k + 1], traj.Thetad[k], traj.Thetad[k + 1]
-        c2 = (3 * (q1 - q0) - (2 * v0 + v1) * period) / period**2
-        c3 = ((v0 + v1) * period - 2 * (q1 - q0)) / period**3
-        plant.step(period, [q0, v0, c2, c3], enabled, limit)
+        for j, demand in enumerate(demands):
+            history[j] = cyclic_segment(demand, float(traj.Theta[k, j]), period, history[j])
+        plant.step(period, np.array([d.coefficients() for d in demands]).T, enabled, limit)
+        for demand in demands:
+            demand.advance(period)
     truth = plant.truth()
     n = len(truth["t"])
     force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])

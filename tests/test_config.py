@@ -275,3 +275,17 @@ def test_lockstep_only_on_a_bus_that_cannot_reach_hardware(tmp_path, interface, 
         assert info.value.key == "bus.sync" and "may carry real drives" in str(info.value)
         path.write_text(path.read_text().replace(", sync: lockstep", ""))
         assert load_config(path).sync_mode == "periodic"     # and --arm is what moves it
+
+
+def test_per_arm_amplitudes_are_for_the_delta_s_paths(tmp_path):
+    delta = CONFIGS / "sim-delta.yaml"
+    good = write(tmp_path, "good.yaml", f"extends: {delta}\ntrajectories:\n"
+                 "  - {name: training, kind: delta_training, duration: 10.0, amplitude: [1.5, 1.0, 0.5]}\n"
+                 "identification: {validation: [], online: {in_run: false}}\n")
+    assert load_config(good).trajectories[0].amplitude == (1.5, 1.0, 0.5)
+    two = write(tmp_path, "two.yaml", f"extends: {delta}\ntrajectories:\n"
+                "  - {name: training, kind: delta_training, duration: 10.0, amplitude: [1.5, 1.0]}\n")
+    expect_error(two, "trajectories[0].amplitude", 3, "one amplitude per arm", "got 2")
+    square = write(tmp_path, "square.yaml", f"extends: {CONFIGS / 'sim-3prrr.yaml'}\ntrajectories:\n"
+                   "  - {name: s, kind: square, size: 0.05, amplitude: [1.0, 1.0, 1.0]}\n")
+    expect_error(square, "trajectories[0].amplitude", 3, "one amplitude per arm", "'square'")

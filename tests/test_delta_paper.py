@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ident_hw.model.delta import PARAM_NAMES, Delta, base_parameters
-from trajectories.delta_paper import held_arm_path, training_path, verification_path
+from trajectories.delta_paper import delta_trajectory, held_arm_path, training_path, verification_path
 
 ROBOT = Delta()
 
@@ -65,3 +65,12 @@ def test_holding_arm_3_loses_two_base_parameters():
     W = W[:, norms > 1e-10 * norms.max()]
     s = np.linalg.svd(W / np.linalg.norm(W, axis=0), compute_uv=False)
     assert int(np.sum(s > 1e-9 * s[0])) == 32
+
+
+def test_per_arm_amplitudes_scale_each_arm_s_angles_and_rates():
+    robot = Delta()
+    one = delta_trajectory(robot, "delta_training", 5.0, 100.0)
+    scaled = delta_trajectory(robot, "delta_training", 5.0, 100.0, amplitude=(2.0, 1.0, 0.5))
+    for a, b in ((one.Theta, scaled.Theta), (one.Thetad, scaled.Thetad), (one.Thetadd, scaled.Thetadd)):
+        np.testing.assert_allclose(b, a * [2.0, 1.0, 0.5], rtol=0, atol=1e-15)
+    assert scaled.metadata["amplitude"] == [2.0, 1.0, 0.5]

@@ -253,13 +253,13 @@ def test_a_jittered_stretch_is_put_on_a_uniform_grid_by_its_own_time_stamps():
 
 def test_skipped_sync_slots_on_hardware_keep_the_fit(tmp_path):
     """Exact samples of the plant following the excitation at 100 Hz, as a thread-timed SYNC producer
-    on hardware records them when it skips 20 slots in 10 s: the drives move on through each skipped
+    on hardware records them when it skips 40 slots in 20 s: the drives move on through each skipped
     slot, the recording has one row less each time. Cut at each gap, the base parameters stay near
     those of the complete recording; the same rows taken as consecutive periods (time stamps
-    ignored) are far off."""
+    ignored) are far off. Measured: 0.30 %, 0.95 % and 81 % worst error."""
     names = ", ".join(NAMES)
     base = f"""trajectories:
-  - {{name: excitation, kind: fourier, cycles: 2}}
+  - {{name: excitation, kind: fourier, cycles: 4}}
 identification:
   steps:
     - {{name: base, trajectories: [excitation], method: wls, parameters: [{names}]}}
@@ -272,7 +272,7 @@ identification:
     (planned,) = plan(config, ["excitation"])
     complete = exact_recording(config, planned.trajectory, DEFAULT_MAX_SUBSTEP)
     n = len(complete.t)
-    kept = np.setdiff1d(np.arange(n), np.random.default_rng(1).choice(np.arange(50, n - 50), 20, replace=False))
+    kept = np.setdiff1d(np.arange(n), np.random.default_rng(1).choice(np.arange(50, n - 50), 40, replace=False))
     skipping = Recording(t=complete.t[kept], cycle=np.arange(len(kept)), position=complete.position[kept],
                          velocity=complete.velocity[kept], current=complete.current[kept],
                          statusword=complete.statusword[kept], target=complete.target[kept],

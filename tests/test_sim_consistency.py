@@ -2,21 +2,17 @@
 
 The plant integrates the closed-chain dynamics between SYNCs; the identification differentiates
 the sampled positions and fits the model's regressor to the sampled forces. If the plant's
-dynamics within a period drift from the model's (they did: the mass matrix and the velocity
-terms were held at their period-start values, which at 100 Hz biased the identified link
-viscous friction by -5.7 %), no identification on rig data can be right. Here the plant follows
-the shipped excitation at 100 Hz with the position loops of the rig, its exact positions and
-forces are sampled (no encoder, current or noise: those are the rig's, tested elsewhere), and the
-campaign's own base-parameter step must recover the truth.
+motion within a period drifts from the model's, no identification on rig data can be right:
+the forces are exact at the SYNC instants only, the differenced accelerations carry whatever the
+motion did in between. Here the plant follows a campaign path under the emulated drives' demand
+and position loops, its exact positions and forces are sampled (no encoder, current or noise:
+those are the rig's, tested elsewhere), and the campaign's own base-parameter step must recover
+the truth: the 3PRRR's shipped excitation at 100 Hz, and the Delta's training path at 250 Hz,
+whose rods' products of inertia are so weakly represented in the torques that an acceleration
+error of 0.1 % of the acceleration moves them by several percent.
 
-The Delta does not, yet (strict xfail, issue 15): its rods' products of inertia are so weakly
-represented in the torques that a jerk step at every sample instant moves them by up to 5 %. The
-demand is one cubic per SYNC period, continuous in position and velocity only: its acceleration
-steps at each SYNC, and through the loops' derivative term so does the plant's jerk. An
-acceleration differenced from positions sampled at those instants is then off by about
-``period / 6`` times the jerk step: 0.3 % RMS here, and least squares with such accelerations, no
-filter at all, already puts ``rod3.Ixx`` 3.6 % off; both halve at 500 Hz. A finer encoder or a
-higher filter cut-off does not help.
+The differenced accelerations themselves are compared with the plant's exact ones in
+``tests/test_sim_plant.py``.
 """
 
 import numpy as np
@@ -55,13 +51,13 @@ identification:
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="issue 15: the jerk step at each SYNC (demand cubics continuous in velocity only) biases "
-                          "the rods' products of inertia (rod2.Ixy -4.9 % at 250 Hz, -2.1 % at 500 Hz)")
 def test_delta_base_parameters_from_exact_plant_samples_at_250hz_match_the_truth(tmp_path):
+    training = next(t for t in load_config(CONFIGS / "sim-delta.yaml").trajectories if t.name == "training")
     path = tmp_path / "delta.yaml"
     path.write_text(f"""extends: {CONFIGS / 'sim-delta.yaml'}
 bus: {{interface: virtual, channel: unused}}
+trajectories:
+  - {{name: training, kind: delta_training, duration: 60.0, amplitude: {list(training.amplitude)}, bandwidth: 2.0}}
 identification: {{validation: [], online: {{in_run: false}}}}
 """)
     config = load_config(path)

@@ -91,10 +91,10 @@ def faded(path, t: np.ndarray, fade: float):
 
 
 def delta_trajectory(robot, kind: str, duration: float, rate: float, fade: float = 1.0, name: str | None = None,
-                     amplitude: float = 1.0):
+                     amplitude=1.0):
     """The campaign trajectory ``kind`` (a key of :data:`PATHS`) of ``duration`` s sampled at
-    ``rate`` Hz, its angles scaled by ``amplitude``, faded in and out (:func:`faded`), as a
-    :class:`~trajectories.Trajectory` whose pose is the platform position (``robot.fk``; its rates by the Jacobian, its acceleration by
+    ``rate`` Hz, its angles scaled by ``amplitude`` (a factor, or (3,): one per arm), faded in and
+    out (:func:`faded`), as a :class:`~trajectories.Trajectory` whose pose is the platform position (``robot.fk``; its rates by the Jacobian, its acceleration by
     central differences: the pose is for plots, the drives follow ``Theta``).
 
     Raises:
@@ -105,13 +105,14 @@ def delta_trajectory(robot, kind: str, duration: float, rate: float, fade: float
     if not duration > 2 * fade:
         raise ValueError(f"duration {duration} s must exceed the fade in and out, 2 x {fade} s")
     t = np.arange(int(np.floor(duration * rate + 1e-9)) + 1) / rate
-    q, qd, qdd = (amplitude * x for x in faded(PATHS[kind], t, fade))
+    scale = np.asarray(amplitude, dtype=float)
+    q, qd, qdd = (scale * x for x in faded(PATHS[kind], t, fade))
     X = robot.fk(q)
     Xd = np.einsum("nij,nj->ni", robot.jacobian(q), qd)
     Xdd = np.gradient(Xd, t, axis=0)
     return Trajectory(name or kind, t, X, Xd, Xdd, q, qd, qdd,
                       metadata={"generator": kind, "duration_s": duration, "fade_s": fade, "rate_hz": rate,
-                                "amplitude": amplitude})
+                                "amplitude": scale.tolist()})
 
 
 def check_delta_trajectory(traj: Trajectory, robot, limits: ActuatorLimits, min_serial: float,

@@ -9,12 +9,16 @@ of that instant, not a one-sided value. There is no acceleration feed-forward. T
 the forward dynamics in the actuated coordinates of any
 :class:`ident_hw.model.interface.RobotModel` (the 3PRRR's closed chains, the Delta) with the
 *true* parameters (friction included). The reduced mass matrix ``M`` and the velocity terms are
-evaluated once per period, at its start (the expensive part), and extrapolated linearly over the
-period from the previous period's start (held constant, they would make the motion drift from
-the model by O(period), a bias of the identified link friction); the controller and the friction are
-re-evaluated at every substep of at most ``max_substep``, and
-the state advances by Heun's method (second order: the position loops and the smoothed Coulomb
-friction are the stiff part, and first-order Euler at 0.5 ms left force errors of a few percent).
+evaluated once per period, at its start (the expensive part), and extrapolated over the period by
+the quadratic through the two previous periods' starts; the controller and the friction are
+re-evaluated at every substep of at most ``max_substep``, and the state advances by the classical
+Runge-Kutta method (fourth order). Both matter for identification: the logged forces are exact at
+the period starts only, while the positions the identification differentiates carry whatever the
+motion did in between. With ``M`` and the velocity terms held, the motion drifts from the model by
+O(period), a bias of the identified link friction; extrapolated linearly, with Heun's method at
+0.5 ms, the acceleration differenced from the positions is off by 0.1 % of itself, enough to move
+the Delta's rods' products of inertia by percents (``tests/test_sim_plant.py``,
+``tests/test_sim_consistency.py``).
 
 The log holds, at each period start, the state, the actuator forces and the *exact*
 acceleration ``M^-1 (F - c)`` of that state: the logged forces are the model's inverse dynamics
@@ -43,47 +47,48 @@ DEFAULT_MAX_SUBSTEP = 5e-4
 
 
 @numba.njit(cache=True, nogil=True)
-def _heun(Theta, Thetad, dt, n_sub, M_inv0, M_slope, bias0, bias_slope, loop_demand, Kp, Kd, low, high,
-          f_v, f_c, width):
-    """``n_sub`` Heun steps of ``dt`` s (Euler predictor, trapezoid corrector) of
+def _rk4(Theta, Thetad, dt, n_sub, M_inv0, M_lin, M_quad, bias0, bias_lin, bias_quad, loop_demand, Kp, Kd, low,
+         high, f_v, f_c, width):
+    """``n_sub`` classical Runge-Kutta steps of ``dt`` s of
     ``Thetadd = M^-1(t) (F - bias(t) - f_v Thetad - f_c tanh(Thetad / width))`` with the loop force
-    ``F = clip(loop_demand[k] - Kp Theta - Kd Thetad, low, high)`` at substep boundary ``k`` and
-    ``M^-1``, ``bias`` linear in ``t``. Returns the end state, and the force and acceleration at
-    the start."""
+    ``F = clip(loop_demand[i] - Kp Theta - Kd Thetad, low, high)`` at half-substep ``i`` and
+    ``M^-1(t) = M_inv0 + t M_lin + t^2 M_quad``, ``bias(t)`` likewise. Returns the end state, and
+    the force and acceleration at the start."""
     n = Theta.shape[0]
     F = np.empty(n)
     u = np.empty(n)
 
-    def acceleration(q, qd, k, out_force):
-        t = k * dt
+    def acceleration(q, qd, i, out_force):
+        t = 0.5 * i * dt
         for j in range(n):
-            f = loop_demand[k, j] - Kp[j] * q[j] - Kd[j] * qd[j]
+            f = loop_demand[i, j] - Kp[j] * q[j] - Kd[j] * qd[j]
             f = min(max(f, low[j]), high[j])
             out_force[j] = f
-            u[j] = f - (bias0[j] + t * bias_slope[j]) - (f_v[j] * qd[j] + f_c[j] * np.tanh(qd[j] / width))
+            b = bias0[j] + t * (bias_lin[j] + t * bias_quad[j])
+            u[j] = f - b - (f_v[j] * qd[j] + f_c[j] * np.tanh(qd[j] / width))
         a = np.empty(n)
         for r in range(n):
             acc = 0.0
             for j in range(n):
-                acc += (M_inv0[r, j] + t * M_slope[r, j]) * u[j]
+                acc += (M_inv0[r, j] + t * (M_lin[r, j] + t * M_quad[r, j])) * u[j]
             a[r] = acc
         return a
 
     force0 = np.empty(n)
     q, qd = Theta.copy(), Thetad.copy()
-    q_p, qd_p = np.empty(n), np.empty(n)
     a1 = acceleration(q, qd, 0, force0)
     a0 = a1.copy()
     for k in range(n_sub):
         if k:
-            a1 = acceleration(q, qd, k, F)
-        for j in range(n):
-            qd_p[j] = qd[j] + dt * a1[j]
-            q_p[j] = q[j] + dt * qd[j]
-        a2 = acceleration(q_p, qd_p, k + 1, F)
-        for j in range(n):
-            q[j] += 0.5 * dt * (qd[j] + qd_p[j])
-            qd[j] += 0.5 * dt * (a1[j] + a2[j])
+            a1 = acceleration(q, qd, 2 * k, F)
+        v2 = qd + 0.5 * dt * a1
+        a2 = acceleration(q + 0.5 * dt * qd, v2, 2 * k + 1, F)
+        v3 = qd + 0.5 * dt * a2
+        a3 = acceleration(q + 0.5 * dt * v2, v3, 2 * k + 1, F)
+        v4 = qd + dt * a3
+        a4 = acceleration(q + dt * v3, v4, 2 * k + 2, F)
+        q += dt / 6.0 * (qd + 2.0 * v2 + 2.0 * v3 + v4)
+        qd += dt / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
     return q, qd, force0, a0
 
 
@@ -92,49 +97,57 @@ _V, _M = numba.float64[::1], numba.float64[:, ::1]
 
 # the argument types given: a call with other types (e.g. a non-contiguous array) is refused
 # instead of compiling a new version while a rig waits for its SYNC
-@numba.njit((_V, _V, numba.float64, numba.int64, _M, _V, _V, numba.float64, _M, _V, _M, _V, _V,
-             numba.boolean[::1], _V, _V, _V, numba.float64), cache=True, nogil=True)
-def _period(Theta, Thetad, period, n_sub, M, bias, external, previous_period, previous_M_inv, previous_bias,
+@numba.njit((_V, _V, numba.float64, numba.int64, _M, _V, _V, numba.float64, _M, _V, numba.float64, _M, _V,
+             _M, _V, _V, numba.boolean[::1], _V, _V, _V, numba.float64), cache=True, nogil=True)
+def _period(Theta, Thetad, period, n_sub, M, bias, external, h1, M_inv1, bias1, h2, M_inv2, bias2,
             demand, Kp, Kd, enabled, force_limit, f_v, f_c, width):
     """One period of :meth:`Plant.step`, compiled and without the GIL (most of the simulated
     rig's work per SYNC; the master's thread runs meanwhile).
 
     ``M`` (n, n), ``bias`` (n,): the dynamics at the period start (``external`` (n,): a force on
-    the actuators, held over the period, subtracted from ``bias``); ``previous_*``: those of the
-    previous period's start (``previous_period`` 0: none), from which ``M^-1`` and ``bias`` are
-    extrapolated linearly over the period. ``demand`` (k, n): the demand polynomial's
+    the actuators, held over the period, subtracted from ``bias``); ``M_inv1``, ``bias1``: those
+    of the previous period's start, ``h1`` s earlier, and ``M_inv2``, ``bias2`` of the one before,
+    ``h2`` s before that (0: none). ``M^-1`` and ``bias`` are extrapolated over the period by the
+    polynomial through these points (quadratic with two, linear with one; a previous step outside
+    half to twice the period is not used). ``demand`` (k, n): the demand polynomial's
     coefficients. Returns the end state ``Theta``, ``Thetad``, the force and the acceleration at
-    the start, and ``M^-1`` (for the next period).
+    the start, and ``M^-1`` (for the next periods).
     """
     n = Theta.shape[0]
     dt = period / n_sub
     M_inv0 = np.ascontiguousarray(np.linalg.inv(M))    # C order, as the next period's argument type
-    M_slope, bias_slope = np.zeros((n, n)), np.zeros(n)      # per s of the period
-    if 0.5 * period <= previous_period <= 2.0 * period:       # not after a much shorter step
+    # Newton's form: f(t) = f0 + t f[0, -h1] + t (t + h1) f[0, -h1, -h1 - h2]
+    M_lin, M_quad, bias_lin, bias_quad = np.zeros((n, n)), np.zeros((n, n)), np.zeros(n), np.zeros(n)
+    if 0.5 * period <= h1 <= 2.0 * period:
+        quadratic = 0.5 * period <= h2 <= 2.0 * period
         for r in range(n):
-            bias_slope[r] = (bias[r] - previous_bias[r]) / previous_period
+            d1 = (bias[r] - bias1[r]) / h1
+            d2 = ((d1 - (bias1[r] - bias2[r]) / h2) / (h1 + h2)) if quadratic else 0.0
+            bias_lin[r], bias_quad[r] = d1 + h1 * d2, d2
             for k in range(n):
-                M_slope[r, k] = (M_inv0[r, k] - previous_M_inv[r, k]) / previous_period
-    # the loop's demand part at every substep boundary: Kp q_d(t_k) + Kd qd_d(t_k)
-    loop_demand = np.empty((n_sub + 1, n))
-    for k in range(n_sub + 1):
-        t = k * dt
+                d1 = (M_inv0[r, k] - M_inv1[r, k]) / h1
+                d2 = ((d1 - (M_inv1[r, k] - M_inv2[r, k]) / h2) / (h1 + h2)) if quadratic else 0.0
+                M_lin[r, k], M_quad[r, k] = d1 + h1 * d2, d2
+    # the loop's demand part at every half substep: Kp q_d(t_i) + Kd qd_d(t_i)
+    loop_demand = np.empty((2 * n_sub + 1, n))
+    for i in range(2 * n_sub + 1):
+        t = 0.5 * i * dt
         for j in range(n):
             q_d, v_d, t_i = 0.0, 0.0, 1.0
-            for i in range(demand.shape[0]):
-                q_d += demand[i, j] * t_i
-                if i + 1 < demand.shape[0]:
-                    v_d += (i + 1) * demand[i + 1, j] * t_i
+            for c in range(demand.shape[0]):
+                q_d += demand[c, j] * t_i
+                if c + 1 < demand.shape[0]:
+                    v_d += (c + 1) * demand[c + 1, j] * t_i
                 t_i *= t
-            loop_demand[k, j] = Kp[j] * q_d + Kd[j] * v_d
+            loop_demand[i, j] = Kp[j] * q_d + Kd[j] * v_d
     # a disabled loop gives no force: clipped to [0, 0]
     low, high, bias0 = np.empty(n), np.empty(n), np.empty(n)
     for j in range(n):
         high[j] = force_limit[j] if enabled[j] else 0.0
         low[j] = -high[j]
         bias0[j] = bias[j] - external[j]
-    q, qd, force0, a0 = _heun(Theta, Thetad, dt, n_sub, M_inv0, M_slope, bias0, bias_slope, loop_demand,
-                              Kp, Kd, low, high, f_v, f_c, width)
+    q, qd, force0, a0 = _rk4(Theta, Thetad, dt, n_sub, M_inv0, M_lin, M_quad, bias0, bias_lin, bias_quad,
+                             loop_demand, Kp, Kd, low, high, f_v, f_c, width)
     return q, qd, force0, a0, M_inv0
 
 
@@ -226,7 +239,8 @@ class Plant:
         self.force = np.zeros(n)
         self.external_force = np.zeros(n)
         self.t = 0.0
-        self._previous = None   # (period, M^-1, velocity terms) of the last step, at its start
+        # (period, M^-1, velocity terms) at the start of the last two steps, the latest first
+        self._previous: deque = deque(maxlen=2)
         self._friction = (None, None, None)   # (params, f_v, f_c) of the last step
         self.max_substep = max_substep
         M, _ = self._dynamics()     # also compiles the robot's plant dynamics now, not at the first SYNC
@@ -247,7 +261,7 @@ class Plant:
         if mass < 0 or inertia < 0:
             raise ValueError(f"payload mass and inertia must be non-negative, got {mass}, {inertia}")
         self.params = self.robot.with_payload(self._base_params, mass, inertia)
-        self._previous = None   # the dynamics jump: no extrapolation across the change
+        self._previous.clear()   # the dynamics jump: no extrapolation across the change
 
     # -- dynamics --------------------------------------------------------------------------------
     def _dynamics(self):
@@ -263,7 +277,7 @@ class Plant:
             message = f"the simulated robot jammed at Theta = {np.round(self.Theta, 5).tolist()}: {exc}"
             self.Theta, self.X = self._last_valid
             self.Thetad = np.zeros(self.n)
-            self._previous = None
+            self._previous.clear()
             raise PlantJammed(message) from exc
         self._last_valid = (self.Theta, self.X)
         return M, c
@@ -276,13 +290,16 @@ class Plant:
         """Actuator forces (n,) of the position loops at the current state (0 where disabled)."""
         return self._loop_force(self.Theta, self.Thetad, demand, demand_velocity, enabled, force_limit)
 
-    def step(self, period, demand, enabled, force_limit) -> None:
+    def step(self, period, demand, enabled, force_limit, remember: bool = True) -> None:
         """Advance one period (s) under the demand polynomial ``demand`` (k, n).
 
         ``demand[i]`` is the coefficient of ``t**i`` (``t`` from the period start, s), so that
         ``q_d(t) = sum_i demand[i] t**i``: rows position, velocity, ... (rad, m; per s**i).
         ``enabled`` (n,) bool: axes whose loop is closed (others are free); ``force_limit`` (n,)
         the drive's current limit as a force. The force at the period start is :attr:`force`.
+        ``remember``: keep this period's dynamics for extrapolating the next periods'; False
+        for a step whose length the host's clock chose (the rig's idle steps), which must not
+        reach the motion of the SYNC-driven steps after it.
 
         Raises:
             PlantJammed: the robot cannot move any more (see the module docstring).
@@ -291,7 +308,7 @@ class Plant:
         demand = np.asarray(demand, dtype=float).reshape(-1, n)
         M, bias = self._dynamics()
         n_sub = max(1, int(np.ceil(period / self.max_substep - 1e-9)))
-        previous_period, previous_M_inv, previous_bias = self._previous or (0.0, M, bias)
+        (h1, M_inv1, bias1), (h2, M_inv2, bias2) = (list(self._previous) + [(0.0, M, bias)] * 2)[:2]
         if self._friction[0] is not self.params:
             self._friction = (self.params, *(np.ascontiguousarray(v, dtype=float)
                                              for v in self.robot.friction_coefficients(self.params)))
@@ -299,11 +316,14 @@ class Plant:
         c = np.ascontiguousarray
         Theta, Thetad, self.force, a0, M_inv0 = _period(
             c(self.Theta), c(self.Thetad), float(period), n_sub, c(M), c(bias), c(self.external_force),
-            float(previous_period), c(previous_M_inv), c(previous_bias), c(demand), c(self.Kp), c(self.Kd),
+            float(h1), c(M_inv1), c(bias1), float(h2), c(M_inv2), c(bias2), c(demand), c(self.Kp), c(self.Kd),
             c(enabled, dtype=bool), c(force_limit, dtype=float), f_v, f_c, float(self.robot.coulomb_width))
-        # M^-1 and the velocity terms: exact at the period start (logged), extrapolated linearly
-        # over the period from the previous period's start (second order in the period)
-        self._previous = (period, M_inv0, bias)
+        # M^-1 and the velocity terms: exact at the period start (logged), extrapolated over the
+        # period through the two previous periods' starts (third order in the period)
+        if remember:
+            self._previous.appendleft((period, M_inv0, bias))
+        else:
+            self._previous.clear()
         self.log.append(self.t, self.X, self.Theta, self.Thetad, a0, self.force)
         self.Theta, self.Thetad = Theta, Thetad
         self.t += period

@@ -360,7 +360,7 @@ class SimulatedRig:
                 drive.send_sync_tpdos(sync_count)
         if period > 0:
             try:
-                plant.step(period, demand, enabled, limit)
+                plant.step(period, demand, enabled, limit, remember=sync_count is not None)
             except PlantJammed as exc:   # what a real drive sees: the axis does not follow
                 if self.jammed is None:
                     logger.error("%s", exc)

@@ -344,7 +344,7 @@ class SimConfig:
     bandwidth: float = field(default=20.0, metadata=spec(positive, unit="Hz", doc="position loops"))
     damping: float = field(default=1.0, metadata=spec(positive))
     max_substep: float | None = field(default=None, metadata=spec(
-        in_range(1e-5, 0.01), unit="s", doc="integration step of the plant (Heun, second order; default "
+        in_range(1e-5, 0.01), unit="s", doc="integration step of the plant (Runge-Kutta, fourth order; default "
                                             "drivers.sim.plant.DEFAULT_MAX_SUBSTEP, 0.5 ms)"))
     brakes: bool = field(default=False, metadata=spec(
         doc="holding brakes: an axis whose drive is disabled stays where it stands (a robot carrying "
@@ -383,8 +383,8 @@ class TrajectoryConfig:
     harmonic of a Fourier excitation, else ``identification.filter.bandwidth``).
     The Delta's paths (the SVD-DLS paper, :mod:`trajectories.delta_paper`): ``delta_training``
     (Table 2), ``delta_verification`` (eq. 60), ``delta_held_arm`` (eq. 60 with arm 3 held), each
-    ``duration`` s long, its angles scaled by ``amplitude``, faded in and out over ``fade`` s
-    from and back to the arms at rest.
+    ``duration`` s long, its angles scaled by ``amplitude`` (one factor, or one per arm), faded
+    in and out over ``fade`` s from and back to the arms at rest.
     ``online_only``: streamed only for the online estimators (``ident-hw online``, or ``run``
     with ``identification.online.in_run``), after the others; otherwise ``run`` leaves it out. ``payload``: on the in-process simulated rig, a payload added during this trajectory
     (:class:`PayloadConfig`), e.g. on an ``online_only`` one for the online estimators to track.
@@ -402,7 +402,7 @@ class TrajectoryConfig:
     bandwidth: float | None = field(default=None, metadata=spec(positive, unit="Hz"))
     duration: float | None = field(default=None, metadata=spec(positive, unit="s"))
     fade: float = field(default=1.0, metadata=spec(non_negative, unit="s"))
-    amplitude: float = field(default=1.0, metadata=spec(in_range(0.01, 10.0)))
+    amplitude: float | tuple[float, ...] = field(default=1.0, metadata=spec(in_range(0.01, 10.0)))
     online_only: bool = False
     payload: PayloadConfig | None = None
 
@@ -414,6 +414,9 @@ class TrajectoryConfig:
         if self.kind not in ("file", "fourier") and self.path is not None:
             raise FieldError("path", f"a {self.kind!r} trajectory is generated: only 'file' and 'fourier' "
                                      "trajectories have a path")
+        if isinstance(self.amplitude, tuple) and not (self.kind.startswith("delta_") and len(self.amplitude) == 3):
+            raise FieldError("amplitude", f"one amplitude per arm is for the Delta's three arms (delta_* kinds), "
+                                          f"got {len(self.amplitude)} for a {self.kind!r} trajectory")
         if self.kind in ("carriage_sweep", "square") and self.size is None:
             raise FieldError("size", f"missing key: a {self.kind!r} trajectory needs size (m)")
 
