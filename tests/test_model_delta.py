@@ -1,14 +1,16 @@
 """The Delta model (ident_hw.model.delta) against the checks of the Delta spec: the spec's test
 vectors, FK/IK round trips, finite differences of the kinematics, energy balance and statics with
 the energy computed from body poses (never from the regressor), the payload check, the mass
-matrix, and the base-parameter structure (30 zero columns, rank 34, 40 with drive terms)."""
+matrix, the base-parameter structure (30 zero columns, rank 34, 40 with drive terms), and the
+compiled one-state plant dynamics against the regressor."""
 
 import math
 
 import numpy as np
 import pytest
 
-from ident_hw.model import KinematicsError
+from delta_scenarios import truth
+from ident_hw.model import KinematicsError, SingularityError
 from ident_hw.model.delta import (BODIES, N_BODY_PARAMS, N_PARAMS, PARAM_NAMES, Delta, DeltaGeometry,
                                   body_parameters, inertia_about_origin, nominal_parameters)
 
@@ -180,6 +182,32 @@ def test_forward_dynamics_inverts_the_inverse_dynamics():
     pi[N_BODY_PARAMS:] = [0.1] * 3 + [0.2] * 3 + [0.01] * 3
     tau = ROBOT.inverse_dynamics(q, qd, qdd, pi)
     np.testing.assert_allclose(ROBOT.forward_dynamics(q, qd, tau, pi), qdd, atol=1e-9)
+
+
+def test_plant_dynamics_equals_the_regressor():
+    """The compiled one-state path (ident_hw.model.delta_single) against the regressor: ``M`` with
+    ``Jm``, the bias ``tau(q, qd, 0)`` without ``fv``, ``fc``, and the pose."""
+    pi = truth()
+    frictionless = pi.copy()
+    frictionless[N_BODY_PARAMS:N_BODY_PARAMS + 6] = 0.0
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        q, qd = rng.uniform(-0.8, 0.8, 3), rng.uniform(-3.0, 3.0, 3)
+        M, bias, pose = ROBOT.plant_dynamics(q, qd, pi)
+        M_ref = ROBOT.mass_matrix(q, pi)
+        bias_ref = ROBOT.regressor(q, qd, np.zeros(3)) @ frictionless
+        np.testing.assert_allclose(M, M_ref, rtol=1e-12, atol=1e-12 * np.abs(M_ref).max())
+        np.testing.assert_allclose(bias, bias_ref, rtol=1e-12, atol=1e-12 * np.abs(bias_ref).max())
+        np.testing.assert_allclose(pose, ROBOT.fk(q), rtol=0, atol=1e-15)
+
+
+def test_plant_dynamics_raises_as_the_regressor():
+    """Sphere centres collinear (every elbow's centre on the z axis): the same error either way."""
+    q = np.full(3, math.acos(-(G.R - G.r) / G.L1))
+    with pytest.raises(SingularityError, match="collinear"):
+        ROBOT.plant_dynamics(q, np.zeros(3), truth())
+    with pytest.raises(SingularityError, match="collinear"):
+        ROBOT.regressor(q, np.zeros(3), np.zeros(3))
 
 
 def readable_base(with_drive: bool) -> list[np.ndarray]:

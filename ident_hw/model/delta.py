@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import delta_single
 from .dynamics import smooth_sign
 from .interface import REVOLUTE
 from .errors import KinematicsError, SingularityError
@@ -154,6 +155,7 @@ class Delta:
         self._y = np.stack([-np.sin(psi), np.cos(psi), np.zeros(3)], axis=1)    # motor axes
         self._R = np.stack([self._e, self._y, np.tile(_EZ, (3, 1))], axis=2)   # (3, 3, 3): columns e, y, z
         self._A = geometry.R * self._e
+        self._single_geo = np.array([geometry.L1, geometry.L2, geometry.R, geometry.r], dtype=float)
 
     # ------------------------------------------------------------------ kinematics
     def ik(self, p) -> np.ndarray:
@@ -418,7 +420,19 @@ class Delta:
 
     def plant_dynamics(self, Theta, Thetad, params, guess=None):
         """``M`` (3, 3) kg·m², bias torques (3,) N·m (gravity and velocity terms, no friction) and
-        the platform position (3,) m, from one regressor evaluation of five stacked samples."""
+        the platform position (3,) m, by the compiled one-state path (:mod:`.delta_single`).
+        Where that path fails (no assembly, a singularity) the regressor path raises the error."""
+        c = np.ascontiguousarray
+        pi = c(params, dtype=float)
+        M, bias, p = np.empty((3, 3)), np.empty(3), np.empty(3)
+        outcome = delta_single.one_state(c(Theta, dtype=float), c(Thetad, dtype=float), pi, pi[N_BODY_PARAMS + 6:],
+                                         self._single_geo, self._e, self._y, self.g, M, bias, p)
+        if outcome != delta_single.OK:
+            return self._plant_dynamics_regressor(Theta, Thetad, params)
+        return M, bias, p
+
+    def _plant_dynamics_regressor(self, Theta, Thetad, params):
+        """:meth:`plant_dynamics` from one regressor evaluation of five stacked samples."""
         q, qd = np.asarray(Theta, float), np.asarray(Thetad, float)
         pi = np.array(params, float)
         pi[N_BODY_PARAMS:N_BODY_PARAMS + 6] = 0.0            # fv, fc: the plant adds the friction
