@@ -7,7 +7,7 @@ the forces are exact at the SYNC instants only, the differenced accelerations ca
 motion did in between. Here the plant follows a campaign path under the emulated drives' demand
 and position loops, its exact positions and forces are sampled (no encoder, current or noise:
 those are the rig's, tested elsewhere), and the campaign's own base-parameter step must recover
-the truth: the 3PRRR's shipped excitation at 100 Hz, and the Delta's training path at 250 Hz,
+the truth: the 3PRRR's shipped excitation at 100 Hz, and the Delta's training path at 500 Hz,
 whose rods' products of inertia are so weakly represented in the torques that an acceleration
 error of 0.1 % of the acceleration moves them by several percent.
 
@@ -51,7 +51,8 @@ identification:
 
 
 @pytest.mark.slow
-def test_delta_base_parameters_from_exact_plant_samples_at_250hz_match_the_truth(tmp_path):
+def test_delta_base_parameters_from_exact_plant_samples_match_the_truth(tmp_path):
+    """The campaign's training path (60 s of it) at the config's 500 Hz: worst 0.67 % measured."""
     training = next(t for t in load_config(CONFIGS / "sim-delta.yaml").trajectories if t.name == "training")
     path = tmp_path / "delta.yaml"
     path.write_text(f"""extends: {CONFIGS / 'sim-delta.yaml'}
@@ -62,7 +63,7 @@ identification: {{validation: [], online: {{in_run: false}}}}
 """)
     config = load_config(path)
     (planned,) = plan(config, ["training"])
-    assert config.bus.sync_rate == pytest.approx(250.0)
+    assert config.bus.sync_rate == pytest.approx(500.0)
     rec = exact_recording(config, planned.trajectory, None)
     fit = identify(config, {"training": rec}).base_fit
     nonzero = np.abs(fit.truth) > 0
