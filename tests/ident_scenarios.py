@@ -213,6 +213,22 @@ def identify_paper_steps(data: dict, initial: np.ndarray) -> list:
     return fits
 
 
+def follow_targets(plant, targets: np.ndarray, period: float, force_limit: float = 1e6) -> None:
+    """Step ``plant`` one ``period`` (s) per row of ``targets`` (N, n), every loop closed, under
+    the emulated drives' cyclic demand: the cubic B-spline of the targets
+    (:func:`drivers.sim.modes.cyclic_segment`), starting from the held first target."""
+    axes = targets.shape[1]
+    enabled, limit = np.ones(axes, bool), np.full(axes, force_limit)
+    demands = [Demand(position=float(q)) for q in targets[0]]
+    history = [None] * axes
+    for target in targets:
+        for j, demand in enumerate(demands):
+            history[j] = cyclic_segment(demand, float(target[j]), period, history[j])
+        plant.step(period, np.array([d.coefficients() for d in demands]).T, enabled, limit)
+        for demand in demands:
+            demand.advance(period)
+
+
 def exact_recording(config, traj, max_substep: float | None) -> Recording:
     """The plant of ``config``'s rig (integration step ``max_substep``, s, ``None``: the plant's
     default) following ``traj`` at the SYNC rate under the emulated drives' cyclic demand (the
@@ -223,15 +239,7 @@ def exact_recording(config, traj, max_substep: float | None) -> Recording:
     plant = Plant(robot_model(config), config.true_model_parameters(), traj.Theta[0], bandwidth_hz=sim.bandwidth,
                   damping=sim.damping, max_substep=max_substep or DEFAULT_MAX_SUBSTEP)
     axes = traj.Theta.shape[1]
-    enabled, limit = np.ones(axes, bool), np.full(axes, 1e6)
-    demands = [Demand(position=float(q)) for q in traj.Theta[0]]
-    history = [None] * axes
-    for k in range(len(traj.t) - 1):
-        for j, demand in enumerate(demands):
-            history[j] = cyclic_segment(demand, float(traj.Theta[k, j]), period, history[j])
-        plant.step(period, np.array([d.coefficients() for d in demands]).T, enabled, limit)
-        for demand in demands:
-            demand.advance(period)
+    follow_targets(plant, traj.Theta[:-1], period)
     truth = plant.truth()
     n = len(truth["t"])
     force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])

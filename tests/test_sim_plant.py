@@ -6,12 +6,12 @@ import math
 import numpy as np
 
 from drivers.sim import Plant, PlantJammed, TruthLog, nominal
-from drivers.sim.modes import Demand, cyclic_segment
 from ident_hw.model import Delta, ThreePRRR
-from ident_hw.model.delta import nominal_parameters
+from ident_hw.model.delta import N_BODY_PARAMS, nominal_parameters
 from ident_hw.model.dynamics import friction
 from ident_hw.signal import central_derivatives
 
+from ident_scenarios import follow_targets
 from test_sim_rig import PRI, Bench, configure_pdos, wait_until
 
 ROBOT = ThreePRRR(nominal.GEOMETRY)
@@ -99,20 +99,14 @@ def test_accelerations_differenced_from_the_sampled_positions_are_the_plant_s_ow
     over the period and Heun's method at 0.5 ms, 1.2e-3."""
     robot = Delta()
     params = nominal_parameters(robot.geometry)
-    params[70:] = [0.08, 0.07, 0.09, 0.2, 0.25, 0.15, 0.01, 0.011, 0.009]     # fv, fc, Jm per arm
+    params[N_BODY_PARAMS:] = [0.08, 0.07, 0.09, 0.2, 0.25, 0.15, 0.01, 0.011, 0.009]   # fv, fc, Jm per arm
     period = 0.004
     t = np.arange(int(6.0 / period)) * period
     fade = np.minimum(t / 1.0, 1.0)[:, None]
     w = 2 * np.pi * np.array([[0.5, 1.3], [0.7, 1.1], [0.6, 1.7]])            # rad/s, two sines per arm
     targets = fade * (0.3 * np.sin(w[:, 0] * t[:, None]) + 0.15 * np.sin(w[:, 1] * t[:, None] + 1.0))
     plant = Plant(robot, params, targets[0])
-    demands, history = [Demand(position=float(q)) for q in targets[0]], [None] * 3
-    for target in targets:
-        for j, demand in enumerate(demands):
-            history[j] = cyclic_segment(demand, float(target[j]), period, history[j])
-        plant.step(period, np.array([d.coefficients() for d in demands]).T, np.ones(3, bool), np.full(3, 1e3))
-        for demand in demands:
-            demand.advance(period)
+    follow_targets(plant, targets, period, force_limit=1e3)
     tr = plant.truth()
     _, differenced = central_derivatives(tr["Theta"], tr["t"])
     moving = (np.abs(tr["Thetad"]) > 0.2).all(axis=1) & (tr["t"] > 1.5)

@@ -92,6 +92,17 @@ def _rk4(Theta, Thetad, dt, n_sub, M_inv0, M_lin, M_quad, bias0, bias_lin, bias_
     return q, qd, force0, a0
 
 
+@numba.njit(cache=True, nogil=True)
+def _extrapolation(f0, f1, f2, h1, h2, quadratic, lin, quad):
+    """Into ``lin``, ``quad`` (each like ``f0``, 1-D): ``f(t) = f0 + t lin + t^2 quad`` through
+    ``f0`` at ``t = 0``, ``f1`` at ``-h1`` and, if ``quadratic``, ``f2`` at ``-h1 - h2``, element by
+    element (Newton's form: ``f0 + t f[0, -h1] + t (t + h1) f[0, -h1, -h1 - h2]``)."""
+    for r in range(f0.shape[0]):
+        d1 = (f0[r] - f1[r]) / h1
+        d2 = ((d1 - (f1[r] - f2[r]) / h2) / (h1 + h2)) if quadratic else 0.0
+        lin[r], quad[r] = d1 + h1 * d2, d2
+
+
 _V, _M = numba.float64[::1], numba.float64[:, ::1]
 
 
@@ -116,18 +127,12 @@ def _period(Theta, Thetad, period, n_sub, M, bias, external, h1, M_inv1, bias1, 
     n = Theta.shape[0]
     dt = period / n_sub
     M_inv0 = np.ascontiguousarray(np.linalg.inv(M))    # C order, as the next period's argument type
-    # Newton's form: f(t) = f0 + t f[0, -h1] + t (t + h1) f[0, -h1, -h1 - h2]
     M_lin, M_quad, bias_lin, bias_quad = np.zeros((n, n)), np.zeros((n, n)), np.zeros(n), np.zeros(n)
     if 0.5 * period <= h1 <= 2.0 * period:
         quadratic = 0.5 * period <= h2 <= 2.0 * period
-        for r in range(n):
-            d1 = (bias[r] - bias1[r]) / h1
-            d2 = ((d1 - (bias1[r] - bias2[r]) / h2) / (h1 + h2)) if quadratic else 0.0
-            bias_lin[r], bias_quad[r] = d1 + h1 * d2, d2
-            for k in range(n):
-                d1 = (M_inv0[r, k] - M_inv1[r, k]) / h1
-                d2 = ((d1 - (M_inv1[r, k] - M_inv2[r, k]) / h2) / (h1 + h2)) if quadratic else 0.0
-                M_lin[r, k], M_quad[r, k] = d1 + h1 * d2, d2
+        _extrapolation(bias, bias1, bias2, h1, h2, quadratic, bias_lin, bias_quad)
+        _extrapolation(M_inv0.reshape(-1), M_inv1.reshape(-1), M_inv2.reshape(-1), h1, h2, quadratic,
+                       M_lin.reshape(-1), M_quad.reshape(-1))
     # the loop's demand part at every half substep: Kp q_d(t_i) + Kd qd_d(t_i)
     loop_demand = np.empty((2 * n_sub + 1, n))
     for i in range(2 * n_sub + 1):
