@@ -188,10 +188,11 @@ class ThreePRRR:
     def plant_dynamics(self, Theta, Thetad, params: InertialParams, guess):
         """``M_r`` (6, 6), velocity terms (6,) without friction and ``X`` (3,) of one state (the
         scalar path of :class:`~ident_hw.model.single.SingleState`: what the plant calls every period)."""
-        return self._single.reduced_dynamics(Theta, Thetad, params, guess)
+        return self._single.reduced_dynamics(Theta, Thetad, _inertial(params), guess)
 
     def friction_coefficients(self, params: InertialParams):
-        """``f_v``, ``f_c`` (6,) each."""
+        """``f_v``, ``f_c`` (6,) each (``params``: :class:`InertialParams` or the vector (19,))."""
+        params = _inertial(params)
         return np.asarray(params.f_v, dtype=float), np.asarray(params.f_c, dtype=float)
 
     def with_payload(self, params, mass: float, inertia: float):
@@ -233,3 +234,8 @@ class ThreePRRR:
             raise RuntimeError(f"forward dynamics integration failed: {sol.message}")
         Theta = sol.y[:6].T
         return Simulation(sol.t, Theta, sol.y[6:].T, self.forward_kinematics(Theta, X0))
+
+
+def _inertial(params) -> InertialParams:
+    """``params`` as :class:`InertialParams` (given as such, or as the vector of ``parameter_names``)."""
+    return params if isinstance(params, InertialParams) else InertialParams.from_vector(params)

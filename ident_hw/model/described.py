@@ -1,0 +1,592 @@
+"""Any robot from its description file: pinocchio for the tree, a closure layer for the loops.
+
+A robot is described by an MJCF file (closed chains: each loop closure an ``<equality>``
+``<connect>``, a point joint, or ``<weld>``, a rigid joint, between two bodies of the tree) or a
+URDF file (serial robots). pinocchio builds the kinematic *tree* (its MJCF parser reads the
+first body under ``<worldbody>`` only: the whole robot sits under one root body) and computes its
+kinematics, Jacobians, mass matrix and joint-torque regressor. This module adds what a closed
+chain needs on top (:class:`DescribedRobot`):
+
+- the tree configuration ``q`` (nq,) from the actuated coordinates ``Theta`` (n,): Newton on the
+  closure residuals ``r(q) = 0`` over the passive joints, started from a guess that selects the
+  assembly mode (the last configuration of a series, else the home configuration);
+- the passive rates from the closure Jacobian ``J = [J_a, J_p]`` (m, nv) and its drift
+  ``gamma = Jdot v``: ``v = W Thetad`` with ``W_a = I``, ``W_p = -J_p^+ J_a``, and
+  ``a = W Thetadd + a0`` with ``a0_p = -J_p^+ gamma``. A planar loop written in 3-D gives
+  redundant rows (``m > rank``): the pseudo-inverse ``J_p^+`` takes the rank ``nv - n`` that a
+  mobile closed chain has, and a smaller rank is a singularity (an error, never a NaN);
+- the actuator forces ``tau = W^T Y_tree(q, v, a) pi + friction + rotor inertia``: the constraint
+  forces do no work along ``W`` (``J W = 0``), so the virtual-work projection of the tree's
+  inverse dynamics is the actuated one;
+- the plant's dynamics in the actuated coordinates: ``M = W^T M_tree W + diag(Jm)`` and
+  ``bias = W^T (M_tree a0 + h_tree(q, v))`` (velocity terms and gravity).
+
+Parameters are a vector: ten per body of the tree (:data:`BODY_PARAMS`, pinocchio's dynamic
+parameters: mass, first moment ``m c`` and inertia about the *joint frame origin*, in the joint
+frame), then per actuator ``fv_<name>`` (viscous), ``fc_<name>`` (Coulomb) and ``Jm_<name>``
+(rotor inertia reflected through the gear). Which joints are actuated, and their names, come from
+the caller (the config), not from the file. Only one-degree-of-freedom joints are accepted
+(hinge, slide; URDF revolute and prismatic; a ball joint is written as three hinges), so the
+tree configuration is a plain vector and its Newton steps are additive.
+
+The *pose* of a described robot (``pose_size = nq``) is its whole tree configuration: the guess
+that carries the assembly mode from sample to sample. Everything is SI: rad, m, N·m, N, kg, s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import KinematicsError, SingularityError
+from .interface import PRISMATIC, REVOLUTE
+
+#: the ten inertial parameters of a body, pinocchio's order: mass (kg), first moment ``m c``
+#: (kg·m) and inertia about the joint frame's origin (kg·m²), in the joint frame
+BODY_PARAMS = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+#: the drive terms, one of each per actuator, after the bodies
+DRIVE_PARAMS = ("fv", "fc", "Jm")
+_UNITS = {"m": "kg", "mx": "kg·m", "my": "kg·m", "mz": "kg·m"}
+
+
+class DescriptionError(ValueError):
+    """A description file the tool cannot use (names the file and what is wrong in it)."""
+
+
+@dataclass(frozen=True)
+class Closure:
+    """One loop closure: frame ``frame1`` (of one branch) and ``frame2`` (of another) coincide,
+    in position (``rigid`` False: a point joint, 3 rows) or in position and orientation (``rigid``
+    True: a weld, 6 rows). Frame ids are those of :attr:`DescribedRobot.model`."""
+
+    name: str
+    frame1: int
+    frame2: int
+    rigid: bool
+
+    @property
+    def rows(self) -> int:
+        return 6 if self.rigid else 3
+
+
+def load_description(path: str | Path) -> tuple[pin.Model, list, list]:
+    """The pinocchio tree and its closure constraints ``(model, point, frame)`` of an MJCF
+    (``.xml``, ``.mjcf``) or URDF (``.urdf``, no closures) file.
+
+    Raises:
+        DescriptionError: an unknown suffix, or a file pinocchio cannot read.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DescriptionError(f"{path}: no such description file")
+    suffix = path.suffix.lower()
+    try:
+        if suffix in (".xml", ".mjcf"):
+            model, points, frames = pin.buildModelAndConstraintsFromMJCF(str(path))
+            return model, list(points), list(frames)
+        if suffix == ".urdf":
+            return pin.buildModelFromUrdf(str(path)), [], []
+    except (RuntimeError, ValueError) as exc:
+        raise DescriptionError(f"{path}: pinocchio cannot read it: {exc}") from exc
+    raise DescriptionError(f"{path}: unknown description format {suffix!r}; expected MJCF (.xml, .mjcf) or URDF (.urdf)")
+
+
+def _joint_kind(joint: pin.JointModel) -> str | None:
+    """:data:`REVOLUTE`, :data:`PRISMATIC`, or None for a joint that is not one-degree-of-freedom."""
+    if joint.nq != 1 or joint.nv != 1:
+        return None
+    short = joint.shortname()
+    if short.startswith("JointModelP"):
+        return PRISMATIC
+    if short.startswith(("JointModelR", "JointModelRevolute")):
+        return REVOLUTE
+    return None
+
+
+class DescribedRobot:
+    """A robot from its description file (see the module docstring): implements
+    :class:`~ident_hw.model.interface.RobotModel`.
+
+    Args:
+        path: the MJCF or URDF file.
+        actuated: the names of the actuated joints in the file, in actuator order (n).
+        actuator_names: the actuators' names (default: the joint names).
+        home: tree joint values (rad, m) by joint name of an assembled configuration near the
+            robot's home: the default guess, whose assembly mode the Newton iterations keep;
+            joints not named start at 0.
+        home_actuated: the actuated coordinates (n,) of the home pose (default: those of ``home``).
+        end_effector: the body that takes a payload (:meth:`with_payload`).
+        coulomb_width: velocity scale (rad/s, m/s) of the smooth Coulomb sign ``tanh(qd / w)``.
+        tolerance: closure residual (m, rad) at which Newton stops.
+
+    Raises:
+        DescriptionError: a joint that is not hinge or slide, an unknown actuated joint or body,
+            a closure between unknown bodies, or a mobility other than ``n``.
+    """
+
+    def __init__(self, path: str | Path, actuated: Sequence[str], *, actuator_names: Sequence[str] | None = None,
+                 home: Mapping[str, float] | None = None, home_actuated: Sequence[float] | None = None,
+                 end_effector: str | None = None, coulomb_width: float = 1e-3, tolerance: float = 1e-12):
+        if not coulomb_width > 0:
+            raise ValueError(f"coulomb_width must be positive, got {coulomb_width}")
+        self.path = Path(path)
+        self.coulomb_width = float(coulomb_width)
+        self.tolerance = float(tolerance)
+        model, points, frames = load_description(self.path)
+        self.model = model
+        where = str(self.path)
+        kinds = {}
+        for j in range(1, model.njoints):
+            kind = _joint_kind(model.joints[j])
+            if kind is None:
+                raise DescriptionError(f"{where}: joint {model.names[j]!r} is a {model.joints[j].shortname()} "
+                                       f"(nq {model.joints[j].nq}, nv {model.joints[j].nv}); only one-degree-of-"
+                                       "freedom joints are supported (hinge, slide; a ball joint as three hinges)")
+            kinds[model.names[j]] = kind
+        self.joint_names = tuple(model.names[j] for j in range(1, model.njoints))
+        self.body_names = tuple(self._body_of(j) for j in range(1, model.njoints))
+
+        actuated = tuple(actuated)
+        for name in actuated:
+            if name not in kinds:
+                raise DescriptionError(f"{where}: no joint {name!r} to actuate; joints: {list(self.joint_names)}")
+        if len(set(actuated)) != len(actuated):
+            raise DescriptionError(f"{where}: a joint is actuated twice: {list(actuated)}")
+        self.actuated_joints = actuated
+        self.actuator_names = tuple(actuator_names) if actuator_names is not None else actuated
+        if len(self.actuator_names) != len(actuated):
+            raise DescriptionError(f"{where}: {len(self.actuator_names)} actuator names for {len(actuated)} joints")
+        self.actuator_kinds = tuple(kinds[name] for name in actuated)
+        ids = [model.getJointId(name) for name in actuated]
+        self._act_q = np.array([model.joints[i].idx_q for i in ids])
+        self._act_v = np.array([model.joints[i].idx_v for i in ids])
+        self._pas_v = np.setdiff1d(np.arange(model.nv), self._act_v)
+        self._pas_q = np.array([model.joints[j].idx_q for j in range(1, model.njoints)
+                                if model.joints[j].idx_v in set(self._pas_v.tolist())])
+
+        self.closures = tuple(self._closures(points, frames))
+        self._rows = sum(c.rows for c in self.closures)
+        self.data = model.createData()
+        # the plant's own copy, whose body inertias it sets: ``model`` keeps the description's
+        self._dynamics_model = pin.Model(model)
+        self._dynamics_data = self._dynamics_model.createData()
+        n = len(actuated)
+        self.pose_size = model.nq
+        self.parameter_names = tuple(f"{b}.{p}" for b in self.body_names for p in BODY_PARAMS) + tuple(
+            f"{d}_{a}" for d in DRIVE_PARAMS for a in self.actuator_names)
+        self._n_body = 10 * (model.njoints - 1)
+
+        self._home_q = pin.neutral(model)
+        for name, value in (home or {}).items():
+            if name not in kinds:
+                raise DescriptionError(f"{where}: home names no joint {name!r}; joints: {list(self.joint_names)}")
+            self._home_q[model.joints[model.getJointId(name)].idx_q] = float(value)
+        self._home_actuated = (self._home_q[self._act_q].copy() if home_actuated is None
+                               else np.asarray(home_actuated, dtype=float))
+        if self._home_actuated.shape != (n,):
+            raise DescriptionError(f"{where}: home_actuated needs {n} values, got {self._home_actuated.shape}")
+        self.end_effector = end_effector
+        if end_effector is not None and not model.existFrame(end_effector):
+            raise DescriptionError(f"{where}: no body or site {end_effector!r} to carry a payload")
+        self._pi_cache: np.ndarray | None = None
+        self._last_jacobian: tuple[np.ndarray, np.ndarray] = (np.full(model.nq, np.nan), np.zeros((0, model.nv)))
+        self._last_motion = (np.full(len(actuated), np.nan), np.full(model.nq, np.nan), np.zeros((model.nv, len(actuated))))
+        bodies = [model.inertias[j].toDynamicParameters() for j in range(1, model.njoints)]
+        self._nominal = np.concatenate([*bodies, np.zeros(3 * n)])
+        self._mobility_check()
+
+    # ------------------------------------------------------------------ description
+    def _body_of(self, joint: int) -> str:
+        """The name of the body a joint moves: the first body frame on it (the joint's own name
+        where the file names no body, as a URDF's child link is named)."""
+        for frame in self.model.frames:
+            if frame.parentJoint == joint and frame.type == pin.FrameType.BODY:
+                return frame.name
+        return self.model.names[joint]
+
+    def _closures(self, points, frames) -> list[Closure]:
+        out = []
+        for k, (constraint, rigid) in enumerate([(c, False) for c in points] + [(c, True) for c in frames]):
+            name = f"closure{k + 1}"
+            f1 = self.model.addFrame(pin.Frame(f"{name}_a", constraint.joint1_id, constraint.joint1_placement,
+                                               pin.FrameType.OP_FRAME))
+            f2 = self.model.addFrame(pin.Frame(f"{name}_b", constraint.joint2_id, constraint.joint2_placement,
+                                               pin.FrameType.OP_FRAME))
+            out.append(Closure(name, f1, f2, rigid))
+        return out
+
+    def _mobility_check(self) -> None:
+        """The closures leave exactly ``n`` degrees of freedom at home (raises otherwise)."""
+        n = len(self.actuated_joints)
+        try:
+            q = self.tree_configuration(self._home_actuated, self._home_q)
+        except KinematicsError as exc:
+            raise DescriptionError(f"{self.path}: home does not assemble ({exc}); give robot.described.home, "
+                                   "the tree joint values of a configuration near it") from None
+        J, _ = self._closure_jacobian(q)
+        rank = np.linalg.matrix_rank(J, tol=1e-9 * max(1.0, np.abs(J).max())) if J.size else 0
+        if self.model.nv - rank != n:
+            raise DescriptionError(f"{self.path}: the tree has {self.model.nv} joints and its closures "
+                                   f"{rank} independent rows: {self.model.nv - rank} degrees of freedom at home, "
+                                   f"but {n} actuated joints")
+
+    @staticmethod
+    def parameter_unit(name: str) -> str:
+        """SI unit of a parameter of :attr:`parameter_names` (friction of a joint: its kind's)."""
+        if "." in name:
+            return _UNITS.get(name.split(".")[-1], "kg·m²")
+        return {"fv": "N·m·s/rad | N·s/m", "fc": "N·m | N", "Jm": "kg·m² | kg"}[name.split("_", 1)[0]]
+
+    def unit_of(self, name: str) -> str:
+        """SI unit of a parameter, for this robot's actuator kinds."""
+        if "." in name:
+            return self.parameter_unit(name)
+        kind, actuator = name.split("_", 1)
+        revolute = self.actuator_kinds[self.actuator_names.index(actuator)] == REVOLUTE
+        return {"fv": ("N·m·s/rad", "N·s/m"), "fc": ("N·m", "N"), "Jm": ("kg·m²", "kg")}[kind][0 if revolute else 1]
+
+    def nominal_parameters(self) -> np.ndarray:
+        """The description's inertias (P,) in the order of :attr:`parameter_names`, no friction
+        and no rotor inertia."""
+        return self._nominal.copy()
+
+    # ------------------------------------------------------------------ closure layer
+    def _closure_residual(self, q) -> np.ndarray:
+        """(m,) the closures' position (m) and orientation (rad) mismatch at ``q`` (frames placed)."""
+        out = np.empty(self._rows)
+        row = 0
+        oMf = self.data.oMf
+        for c in self.closures:
+            a, b = oMf[c.frame1], oMf[c.frame2]
+            out[row:row + 3] = a.translation - b.translation
+            if c.rigid:
+                out[row + 3:row + 6] = -a.rotation @ pin.log3(a.rotation.T @ b.rotation)
+            row += c.rows
+        return out
+
+    def _closure_jacobian(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """``J`` (m, nv) of the closure residuals and the residuals (m,) at ``q``."""
+        model, data = self.model, self.data
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        J = np.empty((self._rows, model.nv))
+        row = 0
+        for c in self.closures:
+            d = (pin.getFrameJacobian(model, data, c.frame1, pin.LOCAL_WORLD_ALIGNED)
+                 - pin.getFrameJacobian(model, data, c.frame2, pin.LOCAL_WORLD_ALIGNED))
+            J[row:row + c.rows] = d[:c.rows]
+            row += c.rows
+        return J, self._closure_residual(q)
+
+    def _drift(self, q, v) -> np.ndarray:
+        """``gamma = Jdot v`` (m,): the closures' relative classical acceleration at zero joint
+        acceleration (``J a + gamma = 0`` along any motion that keeps them closed)."""
+        model, data = self.model, self.data
+        pin.forwardKinematics(model, data, q, v, np.zeros(model.nv))
+        out = []
+        for c in self.closures:
+            a = (pin.getFrameClassicalAcceleration(model, data, c.frame1, pin.LOCAL_WORLD_ALIGNED)
+                 - pin.getFrameClassicalAcceleration(model, data, c.frame2, pin.LOCAL_WORLD_ALIGNED))
+            out.append(a.vector if c.rigid else a.linear)
+        return np.concatenate(out) if out else np.zeros(0)
+
+    def tree_configuration(self, Theta, guess=None, max_iterations: int = 50) -> np.ndarray:
+        """The tree configuration ``q`` (nq,) that closes every loop at actuated coordinates
+        ``Theta`` (n,), by Newton from ``guess`` (nq,; None or all zeros: the home
+        configuration), which selects the assembly mode.
+
+        Raises:
+            KinematicsError: no configuration closes the loops from this guess (out of reach).
+            SingularityError: the passive joints lose rank (a parallel singularity).
+        """
+        q = self._home_q.copy() if guess is None or not np.any(guess) else np.array(guess, dtype=float)
+        q[self._act_q] = Theta
+        if not self.closures:
+            return q
+        for _ in range(max_iterations):
+            J, r = self._closure_jacobian(q)
+            if np.max(np.abs(r)) <= self.tolerance:
+                self._last_jacobian = (q.copy(), J)
+                return q
+            Jp = J[:, self._pas_v]
+            try:
+                if Jp.shape[0] == Jp.shape[1]:
+                    dq = np.linalg.solve(Jp, -r)
+                else:
+                    dq, _, rank, _ = np.linalg.lstsq(Jp, -r, rcond=1e-10)
+                    if rank < Jp.shape[1]:
+                        raise np.linalg.LinAlgError
+            except np.linalg.LinAlgError:
+                raise SingularityError(f"{self.path.name}: the closures lose rank at Theta = "
+                                       f"{np.round(np.asarray(Theta, float), 6).tolist()} (a parallel singularity)")
+            q[self._pas_q] += dq
+            if not np.all(np.isfinite(q)) or float(np.max(np.abs(dq))) > 10.0:
+                break
+        J, r = self._closure_jacobian(q)
+        if np.max(np.abs(r)) <= max(self.tolerance, 1e-10):
+            self._last_jacobian = (q.copy(), J)
+            return q
+        raise KinematicsError(f"{self.path.name}: no assembly closes the loops at Theta = "
+                              f"{np.round(np.asarray(Theta, float), 6).tolist()} (residual {np.max(np.abs(r)):.3g})")
+
+    def _velocity_map(self, q) -> tuple[np.ndarray, np.ndarray, float]:
+        """``W`` (nv, n) with ``v = W Thetad``, ``J_p^+`` (p, m), and ``cond(J_p)`` at a closed ``q``."""
+        n, model = len(self._act_v), self.model
+        W = np.zeros((model.nv, n))
+        W[self._act_v, np.arange(n)] = 1.0
+        if not self.closures:
+            return W, np.zeros((0, 0)), 1.0
+        last_q, J = self._last_jacobian
+        if not np.array_equal(last_q, q):
+            J, _ = self._closure_jacobian(q)
+        Jp = J[:, self._pas_v]
+        U, s, Vt = np.linalg.svd(Jp, full_matrices=False)
+        if s[-1] <= 1e-10 * s[0]:
+            raise SingularityError(f"{self.path.name}: the closures lose rank at q = {np.round(q, 6).tolist()} "
+                                   "(a parallel singularity)")
+        pinv = (Vt.T / s) @ U.T
+        W[self._pas_v] = -pinv @ J[:, self._act_v]
+        return W, pinv, float(s[0] / s[-1])
+
+    def tree_motion(self, Theta, Thetad, Thetadd, guess=None):
+        """``(q, v, a, W)`` of one sample: the tree's configuration (nq,), rates (nv,) and
+        accelerations (nv,) of an actuated motion (each (n,)), and ``W`` (nv, n)."""
+        Theta = np.asarray(Theta, dtype=float)
+        last_Theta, last_q, last_W = self._last_motion
+        if guess is not None and self.closures and np.array_equal(guess, last_q):
+            # continuing from this model's last answer (the plant, period after period): start
+            # Newton from its first-order prediction, one iteration from the solution
+            guess = last_q + last_W @ (Theta - last_Theta)
+        q = self.tree_configuration(Theta, guess)
+        W, pinv, _ = self._velocity_map(q)
+        v = W @ np.asarray(Thetad, dtype=float)
+        a = W @ np.asarray(Thetadd, dtype=float)
+        if self.closures:
+            a[self._pas_v] -= pinv @ self._drift(q, v)
+        self._last_motion = (Theta.copy(), q.copy(), W)
+        return q, v, a, W
+
+    def condition(self, Theta, guess=None) -> float:
+        """``cond(J_p)`` of the passive joints' closure Jacobian at ``Theta`` (1 for a serial
+        robot; infinite at a parallel singularity): the distance to a singularity."""
+        try:
+            return self._velocity_map(self.tree_configuration(Theta, guess))[2]
+        except SingularityError:
+            return np.inf
+
+    def conditions(self, poses) -> np.ndarray:
+        """:meth:`condition` (N,) at closed tree configurations ``poses`` (N, nq), e.g. those of
+        :meth:`pose_series` (no Newton iterations)."""
+        out = np.empty(len(poses))
+        for k, q in enumerate(np.atleast_2d(poses)):
+            try:
+                out[k] = self._velocity_map(np.asarray(q, dtype=float))[2]
+            except SingularityError:
+                out[k] = np.inf
+        return out
+
+    # ------------------------------------------------------------------ the robot interface
+    def home_actuated(self) -> np.ndarray:
+        """The actuated coordinates (n,) of the home pose."""
+        return self._home_actuated.copy()
+
+    def readable_base(self):
+        """The base parameters found numerically on random states (:func:`numerical_base`)."""
+        if not hasattr(self, "_base"):
+            self._base = numerical_base(self)
+        return self._base.kept, self._base.H
+
+    def pose(self, Theta, guess) -> np.ndarray:
+        """The tree configuration (nq,) of ``Theta`` (n,), from ``guess`` (nq,)."""
+        return self.tree_configuration(np.asarray(Theta, dtype=float), guess)
+
+    def pose_series(self, Theta, start) -> np.ndarray:
+        """Tree configurations (N, nq) of ``Theta`` (N, n), each Newton started from the last."""
+        Theta = np.atleast_2d(np.asarray(Theta, dtype=float))
+        out = np.empty((len(Theta), self.model.nq))
+        q = start
+        for k, row in enumerate(Theta):
+            if k >= 2:                      # predictor: the last two configurations extrapolated
+                q = 2.0 * out[k - 1] - out[k - 2]
+            try:
+                q = out[k] = self.tree_configuration(row, q)
+            except KinematicsError as exc:
+                exc.sample = k
+                raise
+        return out
+
+    def identification_regressor(self, Theta, Thetad, Thetadd, guess):
+        """``Y`` (N, n, P) with ``tau = Y @ pi`` and the tree configurations (N, nq)."""
+        Theta, Thetad, Thetadd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (Theta, Thetad, Thetadd))
+        N, n = Theta.shape
+        guess = np.broadcast_to(np.zeros(self.model.nq) if guess is None else guess, (N, self.model.nq))
+        Y = np.zeros((N, n, len(self.parameter_names)))
+        poses = np.empty((N, self.model.nq))
+        idx = np.arange(n)
+        q = None
+        for k in range(N):
+            start = guess[k] if np.any(guess[k]) else q
+            try:
+                q, v, a, W = self.tree_motion(Theta[k], Thetad[k], Thetadd[k], start)
+            except KinematicsError as exc:
+                exc.sample = k
+                raise
+            poses[k] = q
+            Y[k, :, :self._n_body] = W.T @ pin.computeJointTorqueRegressor(self.model, self.data, q, v, a)
+        b = self._n_body
+        Y[:, idx, b + idx] = Thetad
+        Y[:, idx, b + n + idx] = np.tanh(Thetad / self.coulomb_width)
+        Y[:, idx, b + 2 * n + idx] = Thetadd
+        return Y, poses
+
+    def energy_regressor(self, Theta, Thetad, guess=None) -> np.ndarray:
+        """``H`` (N, P) with the robot's energy ``E = H @ pi``: the tree's kinetic plus potential
+        energy of the bodies (J) and the rotors' ``Jm Thetad² / 2``; the friction columns are zero."""
+        Theta, Thetad = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (Theta, Thetad))
+        N, n = Theta.shape
+        H = np.zeros((N, len(self.parameter_names)))
+        q = None if guess is None else guess
+        for k in range(N):
+            start = q if guess is None else guess[k]
+            q, v, _, _ = self.tree_motion(Theta[k], Thetad[k], np.zeros(n), start)
+            H[k, :self._n_body] = (pin.computeKineticEnergyRegressor(self.model, self.data, q, v)
+                                   + pin.computePotentialEnergyRegressor(self.model, self.data, q))
+        H[:, self._n_body + 2 * n:] = 0.5 * Thetad**2
+        return H
+
+    def _set_inertias(self, pi: np.ndarray) -> None:
+        """The tree's body inertias from ``pi`` (cached: the plant asks with the same vector)."""
+        if self._pi_cache is not None and np.array_equal(self._pi_cache, pi[:self._n_body]):
+            return
+        for j in range(1, self.model.njoints):
+            self._dynamics_model.inertias[j] = _inertia(pi[10 * (j - 1):10 * j])
+        self._pi_cache = pi[:self._n_body].copy()
+
+    def plant_dynamics(self, Theta, Thetad, params, guess):
+        """``M`` (n, n) (rotor inertias included), the bias forces (n,) (velocity terms and
+        gravity, no friction) and the tree configuration (nq,) of one state."""
+        pi = np.asarray(params, dtype=float)
+        n = len(self._act_v)
+        q, v, a0, W = self.tree_motion(Theta, Thetad, np.zeros(n), guess)
+        self._set_inertias(pi)
+        model, data = self._dynamics_model, self._dynamics_data
+        M_tree = pin.crba(model, data, q)
+        M_tree = np.triu(M_tree) + np.triu(M_tree, 1).T
+        bias = W.T @ pin.rnea(model, data, q, v, a0)
+        M = W.T @ M_tree @ W + np.diag(pi[self._n_body + 2 * n:self._n_body + 3 * n])
+        return M, bias, q
+
+    def friction_coefficients(self, params):
+        """``f_v``, ``f_c`` (n,) each from the parameter vector."""
+        pi, b, n = np.asarray(params, dtype=float), self._n_body, len(self._act_v)
+        return pi[b:b + n].copy(), pi[b + n:b + 2 * n].copy()
+
+    def with_payload(self, params, mass: float, inertia: float = 0.0) -> np.ndarray:
+        """``params`` with a payload on the end-effector (a body or a site of the description):
+        ``mass`` kg at its origin and ``inertia`` kg·m² about its z axis, added to the parameters
+        of the body that carries it."""
+        if self.end_effector is None:
+            raise ValueError(f"{self.path.name}: a payload needs the robot's end_effector (a body or site)")
+        frame = self.model.frames[self.model.getFrameId(self.end_effector)]
+        c, R = frame.placement.translation, frame.placement.rotation
+        payload = pin.Inertia(mass, c, R @ np.diag([0.0, 0.0, inertia]) @ R.T).toDynamicParameters()
+        pi = np.array(params, dtype=float)
+        start = 10 * (frame.parentJoint - 1)
+        pi[start:start + 10] += payload
+        return pi
+
+
+def _inertia(p: np.ndarray) -> pin.Inertia:
+    """The spatial inertia of a body's ten parameters (:data:`BODY_PARAMS`); a massless body
+    (a universal joint's cross) has no centre of mass, only its rotational inertia."""
+    if p[0] != 0.0:
+        return pin.Inertia.FromDynamicParameters(p)
+    Ixx, Ixy, Iyy, Ixz, Iyz, Izz = p[4:10]
+    return pin.Inertia(0.0, np.zeros(3), np.array([[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]]))
+
+
+@dataclass(frozen=True)
+class NumericalBase:
+    """Base parameters found numerically: ``pi_b = H pi`` (r, P), ``kept`` (r,) the parameter
+    each row is named after, ``expressions`` (r,) each row written out."""
+
+    kept: tuple[str, ...]
+    H: np.ndarray
+    expressions: tuple[str, ...]
+
+
+def random_states(robot: DescribedRobot, samples: int, spread: float = 0.15, seed: int = 0):
+    """``(Theta, Thetad, Thetadd)`` (each (N, n)) of ``samples`` random assembled states about
+    home: positions within ``spread`` (rad or m) of it, rates of order one; states that do not
+    assemble are drawn again."""
+    rng = np.random.default_rng(seed)
+    home = robot.home_actuated()
+    n = len(home)
+    rows = []
+    for _ in range(50 * samples):
+        Theta = home + spread * rng.uniform(-1, 1, n)
+        try:
+            robot.condition(Theta)
+            robot.tree_configuration(Theta)
+        except KinematicsError:
+            continue
+        rows.append((Theta, rng.normal(size=n), rng.normal(size=n)))
+        if len(rows) == samples:
+            break
+    if len(rows) < samples:
+        raise KinematicsError(f"{robot.path.name}: only {len(rows)} of {samples} random states about home assemble")
+    return tuple(np.array(x) for x in zip(*rows))
+
+
+def numerical_base(robot: DescribedRobot, samples: int = 60, seed: int = 0, rtol: float = 1e-5) -> NumericalBase:
+    """The base parameters of ``robot``: QR with column pivoting of its regressor on
+    ``samples`` random states (:func:`random_states`), columns scaled to unit norm; the
+    independent columns are kept, each dependent one is regrouped into them
+    (``pi_b = pi_1 + R11^-1 R12 pi_2``). Combinations are rounded to 1e-10 of their scale.
+
+    ``rtol``: a column whose part independent of the kept ones is below this fraction of the
+    first pivot is dependent. Such a direction moves the forces by less than any drive
+    measures: the Delta's universal-joint crosses give three at 2e-6 (their first moments,
+    which the hand model, without crosses, does not have); kept, they would take rod parameters
+    into combinations no data can separate."""
+    from scipy.linalg import qr, solve_triangular
+
+    Theta, Thetad, Thetadd = random_states(robot, samples, seed=seed)
+    Y, _ = robot.identification_regressor(Theta, Thetad, Thetadd, np.tile(robot.pose(robot.home_actuated(), None),
+                                                                          (samples, 1)))
+    A = Y.reshape(-1, Y.shape[-1])
+    norms = np.linalg.norm(A, axis=0)
+    used = norms > rtol * norms.max()
+    cols = np.flatnonzero(used)
+    As = A[:, cols] / norms[cols]
+    _, R, perm = qr(As, mode="economic", pivoting=True)
+    diag = np.abs(np.diag(R))
+    rank = int(np.sum(diag > rtol * diag[0]))
+    independent, dependent = cols[perm[:rank]], cols[perm[rank:]]
+    beta = solve_triangular(R[:rank, :rank], R[:rank, rank:])          # scaled columns
+    beta = beta * norms[dependent][None, :] / norms[independent][:, None]
+    beta[np.abs(beta) < 1e-10 * max(1.0, np.abs(beta).max())] = 0.0
+    order = np.argsort(independent)
+    H = np.zeros((rank, Y.shape[-1]))
+    for row, i in enumerate(order):
+        H[row, independent[i]] = 1.0
+        H[row, dependent] = beta[i]
+    names = robot.parameter_names
+    kept = tuple(names[independent[i]] for i in order)
+    expressions = tuple(_combination(row, names) for row in H)
+    return NumericalBase(kept, H, expressions)
+
+
+def _combination(row: np.ndarray, names: Sequence[str]) -> str:
+    """``row @ pi`` written out, e.g. ``"arm1.Iyy + 0.309 rod1.mx"``."""
+    parts = []
+    for coef, name in zip(row, names):
+        if coef == 0.0:
+            continue
+        text = name if coef == 1.0 else f"{abs(coef):.6g} {name}"
+        parts.append(("- " if coef < 0 else "+ ") + text)
+    return " ".join(parts).removeprefix("+ ")
