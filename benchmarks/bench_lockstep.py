@@ -13,7 +13,10 @@ Prints the cycles per wall-clock second and the split of one cycle's wall time:
 As in the main job, the threads run on one CPU (:func:`drivers.affinity.one_cpu`); ``spread``
 lets them run on every CPU, for comparison.
 
-    python benchmarks/bench_lockstep.py [seconds=20] [rate_hz=250] [spread]
+    python benchmarks/bench_lockstep.py [seconds=20] [rate_hz=250] [spread] [config=configs/sim-stewart.yaml]
+
+``config``: another simulated robot (its rig in lockstep the same way; the sinusoid's amplitude
+a tenth of each actuator's room about home).
 """
 
 from __future__ import annotations
@@ -33,16 +36,18 @@ from ident_hw.config import load_config
 from ident_hw.experiment.session import simulated_rig
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "sim-3prrr.yaml"
+#: the main job's sinusoid amplitudes (rad, m), as measured since the first figures
+MAIN_JOB_AMPLITUDE = np.array([0.05, 0.05, 0.05, 0.004, 0.004, 0.004])
 
 
-def main(seconds: float, rate_hz: float, spread: bool) -> None:
+def main(seconds: float, rate_hz: float, spread: bool, path: Path = CONFIG) -> None:
     with nullcontext(None) if spread else one_cpu() as cpu:
         print(f"threads on CPU {cpu}" if cpu is not None else "threads on every CPU")
-        run(seconds, rate_hz)
+        run(seconds, rate_hz, path)
 
 
-def run(seconds: float, rate_hz: float) -> None:
-    config = load_config(CONFIG)
+def run(seconds: float, rate_hz: float, path: Path = CONFIG) -> None:
+    config = load_config(path)
     config = dataclasses.replace(config, bus=dataclasses.replace(config.bus, sync_rate=rate_hz,
                                                                  channel="bench-lockstep"))
     period = 1.0 / rate_hz
@@ -55,7 +60,9 @@ def run(seconds: float, rate_hz: float) -> None:
         group.home()
         start = group.positions()
         t = np.arange(round(seconds / period)) * period
-        amplitude = np.array([0.05, 0.05, 0.05, 0.004, 0.004, 0.004])
+        limits = config.robot.actuator_limits()
+        room = np.minimum(start - limits.low, limits.high - start)
+        amplitude = MAIN_JOB_AMPLITUDE if Path(path) == CONFIG else 0.1 * room
         targets = start + np.sin(2 * np.pi * 0.5 * t)[:, None] * np.sin(np.pi * t / t[-1])[:, None] * amplitude
         rig.step_seconds.clear()
         began = timeit.default_timer()
@@ -67,8 +74,9 @@ def run(seconds: float, rate_hz: float) -> None:
         network.disconnect()
         rig.stop()
     plant = rig.plant
-    demand = np.vstack([plant.Theta, np.zeros((3, 6))])
-    enabled, limit = np.ones(6, bool), np.full(6, 1e3)
+    n_axes = len(axes)
+    demand = np.vstack([plant.Theta, np.zeros((3, n_axes))])
+    enabled, limit = np.ones(n_axes, bool), np.full(n_axes, 1e3)
     n = 500
     plant_us = timeit.timeit(lambda: plant.step(period, demand, enabled, limit), number=n) / n * 1e6
     cycles = rec.metadata["n_cycles"]
@@ -81,5 +89,7 @@ def run(seconds: float, rate_hz: float) -> None:
 
 
 if __name__ == "__main__":
-    args = [a for a in sys.argv[1:] if a != "spread"]
-    main(float(args[0]) if args else 20.0, float(args[1]) if len(args) > 1 else 250.0, "spread" in sys.argv[1:])
+    args = [a for a in sys.argv[1:] if a != "spread" and not a.startswith("config=")]
+    configs = [Path(a.split("=", 1)[1]) for a in sys.argv[1:] if a.startswith("config=")]
+    main(float(args[0]) if args else 20.0, float(args[1]) if len(args) > 1 else 250.0, "spread" in sys.argv[1:],
+         configs[0] if configs else CONFIG)

@@ -9,7 +9,9 @@ A results folder holds::
     parameters.json/.yaml  Table-1-like rows: initial, identified, truth, sigma, %sigma, bounds, step;
                          the base-parameter least-squares fit (``base_fit``) when a step made one;
                          ``trajectories``: what each recording covered and how much of it the fit
-                         used; ``quality``: the verdict, its figures, thresholds and reasons
+                         used; ``quality``: the verdict, its figures, thresholds and reasons;
+                         ``model_comparison`` (only with ``identification.compare_models``): the
+                         base parameters of the dynamic, power and energy models
     fits/<name>.npz      measured and model forces along each trajectory (t, tau, tau_model, Theta, X,
                          tau_base = the base fit's prediction)
     online.npz           estimates over time of an online run (optional)
@@ -32,6 +34,7 @@ import yaml
 
 from ident_hw.identification.least_squares import POORLY_IDENTIFIED_PERCENT
 from ident_hw.identification.metrics import validation_metrics
+from ident_hw.identification.model_comparison import ModelComparison
 from ident_hw.model import ThreePRRR
 from ident_hw.model.interface import FORCE_UNITS, POSITION_UNITS
 
@@ -383,6 +386,8 @@ class Results:
     trajectories: dict = field(default_factory=dict)
     #: the quality verdict (``ident_hw.experiment.quality.verdict``); None: not judged
     quality: dict | None = None
+    #: the dynamic, power and energy models side by side (``identification.compare_models``); None: not asked
+    model_comparison: ModelComparison | None = None
 
     @property
     def force_units(self) -> tuple[str, ...]:
@@ -431,6 +436,8 @@ def save_results(folder: str | Path, results: Results) -> Path:
            "steps": results.steps, "base_parameters": results.base_parameters,
            "trajectories": results.trajectories, "quality": results.quality,
            "actuators": [{"name": n, "kind": k} for n, k in zip(results.actuators, results.actuator_kinds)]}
+    if results.model_comparison is not None:      # absent otherwise: files without it stay as they were
+        doc["model_comparison"] = results.model_comparison.to_dict()
     (folder / "parameters.json").write_text(json.dumps(doc, indent=2, default=_jsonable))
     (folder / "parameters.yaml").write_text(yaml.safe_dump(json.loads(json.dumps(doc, default=_jsonable)),
                                                            sort_keys=False))
@@ -461,7 +468,9 @@ def load_results(folder: str | Path) -> Results:
                    parameters=ParameterTable.from_rows(doc["parameters"]), fits=fits,
                    steps=doc.get("steps") or [], base_parameters=doc.get("base_parameters"), online=online,
                    base_fit=base_fit, rel_sigma_threshold=doc.get("rel_sigma_threshold_percent", POORLY_IDENTIFIED_PERCENT),
-                   trajectories=doc.get("trajectories") or {}, quality=doc.get("quality"))
+                   trajectories=doc.get("trajectories") or {}, quality=doc.get("quality"),
+                   model_comparison=ModelComparison.from_dict(doc["model_comparison"]) if doc.get("model_comparison")
+                   else None)
 
 
 # ----------------------------------------------------------------------------- figures

@@ -236,7 +236,7 @@ def exact_recording(config, traj, max_substep: float | None) -> Recording:
     every period start: positions, velocities, forces as currents. No drive units, no noise."""
     period = 1.0 / config.bus.sync_rate
     sim = config.sim
-    plant = Plant(robot_model(config), config.true_model_parameters(), traj.Theta[0], bandwidth_hz=sim.bandwidth,
+    plant = Plant(robot_model(config), config.true_parameters(), traj.Theta[0], bandwidth_hz=sim.bandwidth,
                   damping=sim.damping, max_substep=max_substep or DEFAULT_MAX_SUBSTEP)
     axes = traj.Theta.shape[1]
     follow_targets(plant, traj.Theta[:-1], period)

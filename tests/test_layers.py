@@ -115,3 +115,29 @@ def test_no_import_cycles():
     for m in sorted(graph):
         if m not in state:
             visit(m)
+
+
+def _robot_kind_compares(path: Path) -> list[int]:
+    """Lines of ``path`` that compare a robot's kind (``robot.kind`` or ``config.robot.kind``,
+    ``kind`` of anything named robot) with something, or test it for membership."""
+    lines = []
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if not isinstance(node, ast.Compare):
+            continue
+        for operand in [node.left, *node.comparators]:
+            if isinstance(operand, ast.Attribute) and operand.attr == "kind" and "robot" in ast.unparse(operand.value):
+                lines.append(node.lineno)
+    return lines
+
+
+def test_only_the_robot_registry_compares_robot_kind():
+    """A robot kind is one object of ``ident_hw.config.robots``: nothing else branches on its name."""
+    found = {name: _robot_kind_compares(path) for name, path in MODULES.items() if name != "ident_hw.config.robots"}
+    assert {name: lines for name, lines in found.items() if lines} == {}
+
+
+def test_the_check_finds_a_robot_kind_comparison(tmp_path):
+    source = tmp_path / "branching.py"
+    source.write_text("def f(config):\n    if config.robot.kind == 'delta':\n        return 1\n"
+                      "    return self.robot.kind in ('3prrr',)\n")
+    assert _robot_kind_compares(source) == [2, 4]

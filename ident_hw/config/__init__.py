@@ -37,7 +37,14 @@ def load_config(path: str | Path) -> Config:
     return config
 
 
-def resolved_yaml(path: str | Path) -> str:
+def resolved_yaml(path: str | Path, replace: dict[str, str] | None = None) -> str:
     """The config as one self-contained YAML text, with every ``extends:`` merged in
-    (what a results folder keeps as its copy of the config)."""
-    return yaml.serialize(compose_file(path), Dumper=yaml.SafeDumper)
+    (what a results folder keeps as its copy of the config); ``replace``: text values by dotted
+    key (``robot.described.description``), e.g. a file path that the copy must point elsewhere."""
+    node = compose_file(path)
+    for dotted, value in (replace or {}).items():
+        target = node
+        for key in dotted.split("."):
+            target = next(v for k, v in target.value if k.value == key)
+        target.value = value
+    return yaml.serialize(node, Dumper=yaml.SafeDumper)

@@ -21,8 +21,10 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
+import os
 import types
 import typing
+from pathlib import Path
 from typing import Any, Callable, Literal, Union
 
 import yaml
@@ -60,10 +62,12 @@ class FieldError(ValueError):
 
 
 def spec(check: Callable[[Any], None] | None = None, *, unit: str = "", angle: bool = False,
-         doc: str = "") -> dict:
+         doc: str = "", path: bool = False) -> dict:
     """Field metadata: an optional validator ``check(value)`` raising ValueError("expected ..."),
-    the SI unit (for messages and docs), and whether ``<name>_deg`` is accepted (value in rad)."""
-    return {"check": check, "unit": unit, "angle": angle, "doc": doc}
+    the SI unit (for messages and docs), whether ``<name>_deg`` is accepted (value in rad), and
+    whether the value is a file path relative to the config file that writes it (``path``: read
+    as that file's folder joined with it, so a base config's path holds in the configs extending it)."""
+    return {"check": check, "unit": unit, "angle": angle, "doc": doc, "path": path}
 
 
 # ----------------------------------------------------------------------------- validators
@@ -196,6 +200,8 @@ class _Builder:
             value = self.value(hints[key], value_node, _join(path, used))
             if used == deg_key:
                 value = _deg_to_rad(value)
+            if meta.get("path") and value is not None:
+                value = os.path.normpath(Path(location(value_node)[0]).parent / value)
             check = meta.get("check")
             if check is not None and value is not None:
                 try:

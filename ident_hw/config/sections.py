@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import fnmatch
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -21,18 +22,18 @@ from drivers.cia import NODE_ID_MAX, NODE_ID_MIN
 from drivers.axis import HomingConfig
 from drivers.units import PRISMATIC, REVOLUTE, AxisScaling
 from ident_hw.identification.least_squares import POORLY_IDENTIFIED_PERCENT
+from ident_hw.identification.model_comparison import supports_energy_models
 import numpy as np
 
-from ident_hw.model import ACTUATOR_NAMES, Delta, DeltaGeometry, Geometry, InertialParams, ThreePRRR
+from ident_hw.model import Delta, DeltaGeometry, Geometry, InertialParams
 from ident_hw.model.delta import BODY_PARAMS, BODIES, nominal_parameters
 from ident_hw.model.interface import POSITION_UNITS, RobotModel
 from ident_hw.signal import FilterSettings
 from trajectories.feasibility import ActuatorLimits
 from trajectories.feasibility import Limits as FeasibilityLimits
 
+from .robots import COMMON_TRAJECTORY_KINDS, DescribedConfig, ParameterSetConfig, kind_of
 from .schema import FieldError, in_range, non_negative, ordered_pair, positive, spec
-
-AXIS_KINDS = (REVOLUTE,) * 3 + (PRISMATIC,) * 3
 
 
 def _plus_minus_one(value) -> None:
@@ -165,6 +166,8 @@ class ActuatorConfig:
     object_dictionary: str | None = field(default=None, metadata=spec(
         doc="the drive's EDS or DCF (maxon's, or saved from the drive), relative to the config file; "
             "default: the built-in dictionary of the profile"))
+    joint: str | None = field(default=None, metadata=spec(
+        doc="a described robot's joint this actuator drives (default: its name)"))
 
     def _check(self) -> None:
         if self.kind == PRISMATIC and self.screw_lead is None:
@@ -203,33 +206,32 @@ class SafetyConfig:
 
 @dataclass(frozen=True)
 class RobotConfig:
-    """The rig: which robot (``kind``), its model's settings and its actuators.
+    """The rig: which robot (``kind``, a kind of :mod:`ident_hw.config.robots`), its model's
+    settings and its actuators.
 
     ``3prrr``: ``geometry``, carriage ``stroke``, ``cad`` values, ``safety`` margins and six
     actuators theta1..3, zeta1..3. ``delta``: the ``delta`` section (geometry, CAD parameters)
-    and three revolute actuators q1..3.
+    and three revolute actuators q1..3. ``described``: the ``described`` section (the
+    description file, home, CAD parameters) and one actuator per driven joint.
     """
 
     actuators: tuple[ActuatorConfig, ...]
-    kind: Literal["3prrr", "delta"] = "3prrr"
+    kind: Literal["3prrr", "delta", "described"] = "3prrr"
     geometry: GeometryConfig | None = None
     stroke: float | None = field(default=None, metadata=spec(positive, unit="m", doc="carriage travel +- stroke"))
     cad: InertialConfig | None = None
     delta: DeltaConfig | None = None
+    described: DescribedConfig | None = None
     safety: SafetyConfig = SafetyConfig()
     coulomb_width: float = field(default=1e-3, metadata=spec(positive, unit="rad/s | m/s"))
 
     def to_model(self) -> RobotModel:
-        """The robot's model (:class:`~ident_hw.model.interface.RobotModel`)."""
-        if self.kind == "delta":
-            return Delta(self.delta.geometry.to_model(), coulomb_width=self.coulomb_width)
-        return ThreePRRR(self.geometry.to_model(), coulomb_width=self.coulomb_width)
+        """The robot's model (:class:`~ident_hw.model.interface.RobotModel`), a new one per call."""
+        return kind_of(self).model(self)
 
     def initial_parameters(self) -> np.ndarray:
         """The CAD values (n,) in the order of the model's ``parameter_names``."""
-        if self.kind == "delta":
-            return self.delta.cad.vector(self.delta.geometry.to_model())
-        return self.cad.to_model().as_vector()
+        return kind_of(self).initial(self)
 
     def actuator_limits(self) -> ActuatorLimits:
         """Every actuator's position range, speed and acceleration limits, for
@@ -256,21 +258,19 @@ class RobotConfig:
             max_cond_A=self.safety.max_cond_A)
 
     def _check(self) -> None:
-        if self.kind == "delta":
-            if self.delta is None:
-                raise FieldError("delta", "missing key: a Delta needs its delta section (geometry, cad)")
-            names, kinds = Delta.actuator_names, Delta.actuator_kinds
-        else:
-            for key in ("geometry", "stroke", "cad"):
-                if getattr(self, key) is None:
-                    raise FieldError(key, "missing key (a 3PRRR needs geometry, stroke and cad)")
-            names, kinds = ACTUATOR_NAMES, AXIS_KINDS
+        kind = kind_of(self)
+        for key in ("geometry", "stroke", "cad", "delta", "described"):
+            if getattr(self, key) is not None and key not in kind.sections:
+                raise FieldError(key, f"belongs to another robot than robot.kind {self.kind!r} "
+                                      f"(its sections: {', '.join(kind.sections)})")
+        kind.validate(self)
+        names, kinds = kind.actuators(self)
         if len(self.actuators) != len(names):
             raise FieldError("actuators", f"expected {len(names)} actuators ({', '.join(names)}), got {len(self.actuators)}")
-        for i, (act, kind) in enumerate(zip(self.actuators, kinds)):
-            if act.kind != kind:
+        for i, (act, expected) in enumerate(zip(self.actuators, kinds)):
+            if act.kind != expected:
                 raise FieldError(f"actuators[{i}].kind",
-                                 f"actuator {i} ({names[i]}) must be {kind!r}, got {act.kind!r}")
+                                 f"actuator {i} ({names[i]}) must be {expected!r}, got {act.kind!r}")
         seen: dict[int, int] = {}
         for i, act in enumerate(self.actuators):
             if act.node_id in seen:
@@ -332,6 +332,10 @@ class SimFaultConfig:
     code: int = field(default=0x2310, metadata=spec(in_range(0x1000, 0xFFFF), doc="EMCY error code"))
 
 
+#: the keys of ``sim`` that hold some robot kind's true parameters
+TRUTH_KEYS = ("truth", "delta_truth", "parameters")
+
+
 @dataclass(frozen=True)
 class SimConfig:
     """The simulated rig: its TRUE parameters (unknown to the identification), its drives'
@@ -340,6 +344,8 @@ class SimConfig:
 
     truth: InertialConfig | None = field(default=None, metadata=spec(doc="the 3PRRR's true parameters"))
     delta_truth: DeltaParametersConfig | None = field(default=None, metadata=spec(doc="the Delta's true parameters"))
+    parameters: ParameterSetConfig | None = field(default=None, metadata=spec(
+        doc="a described robot's true parameters"))
     current_noise: float = field(default=0.0, metadata=spec(non_negative, unit="A", doc="Gaussian std"))
     bandwidth: float = field(default=20.0, metadata=spec(positive, unit="Hz", doc="position loops"))
     damping: float = field(default=1.0, metadata=spec(positive))
@@ -385,6 +391,10 @@ class TrajectoryConfig:
     (Table 2), ``delta_verification`` (eq. 60), ``delta_held_arm`` (eq. 60 with arm 3 held), each
     ``duration`` s long, its angles scaled by ``amplitude`` (one factor, or one per arm), faded
     in and out over ``fade`` s from and back to the arms at rest.
+    A described robot's excitation (:func:`trajectories.joint_space.joint_excitation`):
+    ``joint_excitation``, ``duration`` s of ``harmonics`` sines per actuator up to ``bandwidth``
+    Hz (default 2 Hz) about home, phases and frequencies drawn from ``seed``, fitted to 0.8 of
+    each actuator's limits and scaled by ``amplitude`` (one factor, or one per actuator).
     ``online_only``: streamed only for the online estimators (``ident-hw online``, or ``run``
     with ``identification.online.in_run``), after the others; otherwise ``run`` leaves it out. ``payload``: on the in-process simulated rig, a payload added during this trajectory
     (:class:`PayloadConfig`), e.g. on an ``online_only`` one for the online estimators to track.
@@ -392,7 +402,7 @@ class TrajectoryConfig:
 
     name: str
     kind: Literal["carriage_sweep", "square", "triangle", "fourier", "file",
-                  "delta_training", "delta_verification", "delta_held_arm"]
+                  "delta_training", "delta_verification", "delta_held_arm", "joint_excitation"]
     size: float | None = field(default=None, metadata=spec(positive, unit="m"))
     rotation: float = field(default=0.0, metadata=spec(unit="rad", angle=True))
     speed_scale: float = field(default=1.0, metadata=spec(in_range(0.01, 1.0)))
@@ -405,18 +415,22 @@ class TrajectoryConfig:
     amplitude: float | tuple[float, ...] = field(default=1.0, metadata=spec(in_range(0.01, 10.0)))
     online_only: bool = False
     payload: PayloadConfig | None = None
+    harmonics: int = field(default=5, metadata=spec(in_range(1, 50)))
+    seed: int = 0
 
     def _check(self) -> None:
-        if self.kind.startswith("delta_") and self.duration is None:
+        if (self.kind.startswith("delta_") or self.kind == "joint_excitation") and self.duration is None:
             raise FieldError("duration", f"missing key: a {self.kind!r} trajectory needs duration (s)")
         if self.kind == "file" and self.path is None:
             raise FieldError("path", "missing key: a 'file' trajectory needs path")
         if self.kind not in ("file", "fourier") and self.path is not None:
             raise FieldError("path", f"a {self.kind!r} trajectory is generated: only 'file' and 'fourier' "
                                      "trajectories have a path")
-        if isinstance(self.amplitude, tuple) and not (self.kind.startswith("delta_") and len(self.amplitude) == 3):
-            raise FieldError("amplitude", f"one amplitude per arm is for the Delta's three arms (delta_* kinds), "
-                                          f"got {len(self.amplitude)} for a {self.kind!r} trajectory")
+        if isinstance(self.amplitude, tuple) and not (self.kind.startswith("delta_") and len(self.amplitude) == 3
+                                                      or self.kind == "joint_excitation"):
+            raise FieldError("amplitude", f"one amplitude per arm is for the Delta's three arms (delta_* kinds) "
+                                          f"and a joint_excitation's actuators, got {len(self.amplitude)} for a "
+                                          f"{self.kind!r} trajectory")
         if self.kind in ("carriage_sweep", "square") and self.size is None:
             raise FieldError("size", f"missing key: a {self.kind!r} trajectory needs size (m)")
 
@@ -456,12 +470,23 @@ class StepConfig:
 
     name: str
     trajectories: tuple[str, ...]
-    parameters: tuple[str, ...] = field(metadata=spec(doc="parameter names, or [all]: every parameter of the model"))
+    parameters: tuple[str, ...] = field(metadata=spec(
+        doc="parameter names or shell-style patterns of them (leg?_rod.I*), or [all]: every parameter of the model"))
     method: Literal["sqp", "ols", "wls"] = "sqp"
 
     def parameter_names(self, names: tuple[str, ...]) -> tuple[str, ...]:
-        """The step's parameters among the model's ``names`` (``[all]``: every one)."""
-        return tuple(names) if self.parameters == ("all",) else self.parameters
+        """The step's parameters among the model's ``names``, in the model's order where a pattern
+        (``*``, ``?``, ``[...]``) names several (``[all]``: every one); a name that is neither a
+        parameter nor a pattern matching one stays as it is (the config check refuses it)."""
+        if self.parameters == ("all",):
+            return tuple(names)
+        out: list[str] = []
+        for entry in self.parameters:
+            matched = [n for n in names if fnmatch.fnmatchcase(n, entry)] if entry not in names else [entry]
+            for name in matched or [entry]:
+                if name not in out:
+                    out.append(name)
+        return tuple(out)
 
 
 
@@ -481,14 +506,28 @@ def parameter_kind(name: str) -> str:
     return name
 
 
+#: a body parameter's family, whose largest CAD magnitude scales a member whose CAD value is 0
+#: (a product of inertia, the first moment of a body whose centre of mass is on its joint axis)
+BODY_PARAMETER_FAMILIES = {"m": "mass", "mx": "first moment", "my": "first moment", "mz": "first moment",
+                           **{i: "inertia" for i in ("Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")}}
+
+
+def drive_term(name: str) -> str | None:
+    """``fv``, ``fc`` or ``Jm`` for an actuator's drive parameter (``fv_elbow``), else None."""
+    head = name.split("_", 1)[0]
+    return head if "_" in name and head in ("fv", "fc", "Jm") else None
+
+
 @dataclass(frozen=True)
 class OnlineConfig:
     """The online estimators (SVD-DLS, beside RLS and damped RLS on the same data).
 
     They work on parameters divided by their ``scales`` and on forces divided by the noise of
     the outputs, so that ``threshold`` means the same for every direction (100 ⇔ a relative
-    standard deviation of 10 % of the scale). Scales: ``scales`` per parameter name or friction
-    kind (``fv_zeta`` ...), else the magnitude of the CAD value, else :data:`FRICTION_SCALES`.
+    standard deviation of 10 % of the scale). Scales: ``scales`` per parameter name, friction
+    kind (``fv_zeta`` ...) or drive term (``fv``), else the magnitude of the CAD value, else
+    :data:`FRICTION_SCALES`, else (a body parameter) the largest CAD magnitude of its family
+    (:data:`BODY_PARAMETER_FAMILIES`).
     """
 
     forgetting: float = field(default=0.999, metadata=spec(in_range(0.5, 1.0)))
@@ -511,12 +550,20 @@ class OnlineConfig:
 
     def parameter_scales(self, names, cad) -> tuple[float, ...]:
         """(n,) the scale of every parameter ``names`` (n,) with CAD values ``cad`` (see the class)."""
+        typical: dict[str, float] = {}       # largest CAD magnitude of each body-parameter family
+        for name, value in zip(names, cad):
+            if "." in name:
+                family = BODY_PARAMETER_FAMILIES.get(parameter_kind(name), "")
+                typical[family] = max(typical.get(family, 0.0), abs(value))
         out = []
         for name, value in zip(names, cad):
-            kind = parameter_kind(name)
-            scale = self.scales.get(name, self.scales.get(kind, abs(value) or FRICTION_SCALES.get(kind, 0.0)))
+            kind, term = parameter_kind(name), drive_term(name)
+            family = BODY_PARAMETER_FAMILIES.get(kind) if "." in name else None
+            default = abs(value) or FRICTION_SCALES.get(kind, 0.0) or typical.get(family, 0.0)
+            scale = self.scales.get(name, self.scales.get(kind, self.scales.get(term, default)))
             if not scale > 0:
-                raise FieldError(f"scales.{name}", "no CAD value to take a scale from: give one")
+                raise FieldError(f"scales.{name}", f"identification.online.scales.{name}: no CAD value to take "
+                                 "a scale from: give one (or one for its kind)")
             out.append(float(scale))
         return tuple(out)
 
@@ -563,6 +610,9 @@ class IdentificationConfig:
     filter: FilterConfig = FilterConfig()
     online: OnlineConfig = OnlineConfig()
     quality: QualityConfig = QualityConfig()
+    compare_models: bool = field(default=False, metadata=spec(
+        doc="the power-model paper's comparison: the least-squares step's base parameters by the dynamic, "
+            "power and energy models on the same recordings and filters (robots with an energy regressor)"))
 
     def _check(self) -> None:
         least_squares = [i for i, s in enumerate(self.steps) if s.method != "sqp"]
@@ -598,14 +648,20 @@ class Config:
 
     def _check(self) -> None:
         self._check_parameter_names()
+        kind = kind_of(self.robot)
         if self.sim is not None:
-            key = "delta_truth" if self.robot.kind == "delta" else "truth"
-            other = "truth" if key == "delta_truth" else "delta_truth"
+            key = kind.truth_key
             if getattr(self.sim, key) is None:
                 raise FieldError(f"sim.{key}", f"missing key: the simulated {self.robot.kind}'s true parameters")
-            if getattr(self.sim, other) is not None:
-                raise FieldError(f"sim.{other}", f"belongs to another robot than robot.kind {self.robot.kind!r} "
-                                 f"(its true parameters are sim.{key})")
+            for other in TRUTH_KEYS:
+                if other != key and getattr(self.sim, other) is not None:
+                    raise FieldError(f"sim.{other}", f"belongs to another robot than robot.kind {self.robot.kind!r} "
+                                     f"(its true parameters are sim.{key})")
+            if isinstance(self.sim.parameters, ParameterSetConfig):
+                try:
+                    self.sim.parameters.check_against(self.robot.to_model())
+                except FieldError as exc:
+                    raise FieldError(f"sim.parameters.{exc.key}", exc.message) from None
         names: dict[str, int] = {}
         for i, t in enumerate(self.trajectories):
             if t.name in names:
@@ -634,11 +690,22 @@ class Config:
                 raise FieldError("sim.fault.node_id", f"no actuator with node id {fault.node_id}")
             if not self.sim.in_process:
                 raise FieldError("sim.fault", "fault injection needs the in-process rig (sim.in_process: true)")
-        delta = self.robot.kind == "delta"
         for i, t in enumerate(self.trajectories):
-            if t.kind.startswith("delta_") != delta and t.kind != "file":
+            if t.kind not in kind.trajectory_kinds + COMMON_TRAJECTORY_KINDS:
                 raise FieldError(f"trajectories[{i}].kind", f"a {t.kind!r} trajectory is not one of the "
-                                 f"{self.robot.kind}'s (robot.kind)")
+                                 f"{self.robot.kind}'s (robot.kind): expected one of "
+                                 f"{list(kind.trajectory_kinds + COMMON_TRAJECTORY_KINDS)}")
+            if isinstance(t.amplitude, tuple) and t.kind == "joint_excitation" and \
+                    len(t.amplitude) != len(self.robot.actuators):
+                raise FieldError(f"trajectories[{i}].amplitude", f"expected one amplitude per actuator "
+                                 f"({len(self.robot.actuators)}), got {len(t.amplitude)}")
+        if self.identification is not None and self.identification.compare_models:
+            if not any(s.method != "sqp" for s in self.identification.steps):
+                raise FieldError("identification.compare_models", "needs a step that fits base parameters by "
+                                 "least squares (method 'wls' or 'ols')")
+            why = supports_energy_models(self.robot.to_model())
+            if why:
+                raise FieldError("identification.compare_models", why)
         for i, t in enumerate(self.trajectories):
             if t.payload is not None and (self.sim is None or not self.sim.in_process):
                 raise FieldError(f"trajectories[{i}].payload", "a payload is put on by the in-process simulated "
@@ -650,15 +717,16 @@ class Config:
         if self.identification is None:
             return
         for s, step in enumerate(self.identification.steps):
-            for i, p in enumerate(step.parameter_names(known)):
-                if p not in known:
+            for i, p in enumerate(() if step.parameters == ("all",) else step.parameters):
+                if p not in known and not any(fnmatch.fnmatchcase(n, p) for n in known):
                     close = difflib.get_close_matches(p, known, n=1)
                     hint = f"did you mean {close[0]!r}?" if close else f"expected one of {list(known)}"
-                    raise FieldError(f"identification.steps[{s}].parameters[{i}]", f"unknown parameter {p!r}; {hint}")
+                    raise FieldError(f"identification.steps[{s}].parameters[{i}]",
+                                     f"unknown parameter {p!r} (no parameter matches it); {hint}")
         for name in self.identification.bounds:
             if name not in known:
                 raise FieldError(f"identification.bounds.{name}", f"unknown parameter; expected one of {list(known)}")
-        kinds = set(known) | {parameter_kind(n) for n in known}
+        kinds = set(known) | {parameter_kind(n) for n in known} | {drive_term(n) for n in known} - {None}
         for name in self.identification.online.scales:
             if name not in kinds:
                 raise FieldError(f"identification.online.scales.{name}",
@@ -668,16 +736,7 @@ class Config:
         """The simulated rig's true parameters (n,) in the model's order; None without ``sim``."""
         if self.sim is None:
             return None
-        if self.robot.kind == "delta":
-            return self.sim.delta_truth.vector(self.robot.delta.geometry.to_model())
-        return self.sim.truth.to_model().as_vector()
-
-    def true_model_parameters(self):
-        """The true parameters as the model takes them (the plant's): an ``InertialParams`` of the
-        3PRRR, the vector of the Delta."""
-        if self.robot.kind == "delta":
-            return self.true_parameters()
-        return self.sim.truth.to_model()
+        return kind_of(self.robot).truth(self.robot, self.sim)
 
     @property
     def simulated(self) -> bool:

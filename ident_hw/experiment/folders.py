@@ -3,6 +3,7 @@ removing it again when the run could not start."""
 
 from __future__ import annotations
 
+import shutil
 import time
 from pathlib import Path
 
@@ -10,12 +11,17 @@ from ident_hw.config import Config, resolved_yaml
 from ident_hw.results import STATUS_FILE, mark_status
 
 
+#: the folder of a results folder that holds the robot's description file (a described robot)
+DESCRIPTION_DIR = "description"
+
+
 def new_results_folder(config: Config, out: str | Path | None, label: str) -> Path:
     """``out`` if given (must not hold results already), else ``<output.dir>/<label>-<timestamp>``
     (``-2``, ``-3``, ... appended when a run started in the same second took that name).
 
     The folder is claimed by creating its STATUS exclusively, so two runs started at once never
-    share one. Writes STATUS ``running`` and ``config.yaml`` (the config with its bases merged in).
+    share one. Writes STATUS ``running`` and ``config.yaml`` (the config with its bases merged in;
+    a described robot's description file copied to ``description/``, the copy's path in it).
 
     Raises:
         FileExistsError: ``out`` holds results (a STATUS) already.
@@ -32,7 +38,14 @@ def new_results_folder(config: Config, out: str | Path | None, label: str) -> Pa
             folder = base.with_name(f"{base.name}-{n}")
     (folder / "data").mkdir(exist_ok=True)
     mark_status(folder, "running")
-    (folder / "config.yaml").write_text(resolved_yaml(config.source))
+    replace = {}
+    described = config.robot.described
+    if described is not None:          # the robot's description file travels with its config
+        copy = Path(DESCRIPTION_DIR) / Path(described.description).name
+        (folder / DESCRIPTION_DIR).mkdir(exist_ok=True)
+        shutil.copyfile(described.description, folder / copy)
+        replace["robot.described.description"] = copy.as_posix()
+    (folder / "config.yaml").write_text(resolved_yaml(config.source, replace))
     return folder
 
 
@@ -57,6 +70,7 @@ def discard_unused(folder: Path) -> bool:
         return False
     for name in ("STATUS", "config.yaml"):
         (folder / name).unlink(missing_ok=True)
+    shutil.rmtree(folder / DESCRIPTION_DIR, ignore_errors=True)
     for path in (data, folder):
         try:
             path.rmdir()

@@ -9,7 +9,10 @@ base parameters of its parameters (:func:`fit_base`), reported beside the physic
 its own prediction of every trajectory. The result is a :class:`ident_hw.results.Results` with
 standard deviations from the weighted least-squares statistics of each step, a
 base-parameter analysis of all identification data, what each recording covered
-(:func:`coverage`) and the quality verdict (:func:`ident_hw.experiment.quality.verdict`).
+(:func:`coverage`) and the quality verdict (:func:`ident_hw.experiment.quality.verdict`). With
+``identification.compare_models``, the least-squares step's recordings also give the power and
+energy models' rows (:func:`prepare`), and :func:`comparison` fits the three models' base
+parameters side by side (:mod:`ident_hw.identification.model_comparison`).
 """
 
 from __future__ import annotations
@@ -22,9 +25,12 @@ import numpy as np
 from drivers.errors import RecordingError
 from drivers.recording import Recording
 from ident_hw.config import Config
-from ident_hw.identification.base_params import base_parameters, identify_base, on_kept
+from ident_hw.identification.base_params import (base_parameters, column_scale, identify_base, on_kept,
+                                                  scaled_condition)
 from ident_hw.identification.least_squares import check_regression_data, stack, wls
 from ident_hw.identification.mass_fit import sqp_fit
+from ident_hw.identification.model_comparison import (ModelComparison, ModelRows, compare_models,
+                                                       power_energy_rows)
 from ident_hw.model.interface import RobotModel
 from ident_hw.report import coverage_text
 from ident_hw.results import BaseFit, ParameterTable, Results, TrajectoryFit
@@ -44,7 +50,8 @@ class Prepared:
     """One trajectory after preparation and decimation: t (M,), Theta (M, a), X (M, pose size),
     regressor Y (M, a, n), forces tau (M, a) (``a`` actuators, ``n`` parameters);
     ``moving`` (M, a) marks the rows the fits use (:attr:`tau_fit`); ``segments``: how the
-    recording's rows were used (cuts, rows left out per rule)."""
+    recording's rows were used (cuts, rows left out per rule); ``power``, ``energy``: the power
+    and energy models' rows of the same stretches (only when asked for, see :func:`prepare`)."""
 
     name: str
     t: np.ndarray
@@ -54,6 +61,8 @@ class Prepared:
     tau: np.ndarray
     moving: np.ndarray
     segments: Segments | None = None
+    power: ModelRows | None = None
+    energy: ModelRows | None = None
 
     @property
     def tau_fit(self) -> np.ndarray:
@@ -128,10 +137,12 @@ def _bridged(t: np.ndarray, values: np.ndarray) -> np.ndarray:
     return out
 
 
-def prepare(config: Config, robot: RobotModel, name: str, rec: Recording) -> Prepared:
+def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar_models: bool = False) -> Prepared:
     """Recording → filtered motion, regressor and forces, decimated in parallel, stretch by
     stretch (:func:`segments_of`: cut at gaps and at rows left out, each stretch filtered on
-    its own and trimmed at both ends)."""
+    its own and trimmed at both ends). ``scalar_models``: also the power and energy models' rows
+    of every stretch, from the same filtered motion and forces
+    (:func:`ident_hw.identification.model_comparison.power_energy_rows`)."""
     where = f"{rec.metadata.get('file', 'recording')} (trajectory {name!r})"
     if len(rec.t) < 3:
         raise RecordingError(f"{where}: {len(rec.t)} samples, too few to identify from")
@@ -149,7 +160,7 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording) -> Pre
     # start poses for the forward kinematics of each stretch: a continuation from the home pose
     # along the whole recording, across its gaps (a Newton start only, never data)
     guess = robot.pose_series(_bridged(segments.t, rec.position), np.zeros(robot.pose_size))
-    parts = []
+    parts, scalar = [], []
     for rows in segments.slices:
         t, Theta, current = uniform(segments.t[rows], rec.position[rows], rec.current[rows])
         samples = prepare_actuated(t, Theta, current, force_per_amp, settings)
@@ -158,32 +169,14 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording) -> Pre
         kept = kept_samples(settings, len(t))
         slow = np.abs(samples.Thetad) < config.identification.min_speed * speed_limit
         parts.append((t[kept], samples.Theta[kept], X[kept], Y, tau, ~near_rest(slow, settings)[kept]))
+        if scalar_models:
+            scalar.append(power_energy_rows(robot, t, samples.Theta, samples.Thetad, samples.tau, guess[rows],
+                                            settings))
     t, Theta, X, Y, tau, moving = (np.concatenate(column) for column in zip(*parts))
+    if scalar_models:
+        power, energy = (ModelRows.concatenate(column) for column in zip(*scalar))
+        return Prepared(name, t, Theta, X, Y, tau, moving, segments=segments, power=power, energy=energy)
     return Prepared(name, t, Theta, X, Y, tau, moving, segments=segments)
-
-
-#: a regressor column whose RMS is below this fraction of the largest column's is rounding (a
-#: structurally zero column computed through the kinematics), not data: it is not scaled up
-NUMERICALLY_ZERO = 1e-10
-
-
-def column_scale(Y: np.ndarray) -> np.ndarray:
-    """(n,) inverse RMS of each regressor column over all samples and outputs (1 for a zero
-    column, or one below :data:`NUMERICALLY_ZERO` of the largest): scaling by it makes the rank
-    decision of the base parameters unit-free without lifting rounding to unit size."""
-    rms = np.sqrt(np.mean(Y.reshape(-1, Y.shape[-1]) ** 2, axis=0))
-    real = rms > NUMERICALLY_ZERO * (rms.max() if rms.size else 0.0)     # never a zero column
-    return np.divide(1.0, rms, out=np.ones_like(rms), where=real)
-
-
-def scaled_condition(Y: np.ndarray, tau: np.ndarray) -> float:
-    """Condition number of the stacked regressor ``Y`` (N, 6, n) with unit-RMS columns, over the
-    rows the fit uses (``tau`` not NaN): unit-free, unlike cond(W) of kg next to kg·m²."""
-    W, _ = stack(*check_regression_data(Y, tau))
-    W = W[np.any(W != 0.0, axis=1)]
-    if not len(W):
-        return float("inf")
-    return float(np.linalg.cond(W * column_scale(W[:, None, :])))
 
 
 def fit_base(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
@@ -218,6 +211,23 @@ def fit_base(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.nd
     return result, equivalent, record
 
 
+def comparison(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
+               prepared: Mapping[str, Prepared], coef: np.ndarray, truth: np.ndarray | None, weighted: bool,
+               threshold: float, basis: tuple | None = None) -> ModelComparison:
+    """The dynamic, power and energy models' base parameters of the least-squares ``step``
+    (:func:`ident_hw.identification.model_comparison.compare_models`): the dynamic model on the
+    step's own rows ``Y`` (N, a, n), ``tau`` (N, a), the power and energy models on the rows
+    :func:`prepare` made of the same stretches; parameters outside ``free_names`` held at
+    ``coef`` (n,), as in :func:`fit_base`."""
+    rows = [ModelRows("dynamic", Y, tau)]
+    for model in ("power", "energy"):
+        parts = [getattr(prepared[t], model) for t in step.trajectories if getattr(prepared[t], model) is not None]
+        if parts:
+            rows.append(ModelRows.concatenate(parts))
+    return compare_models(names, rows, free=free_names, values=coef, truth=truth, weighted=weighted,
+                          basis=basis, step=step.name, trajectories=step.trajectories, threshold=threshold)
+
+
 def identify(config: Config, recordings: Mapping[str, Recording],
              progress: Callable[[str], None] | None = None) -> Results:
     """Run the config's identification steps and validation on ``recordings`` (name → samples)."""
@@ -227,6 +237,9 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     robot = robot_model(config)
     names = robot.parameter_names
     needed = [n for s in ident.steps for n in s.trajectories] + list(ident.validation)
+    compared: tuple[str, ...] = ()
+    if ident.compare_models:            # the config check made sure there is such a step
+        compared = next(s for s in ident.steps if s.method != "sqp").trajectories
     require_trajectories(config, recordings)
     used = {name: coverage(config, name, recordings[name]) for name in dict.fromkeys(needed)}
     if progress:
@@ -236,7 +249,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     for name in dict.fromkeys(needed):
         if progress:
             progress(f"preparing {name}")
-        prepared[name] = prepare(config, robot, name, recordings[name])
+        prepared[name] = prepare(config, robot, name, recordings[name], scalar_models=name in compared)
         if progress and prepared[name].segments.describe():
             progress(f"  {name}: {prepared[name].segments.describe()}")
 
@@ -248,7 +261,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     step_of, method_of = [""] * n, [""] * n
     truth = config.true_parameters()
     steps = []
-    base_fit, base_equivalent = None, None
+    base_fit, base_equivalent, model_comparison = None, None, None
     for step in ident.steps:
         free_names = step.parameter_names(names)
         if progress:
@@ -265,6 +278,12 @@ def identify(config: Config, recordings: Mapping[str, Recording],
             base_fit, base_equivalent, record = fit_base(step, free_names, names, Y, tau, coef, initial, truth,
                                                          ident.rel_sigma_threshold, robot.readable_base())
             steps.append(record)
+            if compared:
+                if progress:
+                    progress(f"step {step.name}: the dynamic, power and energy models' base parameters")
+                model_comparison = comparison(step, free_names, names, Y, tau, prepared, coef, truth,
+                                              step.method == "wls", ident.rel_sigma_threshold,
+                                              robot.readable_base())
             continue
         # a parameter its rows do not excite at all (e.g. a carriage whose every stretch was
         # left out) is held at its current value, and the verdict says so
@@ -317,6 +336,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
                           stretches=len(p.segments.slices))
     results = Results(parameters=table, actuators=robot.actuator_names, actuator_kinds=robot.actuator_kinds,
                       fits=fits, steps=steps, base_parameters=base, base_fit=base_fit,
-                      rel_sigma_threshold=ident.rel_sigma_threshold, trajectories=used)
+                      rel_sigma_threshold=ident.rel_sigma_threshold, trajectories=used,
+                      model_comparison=model_comparison)
     results.quality = verdict(results, ident.quality)
     return results

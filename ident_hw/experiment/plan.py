@@ -2,22 +2,16 @@
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
 import trajectories
-from trajectories import delta_paper
 from ident_hw.config import Config, TrajectoryConfig
+from ident_hw.config.robots import excitation_of, kind_of
 from ident_hw.model import KinematicsError
 from ident_hw.model.interface import RobotModel
-
-
-#: the Fourier excitation optimised for the nominal rig, shipped with ``trajectories``
-NOMINAL_EXCITATION = resources.files(trajectories) / "data" / "fourier-nominal.json"
 
 
 @dataclass
@@ -56,38 +50,13 @@ def sample_rate(config: Config) -> float:
 def build(config: Config, tcfg: TrajectoryConfig, robot: RobotModel) -> trajectories.Trajectory:
     """Generate one trajectory (all cycles) at the SYNC rate."""
     rate = sample_rate(config)
-    if tcfg.kind.startswith("delta_"):
-        traj = delta_paper.delta_trajectory(robot, tcfg.kind, tcfg.duration, rate, tcfg.fade, name=tcfg.name,
-                                            amplitude=tcfg.amplitude)
-        return repeat(traj, tcfg.cycles)
-    limits = config.robot.feasibility_limits()
-    k = tcfg.speed_scale
-    timing = dataclasses.replace(limits, carriage_speed=limits.carriage_speed * k,
-                                 carriage_accel=limits.carriage_accel * k * k,
-                                 revolute_speed=limits.revolute_speed * k,
-                                 revolute_accel=limits.revolute_accel * k * k)
-    if tcfg.kind == "carriage_sweep":
-        traj = trajectories.carriage_sweep(robot, timing, amplitude=tcfg.size, rate=rate, dwell=tcfg.dwell)
-    elif tcfg.kind == "square":
-        traj = trajectories.square(robot, timing, tcfg.rotation, side=tcfg.size, rate=rate, dwell=tcfg.dwell,
-                                   name=tcfg.name)
-    elif tcfg.kind == "triangle":
-        traj = trajectories.validation_triangle(robot, timing, rate=rate, dwell=tcfg.dwell)
-    elif tcfg.kind == "fourier":
-        traj = excitation_of(config, tcfg).trajectory(robot, rate, name=tcfg.name)
+    if tcfg.kind == "file":
+        traj = trajectories.load(Path(config.source).parent / tcfg.path).resample(rate)
     else:
-        path = Path(config.source).parent / tcfg.path
-        traj = trajectories.load(path).resample(rate)
+        traj = kind_of(config.robot).build(config, tcfg, robot, rate)
     traj = repeat(traj, tcfg.cycles)
     traj.name = tcfg.name
     return traj
-
-
-def excitation_of(config: Config, tcfg: TrajectoryConfig) -> trajectories.FourierExcitation:
-    """The coefficients of a ``fourier`` trajectory: its ``path`` (relative to the config) or the
-    excitation shipped for the nominal rig."""
-    path = NOMINAL_EXCITATION if tcfg.path is None else Path(config.source).parent / tcfg.path
-    return trajectories.FourierExcitation.load(path)
 
 
 def motion_bandwidth(config: Config, name: str) -> float:
@@ -141,11 +110,7 @@ def check(config: Config, traj: trajectories.Trajectory, robot: RobotModel) -> t
     acts = config.robot.actuators
     if traj.Theta.shape[1] != len(acts):
         raise ValueError(f"trajectory {traj.name!r} moves {traj.Theta.shape[1]} actuators, the robot has {len(acts)}")
-    if config.robot.kind == "delta":
-        safety = config.robot.safety
-        return delta_paper.check_delta_trajectory(traj, robot, config.robot.actuator_limits(),
-                                                  safety.min_serial_margin, safety.max_cond_A)
-    return trajectories.check_trajectory(traj, robot, config.robot.feasibility_limits())
+    return kind_of(config.robot).check(config, traj, robot)
 
 
 def quantisation_notes(config: Config, traj: trajectories.Trajectory) -> tuple[str, ...]:

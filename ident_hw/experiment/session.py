@@ -42,7 +42,7 @@ def simulated_rig(config: Config) -> SimulatedRig:
     sim, robot = config.sim, config.robot
     lockstep = config.sync_mode == "lockstep"
     axes = [(a.node_id, a.profile, a.scaling()) for a in robot.actuators]
-    return SimulatedRig.build(robot_model(config), config.true_model_parameters(), axes,
+    return SimulatedRig.build(robot_model(config), config.true_parameters(), axes,
                               bandwidth_hz=sim.bandwidth, damping=sim.damping,
                               **({"max_substep": sim.max_substep} if sim.max_substep else {}),
                               sync_period=1.0 / config.bus.sync_rate if lockstep else None,

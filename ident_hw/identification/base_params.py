@@ -181,3 +181,27 @@ def identify_base(
     cols = [base.names.index(k) for k in base.kept]
     fit = (wls if weighted else ols)(Y[:, :, cols], tau, base.expressions)
     return base, fit
+
+
+#: a regressor column whose RMS is below this fraction of the largest column's is rounding (a
+#: structurally zero column computed through the kinematics), not data: it is not scaled up
+NUMERICALLY_ZERO = 1e-10
+
+
+def column_scale(Y: np.ndarray) -> np.ndarray:
+    """(n,) inverse RMS of each regressor column over all samples and outputs (1 for a zero
+    column, or one below :data:`NUMERICALLY_ZERO` of the largest): scaling by it makes the rank
+    decision of the base parameters unit-free without lifting rounding to unit size."""
+    rms = np.sqrt(np.mean(Y.reshape(-1, Y.shape[-1]) ** 2, axis=0))
+    real = rms > NUMERICALLY_ZERO * (rms.max() if rms.size else 0.0)     # never a zero column
+    return np.divide(1.0, rms, out=np.ones_like(rms), where=real)
+
+
+def scaled_condition(Y: np.ndarray, tau: np.ndarray) -> float:
+    """Condition number of the stacked regressor ``Y`` (N, 6, n) with unit-RMS columns, over the
+    rows the fit uses (``tau`` not NaN): unit-free, unlike cond(W) of kg next to kg·m²."""
+    W, _ = stack(*check_regression_data(Y, tau))
+    W = W[np.any(W != 0.0, axis=1)]
+    if not len(W):
+        return float("inf")
+    return float(np.linalg.cond(W * column_scale(W[:, None, :])))

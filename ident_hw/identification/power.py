@@ -20,14 +20,74 @@ Inputs are sampled (N,) time-major: ``t`` (N,), energy regressor ``H`` (N, 7) fr
 ``robot.energy_regressor``, ``Thetad`` (N, 6), ``tau`` (N, 6). The parameter vector is
 ``[inertial (7), f_v (6), f_c (6)]``, the order of ``robot.parameter_names``. The rows
 are a regressor with one output: ``identify_base(W[:, None], y[:, None], names)`` fits them.
+
+Any other parameter layout (:func:`power_rows_in_layout`, :func:`energy_rows_in_layout`): ``H``
+(N, P) covers the whole parameter vector of the robot (its friction columns zero, as
+``DescribedRobot.energy_regressor`` gives it: kinetic and potential energy of the bodies, the
+rotors' ``Jm qd² / 2``), and the friction power columns go to the model's own ``f_v``, ``f_c``
+positions (:class:`FrictionLayout`, read from ``robot.friction_coefficients``), so that the rows
+multiply the same parameter vector as the dynamic model's ``Y``. A potential energy term (gravity)
+enters through ``ΔH`` like the kinetic one: ``Thetadᵀ tau = dE/dt + friction power`` with ``E``
+the total energy.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import integrate
 
 from ident_hw.signal import central_derivatives
+
+
+@dataclass(frozen=True)
+class FrictionLayout:
+    """Where a robot's friction coefficients sit in its parameter vector of ``n_params``
+    entries: ``fv`` and ``fc`` (k,) column indices, one per actuator in actuator order (the
+    friction force of actuator j is ``f_v[j] qd_j + f_c[j] tanh(qd_j / w)``)."""
+
+    n_params: int
+    fv: tuple[int, ...]
+    fc: tuple[int, ...]
+
+    def __post_init__(self) -> None:
+        cols = self.fv + self.fc
+        if len(self.fv) != len(self.fc) or len(set(cols)) != len(cols) or not all(0 <= c < self.n_params for c in cols):
+            raise ValueError(f"friction columns must be distinct indices below {self.n_params}, one f_v and one "
+                             f"f_c per actuator; got fv {self.fv}, fc {self.fc}")
+
+    @classmethod
+    def of(cls, robot) -> "FrictionLayout":
+        """The layout of a robot model whose ``friction_coefficients`` reads the parameter
+        vector (the described robots, the Delta): asked with the vector of the column indices,
+        it answers with the indices of ``f_v`` and ``f_c``.
+
+        Raises:
+            ValueError: the model's friction coefficients are not entries of its vector (e.g.
+                the 3PRRR's, which reads an ``InertialParams``).
+        """
+        n = len(robot.parameter_names)
+        try:
+            fv, fc = robot.friction_coefficients(np.arange(n, dtype=float))
+        except (AttributeError, TypeError, ValueError) as exc:
+            raise ValueError(f"{type(robot).__name__}: its friction coefficients are not entries of its "
+                             f"parameter vector ({exc})") from exc
+        fv, fc = np.asarray(fv, dtype=float), np.asarray(fc, dtype=float)
+        if not (np.array_equal(fv, np.round(fv)) and np.array_equal(fc, np.round(fc))):
+            raise ValueError(f"{type(robot).__name__}: its friction coefficients are not entries of its parameter vector")
+        return cls(n, tuple(int(i) for i in fv), tuple(int(i) for i in fc))
+
+    def place(self, W: np.ndarray, friction: np.ndarray) -> np.ndarray:
+        """``W`` (M, n_params) with the friction columns ``friction`` (M, 2k) ``[f_v block, f_c
+        block]`` added at :attr:`fv`, :attr:`fc` (where an energy regressor has zeros)."""
+        k = len(self.fv)
+        W = np.array(W, dtype=float)
+        if W.shape[1] != self.n_params or friction.shape != (W.shape[0], 2 * k):
+            raise ValueError(f"expected W (M, {self.n_params}) and friction (M, {2 * k}); got {W.shape}, {friction.shape}")
+        W[:, list(self.fv)] += friction[:, :k]
+        W[:, list(self.fc)] += friction[:, k:]
+        return W
 
 
 
@@ -70,3 +130,70 @@ def energy_rows(t, H, Thetad, tau, coulomb_width: float, window: int = 10) -> tu
     a, b = ends[:-1], ends[1:]
     W = np.concatenate([H[b] - H[a], cum_friction[b] - cum_friction[a]], axis=1)
     return W, cum_power[b] - cum_power[a]
+
+
+def _check_layout(H: np.ndarray, Thetad: np.ndarray, layout: FrictionLayout) -> None:
+    if H.shape[1] != layout.n_params or Thetad.shape[1] != len(layout.fv):
+        raise ValueError(f"expected H (N, {layout.n_params}) and Thetad (N, {len(layout.fv)}); "
+                         f"got {H.shape}, {Thetad.shape}")
+    if np.any(H[:, list(layout.fv + layout.fc)] != 0.0):
+        raise ValueError("the energy regressor has non-zero friction columns: friction stores no energy")
+
+
+def power_rows_in_layout(t, H, Thetad, tau, coulomb_width: float, layout: FrictionLayout,
+                         edges: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Power-model equations in the robot's own parameter order: ``W`` (M, P) and ``y`` (M,) =
+    actuated power, W (``Thetadᵀ tau``), with ``H`` (N, P) the robot's energy regressor (J).
+
+    ``edges`` False: the samples 2 .. N − 3 (M = N − 4), where ``dH/dt`` is fourth order (as
+    :func:`power_rows`). True: every sample (M = N), the two at each end second order, for a
+    caller that filters the rows in parallel and trims more than two samples at each end anyway
+    (:func:`ident_hw.signal.parallel_decimate`).
+    """
+    t, H, Thetad, tau = _check(t, H, Thetad, tau)
+    _check_layout(H, Thetad, layout)
+    if t.size < 5:
+        raise ValueError(f"the power model needs at least 5 samples, got {t.size}")
+    dH, _ = central_derivatives(H, t)
+    W = layout.place(dH, _friction_power(Thetad, coulomb_width))
+    y = np.sum(Thetad * tau, axis=1)
+    rows = slice(None) if edges else slice(2, t.size - 2)
+    return W[rows], y[rows]
+
+
+def friction_power(Thetad, coulomb_width: float) -> np.ndarray:
+    """Friction power regressor (N, 2k) ``[qd², qd tanh(qd / w)]`` of rates ``Thetad`` (N, k):
+    W per unit of ``f_v`` and of ``f_c``."""
+    return _friction_power(np.atleast_2d(np.asarray(Thetad, dtype=float)), coulomb_width)
+
+
+def energy_rows_in_layout(t, H, Thetad, tau, coulomb_width: float, layout: FrictionLayout,
+                          window: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """Energy-model equations in the robot's own parameter order over consecutive windows of
+    ``window`` samples (as :func:`energy_rows`): ``W`` (M, P) = ``[ΔH, friction work]`` and
+    ``y`` (M,) = work of the actuators over each window, J."""
+    t, H, Thetad, tau = _check(t, H, Thetad, tau)
+    _check_layout(H, Thetad, layout)
+    return windowed_energy_rows(t, H, np.sum(Thetad * tau, axis=1), _friction_power(Thetad, coulomb_width),
+                                layout, window)
+
+
+def windowed_energy_rows(t, H, power, friction, layout: FrictionLayout,
+                         window: int) -> tuple[np.ndarray, np.ndarray]:
+    """Energy-model equations from their integrands: ``H`` (N, P) the energy regressor (J),
+    ``power`` (N,) the actuated power (W), ``friction`` (N, 2k) the friction power regressor
+    (:func:`friction_power`), all at times ``t`` (N,); for a caller that filters the integrands
+    first (a linear filter commutes with the integral and the differences of ``H``). Returns
+    ``W`` (M, P) = ``[ΔH, friction work]`` and ``y`` (M,) = actuated work, J, over consecutive
+    windows of ``window`` samples (cumulative Simpson rule)."""
+    t, H, power, friction = (np.asarray(a, dtype=float) for a in (t, H, power, friction))
+    if t.ndim != 1 or H.shape[0] != t.size or power.shape != t.shape or friction.shape[0] != t.size:
+        raise ValueError(f"expected t (N,), H (N, P), power (N,), friction (N, 2k); got {t.shape}, {H.shape}, "
+                         f"{power.shape}, {friction.shape}")
+    if window < 1 or window >= t.size:
+        raise ValueError(f"window must lie in [1, {t.size - 1}] samples, got {window}")
+    cum_power = integrate.cumulative_simpson(power, x=t, initial=0.0)
+    cum_friction = integrate.cumulative_simpson(friction, x=t, axis=0, initial=0.0)
+    ends = np.arange(0, t.size, window)
+    a, b = ends[:-1], ends[1:]
+    return layout.place(H[b] - H[a], cum_friction[b] - cum_friction[a]), cum_power[b] - cum_power[a]

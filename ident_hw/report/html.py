@@ -8,6 +8,7 @@ from pathlib import Path
 
 import jinja2
 
+from ident_hw.identification.model_comparison import EQUATIONS, OUTPUT_UNITS
 from ident_hw.results import SETTLED, Results, read_status
 
 from .terminal import accuracy_line, coverage_text
@@ -32,7 +33,8 @@ _ENV.filters.update(fmt=fmt, fmt_rel=fmt_rel)
 
 
 def render_html(folder: Path, results: Results, table: dict, images: list[tuple[str, Path]]) -> str:
-    """The page: summary and verdict first, then the parameter tables, the online comparison,
+    """The page: summary and verdict first, then the parameter tables (with the dynamic, power and
+    energy models' base parameters when the results hold them), the online comparison,
     the force-prediction metrics per trajectory and the plots (``images``: title, PNG path)."""
     rows = results.parameter_rows()
     base = results.base_parameters or {}
@@ -45,4 +47,5 @@ def render_html(folder: Path, results: Results, table: dict, images: list[tuple[
         base_list=base if base.get("base_parameters") and results.base_fit is None else None,
         online=results.online, comparison=results.online.comparison() if results.online is not None else [],
         settled_percent=100 * SETTLED, metrics=table, actuators=results.actuators,
+        equations=EQUATIONS, output_units=OUTPUT_UNITS,
         images=[(title, str(path.relative_to(folder))) for title, path in images])

@@ -1,0 +1,90 @@
+"""Robots from description files (issue 27): the generic model's cost against the hand-made ones.
+
+* regressor per sample (``identification_regressor``: forward kinematics by Newton from the
+  previous sample's configuration, passive rates, the tree regressor projected on the
+  actuators) of the generic model read from ``configs/robots/*`` against the hand-made 3PRRR
+  and Delta on the same states, and for the Stewart platform and the 2R arm;
+* ``plant_dynamics`` per call (what the simulated rig computes once per SYNC period).
+
+Run: python benchmarks/bench_described.py   (quote ``bench_model.py --speed`` of the same hour)
+"""
+
+import time
+
+import numpy as np
+
+from ident_hw.config import load_config
+
+CONFIGS = "configs"
+SAMPLES = 2000
+
+
+def per_call(fn, calls: int, repeats: int = 3) -> float:
+    """Best of ``repeats`` of the mean time of ``fn`` over ``calls`` calls, in µs."""
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, (time.perf_counter() - t0) / calls)
+    return best * 1e6
+
+
+def smooth_motion(home, amplitude, n=SAMPLES, rate=250.0):
+    """A multi-sine about ``home`` (n, a) with its rates, sampled at ``rate`` Hz."""
+    t = np.arange(n)[:, None] / rate
+    w = 2 * np.pi * np.linspace(0.3, 0.9, len(home))
+    return home + amplitude * np.sin(w * t), amplitude * w * np.cos(w * t), -amplitude * w**2 * np.sin(w * t)
+
+
+def hand_and_described(name: str):
+    """The hand-made model of ``robot-<name>.yaml`` and the generic one of ``robots/<name>.xml``."""
+    from ident_hw.model.described import DescribedRobot
+
+    hand = load_config(f"{CONFIGS}/robot-{name}.yaml").robot.to_model()
+    if name == "3prrr":
+        X0 = np.zeros((1, 3))
+        theta, beta = hand.inverse_kinematics(X0, X0)
+        elbow = beta[0] - theta[0]
+        home = {**{f"theta{i + 1}": theta[0, i] for i in range(3)}, **{f"elbow{i + 1}": elbow[i] for i in range(3)},
+                "ee_hinge": -beta[0, 0]}
+        actuated = ("theta1", "theta2", "theta3", "zeta1", "zeta2", "zeta3")
+        amplitude = np.array([0.05, 0.05, 0.05, 0.02, 0.02, 0.02])
+    else:
+        q0 = np.zeros((1, 3))
+        b, c = hand.rod_angles(q0)
+        home = {**{f"elbow{i + 1}_y": b[0, i] for i in range(3)}, **{f"elbow{i + 1}_n": c[0, i] for i in range(3)},
+                **{f"wrist{i + 1}_n": -c[0, i] for i in range(3)}, **{f"wrist{i + 1}_y": -b[0, i] for i in range(3)}}
+        actuated = ("q1", "q2", "q3")
+        amplitude = np.full(3, 0.3)
+    return hand, DescribedRobot(f"{CONFIGS}/robots/{name}.xml", actuated, home=home), amplitude
+
+
+def main():
+    print(f"regressor per sample ({SAMPLES} samples of a smooth motion at 250 Hz) and plant_dynamics per call:")
+    for name in ("3prrr", "delta"):
+        hand, described, amplitude = hand_and_described(name)
+        Theta, Thetad, Thetadd = smooth_motion(hand.home_actuated(), amplitude)
+        start = hand.pose(Theta[0], np.zeros(hand.pose_size))
+        guess = np.tile(start, (SAMPLES, 1))
+        t_hand = per_call(lambda: hand.identification_regressor(Theta, Thetad, Thetadd, guess), SAMPLES)
+        t_gen = per_call(lambda: described.identification_regressor(Theta, Thetad, Thetadd, None), SAMPLES)
+        pi_hand = load_config(f"{CONFIGS}/robot-{name}.yaml").robot.initial_parameters()
+        pi = described.nominal_parameters()
+        q = described.pose(Theta[1], None)
+        p_hand = per_call(lambda: [hand.plant_dynamics(Theta[1], Thetad[1], pi_hand, start) for _ in range(200)], 200)
+        p_gen = per_call(lambda: [described.plant_dynamics(Theta[1], Thetad[1], pi, q) for _ in range(200)], 200)
+        print(f"  {name:8s} hand-made {t_hand:8.1f} µs, generic {t_gen:8.1f} µs ({t_gen / t_hand:5.0f}x); "
+              f"plant_dynamics hand-made {p_hand:6.1f} µs, generic {p_gen:6.1f} µs")
+    for name in ("stewart", "2r"):
+        robot = load_config(f"{CONFIGS}/robot-{name}.yaml").robot.to_model()
+        amplitude = np.full(len(robot.actuator_names), 0.03 if name == "stewart" else 0.5)
+        Theta, Thetad, Thetadd = smooth_motion(robot.home_actuated(), amplitude)
+        t_gen = per_call(lambda: robot.identification_regressor(Theta, Thetad, Thetadd, None), SAMPLES)
+        pi = robot.nominal_parameters()
+        q = robot.pose(Theta[1], None)
+        p_gen = per_call(lambda: [robot.plant_dynamics(Theta[1], Thetad[1], pi, q) for _ in range(200)], 200)
+        print(f"  {name:8s} generic {t_gen:8.1f} µs; plant_dynamics {p_gen:6.1f} µs")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,267 @@
+"""The robot registry: one :class:`RobotKind` per value of ``robot.kind``.
+
+A robot kind is everything the rest of the tool asks of a robot beyond its
+:class:`~ident_hw.model.interface.RobotModel`: which section of ``robot`` holds its settings and
+which key of ``sim`` its true parameters, its model, its CAD and true parameter vectors, the
+actuators it expects, its trajectory kinds with their builders and its feasibility check. The
+config, the campaign plan and the simulated rig's set-up look the kind up here instead of
+comparing ``robot.kind`` with names; this module is the only place that does (a test holds it).
+
+Three kinds: ``3prrr`` and ``delta`` (hand-derived models, :mod:`ident_hw.model`) and
+``described``: any robot from its description file (:class:`ident_hw.model.described.DescribedRobot`),
+settings in ``robot.described`` (:class:`DescribedConfig`), true parameters in
+``sim.parameters`` (:class:`ParameterSetConfig`). Adding a robot of this kind is a description
+file and a config, no code.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+import trajectories
+from ident_hw.model import Delta, ThreePRRR
+from ident_hw.model.described import DescribedRobot, DescriptionError
+from ident_hw.model.interface import RobotModel
+from trajectories import delta_paper, joint_space
+
+from .schema import FieldError, non_negative, positive, spec
+
+#: the Fourier excitation optimised for the nominal 3PRRR, shipped with ``trajectories``
+NOMINAL_EXCITATION = resources.files(trajectories) / "data" / "fourier-nominal.json"
+
+
+# ----------------------------------------------------------------------------- described robots
+@dataclass(frozen=True)
+class ParameterSetConfig:
+    """Parameters of a described robot: the description file's bodies with ``factors`` (by
+    parameter name, ``platform.m: 1.1`` = 10 % heavier) then ``values`` (by name, in SI units)
+    applied, and per actuator, in actuator order, viscous ``fv`` and Coulomb ``fc`` friction and
+    the rotor inertia ``Jm`` reflected through the gear (default 0)."""
+
+    factors: dict[str, float] = field(default_factory=dict)
+    values: dict[str, float] = field(default_factory=dict)
+    fv: tuple[float, ...] = field(default=(), metadata=spec(non_negative, unit="N m s/rad | N s/m"))
+    fc: tuple[float, ...] = field(default=(), metadata=spec(non_negative, unit="N m | N"))
+    Jm: tuple[float, ...] = field(default=(), metadata=spec(non_negative, unit="kg m^2 | kg"))
+
+    def check_against(self, model: DescribedRobot) -> None:
+        """Every name a parameter of ``model``, one drive term per actuator (FieldError otherwise)."""
+        names = model.parameter_names
+        for key in ("factors", "values"):
+            for name in getattr(self, key):
+                if name not in names:
+                    bodies = sorted({n.split(".")[0] for n in names if "." in n})
+                    raise FieldError(f"{key}.{name}", f"unknown parameter of {model.path.name}; expected "
+                                     f"<body>.<parameter> with bodies {bodies} and parameters of "
+                                     f"{list(BODY_PARAMS_DESCRIBED)}")
+        n = len(model.actuator_names)
+        for key in ("fv", "fc", "Jm"):
+            given = getattr(self, key)
+            if given and len(given) != n:
+                raise FieldError(key, f"expected one value per actuator ({n}: {', '.join(model.actuator_names)}), "
+                                      f"got {len(given)}")
+
+    def vector(self, model: DescribedRobot) -> np.ndarray:
+        """(P,) in the order of ``model.parameter_names``."""
+        pi = model.nominal_parameters()
+        names = model.parameter_names
+        for name, factor in self.factors.items():
+            pi[names.index(name)] *= factor
+        for name, value in self.values.items():
+            pi[names.index(name)] = value
+        n = len(model.actuator_names)
+        start = len(pi) - 3 * n
+        for k, key in enumerate(("fv", "fc", "Jm")):
+            given = getattr(self, key)
+            if given:
+                pi[start + k * n:start + (k + 1) * n] = given
+        return pi
+
+
+BODY_PARAMS_DESCRIBED = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+
+
+@dataclass(frozen=True)
+class DescribedConfig:
+    """A robot from its description file (MJCF for closed chains, URDF for serial robots).
+
+    The actuators of ``robot.actuators`` name the joints they drive (``joint``); ``home`` gives
+    tree joint values (rad, m) of an assembled configuration near home, whose assembly mode is
+    kept; ``end_effector`` is the body a payload goes on; ``cad``: the CAD parameters (the
+    description's inertias by default); ``max_condition``: the feasibility check's largest
+    condition number of the passive joints' closure Jacobian (distance to a parallel singularity).
+    """
+
+    description: str = field(metadata=spec(path=True, doc="MJCF (.xml) or URDF (.urdf), relative to this file"))
+    home: dict[str, float] = field(default_factory=dict)
+    home_actuated: tuple[float, ...] | None = field(default=None, metadata=spec(
+        unit="rad | m", doc="actuated coordinates of home (default: those of home)"))
+    end_effector: str | None = None
+    cad: ParameterSetConfig = ParameterSetConfig()
+    max_condition: float = field(default=100.0, metadata=spec(positive))
+
+
+# ----------------------------------------------------------------------------- the registry
+@dataclass(frozen=True)
+class RobotKind:
+    """One robot kind (see the module docstring). Functions take the whole config (``robot``:
+    its ``robot`` section) and never look at ``robot.kind``.
+
+    Attributes:
+        name: the value of ``robot.kind``.
+        sections: the keys of ``robot`` this kind needs.
+        truth_key: the key of ``sim`` holding the simulated robot's true parameters.
+        trajectory_kinds: the generated trajectory kinds of this robot (``file`` is any robot's).
+        model: ``robot -> RobotModel``.
+        initial: ``robot -> (P,)`` the CAD parameters in the model's order.
+        truth: ``(robot, sim) -> (P,)`` the true parameters in the model's order.
+        actuators: ``robot -> (names, kinds)`` the actuators the robot expects, in order.
+        build: ``(config, trajectory, robot model, rate) -> Trajectory`` one generated trajectory.
+        check: ``(config, trajectory, robot model) -> Report`` its feasibility.
+        validate: ``robot -> None`` checks beyond the schema (FieldError, key relative to ``robot``).
+    """
+
+    name: str
+    sections: tuple[str, ...]
+    truth_key: str
+    trajectory_kinds: tuple[str, ...]
+    model: Callable[[Any], RobotModel]
+    initial: Callable[[Any], np.ndarray]
+    truth: Callable[[Any, Any], np.ndarray]
+    actuators: Callable[[Any], tuple[tuple[str, ...], tuple[str, ...]]]
+    build: Callable[[Any, Any, RobotModel, float], trajectories.Trajectory]
+    check: Callable[[Any, trajectories.Trajectory, RobotModel], trajectories.Report]
+    validate: Callable[[Any], None] = lambda robot: None
+
+
+# ---- the 3PRRR
+def _threeprrr_build(config, tcfg, robot, rate):
+    limits = config.robot.feasibility_limits()
+    k = tcfg.speed_scale
+    timing = dataclasses.replace(limits, carriage_speed=limits.carriage_speed * k,
+                                 carriage_accel=limits.carriage_accel * k * k,
+                                 revolute_speed=limits.revolute_speed * k,
+                                 revolute_accel=limits.revolute_accel * k * k)
+    if tcfg.kind == "carriage_sweep":
+        return trajectories.carriage_sweep(robot, timing, amplitude=tcfg.size, rate=rate, dwell=tcfg.dwell)
+    if tcfg.kind == "square":
+        return trajectories.square(robot, timing, tcfg.rotation, side=tcfg.size, rate=rate, dwell=tcfg.dwell,
+                                   name=tcfg.name)
+    if tcfg.kind == "triangle":
+        return trajectories.validation_triangle(robot, timing, rate=rate, dwell=tcfg.dwell)
+    return excitation_of(config, tcfg).trajectory(robot, rate, name=tcfg.name)
+
+
+def excitation_of(config, tcfg) -> trajectories.FourierExcitation:
+    """The coefficients of a 3PRRR ``fourier`` trajectory: its ``path`` (relative to the config)
+    or the excitation shipped for the nominal rig."""
+    path = NOMINAL_EXCITATION if tcfg.path is None else Path(config.source).parent / tcfg.path
+    return trajectories.FourierExcitation.load(path)
+
+
+def _threeprrr_validate(robot) -> None:
+    for key in ("geometry", "stroke", "cad"):
+        if getattr(robot, key) is None:
+            raise FieldError(key, "missing key (a 3PRRR needs geometry, stroke and cad)")
+
+
+THREE_PRRR = RobotKind(
+    name="3prrr", sections=("geometry", "stroke", "cad", "safety"), truth_key="truth",
+    trajectory_kinds=("carriage_sweep", "square", "triangle", "fourier"),
+    model=lambda robot: ThreePRRR(robot.geometry.to_model(), coulomb_width=robot.coulomb_width),
+    initial=lambda robot: robot.cad.to_model().as_vector(),
+    truth=lambda robot, sim: sim.truth.to_model().as_vector(),
+    actuators=lambda robot: (ThreePRRR.actuator_names, ThreePRRR.actuator_kinds),
+    build=_threeprrr_build,
+    check=lambda config, traj, robot: trajectories.check_trajectory(traj, robot, config.robot.feasibility_limits()),
+    validate=_threeprrr_validate)
+
+
+# ---- the Delta
+def _delta_validate(robot) -> None:
+    if robot.delta is None:
+        raise FieldError("delta", "missing key: a Delta needs its delta section (geometry, cad)")
+
+
+def _delta_check(config, traj, robot):
+    safety = config.robot.safety
+    return delta_paper.check_delta_trajectory(traj, robot, config.robot.actuator_limits(),
+                                              safety.min_serial_margin, safety.max_cond_A)
+
+
+DELTA = RobotKind(
+    name="delta", sections=("delta", "safety"), truth_key="delta_truth",
+    trajectory_kinds=("delta_training", "delta_verification", "delta_held_arm"),
+    model=lambda robot: Delta(robot.delta.geometry.to_model(), coulomb_width=robot.coulomb_width),
+    initial=lambda robot: robot.delta.cad.vector(robot.delta.geometry.to_model()),
+    truth=lambda robot, sim: sim.delta_truth.vector(robot.delta.geometry.to_model()),
+    actuators=lambda robot: (Delta.actuator_names, Delta.actuator_kinds),
+    build=lambda config, tcfg, robot, rate: delta_paper.delta_trajectory(
+        robot, tcfg.kind, tcfg.duration, rate, tcfg.fade, name=tcfg.name, amplitude=tcfg.amplitude),
+    check=_delta_check, validate=_delta_validate)
+
+
+# ---- any robot from its description file
+def described_model(robot) -> DescribedRobot:
+    """The :class:`DescribedRobot` of a ``described`` robot section."""
+    d = robot.described
+    return DescribedRobot(d.description, [a.joint or a.name for a in robot.actuators],
+                          actuator_names=[a.name for a in robot.actuators], home=d.home,
+                          home_actuated=d.home_actuated, end_effector=d.end_effector,
+                          coulomb_width=robot.coulomb_width)
+
+
+def _described_validate(robot) -> None:
+    if robot.described is None:
+        raise FieldError("described", "missing key: a described robot needs its described section (description)")
+    try:
+        model = described_model(robot)
+    except DescriptionError as exc:
+        raise FieldError("described.description", str(exc)) from None
+    model_kinds = dict(zip(model.actuated_joints, model.actuator_kinds))
+    for i, act in enumerate(robot.actuators):
+        joint = act.joint or act.name
+        if model_kinds[joint] != act.kind:
+            raise FieldError(f"actuators[{i}].kind", f"joint {joint!r} of {model.path.name} is "
+                             f"{model_kinds[joint]}, the actuator says {act.kind!r}")
+    try:
+        robot.described.cad.check_against(model)
+    except FieldError as exc:
+        raise FieldError(f"described.cad.{exc.key}", exc.message) from None
+
+
+def _described_build(config, tcfg, robot, rate):
+    return joint_space.joint_excitation(robot, config.robot.actuator_limits(), tcfg.duration, rate,
+                                        tcfg.bandwidth or 2.0, fade=tcfg.fade,
+                                        seed=tcfg.seed, name=tcfg.name, amplitude=tcfg.amplitude,
+                                        harmonics=tcfg.harmonics)
+
+
+DESCRIBED = RobotKind(
+    name="described", sections=("described",), truth_key="parameters", trajectory_kinds=("joint_excitation",),
+    model=described_model,
+    initial=lambda robot: robot.described.cad.vector(described_model(robot)),
+    truth=lambda robot, sim: sim.parameters.vector(described_model(robot)),
+    actuators=lambda robot: (tuple(a.name for a in robot.actuators), tuple(a.kind for a in robot.actuators)),
+    build=_described_build,
+    check=lambda config, traj, robot: joint_space.check_described_trajectory(
+        traj, robot, config.robot.actuator_limits(), config.robot.described.max_condition),
+    validate=_described_validate)
+
+
+#: every robot kind by its ``robot.kind``
+KINDS: dict[str, RobotKind] = {k.name: k for k in (THREE_PRRR, DELTA, DESCRIBED)}
+#: trajectory kinds any robot can run
+COMMON_TRAJECTORY_KINDS = ("file",)
+
+
+def kind_of(robot) -> RobotKind:
+    """The :class:`RobotKind` of a ``robot`` section."""
+    return KINDS[robot.kind]
+

@@ -1,0 +1,104 @@
+"""Configs of robots read from their description files (``robot.kind: described``): what they
+load into, and every mistake named by file, key and line."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ident_hw.config import ConfigError, load_config
+from ident_hw.config.robots import KINDS, kind_of
+from ident_hw.model.described import DescribedRobot
+
+CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+ROBOT_2R = (CONFIGS / "robot-2r.yaml").read_text()
+SIM_2R = (CONFIGS / "sim-2r.yaml").read_text()
+
+
+def setup(tmp_path: Path, robot: str = ROBOT_2R, sim: str = SIM_2R) -> Path:
+    """The 2R configs, possibly changed, in ``tmp_path`` beside a copy of the description."""
+    (tmp_path / "robots").mkdir()
+    shutil.copy(CONFIGS / "robots" / "2r.urdf", tmp_path / "robots" / "2r.urdf")
+    (tmp_path / "robot-2r.yaml").write_text(robot)
+    (tmp_path / "sim-2r.yaml").write_text(sim)
+    return tmp_path / "sim-2r.yaml"
+
+
+def expect_error(path: Path, key: str, needle: str, *words: str) -> None:
+    """``load_config(path)`` fails at ``key``, on the line of the file that holds ``needle``."""
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    err = info.value
+    assert err.key == key, str(err)
+    text = Path(err.file).read_text().splitlines()
+    assert needle in text[err.line - 1], (str(err), text[err.line - 1])
+    for word in words:
+        assert word in str(err)
+
+
+def test_the_2r_config_is_its_description_with_the_config_s_actuators(tmp_path):
+    cfg = load_config(setup(tmp_path))
+    model = cfg.robot.to_model()
+    assert isinstance(model, DescribedRobot)
+    assert model.actuator_names == ("shoulder", "elbow")
+    assert model.actuated_joints == ("joint1", "joint2")
+    assert model.path == tmp_path / "robots" / "2r.urdf"     # relative to the robot file that names it
+    np.testing.assert_array_equal(model.home_actuated(), [0.0, 1.2])
+    names = model.parameter_names
+    cad, truth = cfg.robot.initial_parameters(), cfg.true_parameters()
+    # CAD: the file's link 2 (2.0 kg at 0.15 m), the config's rotor inertias; truth: the factors
+    assert cad[names.index("link2.m")] == pytest.approx(2.0)
+    assert cad[names.index("link2.mx")] == pytest.approx(0.3)
+    assert cad[names.index("Jm_shoulder")] == 0.002 and cad[names.index("fv_elbow")] == 0.0
+    assert truth[names.index("link2.m")] == pytest.approx(2.2)
+    assert truth[names.index("fc_shoulder")] == 0.40 and truth[names.index("Jm_elbow")] == 0.0012
+    assert kind_of(cfg.robot) is KINDS["described"]
+
+
+def test_a_path_in_a_base_config_holds_in_the_config_extending_it(tmp_path):
+    sub = tmp_path / "runs"
+    setup(tmp_path)
+    sub.mkdir()
+    (sub / "mine.yaml").write_text("extends: ../sim-2r.yaml\n")
+    assert load_config(sub / "mine.yaml").robot.to_model().path == tmp_path / "robots" / "2r.urdf"
+
+
+@pytest.mark.parametrize("old, new, key, needle, words", [
+    ("description: robots/2r.urdf", "description: robots/3r.urdf", "robot.described.description",
+     "description:", ("no such description file",)),
+    ("joint: joint2", "joint: joint3", "robot.described.description", "description:",
+     ("no joint 'joint3' to actuate", "joint1")),
+    ("      kind: revolute\n", "      kind: prismatic\n      screw_lead: 0.005\n", "robot.actuators[0].kind", "kind: prismatic",
+     ("joint 'joint1' of 2r.urdf is revolute",)),
+    ("cad: {Jm: [0.002, 0.001]}", "cad: {Jm: [0.002, 0.001, 0.003]}", "robot.described.cad.Jm", "cad:",
+     ("one value per actuator (2: shoulder, elbow)",)),
+    ("cad: {Jm: [0.002, 0.001]}", "cad: {factors: {link3.m: 1.1}}", "robot.described.cad.factors.link3.m", "cad:",
+     ("unknown parameter of 2r.urdf", "link1", "link2")),
+])
+def test_robot_mistakes_name_file_key_and_line(tmp_path, old, new, key, needle, words):
+    assert old in ROBOT_2R
+    expect_error(setup(tmp_path, robot=ROBOT_2R.replace(old, new, 1)), key, needle, *words)
+
+
+@pytest.mark.parametrize("old, new, key, needle, words", [
+    ("factors: {link2.m: 1.1,", "factors: {link2.mass: 1.1,", "sim.parameters.factors.link2.mass", "factors:",
+     ("unknown parameter",)),
+    ("fv: [0.30, 0.15]", "fv: [0.30]", "sim.parameters.fv", "fv:", ("one value per actuator",)),
+    ("  parameters:               #", "  truth:                    #", "sim.truth.factors", "factors:",
+     ("unknown key",)),
+    ("kind: joint_excitation, duration: 60.0", "kind: square, size: 0.1, duration: 60.0", "trajectories[0].kind",
+     "square", ("not one of the described's", "joint_excitation")),
+    ("duration: 20.0, bandwidth: 1.5, seed: 2}", "duration: 20.0, bandwidth: 1.5, seed: 2, amplitude: [1, 1, 1]}",
+     "trajectories[1].amplitude", "amplitude", ("one amplitude per actuator (2)",)),
+])
+def test_sim_and_trajectory_mistakes_name_file_key_and_line(tmp_path, old, new, key, needle, words):
+    assert old in SIM_2R
+    expect_error(setup(tmp_path, sim=SIM_2R.replace(old, new, 1)), key, needle, *words)
+
+
+def test_a_section_of_another_robot_kind_is_refused(tmp_path):
+    text = ROBOT_2R.replace("  coulomb_width: 0.01", "  stroke: 0.1\n  coulomb_width: 0.01", 1)
+    expect_error(setup(tmp_path, robot=text), "robot.stroke", "stroke", "robot.kind 'described'", "described")

@@ -1,0 +1,98 @@
+"""Excitation of any robot in its actuated coordinates: sums of sines about home, within limits.
+
+For a robot known only from its description file there are no task-space paths to follow; what
+identification needs is every actuator moving over much of its range at several frequencies at
+once, so that the regressor's columns separate. :func:`joint_excitation` gives actuator ``j``
+
+    Theta_j(t) = home_j + s_j e(t) sum_k sin(w_jk t + phi_jk) / w_jk
+
+with ``K`` angular frequencies ``w_jk`` spread over ``[bandwidth / 8, bandwidth]`` (Hz × 2π)
+and phases ``phi_jk`` drawn from ``seed`` (the same trajectory on every host), the velocity
+amplitudes equal (``1 / w``), ``e(t)`` the fade window of :func:`trajectories.delta_paper.faded`
+(from and back to home at rest) and ``s_j`` the largest scale that keeps the motion within
+``fraction`` of the actuator's position room about home, its speed and its acceleration limits.
+Exact rates by the product rule.
+
+:func:`check_described_trajectory` is the feasibility check of such a robot: the actuator limits,
+reach (the loops close at every sample) and the distance to a parallel singularity (the
+condition number of the passive joints' closure Jacobian).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ident_hw.model import KinematicsError
+
+from .delta_paper import faded
+from .feasibility import ActuatorLimits, Report, Violation, _first, check_actuator_limits
+from .trajectory import Trajectory
+
+
+def _harmonics(t, w, phi):
+    """``sum_k sin(w_k t + phi_k) / w_k`` per actuator (w, phi: (n, K)) and its two rates, (N, n) each."""
+    arg = w[None] * t[:, None, None] + phi[None]
+    return (np.sum(np.sin(arg) / w, axis=2), np.sum(np.cos(arg), axis=2), -np.sum(w * np.sin(arg), axis=2))
+
+
+def joint_excitation(robot, limits: ActuatorLimits, duration: float, rate: float, bandwidth: float,
+                     harmonics: int = 5, fraction: float = 0.8, fade: float = 1.0, seed: int = 0,
+                     name: str = "excitation", amplitude=1.0) -> Trajectory:
+    """The excitation of the module docstring, ``duration`` s at ``rate`` Hz, as a
+    :class:`~trajectories.Trajectory` whose pose is the robot's (``robot.pose_series``; its
+    rates by central differences: the pose is for plots and the assembly mode, the drives follow
+    ``Theta``). ``amplitude`` (a factor, or one per actuator) scales the motion after it has
+    been fitted to the limits (at most 1 keeps it within them).
+
+    Raises:
+        ValueError: a duration shorter than the two fades, a bandwidth the rate cannot carry.
+        KinematicsError: a sample at which the loops do not close.
+    """
+    if not duration > 2 * fade:
+        raise ValueError(f"duration {duration} s must exceed the fade in and out, 2 x {fade} s")
+    if not 0 < bandwidth < rate / 4:
+        raise ValueError(f"bandwidth {bandwidth} Hz must be positive and below a quarter of the rate {rate} Hz")
+    home = robot.home_actuated()
+    n = len(home)
+    rng = np.random.default_rng(seed)
+    w = 2 * np.pi * bandwidth * np.sort(rng.uniform(1 / 8, 1.0, (n, harmonics)), axis=1)
+    phi = rng.uniform(0, 2 * np.pi, (n, harmonics))
+    t = np.arange(int(np.floor(duration * rate + 1e-9)) + 1) / rate
+    q, qd, qdd = faded(lambda time: _harmonics(time, w, phi), t, fade)
+    room = np.minimum(home - limits.low, limits.high - home)
+    if np.any(room <= 0):
+        j = int(np.argmin(room))
+        raise ValueError(f"actuator {limits.names[j]}: home {home[j]:.6g} {limits.units[j]} is not inside its "
+                         f"limits [{limits.low[j]:.6g}, {limits.high[j]:.6g}]")
+    peak = [np.max(np.abs(x), axis=0) for x in (q, qd, qdd)]
+    scale = fraction * np.min([room / peak[0], limits.speed / peak[1], limits.accel / peak[2]], axis=0)
+    scale = scale * np.asarray(amplitude, dtype=float)
+    Theta, Thetad, Thetadd = home + scale * q, scale * qd, scale * qdd
+    X = robot.pose_series(Theta, robot.pose(home, None))
+    Xd = np.gradient(X, t, axis=0)
+    Xdd = np.gradient(Xd, t, axis=0)
+    return Trajectory(name, t, X, Xd, Xdd, Theta, Thetad, Thetadd,
+                      metadata={"generator": "joint_excitation", "duration_s": duration, "rate_hz": rate,
+                                "bandwidth_hz": bandwidth, "harmonics": harmonics, "fraction": fraction,
+                                "fade_s": fade, "seed": seed, "scale": scale.tolist()})
+
+
+def check_described_trajectory(traj: Trajectory, robot, limits: ActuatorLimits, max_condition: float) -> Report:
+    """The feasibility report of a trajectory of a described robot: the actuator limits
+    (:func:`trajectories.feasibility.check_actuator_limits`), reach (the loops close at every
+    sample, from the trajectory's own poses) and the condition number of the passive joints'
+    closure Jacobian at most ``max_condition`` (a parallel singularity is infinite)."""
+    report = check_actuator_limits(traj, limits)
+    found = report.violations
+    try:
+        poses = robot.pose_series(traj.Theta, robot.pose(traj.Theta[0], None))
+    except KinematicsError as exc:
+        k = exc.sample or 0
+        found.append(Violation(float(traj.t[k]), k, None, "reach", f"Theta = {np.round(traj.Theta[k], 4).tolist()}",
+                               np.nan, np.nan))
+    else:
+        cond = robot.conditions(poses)[:, None]
+        _first(found, traj.t, "closure condition", cond > max_condition, cond, [max_condition],
+               ["passive joints' closure Jacobian"], [""], [None])
+    found.sort(key=lambda v: v.sample)
+    return report
