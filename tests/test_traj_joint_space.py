@@ -37,7 +37,7 @@ def test_the_excitation_leaves_home_at_rest_and_keeps_within_its_share_of_the_li
     bound = 1.05 * h**2 / 6 * np.max(np.abs(np.gradient(traj.Thetadd, h, axis=0)))
     assert np.max(np.abs(np.gradient(traj.Theta, h, axis=0)[2:-2] - traj.Thetad[2:-2])) < bound
     # the poses are closed tree configurations at the actuated coordinates
-    assert np.max(np.abs(traj.X[:, robot._act_q] - traj.Theta)) < 1e-12
+    assert np.max(np.abs(traj.X[:, robot.actuated_q] - traj.Theta)) < 1e-12
     assert check_described_trajectory(traj, robot, limits, max_condition=40.0).ok
     # the same seed, the same trajectory; another seed, another one
     again = joint_excitation(robot, limits, duration=8.0, rate=100.0, bandwidth=1.0, fraction=0.8, seed=3)

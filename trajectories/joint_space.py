@@ -29,6 +29,10 @@ from .feasibility import ActuatorLimits, Report, Violation, _first, check_actuat
 from .trajectory import Trajectory
 
 
+#: m or rad: a trajectory's pose closes the loops when every closure residual is below this
+CLOSED = 1e-9
+
+
 def _harmonics(t, w, phi):
     """``sum_k sin(w_k t + phi_k) / w_k`` per actuator (w, phi: (n, K)) and its two rates, (N, n) each."""
     arg = w[None] * t[:, None, None] + phi[None]
@@ -80,19 +84,26 @@ def joint_excitation(robot, limits: ActuatorLimits, duration: float, rate: float
 def check_described_trajectory(traj: Trajectory, robot, limits: ActuatorLimits, max_condition: float) -> Report:
     """The feasibility report of a trajectory of a described robot: the actuator limits
     (:func:`trajectories.feasibility.check_actuator_limits`), reach (the loops close at every
-    sample, from the trajectory's own poses) and the condition number of the passive joints'
+    sample: the trajectory's own poses where they are closed tree configurations at its
+    actuated coordinates, else solved from the first sample on) and the condition number of the passive joints'
     closure Jacobian at most ``max_condition`` (a parallel singularity is infinite)."""
     report = check_actuator_limits(traj, limits)
     found = report.violations
-    try:
-        poses = robot.pose_series(traj.Theta, robot.pose(traj.Theta[0], None))
-    except KinematicsError as exc:
-        k = exc.sample or 0
-        found.append(Violation(float(traj.t[k]), k, None, "reach", f"Theta = {np.round(traj.Theta[k], 4).tolist()}",
-                               np.nan, np.nan))
-    else:
-        cond = robot.conditions(poses)[:, None]
-        _first(found, traj.t, "closure condition", cond > max_condition, cond, [max_condition],
+    cond = None
+    if traj.X.shape[1] == robot.pose_size and np.array_equal(traj.X[:, robot.actuated_q], traj.Theta):
+        # the trajectory's own poses (the excitation's): closed at every sample, or solved again
+        residual, cond = robot.closed_conditions(traj.X)
+        if np.max(residual) > CLOSED:
+            cond = None
+    if cond is None:
+        try:
+            cond = robot.conditions(robot.pose_series(traj.Theta, robot.pose(traj.Theta[0], None)))
+        except KinematicsError as exc:
+            k = exc.sample or 0
+            found.append(Violation(float(traj.t[k]), k, None, "reach",
+                                   f"Theta = {np.round(traj.Theta[k], 4).tolist()}", np.nan, np.nan))
+    if cond is not None:
+        _first(found, traj.t, "closure condition", cond[:, None] > max_condition, cond[:, None], [max_condition],
                ["passive joints' closure Jacobian"], [""], [None])
     found.sort(key=lambda v: v.sample)
     return report

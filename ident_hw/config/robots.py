@@ -26,7 +26,7 @@ import numpy as np
 
 import trajectories
 from ident_hw.model import Delta, ThreePRRR
-from ident_hw.model.described import DescribedRobot, DescriptionError
+from ident_hw.model.described import BODY_PARAMS, DescribedRobot, DescriptionError
 from ident_hw.model.interface import RobotModel
 from trajectories import delta_paper, joint_space
 
@@ -59,7 +59,7 @@ class ParameterSetConfig:
                     bodies = sorted({n.split(".")[0] for n in names if "." in n})
                     raise FieldError(f"{key}.{name}", f"unknown parameter of {model.path.name}; expected "
                                      f"<body>.<parameter> with bodies {bodies} and parameters of "
-                                     f"{list(BODY_PARAMS_DESCRIBED)}")
+                                     f"{list(BODY_PARAMS)}")
         n = len(model.actuator_names)
         for key in ("fv", "fc", "Jm"):
             given = getattr(self, key)
@@ -82,9 +82,6 @@ class ParameterSetConfig:
             if given:
                 pi[start + k * n:start + (k + 1) * n] = given
         return pi
-
-
-BODY_PARAMS_DESCRIBED = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 
 
 @dataclass(frozen=True)
@@ -237,8 +234,10 @@ def _described_validate(robot) -> None:
 
 
 def _described_build(config, tcfg, robot, rate):
+    # the motion's bandwidth: the trajectory's, else the identification filter's (what it is filtered at)
+    bandwidth = tcfg.bandwidth or (config.identification.filter.bandwidth if config.identification else 2.0)
     return joint_space.joint_excitation(robot, config.robot.actuator_limits(), tcfg.duration, rate,
-                                        tcfg.bandwidth or 2.0, fade=tcfg.fade,
+                                        bandwidth, fade=tcfg.fade,
                                         seed=tcfg.seed, name=tcfg.name, amplitude=tcfg.amplitude,
                                         harmonics=tcfg.harmonics)
 

@@ -393,7 +393,7 @@ class TrajectoryConfig:
     in and out over ``fade`` s from and back to the arms at rest.
     A described robot's excitation (:func:`trajectories.joint_space.joint_excitation`):
     ``joint_excitation``, ``duration`` s of ``harmonics`` sines per actuator up to ``bandwidth``
-    Hz (default 2 Hz) about home, phases and frequencies drawn from ``seed``, fitted to 0.8 of
+    Hz (default: ``identification.filter.bandwidth``) about home, phases and frequencies drawn from ``seed``, fitted to 0.8 of
     each actuator's limits and scaled by ``amplitude`` (one factor, or one per actuator).
     ``online_only``: streamed only for the online estimators (``ident-hw online``, or ``run``
     with ``identification.online.in_run``), after the others; otherwise ``run`` leaves it out. ``payload``: on the in-process simulated rig, a payload added during this trajectory

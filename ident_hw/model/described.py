@@ -200,6 +200,11 @@ class DescribedRobot:
         self._mobility_check()
 
     # ------------------------------------------------------------------ description
+    @property
+    def actuated_q(self) -> np.ndarray:
+        """The indices (n,) of the actuated joints in a tree configuration ``q``."""
+        return self._act_q.copy()
+
     def _body_of(self, joint: int) -> str:
         """The name of the body a joint moves: the first body frame on it (the joint's own name
         where the file names no body, as a URDF's child link is named)."""
@@ -381,13 +386,24 @@ class DescribedRobot:
     def conditions(self, poses) -> np.ndarray:
         """:meth:`condition` (N,) at closed tree configurations ``poses`` (N, nq), e.g. those of
         :meth:`pose_series` (no Newton iterations)."""
-        out = np.empty(len(poses))
-        for k, q in enumerate(np.atleast_2d(poses)):
+        return self.closed_conditions(poses)[1]
+
+    def closed_conditions(self, poses) -> tuple[np.ndarray, np.ndarray]:
+        """The largest closure residual (N,) (m, rad) of tree configurations ``poses`` (N, nq) and
+        :meth:`condition` (N,) at each: one Jacobian per configuration, no Newton iterations (a
+        trajectory's own poses checked without solving them again)."""
+        poses = np.atleast_2d(np.asarray(poses, dtype=float))
+        residual, cond = np.zeros(len(poses)), np.empty(len(poses))
+        for k, q in enumerate(poses):
+            if self.closures:
+                J, r = self._closure_jacobian(q)
+                residual[k] = np.max(np.abs(r))
+                self._last_jacobian = (q.copy(), J)
             try:
-                out[k] = self._velocity_map(np.asarray(q, dtype=float))[2]
+                cond[k] = self._velocity_map(q)[2]
             except SingularityError:
-                out[k] = np.inf
-        return out
+                cond[k] = np.inf
+        return residual, cond
 
     # ------------------------------------------------------------------ the robot interface
     def home_actuated(self) -> np.ndarray:
@@ -560,7 +576,7 @@ def numerical_base(robot: DescribedRobot, samples: int = 60, seed: int = 0, rtol
                                                                           (samples, 1)))
     A = Y.reshape(-1, Y.shape[-1])
     norms = np.linalg.norm(A, axis=0)
-    used = norms > rtol * norms.max()
+    used = norms > 1e-12 * norms.max()             # a column of rounding errors: a parameter nothing moves
     cols = np.flatnonzero(used)
     As = A[:, cols] / norms[cols]
     _, R, perm = qr(As, mode="economic", pivoting=True)
@@ -568,6 +584,19 @@ def numerical_base(robot: DescribedRobot, samples: int = 60, seed: int = 0, rtol
     rank = int(np.sum(diag > rtol * diag[0]))
     independent, dependent = cols[perm[:rank]], cols[perm[rank:]]
     beta = solve_triangular(R[:rank, :rank], R[:rank, rank:])          # scaled columns
+    kept_columns = As[:, perm[:rank]]
+    for j in range(beta.shape[1]):
+        # the regrouping written with the kept columns it needs: a column dependent only to rtol
+        # (not exactly) gets least-squares coefficients on every kept column, most of them fits of
+        # its 1e-6 remainder; refitted on those above 1e-3 of its largest, if that fits as well
+        b = beta[:, j]
+        support = np.abs(b) >= 1e-3 * np.abs(b).max()
+        target = As[:, perm[rank + j]]
+        sparse = np.linalg.lstsq(kept_columns[:, support], target, rcond=None)[0]
+        full_fit = np.linalg.norm(kept_columns @ b - target)
+        if np.linalg.norm(kept_columns[:, support] @ sparse - target) <= 2 * full_fit + 1e-12:
+            beta[:, j] = 0.0
+            beta[support, j] = sparse
     beta = beta * norms[dependent][None, :] / norms[independent][:, None]
     beta[np.abs(beta) < 1e-10 * max(1.0, np.abs(beta).max())] = 0.0
     order = np.argsort(independent)
@@ -587,6 +616,6 @@ def _combination(row: np.ndarray, names: Sequence[str]) -> str:
     for coef, name in zip(row, names):
         if coef == 0.0:
             continue
-        text = name if coef == 1.0 else f"{abs(coef):.6g} {name}"
+        text = name if abs(abs(coef) - 1.0) < 1e-9 else f"{abs(coef):.6g} {name}"
         parts.append(("- " if coef < 0 else "+ ") + text)
     return " ".join(parts).removeprefix("+ ")
