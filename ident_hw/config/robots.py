@@ -107,8 +107,9 @@ class DescribedConfig:
 # ----------------------------------------------------------------------------- the registry
 @dataclass(frozen=True)
 class RobotKind:
-    """One robot kind (see the module docstring). Functions take the whole config (``robot``:
-    its ``robot`` section) and never look at ``robot.kind``.
+    """One robot kind (see the module docstring). Its functions take the config's ``robot``
+    section (``truth`` also ``sim``; ``build`` and ``check`` the whole config) and never look at
+    ``robot.kind``.
 
     Attributes:
         name: the value of ``robot.kind``.

@@ -50,6 +50,7 @@ class ThreePRRR:
         self.coulomb_width = coulomb_width
         self.kinematics = Kinematics(geometry)
         self._single = SingleState(self.kinematics)
+        self._plant_params: tuple[np.ndarray, InertialParams] | None = None
 
     # -- kinematics ---------------------------------------------------------------------------
     def inverse_kinematics(self, X, zeta):
@@ -188,7 +189,11 @@ class ThreePRRR:
     def plant_dynamics(self, Theta, Thetad, params: InertialParams, guess):
         """``M_r`` (6, 6), velocity terms (6,) without friction and ``X`` (3,) of one state (the
         scalar path of :class:`~ident_hw.model.single.SingleState`: what the plant calls every period)."""
-        return self._single.reduced_dynamics(Theta, Thetad, _inertial(params), guess)
+        if not isinstance(params, InertialParams):     # the plant's vector: converted once, not every period
+            if self._plant_params is None or not np.array_equal(self._plant_params[0], params):
+                self._plant_params = (np.array(params, dtype=float), InertialParams.from_vector(params))
+            params = self._plant_params[1]
+        return self._single.reduced_dynamics(Theta, Thetad, params, guess)
 
     def friction_coefficients(self, params: InertialParams):
         """``f_v``, ``f_c`` (6,) each (``params``: :class:`InertialParams` or the vector (19,))."""
