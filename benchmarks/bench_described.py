@@ -9,11 +9,16 @@
 Run: python benchmarks/bench_described.py   (quote ``bench_model.py --speed`` of the same hour)
 """
 
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 from ident_hw.config import load_config
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+import described_hand as dh  # noqa: E402
 
 CONFIGS = "configs"
 SAMPLES = 2000
@@ -37,27 +42,23 @@ def smooth_motion(home, amplitude, n=SAMPLES, rate=250.0):
 
 
 def hand_and_described(name: str):
-    """The hand-made model of ``robot-<name>.yaml`` and the generic one of ``robots/<name>.xml``."""
+    """The hand-made model of ``robot-<name>.yaml`` and the generic one of ``robots/<name>.xml``
+    (home from the hand model's kinematics, through the tests' maps of the two trees)."""
     from ident_hw.model.described import DescribedRobot
 
     hand = load_config(f"{CONFIGS}/robot-{name}.yaml").robot.to_model()
     if name == "3prrr":
         X0 = np.zeros((1, 3))
         theta, beta = hand.inverse_kinematics(X0, X0)
-        elbow = beta[0] - theta[0]
-        home = {**{f"theta{i + 1}": theta[0, i] for i in range(3)}, **{f"elbow{i + 1}": elbow[i] for i in range(3)},
-                "ee_hinge": -beta[0, 0]}
-        actuated = ("theta1", "theta2", "theta3", "zeta1", "zeta2", "zeta3")
+        home = dict(zip(dh.PRRR_JOINTS, dh.prrr_tree(X0, theta, beta, X0)[0]))
+        actuated, path = ("theta1", "theta2", "theta3", "zeta1", "zeta2", "zeta3"), dh.PRRR_XML
         amplitude = np.array([0.05, 0.05, 0.05, 0.02, 0.02, 0.02])
     else:
         q0 = np.zeros((1, 3))
-        b, c = hand.rod_angles(q0)
-        home = {**{f"elbow{i + 1}_y": b[0, i] for i in range(3)}, **{f"elbow{i + 1}_n": c[0, i] for i in range(3)},
-                **{f"wrist{i + 1}_n": -c[0, i] for i in range(3)}, **{f"wrist{i + 1}_y": -b[0, i] for i in range(3)}}
-        actuated = ("q1", "q2", "q3")
+        home = dict(zip(dh.DELTA_JOINTS, dh.delta_tree_motion(hand, q0, q0, q0)[0][0]))
+        actuated, path = ("q1", "q2", "q3"), dh.DELTA_XML
         amplitude = np.full(3, 0.3)
-    return hand, DescribedRobot(f"{CONFIGS}/robots/{name}.xml", actuated, home=home), amplitude
-
+    return hand, DescribedRobot(path, actuated, home=home), amplitude
 
 def main():
     print(f"regressor per sample ({SAMPLES} samples of a smooth motion at 250 Hz) and plant_dynamics per call:")

@@ -647,7 +647,8 @@ class Config:
     source: str = field(default="", init=False, compare=False)
 
     def _check(self) -> None:
-        self._check_parameter_names()
+        model = self.robot.to_model()           # once: a described robot's is read from its file
+        self._check_parameter_names(model.parameter_names)
         kind = kind_of(self.robot)
         if self.sim is not None:
             key = kind.truth_key
@@ -657,9 +658,9 @@ class Config:
                 if other != key and getattr(self.sim, other) is not None:
                     raise FieldError(f"sim.{other}", f"belongs to another robot than robot.kind {self.robot.kind!r} "
                                      f"(its true parameters are sim.{key})")
-            if isinstance(self.sim.parameters, ParameterSetConfig):
+            if self.sim.parameters is not None:
                 try:
-                    self.sim.parameters.check_against(self.robot.to_model())
+                    self.sim.parameters.check_against(model)
                 except FieldError as exc:
                     raise FieldError(f"sim.parameters.{exc.key}", exc.message) from None
         names: dict[str, int] = {}
@@ -703,7 +704,7 @@ class Config:
             if not any(s.method != "sqp" for s in self.identification.steps):
                 raise FieldError("identification.compare_models", "needs a step that fits base parameters by "
                                  "least squares (method 'wls' or 'ols')")
-            why = supports_energy_models(self.robot.to_model())
+            why = supports_energy_models(model)
             if why:
                 raise FieldError("identification.compare_models", why)
         for i, t in enumerate(self.trajectories):
@@ -711,9 +712,8 @@ class Config:
                 raise FieldError(f"trajectories[{i}].payload", "a payload is put on by the in-process simulated "
                                  "rig (sim.in_process: true)")
 
-    def _check_parameter_names(self) -> None:
-        """Parameter names of the identification section: those of the robot's model."""
-        known = self.robot.to_model().parameter_names
+    def _check_parameter_names(self, known: tuple[str, ...]) -> None:
+        """Parameter names of the identification section: those of the robot's model (``known``)."""
         if self.identification is None:
             return
         for s, step in enumerate(self.identification.steps):

@@ -91,9 +91,19 @@ class FrictionLayout:
 
 
 
-def _friction_power(Thetad: np.ndarray, coulomb_width: float) -> np.ndarray:
-    """Friction power regressor (N, 12): ``[qd², qd tanh(qd / w)]``."""
+def friction_power(Thetad, coulomb_width: float) -> np.ndarray:
+    """Friction power regressor (N, 2k) ``[qd², qd tanh(qd / w)]`` of rates ``Thetad`` (N, k):
+    W per unit of ``f_v`` and of ``f_c``."""
+    Thetad = np.atleast_2d(np.asarray(Thetad, dtype=float))
     return np.concatenate([Thetad**2, Thetad * np.tanh(Thetad / coulomb_width)], axis=1)
+
+
+def _friction_appended(H: np.ndarray, actuators: int) -> tuple[np.ndarray, FrictionLayout]:
+    """``H`` (N, p) with ``2 actuators`` zero columns appended, and the layout that puts
+    ``f_v``, ``f_c`` there: the 3PRRR's ``[inertial, f_v, f_c]``."""
+    p, k = H.shape[1], actuators
+    layout = FrictionLayout(p + 2 * k, tuple(range(p, p + k)), tuple(range(p + k, p + 2 * k)))
+    return np.concatenate([H, np.zeros((H.shape[0], 2 * k))], axis=1), layout
 
 
 def _check(t, H, Thetad, tau):
@@ -108,12 +118,8 @@ def power_rows(t, H, Thetad, tau, coulomb_width: float) -> tuple[np.ndarray, np.
     """Power-model equations: ``W`` (N − 4, p + 2k) and ``y`` (N − 4,) = actuated power, W,
     of the samples 2 .. N − 3 (fourth-order ``dh/dt``; ``t`` uniform)."""
     t, H, Thetad, tau = _check(t, H, Thetad, tau)
-    if t.size < 5:
-        raise ValueError(f"the power model needs at least 5 samples, got {t.size}")
-    dH, _ = central_derivatives(H, t)
-    inner = slice(2, t.size - 2)
-    W = np.concatenate([dH, _friction_power(Thetad, coulomb_width)], axis=1)
-    return W[inner], np.sum(Thetad * tau, axis=1)[inner]
+    H, layout = _friction_appended(H, Thetad.shape[1])
+    return power_rows_in_layout(t, H, Thetad, tau, coulomb_width, layout)
 
 
 def energy_rows(t, H, Thetad, tau, coulomb_width: float, window: int = 10) -> tuple[np.ndarray, np.ndarray]:
@@ -122,14 +128,8 @@ def energy_rows(t, H, Thetad, tau, coulomb_width: float, window: int = 10) -> tu
     Returns ``W`` (M, p + 2k) and ``y`` (M,) = work of the actuators over each window, J.
     """
     t, H, Thetad, tau = _check(t, H, Thetad, tau)
-    if window < 1 or window >= t.size:
-        raise ValueError(f"window must lie in [1, {t.size - 1}] samples, got {window}")
-    cum_power = integrate.cumulative_simpson(np.sum(Thetad * tau, axis=1), x=t, initial=0.0)
-    cum_friction = integrate.cumulative_simpson(_friction_power(Thetad, coulomb_width), x=t, axis=0, initial=0.0)
-    ends = np.arange(0, t.size, window)
-    a, b = ends[:-1], ends[1:]
-    W = np.concatenate([H[b] - H[a], cum_friction[b] - cum_friction[a]], axis=1)
-    return W, cum_power[b] - cum_power[a]
+    H, layout = _friction_appended(H, Thetad.shape[1])
+    return energy_rows_in_layout(t, H, Thetad, tau, coulomb_width, layout, window)
 
 
 def _check_layout(H: np.ndarray, Thetad: np.ndarray, layout: FrictionLayout) -> None:
@@ -154,17 +154,13 @@ def power_rows_in_layout(t, H, Thetad, tau, coulomb_width: float, layout: Fricti
     _check_layout(H, Thetad, layout)
     if t.size < 5:
         raise ValueError(f"the power model needs at least 5 samples, got {t.size}")
-    dH, _ = central_derivatives(H, t)
-    W = layout.place(dH, _friction_power(Thetad, coulomb_width))
+    energy = np.setdiff1d(np.arange(layout.n_params), layout.fv + layout.fc)    # friction stores none
+    dH = np.zeros_like(H)
+    dH[:, energy] = central_derivatives(np.ascontiguousarray(H[:, energy]), t)[0]
+    W = layout.place(dH, friction_power(Thetad, coulomb_width))
     y = np.sum(Thetad * tau, axis=1)
     rows = slice(None) if edges else slice(2, t.size - 2)
     return W[rows], y[rows]
-
-
-def friction_power(Thetad, coulomb_width: float) -> np.ndarray:
-    """Friction power regressor (N, 2k) ``[qd², qd tanh(qd / w)]`` of rates ``Thetad`` (N, k):
-    W per unit of ``f_v`` and of ``f_c``."""
-    return _friction_power(np.atleast_2d(np.asarray(Thetad, dtype=float)), coulomb_width)
 
 
 def energy_rows_in_layout(t, H, Thetad, tau, coulomb_width: float, layout: FrictionLayout,
@@ -174,7 +170,7 @@ def energy_rows_in_layout(t, H, Thetad, tau, coulomb_width: float, layout: Frict
     ``y`` (M,) = work of the actuators over each window, J."""
     t, H, Thetad, tau = _check(t, H, Thetad, tau)
     _check_layout(H, Thetad, layout)
-    return windowed_energy_rows(t, H, np.sum(Thetad * tau, axis=1), _friction_power(Thetad, coulomb_width),
+    return windowed_energy_rows(t, H, np.sum(Thetad * tau, axis=1), friction_power(Thetad, coulomb_width),
                                 layout, window)
 
 

@@ -465,7 +465,7 @@ class DescribedRobot:
         Theta, Thetad = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (Theta, Thetad))
         N, n = Theta.shape
         H = np.zeros((N, len(self.parameter_names)))
-        q = None if guess is None else guess
+        q = None
         for k in range(N):
             start = q if guess is None else guess[k]
             q, v, _, _ = self.tree_motion(Theta[k], Thetad[k], np.zeros(n), start)
@@ -528,11 +528,11 @@ def _inertia(p: np.ndarray) -> pin.Inertia:
 @dataclass(frozen=True)
 class NumericalBase:
     """Base parameters found numerically: ``pi_b = H pi`` (r, P), ``kept`` (r,) the parameter
-    each row is named after, ``expressions`` (r,) each row written out."""
+    each row is named after (the identification layer writes the rows out,
+    :func:`ident_hw.identification.base_params.format_combination`)."""
 
     kept: tuple[str, ...]
     H: np.ndarray
-    expressions: tuple[str, ...]
 
 
 def random_states(robot: DescribedRobot, samples: int, spread: float = 0.15, seed: int = 0):
@@ -546,8 +546,8 @@ def random_states(robot: DescribedRobot, samples: int, spread: float = 0.15, see
     for _ in range(50 * samples):
         Theta = home + spread * rng.uniform(-1, 1, n)
         try:
-            robot.condition(Theta)
-            robot.tree_configuration(Theta)
+            if not np.isfinite(robot.condition(Theta)):     # assembles, away from a singularity
+                continue
         except KinematicsError:
             continue
         rows.append((Theta, rng.normal(size=n), rng.normal(size=n)))
@@ -604,18 +604,6 @@ def numerical_base(robot: DescribedRobot, samples: int = 60, seed: int = 0, rtol
     for row, i in enumerate(order):
         H[row, independent[i]] = 1.0
         H[row, dependent] = beta[i]
-    names = robot.parameter_names
-    kept = tuple(names[independent[i]] for i in order)
-    expressions = tuple(_combination(row, names) for row in H)
-    return NumericalBase(kept, H, expressions)
+    kept = tuple(robot.parameter_names[independent[i]] for i in order)
+    return NumericalBase(kept, H)
 
-
-def _combination(row: np.ndarray, names: Sequence[str]) -> str:
-    """``row @ pi`` written out, e.g. ``"arm1.Iyy + 0.309 rod1.mx"``."""
-    parts = []
-    for coef, name in zip(row, names):
-        if coef == 0.0:
-            continue
-        text = name if abs(abs(coef) - 1.0) < 1e-9 else f"{abs(coef):.6g} {name}"
-        parts.append(("- " if coef < 0 else "+ ") + text)
-    return " ".join(parts).removeprefix("+ ")
