@@ -103,6 +103,13 @@ def cmd_report(args) -> int:
     return Exit.OK
 
 
+def cmd_export(args) -> int:
+    """Write the robot's description file with the consistent parameters of a results folder."""
+    from ident_hw.experiment.export import export_description
+    print(export_description(args.results, args.to, for_mujoco=args.for_mujoco))
+    return Exit.OK
+
+
 def cmd_run(args) -> int:
     """The campaign: checks, then (simulated rig, or hardware with --arm) motion and identification."""
     from drivers.errors import BusOpenError
@@ -299,6 +306,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = command("report", cmd_report, "rebuild the report of a results folder")
     p.add_argument("results", help="results folder")
+
+    p = command("export", cmd_export, "write the robot's description file (MJCF or URDF, as it came) with the "
+                "physically consistent parameters of a results folder: inertias, friction, rotor inertia")
+    p.add_argument("results", help="results folder of a described robot")
+    p.add_argument("--to", required=True, metavar="FILE", help="the file to write (.xml/.mjcf or .urdf)")
+    p.add_argument("--for-mujoco", action="store_true", help="refuse bodies MuJoCo would refuse (massless moving "
+                   "bodies, point masses, zero principal moments) instead of writing them for pinocchio")
     return parser
 
 

@@ -35,6 +35,7 @@ import yaml
 from ident_hw.identification.least_squares import POORLY_IDENTIFIED_PERCENT
 from ident_hw.identification.metrics import validation_metrics
 from ident_hw.identification.model_comparison import ModelComparison
+from ident_hw.identification.physical import ConsistentSet
 from ident_hw.model import ThreePRRR
 from ident_hw.model.interface import FORCE_UNITS, POSITION_UNITS
 
@@ -202,6 +203,9 @@ class BaseFit:
     held: tuple[str, ...]
     unexcited: tuple[str, ...]
     threshold: float
+    #: (r, r) covariance of ``coef``, for the consistent step of the same run (not stored: None
+    #: when read back from a results folder)
+    covariance: np.ndarray | None = None
 
     @property
     def rel_sigma_percent(self) -> np.ndarray:
@@ -388,6 +392,8 @@ class Results:
     quality: dict | None = None
     #: the dynamic, power and energy models side by side (``identification.compare_models``); None: not asked
     model_comparison: ModelComparison | None = None
+    #: the physically consistent parameters of the base fit (``identification.physical``); None: none made
+    consistent: ConsistentSet | None = None
 
     @property
     def force_units(self) -> tuple[str, ...]:
@@ -438,6 +444,8 @@ def save_results(folder: str | Path, results: Results) -> Path:
            "actuators": [{"name": n, "kind": k} for n, k in zip(results.actuators, results.actuator_kinds)]}
     if results.model_comparison is not None:      # absent otherwise: files without it stay as they were
         doc["model_comparison"] = results.model_comparison.to_dict()
+    if results.consistent is not None:
+        doc["consistent"] = results.consistent.to_dict()
     (folder / "parameters.json").write_text(json.dumps(doc, indent=2, default=_jsonable))
     (folder / "parameters.yaml").write_text(yaml.safe_dump(json.loads(json.dumps(doc, default=_jsonable)),
                                                            sort_keys=False))
@@ -470,7 +478,8 @@ def load_results(folder: str | Path) -> Results:
                    base_fit=base_fit, rel_sigma_threshold=doc.get("rel_sigma_threshold_percent", POORLY_IDENTIFIED_PERCENT),
                    trajectories=doc.get("trajectories") or {}, quality=doc.get("quality"),
                    model_comparison=ModelComparison.from_dict(doc["model_comparison"]) if doc.get("model_comparison")
-                   else None)
+                   else None,
+                   consistent=ConsistentSet.from_dict(doc["consistent"]) if doc.get("consistent") else None)
 
 
 # ----------------------------------------------------------------------------- figures

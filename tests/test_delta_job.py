@@ -47,6 +47,26 @@ def test_the_delta_job_identifies_the_specs_base_parameters(tmp_path):
     assert accurate >= 15
     # every parameter the spec's regressor leaves out is reported as not excited
     assert set(doc["base_fit"]["unexcited"]) == {PARAM_NAMES[j] for j in np.flatnonzero(~spec.H.any(axis=0))}
+    # the physically consistent set: every body realisable, and through the spec's H it gives the
+    # identified base parameters back, each within a tenth of its sigma
+    consistent = doc["consistent"]
+    values = np.array([p["value"] for p in consistent["parameters"]])
+    assert [p["name"] for p in consistent["parameters"]] == list(PARAM_NAMES)
+    for k in range(7):
+        assert smallest_pseudo_inertia_eigenvalue(values[10 * k:10 * k + 10]) >= -1e-12, PARAM_NAMES[10 * k]
+    assert (values[70:] >= 0).all()
+    for row, implied in zip(rows, spec.H @ values):
+        assert abs(implied - row["identified"]) <= 0.1 * row["sigma"], row["base_parameter"]
+    assert consistent["reproduces_base"] and consistent["chi2"] <= consistent["chi2_limit_95"]
+
+
+def smallest_pseudo_inertia_eigenvalue(body: np.ndarray) -> float:
+    """A Delta body ``[m, mx, my, mz, Ixx, Ixy, Ixz, Iyy, Iyz, Izz]`` realisable by a mass
+    density iff ``[[tr(I)/2 - I, h], [h^T, m]]`` is positive semidefinite."""
+    m, h, (ixx, ixy, ixz, iyy, iyz, izz) = body[0], body[1:4], body[4:]
+    inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    J = np.block([[np.trace(inertia) / 2 * np.eye(3) - inertia, h[:, None]], [h[None, :], np.array([[m]])]])
+    return float(np.linalg.eigvalsh(J)[0])
 
 
 def test_the_delta_online_estimators_on_base_parameters_track_a_payload(tmp_path):

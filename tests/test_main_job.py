@@ -26,6 +26,7 @@ from ident_hw.experiment import runner
 from ident_hw.experiment.offline import identify
 from ident_hw.experiment.online import CampaignEstimator
 from ident_hw.experiment.folders import new_results_folder
+from ident_hw.model.parameters import FRICTION_NAMES, INERTIAL_NAMES
 from ident_hw.results import save_results
 from ident_scenarios import CONFIGS, SWEEP_CAMPAIGN
 
@@ -110,6 +111,25 @@ def test_the_main_job_identifies_the_simulated_truth(main_job):
     assert doc["quality"]["passed"] and (folder / "STATUS").read_text().startswith("complete")
     for name, used in doc["trajectories"].items():
         assert used["valid_fraction"] == 1.0 and used["cycles"] == used["cycles_planned"], name
+
+
+
+def test_the_main_job_gives_physical_link_masses_and_inertias_that_keep_the_base_parameters(main_job):
+    """The consistent step after the base fit: every mass and inertia of the 3PRRR non-negative
+    (its planar bodies have their centres of mass where the geometry puts them), friction
+    non-negative, each parameter marked data- or prior-decided, and every identified base
+    parameter given back (within a tenth of its σ) by its readable combination of them."""
+    _, folder = main_job
+    doc = json.loads((folder / "parameters.json").read_text())
+    consistent = doc["consistent"]
+    values = {p["name"]: p["value"] for p in consistent["parameters"]}
+    assert set(values) == set(INERTIAL_NAMES + FRICTION_NAMES)
+    assert all(value >= 0 for value in values.values())
+    assert {p["decided_by"] for p in consistent["parameters"]} <= {"data", "prior", "data and prior"}
+    for row in doc["base_fit"]["rows"]:
+        implied = evaluate(row["base_parameter"], values)
+        assert abs(implied - row["identified"]) <= 0.1 * row["sigma"], row["base_parameter"]
+    assert consistent["physical"] and consistent["reproduces_base"]
 
 
 def test_a_torque_constant_5_percent_wrong_fails_the_accuracy_check(main_job, tmp_path):

@@ -26,12 +26,13 @@ from ident_hw.identification.model_comparison import supports_energy_models
 import numpy as np
 
 from ident_hw.model import Delta, DeltaGeometry, Geometry, InertialParams
-from ident_hw.model.delta import BODY_PARAMS, BODIES, nominal_parameters
+from ident_hw.model.delta import BODY_PARAMS, BODIES, physical_parameters
 from ident_hw.model.interface import POSITION_UNITS, RobotModel
 from ident_hw.signal import FilterSettings
 from trajectories.feasibility import ActuatorLimits
 from trajectories.feasibility import Limits as FeasibilityLimits
 
+from .physical import PhysicalConfig, drive_term, parameter_kind, parameter_scales
 from .robots import COMMON_TRAJECTORY_KINDS, DescribedConfig, ParameterSetConfig, kind_of
 from .schema import FieldError, in_range, non_negative, ordered_pair, positive, spec
 
@@ -121,7 +122,7 @@ class DeltaParametersConfig:
 
     def vector(self, geometry: DeltaGeometry) -> np.ndarray:
         """(79,) in the order of :data:`ident_hw.model.delta.PARAM_NAMES`."""
-        pi = nominal_parameters(geometry)
+        pi = physical_parameters(geometry)
         names = Delta.parameter_names
         for name, factor in self.factors.items():
             pi[names.index(name)] *= factor
@@ -490,34 +491,6 @@ class StepConfig:
 
 
 
-#: typical magnitudes of the friction coefficients by kind (they have no CAD value): the online
-#: estimator's parameter scales where ``identification.online.scales`` gives none. A lab's rig:
-#: revolute joints behind a gear 0.01-0.1 N·m(·s/rad), carriages on ball screws 1-100 N(·s/m).
-FRICTION_SCALES = {"fv_theta": 0.01, "fc_theta": 0.01, "fv_zeta": 10.0, "fc_zeta": 1.0}
-
-
-def parameter_kind(name: str) -> str:
-    """The kind of a parameter, for scales given per kind: ``fv_theta1`` → ``fv_theta``,
-    ``fv_1`` → ``fv``, ``rod2.Ixy`` → ``Ixy``; an inertial parameter of the 3PRRR is its own kind."""
-    if "." in name:
-        return name.split(".", 1)[1]
-    if name.startswith(("fv_", "fc_", "Jm_")):
-        return name.rstrip("0123456789").rstrip("_")
-    return name
-
-
-#: a body parameter's family, whose largest CAD magnitude scales a member whose CAD value is 0
-#: (a product of inertia, the first moment of a body whose centre of mass is on its joint axis)
-BODY_PARAMETER_FAMILIES = {"m": "mass", "mx": "first moment", "my": "first moment", "mz": "first moment",
-                           **{i: "inertia" for i in ("Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")}}
-
-
-def drive_term(name: str) -> str | None:
-    """``fv``, ``fc`` or ``Jm`` for an actuator's drive parameter (``fv_elbow``), else None."""
-    head = name.split("_", 1)[0]
-    return head if "_" in name and head in ("fv", "fc", "Jm") else None
-
-
 @dataclass(frozen=True)
 class OnlineConfig:
     """The online estimators (SVD-DLS, beside RLS and damped RLS on the same data).
@@ -550,22 +523,7 @@ class OnlineConfig:
 
     def parameter_scales(self, names, cad) -> tuple[float, ...]:
         """(n,) the scale of every parameter ``names`` (n,) with CAD values ``cad`` (see the class)."""
-        typical: dict[str, float] = {}       # largest CAD magnitude of each body-parameter family
-        for name, value in zip(names, cad):
-            if "." in name:
-                family = BODY_PARAMETER_FAMILIES.get(parameter_kind(name), "")
-                typical[family] = max(typical.get(family, 0.0), abs(value))
-        out = []
-        for name, value in zip(names, cad):
-            kind, term = parameter_kind(name), drive_term(name)
-            family = BODY_PARAMETER_FAMILIES.get(kind) if "." in name else None
-            default = abs(value) or FRICTION_SCALES.get(kind, 0.0) or typical.get(family, 0.0)
-            scale = self.scales.get(name, self.scales.get(kind, self.scales.get(term, default)))
-            if not scale > 0:
-                raise FieldError(f"scales.{name}", f"identification.online.scales.{name}: no CAD value to take "
-                                 "a scale from: give one (or one for its kind)")
-            out.append(float(scale))
-        return tuple(out)
+        return parameter_scales(names, cad, self.scales, "identification.online.scales")
 
 
 @dataclass(frozen=True)
@@ -610,6 +568,7 @@ class IdentificationConfig:
     filter: FilterConfig = FilterConfig()
     online: OnlineConfig = OnlineConfig()
     quality: QualityConfig = QualityConfig()
+    physical: PhysicalConfig = PhysicalConfig()
     compare_models: bool = field(default=False, metadata=spec(
         doc="the power-model paper's comparison: the least-squares step's base parameters by the dynamic, "
             "power and energy models on the same recordings and filters (robots with an energy regressor)"))
@@ -727,10 +686,11 @@ class Config:
             if name not in known:
                 raise FieldError(f"identification.bounds.{name}", f"unknown parameter; expected one of {list(known)}")
         kinds = set(known) | {parameter_kind(n) for n in known} | {drive_term(n) for n in known} - {None}
-        for name in self.identification.online.scales:
-            if name not in kinds:
-                raise FieldError(f"identification.online.scales.{name}",
-                                 f"unknown parameter or kind; expected one of {sorted(kinds)}")
+        for section in ("online", "physical"):
+            for name in getattr(self.identification, section).scales:
+                if name not in kinds:
+                    raise FieldError(f"identification.{section}.scales.{name}",
+                                     f"unknown parameter or kind; expected one of {sorted(kinds)}")
 
     def true_parameters(self) -> np.ndarray | None:
         """The simulated rig's true parameters (n,) in the model's order; None without ``sim``."""

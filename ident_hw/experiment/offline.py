@@ -25,10 +25,12 @@ import numpy as np
 from drivers.errors import RecordingError
 from drivers.recording import Recording
 from ident_hw.config import Config
+from ident_hw.config.schema import FieldError
 from ident_hw.identification.base_params import (base_parameters, column_scale, identify_base, on_kept,
                                                   scaled_condition)
 from ident_hw.identification.least_squares import check_regression_data, stack, wls
 from ident_hw.identification.mass_fit import sqp_fit
+from ident_hw.identification.physical import ConsistencyError, ConsistentSet, consistent_parameters
 from ident_hw.identification.model_comparison import (ModelComparison, ModelRows, compare_models,
                                                        power_energy_rows)
 from ident_hw.model.interface import RobotModel
@@ -203,7 +205,8 @@ def fit_base(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.nd
     result = BaseFit(step=step.name, method=fit.method, trajectories=tuple(step.trajectories),
                      expressions=base.expressions, H=H, coef=fit.coef, sigma=fit.std,
                      initial=H @ initial, truth=None if truth is None else H @ truth,
-                     held=tuple(names[i] for i in held), unexcited=base.unexcited, threshold=threshold)
+                     held=tuple(names[i] for i in held), unexcited=base.unexcited, threshold=threshold,
+                     covariance=fit.covariance)
     record = {"name": step.name, "trajectories": list(step.trajectories), "free": list(free_names),
               "method": f"{fit.method} of the base parameters ({base.rank} of {len(free)})",
               "eliminated": list(base.eliminated), **{k: v for k, v in fit.to_dict().items() if k != "parameters"},
@@ -338,5 +341,32 @@ def identify(config: Config, recordings: Mapping[str, Recording],
                       fits=fits, steps=steps, base_parameters=base, base_fit=base_fit,
                       rel_sigma_threshold=ident.rel_sigma_threshold, trajectories=used,
                       model_comparison=model_comparison)
+    if base_fit is not None and ident.physical.enabled:
+        if progress:
+            progress(f"step {base_fit.step}: the physically consistent parameters nearest the CAD values")
+        results.consistent = consistent(config, robot, base_fit, base_equivalent, initial, truth, steps)
     results.quality = verdict(results, ident.quality)
     return results
+
+
+def consistent(config: Config, robot: RobotModel, base_fit: BaseFit, equivalent: np.ndarray, initial: np.ndarray,
+               truth: np.ndarray | None, steps: list[dict]) -> ConsistentSet | None:
+    """The physical parameters nearest the CAD values ``initial`` (n,) that reproduce
+    ``base_fit`` (:func:`ident_hw.identification.physical.consistent_parameters`); the
+    parameters the base step held keep their values in ``equivalent`` (n,). None, with the reason
+    in the base step's record of ``steps``, when there is no such set."""
+    physical = config.identification.physical
+    names = robot.parameter_names
+    held = {names.index(p): float(equivalent[names.index(p)]) for p in base_fit.held}
+    # a drive term without a CAD value (friction) is scaled by its least-squares value
+    in_body = {i for body in robot.physical_bodies() for i in body.indices}
+    typical = np.array([abs(equivalent[i]) if i not in in_body and not initial[i] else initial[i]
+                        for i in range(len(names))])
+    try:
+        scale = np.array(physical.parameter_scales(names, typical))
+        return consistent_parameters(names, tuple(robot.parameter_unit(p) for p in names), base_fit.H, base_fit.coef,
+                                     base_fit.covariance, initial, scale, robot.physical_bodies(), held=held,
+                                     metric=physical.metric, prior_relative=physical.prior, truth=truth)
+    except (ConsistencyError, FieldError) as exc:
+        next(s for s in steps if s.get("name") == base_fit.step)["consistent"] = str(exc)
+        return None

@@ -7,6 +7,8 @@ thresholds of ``identification.quality`` (:class:`ident_hw.config.QualityConfig`
   a truncated log), the share of complete cycles, the longest stretch without one, and any
   frame the master could not place in its cycle;
 * per step: the condition number of its regressor (columns scaled to unit RMS);
+* the base parameters: some physically consistent parameter set reproduces them within their
+  covariance (:func:`consistency_reasons`);
 * the parameters: how many fitted ones are well identified (%σ at most ``rel_sigma_threshold``);
 * per validation trajectory (each identification one when there is none): the force prediction
   error d_τ of the step-by-step parameters (and of the base-parameter fit), and how far the
@@ -37,6 +39,20 @@ def relative_difference(tau: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     norm = np.linalg.norm(tau, axis=1)
     ok = norm > 0
     return 100.0 * float(np.mean(np.linalg.norm(a[ok] - b[ok], axis=1) / norm[ok])) if ok.any() else float("nan")
+
+
+def consistency_reasons(results: Results) -> list[str]:
+    """Why the base parameters do not fit a physical robot, if they do not: no consistent set
+    (the step's record says why), or none within the base parameters' covariance (χ² above
+    its 95 % quantile: rigid bodies cannot produce what was measured)."""
+    out = [f"step {r['name']}: no physically consistent parameters ({r['consistent']})"
+           for r in results.steps if r.get("consistent")]
+    c = results.consistent
+    if c is not None and not c.reproduces_base:
+        out.append(f"no physically consistent parameters reproduce the {c.base_count} base parameters within their "
+                   f"covariance (chi2 {c.chi2:.3g} > {c.chi2_limit:.3g}): the forces are not those of rigid bodies "
+                   "(check torque constants, gears, leads, the friction model)")
+    return out
 
 
 def verdict(results: Results, limits: QualityConfig) -> dict:
@@ -95,6 +111,7 @@ def verdict(results: Results, limits: QualityConfig) -> dict:
         reasons.append(f"{len(well)} of {len(fitted)} fitted parameters well identified "
                        f"(%sigma <= {threshold:g}; at least {limits.min_well_identified} needed)")
 
+    reasons += consistency_reasons(results)
     judged = [f for f in results.fits if f.role == "validation"] or results.fits
     stepwise = any(r.fitted for r in rows)     # else the step-by-step table holds the CAD values only
     for fit in judged:

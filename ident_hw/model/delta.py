@@ -23,6 +23,7 @@ import numpy as np
 from . import delta_single
 from .dynamics import smooth_sign
 from .interface import REVOLUTE
+from .pseudo_inertia import SPATIAL, PhysicalBody
 from .errors import KinematicsError, SingularityError
 
 GRAVITY = 9.81  # m/s²
@@ -67,6 +68,20 @@ def nominal_parameters(geometry: DeltaGeometry = DeltaGeometry()) -> np.ndarray:
     their length, the tabulated inertias about the frame origin, no drive terms."""
     arm = body_parameters(0.781, (geometry.L1 / 2, 0, 0), (3.0e-3, 8.8e-4, 2.0e-3, 2.5e-2, 4.0e-3, 2.7e-2))
     rod = body_parameters(1.666, (geometry.L2 / 2, 0, 0), (5.2e-2, 2.0e-2, 2.8e-2, 2.6e-1, 1.2e-2, 2.2e-1))
+    plat = body_parameters(0.637, (0, 0, 0), (0,) * 6)
+    return np.concatenate([arm, arm, arm, rod, rod, rod, plat, np.zeros(9)])
+
+
+def physical_parameters(geometry: DeltaGeometry = DeltaGeometry()) -> np.ndarray:
+    """(79,) the robot of :func:`nominal_parameters` made physical: read as printed, Table 1's
+    products of inertia make the arm and the rod unrealisable (their pseudo-inertias have a
+    negative eigenvalue, ``docs/delta-model.md``), so no physically consistent parameter set can
+    reproduce their base parameters. Here the arm's products are a fifth of the table's and the
+    rod's ``Ixy`` 0.016 with ``Ixz`` negative (the signs are lost in the table): the masses,
+    centres of mass and diagonal inertias are the table's. The configs' Delta (CAD and
+    simulated truth) is this one."""
+    arm = body_parameters(0.781, (geometry.L1 / 2, 0, 0), (3.0e-3, 1.76e-4, 4.0e-4, 2.5e-2, 8.0e-4, 2.7e-2))
+    rod = body_parameters(1.666, (geometry.L2 / 2, 0, 0), (5.2e-2, 1.6e-2, -2.8e-2, 2.6e-1, 1.2e-2, 2.2e-1))
     plat = body_parameters(0.637, (0, 0, 0), (0,) * 6)
     return np.concatenate([arm, arm, arm, rod, rod, rod, plat, np.zeros(9)])
 
@@ -401,6 +416,10 @@ class Delta:
         """The spec's 40 readable base parameters with the drive terms (:func:`base_parameters`)."""
         base = base_parameters(self.geometry, drive_terms=True)
         return base.kept, base.H
+
+    def physical_bodies(self) -> tuple[PhysicalBody, ...]:
+        """The seven bodies (arms, rods, platform), each in its own frame."""
+        return tuple(PhysicalBody(b, tuple(PARAM_NAMES.index(f"{b}.{p}") for p in SPATIAL)) for b in BODIES)
 
     def pose_series(self, Theta, start=None) -> np.ndarray:
         """Platform positions (N, 3) m: closed form, no series needed."""

@@ -44,10 +44,11 @@ import pinocchio as pin
 
 from .errors import KinematicsError, SingularityError
 from .interface import PRISMATIC, REVOLUTE
+from .pseudo_inertia import SPATIAL, PhysicalBody
 
 #: the ten inertial parameters of a body, pinocchio's order: mass (kg), first moment ``m c``
 #: (kg·m) and inertia about the joint frame's origin (kg·m²), in the joint frame
-BODY_PARAMS = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+BODY_PARAMS = SPATIAL
 #: the drive terms, one of each per actuator, after the bodies
 DRIVE_PARAMS = ("fv", "fc", "Jm")
 _UNITS = {"m": "kg", "mx": "kg·m", "my": "kg·m", "mz": "kg·m"}
@@ -173,6 +174,9 @@ class DescribedRobot:
         self.data = model.createData()
         # the plant's own copy, whose body inertias it sets: ``model`` keeps the description's
         self._dynamics_model = pin.Model(model)
+        # pinocchio's crba and rnea add the file's joint armature; the rotor inertias are the
+        # parameter vector's Jm (plant_dynamics adds them), so the plant's model has none
+        self._dynamics_model.armature[:] = 0.0
         self._dynamics_data = self._dynamics_model.createData()
         n = len(actuated)
         self.pose_size = model.nq
@@ -196,7 +200,7 @@ class DescribedRobot:
         self._last_jacobian: tuple[np.ndarray, np.ndarray] = (np.full(model.nq, np.nan), np.zeros((0, model.nv)))
         self._last_motion = (np.full(len(actuated), np.nan), np.full(model.nq, np.nan), np.zeros((model.nv, len(actuated))))
         bodies = [model.inertias[j].toDynamicParameters() for j in range(1, model.njoints)]
-        self._nominal = np.concatenate([*bodies, np.zeros(3 * n)])
+        self._nominal = np.concatenate([*bodies, self.drive_parameters()])
         self._mobility_check()
 
     # ------------------------------------------------------------------ description
@@ -255,9 +259,16 @@ class DescribedRobot:
         return {"fv": ("N·m·s/rad", "N·s/m"), "fc": ("N·m", "N"), "Jm": ("kg·m²", "kg")}[kind][0 if revolute else 1]
 
     def nominal_parameters(self) -> np.ndarray:
-        """The description's inertias (P,) in the order of :attr:`parameter_names`, no friction
-        and no rotor inertia."""
+        """The description's inertias and drive terms (P,) in the order of :attr:`parameter_names`
+        (:meth:`drive_parameters`: 0 where the file gives none)."""
         return self._nominal.copy()
+
+    def drive_parameters(self) -> np.ndarray:
+        """The description's drive terms (3n,) of the actuated joints, the parameter vector's
+        tail: fv, fc, Jm, as pinocchio reads them (MJCF joint ``damping``, ``frictionloss``,
+        ``armature``; URDF ``<dynamics damping friction>``, and no armature: URDF has none)."""
+        model, v = self.model, self._act_v
+        return np.concatenate([model.damping[v], model.friction[v], model.armature[v]]).astype(float)
 
     # ------------------------------------------------------------------ closure layer
     def _closure_residual(self, q) -> np.ndarray:
@@ -415,6 +426,10 @@ class DescribedRobot:
         if not hasattr(self, "_base"):
             self._base = numerical_base(self)
         return self._base.kept, self._base.H
+
+    def physical_bodies(self) -> tuple[PhysicalBody, ...]:
+        """Each tree joint's body (:attr:`body_names`), its ten values about the joint frame."""
+        return tuple(PhysicalBody(name, tuple(range(10 * k, 10 * k + 10))) for k, name in enumerate(self.body_names))
 
     def pose(self, Theta, guess) -> np.ndarray:
         """The tree configuration (nq,) of ``Theta`` (n,), from ``guess`` (nq,)."""

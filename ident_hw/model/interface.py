@@ -46,6 +46,11 @@ class RobotModel(Protocol):
         """The model's own base parameters ``(kept (r,), H (r, n))``, ``pi_b = H pi`` written as
         readable combinations, for data that excites all of them; None: found by SVD from the data."""
 
+    def physical_bodies(self) -> tuple:
+        """Where each body's inertial values sit in the parameter vector
+        (:class:`~ident_hw.model.pseudo_inertia.PhysicalBody`, for the physical-consistency
+        constraints); every parameter outside them is a drive term (friction, rotor inertia)."""
+
     def home_actuated(self) -> np.ndarray:
         """The actuated coordinates (n,) of the robot's home pose."""
 

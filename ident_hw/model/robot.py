@@ -11,6 +11,7 @@ from . import dynamics
 from .interface import PRISMATIC, REVOLUTE
 from .kinematics import Kinematics, Motion, SingularityMargins, batch
 from .parameters import ACTUATOR_NAMES, Geometry, InertialParams
+from .pseudo_inertia import PhysicalBody
 from .single import SingleState
 
 
@@ -167,6 +168,16 @@ class ThreePRRR:
         """None: the 3PRRR's base parameters are found by SVD from the data (18 of 19 on a rich
         excitation, ``docs/identification.md``)."""
         return None
+
+    def physical_bodies(self) -> tuple[PhysicalBody, ...]:
+        """The four planar bodies of one chain and the platform, each in a frame at its centre of
+        mass (the geometry fixes the centres): a carriage is a point mass ``m_c``, links 1 and 2
+        ``(m_l*, I_l*)``, the end-effector ``(m_ee, I_ee)``; the chains share their values."""
+        at = InertialParams.NAMES.index
+        return (PhysicalBody("carriage", (at("m_c"), -1, -1, -1), planar=True),
+                PhysicalBody("link1", (at("m_l1"), -1, -1, at("I_l1")), planar=True),
+                PhysicalBody("link2", (at("m_l2"), -1, -1, at("I_l2")), planar=True),
+                PhysicalBody("end_effector", (at("m_ee"), -1, -1, at("I_ee")), planar=True))
 
     def pose_series(self, Theta, start) -> np.ndarray:
         """Poses ``X`` (N, 3) of ``Theta`` (N, 6), each Newton start the previous pose."""

@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 from ident_hw.identification.model_comparison import EQUATIONS, ModelComparison, ModelFit
+from ident_hw.identification.physical import ConsistentSet
 from ident_hw.results import SETTLED, BaseFit, OnlineTrace, ParameterRow, load_results, metrics, read_status
 
 
@@ -43,6 +44,8 @@ def summary_lines(folder: str | Path) -> list[str]:
         lines += _base_fit_lines(results.base_fit)
     if results.model_comparison is not None:
         lines += comparison_lines(results.model_comparison)
+    if results.consistent is not None:
+        lines += consistent_lines(results.consistent)
     if truth:
         lines.append(accuracy_line(rows, results.base_fit))
     for name, m in metrics(results).items():
@@ -185,4 +188,33 @@ def _base_fit_lines(fit: BaseFit) -> list[str]:
         lines.append(f"  held at known values during this fit: {', '.join(fit.held)}")
     if fit.unexcited:
         lines.append(f"  not excited by {', '.join(fit.trajectories)}: {', '.join(fit.unexcited)}")
+    return lines
+
+
+def consistent_lines(c: ConsistentSet, listed: int = 12) -> list[str]:
+    """The physically consistent parameters: how well they reproduce the base parameters, each
+    body's margin, then every parameter the data decided (alone or with the prior) and the names
+    of those the prior alone decided (the first ``listed``)."""
+    verdict = "within" if c.reproduces_base else "NOT within"
+    lines = [f"physically consistent parameters ({c.metric} prior, {c.prior_relative:g} scale(s) around the CAD "
+             f"values): base parameters reproduced {verdict} their covariance (chi2 {c.chi2:.3g}, 95 % "
+             f"quantile {c.chi2_limit:.3g} for {c.base_count})",
+             "  bodies (mass kg, smallest eigenvalue of the pseudo-inertia; >= 0 physical): "
+             + ", ".join(f"{b.name} {b.mass:.4g} {b.margin:.3g}" for b in c.bodies)]
+    errors = c.error_percent()
+    width = max((len(n) for n in c.names), default=10)
+    lines.append(f"  {'parameter':<{width}} {'CAD':>11} {'consistent':>11} {'sigma':>10} {'prior %':>7}"
+                 + (f" {'truth':>11} {'error %':>8}" if errors is not None else "") + "  decided by")
+    for i, name in enumerate(c.names):
+        if c.decided_by[i] == "prior":
+            continue
+        text = (f"  {name:<{width}} {c.prior[i]:>11.5g} {c.values[i]:>11.5g} {c.sigma[i]:>10.3g} "
+                f"{100 * c.prior_share[i]:>7.0f}")
+        if errors is not None:
+            text += f" {c.truth[i]:>11.5g} {_or_nan(errors[i]):>+8.2f}"
+        lines.append(text + f"  {c.decided_by[i]}")
+    prior = [n for n, d in zip(c.names, c.decided_by) if d == "prior"]
+    if prior:
+        more = f" and {len(prior) - listed} more" if len(prior) > listed else ""
+        lines.append(f"  decided by the CAD prior alone ({len(prior)}): {', '.join(prior[:listed])}{more}")
     return lines

@@ -1,0 +1,96 @@
+"""Typical sizes of the parameters, and the physically consistent step's section
+(``identification.physical``).
+
+A parameter's scale is its typical magnitude: the online estimators work in parameters divided by
+it, and the consistent step's CAD prior has a standard deviation of ``prior`` scales. Scales come
+from a config's ``scales`` (by parameter name, friction kind ``fv_zeta`` or drive term ``fv``),
+else the magnitude of the CAD value, else :data:`FRICTION_SCALES`, else (a body parameter) the
+largest CAD magnitude of its family (:data:`BODY_PARAMETER_FAMILIES`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+from .schema import FieldError, positive, spec
+
+#: typical magnitudes of the friction coefficients by kind (they have no CAD value): the
+#: parameter scales where a config's ``scales`` give none. A lab's rig:
+#: revolute joints behind a gear 0.01-0.1 N·m(·s/rad), carriages on ball screws 1-100 N(·s/m).
+FRICTION_SCALES = {"fv_theta": 0.01, "fc_theta": 0.01, "fv_zeta": 10.0, "fc_zeta": 1.0}
+
+
+def parameter_kind(name: str) -> str:
+    """The kind of a parameter, for scales given per kind: ``fv_theta1`` → ``fv_theta``,
+    ``fv_1`` → ``fv``, ``rod2.Ixy`` → ``Ixy``; an inertial parameter of the 3PRRR is its own kind."""
+    if "." in name:
+        return name.split(".", 1)[1]
+    if name.startswith(("fv_", "fc_", "Jm_")):
+        return name.rstrip("0123456789").rstrip("_")
+    return name
+
+
+#: a body parameter's family, whose largest CAD magnitude scales a member whose CAD value is 0
+#: (a product of inertia, the first moment of a body whose centre of mass is on its joint axis)
+BODY_PARAMETER_FAMILIES = {"m": "mass", "mx": "first moment", "my": "first moment", "mz": "first moment",
+                           **{i: "inertia" for i in ("Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")}}
+
+
+def drive_term(name: str) -> str | None:
+    """``fv``, ``fc`` or ``Jm`` for an actuator's drive parameter (``fv_elbow``), else None."""
+    head = name.split("_", 1)[0]
+    return head if "_" in name and head in ("fv", "fc", "Jm") else None
+
+
+
+def parameter_scales(names, cad, scales: dict[str, float], where: str) -> tuple[float, ...]:
+    """(n,) the scale of every parameter ``names`` (n,) with CAD values ``cad`` (module
+    docstring); ``scales`` the config's overrides, ``where`` their key (for the error).
+
+    Raises:
+        FieldError: a parameter with no CAD value and no scale given.
+    """
+    typical: dict[str, float] = {}       # largest CAD magnitude of each body-parameter family
+    for name, value in zip(names, cad):
+        if "." in name:
+            family = BODY_PARAMETER_FAMILIES.get(parameter_kind(name), "")
+            typical[family] = max(typical.get(family, 0.0), abs(value))
+    out = []
+    for name, value in zip(names, cad):
+        kind, term = parameter_kind(name), drive_term(name)
+        family = BODY_PARAMETER_FAMILIES.get(kind) if "." in name else None
+        default = abs(value) or FRICTION_SCALES.get(kind, 0.0) or typical.get(family, 0.0)
+        scale = scales.get(name, scales.get(kind, scales.get(term, default)))
+        if not scale > 0:
+            raise FieldError(f"scales.{name}", f"{where}.{name}: no CAD value to take a scale from: give one "
+                             "(or one for its kind)")
+        out.append(float(scale))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class PhysicalConfig:
+    """The physically consistent parameters after the least-squares step
+    (:mod:`ident_hw.identification.physical`): every body's mass, centre of mass and inertia
+    realisable, friction and rotor inertia non-negative, nearest the CAD values in ``metric``,
+    reproducing the identified base parameters within their covariance."""
+
+    enabled: bool = field(default=True, metadata=spec(
+        doc="compute them after the least-squares step (none without such a step)"))
+    metric: Literal["euclidean", "entropic"] = field(default="entropic", metadata=spec(
+        doc="distance to the CAD prior: scaled squares, or the log-determinant divergence of the bodies' "
+            "pseudo-inertias (needs CAD bodies with positive-definite pseudo-inertias; others keep the squares)"))
+    prior: float = field(default=1.0, metadata=spec(
+        positive, doc="standard deviation of the CAD prior, in parameter scales: 1 = the CAD value is known to "
+                      "about its own size; smaller trusts the CAD values more"))
+    scales: dict[str, float] = field(default_factory=dict)
+
+    def _check(self) -> None:
+        for name, value in self.scales.items():
+            if not value > 0:
+                raise FieldError(f"scales.{name}", f"must be positive, got {value}")
+
+    def parameter_scales(self, names, cad) -> tuple[float, ...]:
+        """(n,) the prior's scale of every parameter (module docstring)."""
+        return parameter_scales(names, cad, self.scales, "identification.physical.scales")

@@ -1,0 +1,44 @@
+"""``ident-hw export``: the physically consistent parameters of a results folder written into the
+robot's description file (:func:`ident_hw.model.description_writer.write_description`).
+
+The results folder holds what it needs: its ``config.yaml`` names the copy of the description
+file in ``description/`` (a described robot), ``parameters.json`` the consistent set
+(:class:`ident_hw.identification.physical.ConsistentSet`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from drivers.errors import ConfigError, RecordingError
+from ident_hw.config import load_config
+from ident_hw.model.described import DescribedRobot
+from ident_hw.model.description_writer import write_description
+from ident_hw.results import load_results
+
+
+def export_description(results_folder: str | Path, to: str | Path, for_mujoco: bool = False) -> Path:
+    """Write the robot of ``results_folder`` with its consistent parameters to ``to`` (MJCF or
+    URDF, as the robot's file came); returns the path written. ``for_mujoco``: refuse bodies
+    MuJoCo cannot load (:func:`ident_hw.model.description_writer.write_description`).
+
+    Raises:
+        RecordingError: the folder holds no consistent parameters, or ones of another robot.
+        ConfigError: the folder's robot is not described by a file (a hand-written model).
+    """
+    folder = Path(results_folder)
+    results = load_results(folder)
+    config = load_config(folder / "config.yaml")
+    robot = config.robot.to_model()
+    if not isinstance(robot, DescribedRobot):
+        raise ConfigError(f"{folder / 'config.yaml'}: robot.kind {config.robot.kind!r} is a hand-written model with "
+                          "no description file to write; export needs a described robot (robot.kind: described)")
+    consistent = results.consistent
+    if consistent is None:
+        raise RecordingError(f"{folder}: no physically consistent parameters in parameters.json (they need a "
+                             "least-squares step and identification.physical.enabled; the step's record says "
+                             "why when the program had no solution)")
+    if consistent.names != robot.parameter_names:
+        raise RecordingError(f"{folder}: the consistent parameters ({len(consistent.names)}) are not those of "
+                             f"{robot.path.name} ({len(robot.parameter_names)})")
+    return write_description(robot, consistent.values, to, for_mujoco=for_mujoco)
