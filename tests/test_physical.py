@@ -84,7 +84,10 @@ def test_linear_gaussian_posterior_when_no_constraint_is_active():
     assert margin(body, mean) > 0                                       # the constraint is inactive
     np.testing.assert_allclose(out.values, mean, rtol=1e-6, atol=1e-8)
     np.testing.assert_allclose(out.sigma, np.sqrt(np.diag(post)), rtol=1e-9)
-    np.testing.assert_allclose(out.prior_share, np.diag(post) / np.diag(P0), rtol=1e-9)
+    # the prior's share of each error variance: the part the data do not see over the whole
+    # (posterior mean error = -(post P0^-1) (pi - prior) + noise term)
+    from_prior = post @ np.linalg.inv(P0) @ post
+    np.testing.assert_allclose(out.prior_share, np.diag(from_prior) / np.diag(post), rtol=1e-9)
     residual = H @ out.values - beta
     assert out.chi2 == pytest.approx(residual @ np.linalg.solve(C, residual), rel=1e-6)
 

@@ -22,8 +22,16 @@ identified directions by much less than their σ and fills the rest.
 cvxpy states the program; Clarabel (open source, interior point) solves it. The problem is solved
 in scaled variables ``z = (π − π₀) / s``, so that kilograms, kilogram-metres and kg·m² weigh the
 same. What decided each parameter is measured by the prior's share of its posterior variance (the
-euclidean problem's Hessian, constraints inactive): ``share = P_ii / ρ²`` with ``P = (Aᵀ A +
-1/ρ²)⁻¹``, ``A = C^{-1/2} H diag(s)``: near 0 the data decided, near 1 the prior did.
+euclidean problem, constraints inactive). With ``P = (Aᵀ A + 1/ρ²)⁻¹`` (scaled units, ``A =
+C^{-1/2} H diag(s)``) the posterior mean's error is ``−(P/ρ²) z + P Aᵀ e``: the prior's part
+(what the data do not see, ``z ~ N(0, ρ²)``) has variance ``P² / ρ²``, the noise's ``P Aᵀ A P``,
+together ``P``. ``share_i = (P²)_ii / (ρ² P_ii)``: near 0 the data decided parameter ``i`` (its
+error is measurement noise), near 1 the prior did (its value moves with CAD values: its own, or
+those of the parameters it shares a base parameter with, as the 3PRRR's ``m_ee`` moves with
+``m_l2`` along the one direction no data see). A parameter is decided by the ``data`` when its
+share is at most :data:`DECIDED`, by the ``prior`` when the data narrowed it by less than that
+(``P_ii / ρ² ≥ 1 −`` :data:`DECIDED`), else by ``data and prior`` (narrowed by the data, the rest
+set by CAD values).
 """
 
 from __future__ import annotations
@@ -37,7 +45,8 @@ from scipy import stats
 from ident_hw.model.pseudo_inertia import PhysicalBody, margin, planar_pseudo_inertia, pseudo_inertia
 
 METRICS = ("euclidean", "entropic")
-#: a parameter whose prior share is at most this was decided by the data, at least 1 − this by the prior
+#: a parameter whose prior share is at most this was decided by the data; one whose variance the
+#: data narrowed by less than this, by the prior
 DECIDED = 0.25
 #: the quantile of the χ² test of the consistent set's base parameters against the identified ones
 CHI2_QUANTILE = 0.95
@@ -87,6 +96,12 @@ class ConsistentSet:
     metric: str
     prior_relative: float
     truth: np.ndarray | None = None
+
+    @property
+    def rel_sigma_percent(self) -> np.ndarray:
+        """(n,) 100 σ / |value| (NaN at a value of 0)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(self.values != 0, 100.0 * self.sigma / np.abs(self.values), np.nan)
 
     @property
     def reproduces_base(self) -> bool:
@@ -261,10 +276,12 @@ def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndar
     P = np.linalg.inv(Af.T @ Af + np.eye(free.sum()) / rho2)
     share = np.zeros(n)
     sigma = np.zeros(n)
-    share[free] = np.clip(np.diag(P) / rho2, 0.0, 1.0)
+    share[free] = np.clip(np.diag(P @ P) / (rho2 * np.diag(P)), 0.0, 1.0)
     sigma[free] = scale[free] * np.sqrt(np.diag(P))
+    narrowed = np.ones(n)              # posterior over prior variance: 1 = the data said nothing
+    narrowed[free] = np.diag(P) / rho2
     decided = tuple("held" if i in held else "data" if share[i] <= DECIDED
-                    else "prior" if share[i] >= 1 - DECIDED else "data and prior" for i in range(n))
+                    else "prior" if narrowed[i] >= 1 - DECIDED else "data and prior" for i in range(n))
     residual = _whitener(covariance) @ (H @ values - base)
     margins = tuple(BodyMargin(body.name, float(body.values(values)[0]), _margin(body, values)) for body in bodies)
     return ConsistentSet(names=names, units=tuple(units), values=values, prior=prior, sigma=sigma, prior_share=share,

@@ -203,12 +203,12 @@ def consistent_lines(c: ConsistentSet, listed: int = 12) -> list[str]:
              + ", ".join(f"{b.name} {b.mass:.4g} {b.margin:.3g}" for b in c.bodies)]
     errors = c.error_percent()
     width = max((len(n) for n in c.names), default=10)
-    lines.append(f"  {'parameter':<{width}} {'CAD':>11} {'consistent':>11} {'sigma':>10} {'prior %':>7}"
+    lines.append(f"  {'parameter':<{width}} {'CAD':>11} {'consistent':>11} {'%sigma':>7} {'prior %':>7}"
                  + (f" {'truth':>11} {'error %':>8}" if errors is not None else "") + "  decided by")
     for i, name in enumerate(c.names):
         if c.decided_by[i] == "prior":
             continue
-        text = (f"  {name:<{width}} {c.prior[i]:>11.5g} {c.values[i]:>11.5g} {c.sigma[i]:>10.3g} "
+        text = (f"  {name:<{width}} {c.prior[i]:>11.5g} {c.values[i]:>11.5g} {percent(c.rel_sigma_percent[i]):>7} "
                 f"{100 * c.prior_share[i]:>7.0f}")
         if errors is not None:
             text += f" {c.truth[i]:>11.5g} {_or_nan(errors[i]):>+8.2f}"
