@@ -151,3 +151,19 @@ def test_the_configs_delta_is_physical_and_table_1_as_printed_is_not():
     assert printed["arm1"] < 0 and printed["rod1"] < 0
     assert all(margin(b, physical_parameters()) > 0 for b in bodies if b.name != "plat")
     assert margin(bodies[-1], physical_parameters()) >= 0                  # the platform: a point mass
+
+
+def test_a_prior_on_the_boundary_of_physical_bodies_solves():
+    """A CAD body an earlier consistent set left almost on its boundary (smallest eigenvalue of
+    its pseudo-inertia 1e-8 of the largest, as an exported file's can be) as the entropic
+    prior: the program still solves (that body keeps the euclidean term; with the log-det term
+    Clarabel failed) and gives the data back."""
+    body = PhysicalBody("b", tuple(range(10)))
+    prior = values_of(np.diag([1e-8, 0.01, 0.005, 1.0]))
+    assert 0 < margin(body, prior) < 1e-7
+    truth = prior.copy()
+    truth[0] = 1.1
+    H = np.eye(10)[:4]
+    out = consistent_parameters(SPATIAL, ("",) * 10, H, H @ truth, np.diag([1e-4] * 4) ** 2, prior,
+                                np.abs(prior) + 0.01, [body], metric="entropic")
+    assert out.reproduces_base and out.physical

@@ -48,6 +48,10 @@ METRICS = ("euclidean", "entropic")
 #: a parameter whose prior share is at most this was decided by the data; one whose variance the
 #: data narrowed by less than this, by the prior
 DECIDED = 0.25
+#: the entropic term needs a CAD pseudo-inertia this far from singular (smallest over largest
+#: eigenvalue); a body nearer the boundary (a point mass, a rod, a plate, or a body an earlier
+#: consistent set left on it) keeps the euclidean term: ``J₀⁻¹`` would swamp the program
+ENTROPIC_CONDITION = 1e-6
 #: the quantile of the χ² test of the consistent set's base parameters against the identified ones
 CHI2_QUANTILE = 0.95
 
@@ -185,12 +189,13 @@ def _planar_matrix(values, sxx: float, sxy: float) -> np.ndarray:
 
 
 def _entropic_reference(body: PhysicalBody, prior: np.ndarray) -> np.ndarray | None:
-    """The CAD body's pseudo-inertia where the entropic term can use it (spatial, positive definite)."""
+    """The CAD body's pseudo-inertia where the entropic term can use it (spatial, positive
+    definite by :data:`ENTROPIC_CONDITION`)."""
     if body.planar or any(i < 0 for i in body.indices):
         return None
     J0 = pseudo_inertia(body.values(prior))
     w = np.linalg.eigvalsh(J0)
-    return J0 if w[0] > 1e-9 * w[-1] else None
+    return J0 if w[0] > ENTROPIC_CONDITION * w[-1] else None
 
 
 def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndarray, base: np.ndarray,
@@ -263,8 +268,11 @@ def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndar
     problem = cp.Problem(cp.Minimize(objective), constraints)
     try:
         problem.solve(solver=cp.CLARABEL, tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10)
-    except cp.error.SolverError as exc:
-        raise ConsistencyError(f"the consistent-parameter program failed: {exc}") from exc
+    except cp.error.SolverError:
+        try:                            # numerical trouble at tight gaps: Clarabel's own defaults (1e-8)
+            problem.solve(solver=cp.CLARABEL)
+        except cp.error.SolverError as exc:
+            raise ConsistencyError(f"the consistent-parameter program failed: {exc}") from exc
     if problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or z.value is None:
         raise ConsistencyError(f"the consistent-parameter program ended {problem.status}"
                                + (" (a held value is unphysical?)" if held else ""))
