@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
 
 from drivers.cia import is_node_id
 from drivers.errors import ConfigError
@@ -98,3 +101,32 @@ class AxisConfig:
     def label(self) -> str:
         """``"node 3 (theta1)"``: how messages name this drive."""
         return f"node {self.node_id} ({self.name})"
+
+
+def outside_position_limits(axes: Sequence[AxisConfig], positions: np.ndarray) -> np.ndarray:
+    """``(n, len(axes))`` mask of the ``positions`` (rad | m, one column per axis) outside their
+    axis' software position limits ``[position_min, position_max]`` (a limit itself is inside).
+
+    The one test of a set-point against the limits: :meth:`drivers.epos.DriveGroup.run_cyclic`
+    applies it (:func:`check_setpoints`) before it streams, and the campaign's check before any
+    bus is opened (``ident_hw.experiment.plan``), so that the two cannot disagree."""
+    low = np.array([a.position_min for a in axes])
+    high = np.array([a.position_max for a in axes])
+    return (positions < low) | (positions > high)
+
+
+def check_setpoints(axes: Sequence[AxisConfig], targets: np.ndarray, what: str) -> None:
+    """``targets`` (n, len(axes)) rad | m: n >= 1 rows of finite values, each within its axis'
+    limits (:func:`outside_position_limits`); :class:`ConfigError` naming the first axis and
+    sample that is not (``what``: what the targets are, for the message)."""
+    if targets.ndim != 2 or targets.shape[1] != len(axes) or len(targets) == 0:
+        raise ConfigError(f"{what}: expected shape (n, {len(axes)}), got {targets.shape}")
+    if not np.all(np.isfinite(targets)):
+        row, col = np.argwhere(~np.isfinite(targets))[0]
+        raise ConfigError(f"{what}: non-finite value at sample {row}, axis {axes[col].name!r}")
+    outside = outside_position_limits(axes, targets)
+    for i, a in enumerate(axes):
+        bad = np.flatnonzero(outside[:, i])
+        if bad.size:
+            raise ConfigError(f"{what}: axis {a.name!r} sample {bad[0]} = {targets[bad[0], i]:.6g} "
+                              f"outside its limits [{a.position_min:g}, {a.position_max:g}]")

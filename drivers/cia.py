@@ -56,6 +56,8 @@ CW_CHANGE_IMMEDIATELY = 0x0020  # PPM bit 5
 CW_RELATIVE = 0x0040            # PPM bit 6
 CW_FAULT_RESET = 0x0080
 CW_HALT = 0x0100
+#: error code of the present error (a drive may lack it: the EPOS2 has none)
+ERROR_CODE = 0x603F
 #: modes of operation (0x6060)
 MODE_PPM, MODE_HMM = 1, 6
 #: (mask, value) of the statusword per state name (canopen's table)

@@ -104,7 +104,7 @@ def describe(code: int, profile: str | None = None) -> str:
     """Readable text of an error code, e.g. ``describe(0x8611) == "Following error"``.
 
     Args:
-        code: 16-bit EMCY error code (also the value of 0x603F).
+        code: 16-bit EMCY error code (also the value of 0x603F, or bits 0-15 of 0x1003:01).
         profile: ``"EPOS2"`` or ``"EPOS4"`` (case-insensitive) to resolve the
             manufacturer-specific codes, which differ between the generations.
     """

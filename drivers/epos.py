@@ -24,9 +24,9 @@ from canopen.profiles.p402 import Homing, State402
 from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
 
 from drivers.acquisition import AxisLayout, PdoFrame, cycle_frame_sizes, event_bits_per_s, pdo_layout
-from drivers.axis import AxisConfig
+from drivers.axis import AxisConfig, check_setpoints
 from drivers.bus import BusConfig, check_bus_load, frame_bits
-from drivers.cia import (CW_CHANGE_IMMEDIATELY, CW_ENABLE_OPERATION, CW_FAULT_RESET, CW_NEW_SETPOINT,
+from drivers.cia import (CW_CHANGE_IMMEDIATELY, CW_ENABLE_OPERATION, CW_FAULT_RESET, CW_NEW_SETPOINT, ERROR_REGISTER,
                          HEARTBEAT_CONSUMER, MODE_HMM, MODE_PPM, NMT_ENTER_PRE_OPERATIONAL, NMT_OPERATIONAL, RPDO_COMM,
                          SW_BIT12, SW_BIT13, SW_FAULT, SW_TARGET_REACHED, is_node_id, state_of)
 from drivers.emcy import describe
@@ -221,13 +221,25 @@ class EposDrive:
     def _controlword(self, value: int) -> None:
         self.write(self.profile.controlword, value)
 
-    def error_text(self) -> str:
-        """The drive's current error (0x603F) as text."""
+    def fault_code(self) -> int | None:
+        """The code of the drive's present error (``None``: none), over SDO: ``None`` while the
+        error register ``0x1001`` is 0, else the profile's error code object (``0x603F``; on a
+        drive without it the newest entry of the error history ``0x1003:01``, bits 0-15)."""
+        if not self.read((ERROR_REGISTER, 0)):
+            return None
+        return self.read(self.profile.error_code) & 0xFFFF or None
+
+    def _error(self) -> tuple[int | None, str]:
+        """The present error's code and text (the code ``None`` when there is none or it is unreadable)."""
         try:
-            code = self.read(self.profile.error_code)
+            code = self.fault_code()
         except NodeError as exc:
-            return f"error code unreadable ({exc})"
-        return f"0x{code:04X} {describe(code, self.profile.name)}" if code else "no error code"
+            return None, f"error code unreadable ({exc})"
+        return code, (f"0x{code:04X} {describe(code, self.profile.name)}" if code else "no error code")
+
+    def error_text(self) -> str:
+        """The drive's present error as text (:meth:`fault_code`)."""
+        return self._error()[1]
 
     def reset_fault(self, timeout: float = 1.0) -> None:
         """Clear a FAULT (rising edge of controlword bit 7)."""
@@ -248,8 +260,8 @@ class EposDrive:
         state = self.state
         while state != target:
             if state in ("FAULT", "FAULT REACTION ACTIVE"):
-                raise DriveFault(self.label, None, f"in {state} while switching to {target} "
-                                 f"({self.error_text()})")
+                code, text = self._error()
+                raise DriveFault(self.label, code, f"in {state} while switching to {target} ({text})")
             step = target if (state, target) in State402.TRANSITIONTABLE else \
                 State402.next_state_indirect(state)
             if (state, step) not in State402.TRANSITIONTABLE:
@@ -361,7 +373,8 @@ class EposDrive:
         """True when homing is attained; raises on a homing error."""
         sw = self.statusword
         if sw & SW_FAULT:
-            raise DriveFault(self.label, None, f"fault during homing ({self.error_text()})")
+            code, text = self._error()
+            raise DriveFault(self.label, code, f"fault during homing ({text})")
         for name, (mask, value) in Homing.STATES.items():
             if sw & mask == value:
                 if name.startswith("ERROR") or name == "INTERRUPTED":
@@ -383,8 +396,8 @@ class EposDrive:
     def move_done(self) -> bool:
         sw = self.statusword
         if sw & (SW_FAULT | SW_BIT13):
-            raise DriveFault(self.label, None, f"fault during the move, statusword 0x{sw:04X} "
-                             f"({self.error_text()})")
+            code, text = self._error()
+            raise DriveFault(self.label, code, f"fault during the move, statusword 0x{sw:04X} ({text})")
         if sw & SW_BIT12:
             self._controlword(CW_ENABLE_OPERATION)  # release the new-set-point handshake
             return False
@@ -607,7 +620,7 @@ class DriveGroup:
         Each axis moves at ``speed_fraction`` of its ``max_velocity``, accelerating in 0.5 s.
         """
         positions = np.asarray(positions, dtype=float)
-        self._check_positions(positions[None, :], "move_to target")
+        check_setpoints(self.axes, positions[None, :], "move_to target")
         start = self.positions()
         speeds = [speed_fraction * a.max_velocity for a in self.axes]
         durations = [abs(p - s) / v + 1.0 for p, s, v in zip(positions, start, speeds)]
@@ -626,27 +639,17 @@ class DriveGroup:
             except DriveError as exc:
                 logger.error("%s: could not quick-stop/disable: %s", d.label, exc)
 
-    def _check_positions(self, targets: np.ndarray, what: str) -> None:
-        if targets.ndim != 2 or targets.shape[1] != len(self.axes) or len(targets) == 0:
-            raise ConfigError(f"{what}: expected shape (n, {len(self.axes)}), got {targets.shape}")
-        if not np.all(np.isfinite(targets)):
-            row, col = np.argwhere(~np.isfinite(targets))[0]
-            raise ConfigError(f"{what}: non-finite value at sample {row}, axis {self.axes[col].name!r}")
-        for i, a in enumerate(self.axes):
-            bad = np.flatnonzero((targets[:, i] < a.position_min) | (targets[:, i] > a.position_max))
-            if bad.size:
-                raise ConfigError(f"{what}: axis {a.name!r} sample {bad[0]} = {targets[bad[0], i]:.6g} "
-                                  f"outside its limits [{a.position_min:g}, {a.position_max:g}]")
-
     def _with_error_code(self, error: BaseException) -> BaseException:
-        """A statusword fault has no code: complete it with the drive's 0x603F (over SDO)."""
+        """A statusword fault has no code: complete it with the drive's present error over SDO
+        (:meth:`EposDrive.fault_code`: ``0x603F``, or ``0x1003:01`` on a drive without it). A
+        fault an EMCY announced carries the EMCY's code already."""
         if not isinstance(error, DriveFault) or error.code is not None:
             return error
         drive = next((d for d in self.drives if d.label == error.node), None)
         if drive is None:
             return error
         try:
-            code = drive.read(drive.profile.error_code)
+            code = drive.fault_code()
         except NodeError:
             return error
         if not code:

@@ -47,7 +47,7 @@ class DriveFault(DriveError):
 
     Args:
         node: ``"node 3 (theta1)"``-style name of the drive, or ``"bus"``.
-        code: the CANopen/maxon error code (EMCY or 0x603F) when there is one.
+        code: the CANopen/maxon error code (EMCY, 0x603F or 0x1003:01) when there is one.
         text: readable description.
     """
 

@@ -3,17 +3,41 @@
 Both sides use this module: the master (``canopen.RemoteNode``) and the emulated drives of
 :mod:`drivers.sim` (``canopen.LocalNode``) build the same object dictionary with
 :func:`make_object_dictionary`, so an index, a data type or an access right can only be wrong
-in one place. A :class:`DriveProfile` names the objects the driver reads and writes; the
-object dictionary holds them with their data types, access rights, defaults and PDO-mappable
-flags, plus the CiA 301 communication objects (PDO parameters, heartbeat, EMCY, identity).
+in one place. A :class:`DriveProfile` names the objects the driver reads and writes: where each
+fact lives on that generation (the master asks the profile, never which generation it talks
+to); the object dictionary holds them with their data types, access rights, defaults and
+PDO-mappable flags, plus the CiA 301 communication objects (PDO parameters, heartbeat, EMCY,
+identity).
 
-The EPOS4 dictionary agrees with maxon's EPOS4 EDS (firmware 0x0110) and a maxon DCF (firmware
-0x0170) for every object defined here (``tests/test_real_od.py``, given the files): its PDO
-parameter records have no sub-index 5 (no TPDO event timer, no RPDO deadline), it has no
-``0x1006``/``0x1009``/``0x100A``, and ``0x1005``/``0x1014`` are not writable; the master's PDO
-layout therefore uses no event timer (:func:`drivers.acquisition.pdo_layout`). The EPOS2 facts
-below were checked against public EPOS drivers that reproduce maxon's firmware specification
-(re-check against the "EPOS2 Firmware Specification" when it is in reach):
+Both dictionaries agree with maxon's own files for every object defined here
+(``tests/test_real_od.py`` and ``tests/test_real_od_epos2.py``, given the files; the facts the
+master depends on are written out there too): the EPOS4's with maxon's EDS (firmware 0x0110)
+and a DCF (firmware 0x0170), the EPOS2's with maxon's EDS of the EPOS2 70/10 (firmware 0x2126)
+and a DCF read from such a drive, in existence, data type, access and PDO mapping, and in the
+defaults the project relies on. Neither generation has a PDO event timer (no sub-index 5 in
+the PDO parameter records: no TPDO event timer, no RPDO deadline), ``0x1006``, ``0x1009`` or
+``0x100A``; the master's PDO layout therefore uses no event timer
+(:func:`drivers.acquisition.pdo_layout`). Both keep five entries of error history ``0x1003``
+and watch up to two heartbeat producers (``0x1016:01..02``).
+
+What the EPOS2 lacks, and what the profile names instead:
+
+* no ``0x603F`` (error code): the code of the present error is the newest entry of the
+  pre-defined error field, ``0x1003:01`` (bits 0-15; it stays after a fault reset, so it names
+  a present error only while the error register ``0x1001`` shows one);
+* no ``0x60F4``: the following error actual value is ``0x20F4`` (INTEGER16);
+* no ``0x605A`` (quick stop option code): its quick stop is fixed;
+* its averaged current is ``0x2027`` (INTEGER16, mA), the EPOS4's ``0x30D1:01`` (INTEGER32).
+
+Other differences kept as on the real devices: the EPOS2 reports its current in ``0x6078``
+(I16, mA) and has no ``0x30D1`` or torque-constant object; the EPOS4 reports it in ``0x30D1:02``
+(I32, mA) and has no ``0x6078``. The EPOS2 streams positions through its maxon "position mode"
+(mode -1, set-point ``0x2062``), the EPOS4 through CSP (mode 8, ``0x607A``, its interpolation
+period ``0x60C2``). The EPOS2 has no CSP: its interpolated position mode (IPM, mode 7:
+``0x60C0``, ``0x60C2``, ``0x20C1``, a buffer of PVT points) is not used, and those objects are
+not defined here. ``0x1005`` (SYNC COB-ID) and ``0x1014`` (EMCY COB-ID) are writable on the EPOS2, not
+on the EPOS4. Further EPOS2 facts, from public EPOS drivers that reproduce maxon's firmware
+specification (re-check against the "EPOS2 Firmware Specification" when it is in reach):
 
 * Homing: the EPOS2 has the CiA 402 "home offset" ``0x607C`` and the maxon "home position"
   ``0x2081``; the EPOS4 has no ``0x607C`` but "home position" ``0x30B0`` and "home offset move
@@ -25,11 +49,6 @@ below were checked against public EPOS drivers that reproduce maxon's firmware s
   (CiA 402).
 * EMCY COB-ID ``0x1014`` of the EPOS2: read-write with CiA 301 semantics (bit 31 = no EMCY; the CAN-ID may
   only change while invalid).
-
-Differences kept as on the real devices: the EPOS2 reports its current in ``0x6078`` (I16, mA)
-and has no ``0x30D1``, ``0x60C2`` or torque-constant object; the EPOS4 reports it in
-``0x30D1:02`` (I32, mA) and has no ``0x6078``. The EPOS2 streams positions through its maxon
-"position mode" (mode -1, set-point ``0x2062``), the EPOS4 through CSP (mode 8, ``0x607A``).
 """
 
 from __future__ import annotations
@@ -49,7 +68,7 @@ from canopen.objectdictionary import (
     datatypes,
 )
 
-from drivers.cia import EMCY_COB_BASE, SYNC_COB_ID, is_node_id, pdo_cob_id
+from drivers.cia import EMCY_COB_BASE, MODE_PPM, SYNC_COB_ID, is_node_id, pdo_cob_id
 
 VENDOR_ID_MAXON = 0x000000FB
 
@@ -85,20 +104,35 @@ class ObjectRef:
         """Size in bits (the length used in a PDO mapping entry)."""
         return ODVariable.STRUCT_TYPES[self.type_code].size * 8
 
+    @property
+    def value_range(self) -> tuple[int, int]:
+        """The smallest and largest value of the (integer) data type."""
+        if self.type_code in datatypes.SIGNED_TYPES:
+            return -(1 << (self.bits - 1)), (1 << (self.bits - 1)) - 1
+        return 0, (1 << self.bits) - 1
+
     def __str__(self) -> str:
         return f"0x{self.index:04X}:{self.subindex:02X}"
 
 
 @dataclass(frozen=True)
 class DriveProfile:
-    """Which objects a drive generation uses for what (indices, types and units as data)."""
+    """Which objects a drive generation uses for what (indices, types and units as data).
+
+    A field that is ``None`` names an object the generation does not have. ``error_code`` is
+    where the code of the drive's present error is read: the CiA 402 error code ``0x603F``, or
+    (a drive without it) the newest entry of the pre-defined error field ``0x1003:01``, whose
+    bits 0-15 are the code; either counts only while the error register ``0x1001`` is not 0.
+    """
 
     name: str
     device_name: str
     product_code: int
+    revision_number: int
     position_actual: ObjectRef
     velocity_actual: ObjectRef
     current_actual: ObjectRef
+    current_averaged: ObjectRef
     statusword: ObjectRef
     controlword: ObjectRef
     modes_of_operation: ObjectRef
@@ -123,19 +157,20 @@ class DriveProfile:
     profile_acceleration: ObjectRef
     profile_deceleration: ObjectRef
     quick_stop_deceleration: ObjectRef
-    quick_stop_option_code: ObjectRef
+    quick_stop_option_code: Optional[ObjectRef]
     target_position: ObjectRef
     error_code: ObjectRef
     software_limit_error: int
+    #: access of the CiA 301 objects SYNC COB-ID 0x1005, device name 0x1008, EMCY COB-ID 0x1014
+    communication_access: Mapping[int, str]
     tpdo_count: int = 4
     rpdo_count: int = 4
     max_tpdo_bytes: int = 8
-    #: the PDO parameter records have sub-index 5 (TPDO event timer, RPDO deadline)
-    pdo_event_timer: bool = True
-    #: 0x1006 (SYNC period), 0x1009/0x100A (version strings) exist and 0x1005/0x1014 are writable
-    cia301_optional: bool = True
+    #: the PDO parameter records have sub-index 5 (TPDO event timer, RPDO deadline): neither
+    #: EPOS2 nor EPOS4 has it; a variant of a profile with it emulates a drive that has
+    pdo_event_timer: bool = False
     #: entries of the error history 0x1003
-    error_history: int = 8
+    error_history: int = 5
 
 
 def _r(index: int, subindex: int, data_type: str, unit: str = "") -> ObjectRef:
@@ -152,7 +187,6 @@ _COMMON = dict(
     max_profile_velocity=_r(0x607F, 0, "UNSIGNED32", "rpm"),
     software_position_limit=(_r(0x607D, 1, "INTEGER32", "qc"), _r(0x607D, 2, "INTEGER32", "qc")),
     following_error_window=_r(0x6065, 0, "UNSIGNED32", "qc"),
-    following_error_actual=_r(0x60F4, 0, "INTEGER32", "qc"),
     position_demand=_r(0x6062, 0, "INTEGER32", "qc"),
     homing_method=_r(0x6098, 0, "INTEGER8"),
     homing_speeds=(_r(0x6099, 1, "UNSIGNED32", "rpm"), _r(0x6099, 2, "UNSIGNED32", "rpm")),
@@ -161,27 +195,36 @@ _COMMON = dict(
     profile_acceleration=_r(0x6083, 0, "UNSIGNED32", "rpm/s"),
     profile_deceleration=_r(0x6084, 0, "UNSIGNED32", "rpm/s"),
     quick_stop_deceleration=_r(0x6085, 0, "UNSIGNED32", "rpm/s"),
-    quick_stop_option_code=_r(0x605A, 0, "INTEGER16"),
     target_position=_r(0x607A, 0, "INTEGER32", "qc"),
-    error_code=_r(0x603F, 0, "UNSIGNED16"),
 )
 
+#: the newest entry of the pre-defined error field (CiA 301): bits 0-15 the error code
+NEWEST_ERROR = _r(0x1003, 1, "UNSIGNED32")
+
+# maxon's EDS of the EPOS2 70/10 (firmware 0x2126) and a DCF read from such a drive
 EPOS2 = DriveProfile(
     name="EPOS2",
     device_name="EPOS2 70/10",
-    product_code=0x63500000,
+    product_code=0x64200000,          # 0x1018:02 of the drive (the EDS's ProductNumber)
+    revision_number=0x21260000,       # firmware 0x2126
     current_actual=_r(0x6078, 0, "INTEGER16", "mA"),
+    current_averaged=_r(0x2027, 0, "INTEGER16", "mA"),
+    following_error_actual=_r(0x20F4, 0, "INTEGER16", "qc"),   # no 0x60F4
+    error_code=NEWEST_ERROR,                                    # no 0x603F
+    quick_stop_option_code=None,                                # no 0x605A
     cyclic_mode=-1,
     cyclic_target=_r(0x2062, 0, "INTEGER32", "qc"),
     interpolation_period=None,
     torque_constant=None,
     supported_modes=MappingProxyType(
-        {1: "PPM", 3: "PVM", 6: "HMM", 7: "IPM", -1: "position", -2: "velocity", -3: "current"}
+        {1: "PPM", 3: "PVM", 6: "HMM", 7: "IPM", -1: "position", -2: "velocity", -3: "current",
+         -4: "diagnostic", -5: "master encoder", -6: "step/direction"}
     ),
     current_limit=_r(0x6410, 2, "UNSIGNED16", "mA"),
     home_offset=_r(0x607C, 0, "INTEGER32", "qc"),
     home_position=_r(0x2081, 0, "INTEGER32", "qc"),
     software_limit_error=0xFF09,
+    communication_access=MappingProxyType({0x1005: "rw", 0x1008: "const", 0x1014: "rw"}),
     **_COMMON,
 )
 
@@ -189,7 +232,12 @@ EPOS4 = DriveProfile(
     name="EPOS4",
     device_name="EPOS4 50/5",
     product_code=0x65500000,
+    revision_number=0x01700000,       # firmware 0x0170 (maxon's DCF of an EPOS4 50/15)
     current_actual=_r(0x30D1, 2, "INTEGER32", "mA"),
+    current_averaged=_r(0x30D1, 1, "INTEGER32", "mA"),
+    following_error_actual=_r(0x60F4, 0, "INTEGER32", "qc"),
+    error_code=_r(0x603F, 0, "UNSIGNED16"),
+    quick_stop_option_code=_r(0x605A, 0, "INTEGER16"),
     cyclic_mode=8,
     cyclic_target=_r(0x607A, 0, "INTEGER32", "qc"),
     interpolation_period=_r(0x60C2, 1, "UNSIGNED8", "ms"),
@@ -201,22 +249,23 @@ EPOS4 = DriveProfile(
     home_offset=_r(0x30B1, 0, "INTEGER32", "qc"),   # "Home offset move distance"; no 0x607C
     home_position=_r(0x30B0, 0, "INTEGER32", "qc"),
     software_limit_error=0x8A82,
-    # maxon's EPOS4 EDS (firmware 0x0110) and a DCF (firmware 0x0170): no PDO sub-index 5, no
-    # 0x1006/0x1009/0x100A, five error history entries
-    pdo_event_timer=False,
-    cia301_optional=False,
-    error_history=5,
+    # maxon's EPOS4 EDS (firmware 0x0110) and a DCF (firmware 0x0170): 0x1005 const, 0x1008 and
+    # 0x1014 read-only
+    communication_access=MappingProxyType({0x1005: "const", 0x1008: "ro", 0x1014: "ro"}),
     **_COMMON,
 )
 
 PROFILES: Mapping[str, DriveProfile] = MappingProxyType({"epos2": EPOS2, "epos4": EPOS4})
 
-# CiA 402 0x6502 "supported drive modes" bit of each mode (maxon-specific modes in bits 16..18)
-_MODE_BITS = {1: 0, 3: 2, 6: 5, 7: 6, 8: 7, 9: 8, 10: 9, -1: 16, -2: 17, -3: 18}
+# CiA 402 0x6502 "supported drive modes" bit of each mode (maxon-specific modes in bits 16..21)
+_MODE_BITS = {1: 0, 3: 2, 6: 5, 7: 6, 8: 7, 9: 8, 10: 9, -1: 16, -2: 17, -3: 18, -4: 19, -5: 20, -6: 21}
 
 
-def get_profile(profile_name: str) -> DriveProfile:
-    """The profile called ``profile_name`` (``"epos2"`` or ``"epos4"``, case-insensitive)."""
+def get_profile(profile_name: str | DriveProfile) -> DriveProfile:
+    """The profile called ``profile_name`` (``"epos2"`` or ``"epos4"``, case-insensitive); a
+    :class:`DriveProfile` is its own profile (e.g. a variant made with ``dataclasses.replace``)."""
+    if isinstance(profile_name, DriveProfile):
+        return profile_name
     try:
         return PROFILES[profile_name.lower()]
     except (KeyError, AttributeError):
@@ -238,17 +287,18 @@ def _var(name, index, subindex, data_type, access="rw", default=None, mappable=F
     return var
 
 
-def _record(od, name, index, members, array=False):
+def _record(od, name, index, members, array=False, sub0_access="ro"):
     """Add a record (or array) whose sub 0 is the highest sub-index; members: (sub, name, type, ...)."""
     obj = (ODArray if array else ODRecord)(name, index)
     highest = max(m[0] for m in members)
-    obj.add_member(_var("Highest sub-index supported", index, 0, "UNSIGNED8", "ro", highest))
+    obj.add_member(_var("Highest sub-index supported", index, 0, "UNSIGNED8", sub0_access, highest))
     for sub, member_name, data_type, *rest in members:
         obj.add_member(_var(member_name, index, sub, data_type, *rest))
     od.add_object(obj)
 
 
 def _add_communication_objects(od: ObjectDictionary, prof: DriveProfile, node_id: int) -> None:
+    access = prof.communication_access
     od.add_object(_var("Device type", 0x1000, 0, "UNSIGNED32", "ro", 0x00020192))
     od.add_object(_var("Error register", 0x1001, 0, "UNSIGNED8", "ro", 0))
     errors = ODArray("Pre-defined error field", 0x1003)
@@ -257,25 +307,18 @@ def _add_communication_objects(od: ObjectDictionary, prof: DriveProfile, node_id
     for sub in range(1, prof.error_history + 1):
         errors.add_member(_var(f"Standard error field {sub}", 0x1003, sub, "UNSIGNED32", "ro", 0))
     od.add_object(errors)
-    # the EPOS4 (maxon EDS, firmware 0x0110, and DCF, firmware 0x0170): 0x1005 const, 0x1008 and
-    # 0x1014 read-only, no 0x1006/0x1009/0x100A
-    epos4_like = not prof.cia301_optional
-    od.add_object(_var("COB-ID SYNC", 0x1005, 0, "UNSIGNED32", "const" if epos4_like else "rw", SYNC_COB_ID))
-    if prof.cia301_optional:
-        od.add_object(_var("Communication cycle period", 0x1006, 0, "UNSIGNED32", "rw", 0, unit="us"))
-    od.add_object(_var("Manufacturer device name", 0x1008, 0, "VISIBLE_STRING", "ro" if epos4_like else "const",
-                       prof.device_name))
-    if prof.cia301_optional:
-        od.add_object(_var("Manufacturer hardware version", 0x1009, 0, "VISIBLE_STRING", "const", "6410h"))
-        od.add_object(_var("Manufacturer software version", 0x100A, 0, "VISIBLE_STRING", "const", "2126h"))
-    od.add_object(_var("COB-ID EMCY", 0x1014, 0, "UNSIGNED32", "ro" if epos4_like else "rw", EMCY_COB_BASE + node_id))
-    _record(od, "Consumer heartbeat time", 0x1016, [(1, "Consumer heartbeat time 1", "UNSIGNED32", "rw", 0)],
-            array=True)
+    od.add_object(_var("COB-ID SYNC", 0x1005, 0, "UNSIGNED32", access[0x1005], SYNC_COB_ID))
+    od.add_object(_var("Manufacturer device name", 0x1008, 0, "VISIBLE_STRING", access[0x1008], prof.device_name))
+    od.add_object(_var("COB-ID EMCY", 0x1014, 0, "UNSIGNED32", access[0x1014], EMCY_COB_BASE + node_id))
+    _record(od, "Consumer heartbeat time", 0x1016, [
+        (1, "Consumer heartbeat time 1", "UNSIGNED32", "rw", 0),
+        (2, "Consumer heartbeat time 2", "UNSIGNED32", "rw", 0),
+    ], array=True)
     od.add_object(_var("Producer heartbeat time", 0x1017, 0, "UNSIGNED16", "rw", 0, unit="ms"))
     _record(od, "Identity object", 0x1018, [
         (1, "Vendor-ID", "UNSIGNED32", "ro", VENDOR_ID_MAXON),
         (2, "Product code", "UNSIGNED32", "ro", prof.product_code),
-        (3, "Revision number", "UNSIGNED32", "ro", 0x00010000),
+        (3, "Revision number", "UNSIGNED32", "ro", prof.revision_number),
         (4, "Serial number", "UNSIGNED32", "ro", 0x10000000 + node_id),
     ])
     _record(od, "SDO server parameter", 0x1200, [
@@ -293,76 +336,79 @@ def _add_communication_objects(od: ObjectDictionary, prof: DriveProfile, node_id
         _record(od, f"Receive PDO {n + 1} mapping", 0x1600 + n, [
             (sub, f"Mapped object {sub}", "UNSIGNED32", "rw", 0x60400010 if (n, sub) == (0, 1) else 0)
             for sub in range(1, 9)
-        ])
-        od[0x1600 + n][0].access_type = "rw"
+        ], sub0_access="rw")
         od[0x1600 + n][0].default = 1 if n == 0 else 0
     for n in range(prof.tpdo_count):
         valid = 0 if n == 0 else 1 << 31
         _record(od, f"Transmit PDO {n + 1} parameter", 0x1800 + n, [
             (1, "COB-ID used by TPDO", "UNSIGNED32", "rw", valid | pdo_cob_id("tpdo", n + 1, node_id)),
             (2, "Transmission type", "UNSIGNED8", "rw", 255),
-            (3, "Inhibit time", "UNSIGNED16", "rw", 0, False, "100us"),
+            (3, "Inhibit time", "UNSIGNED16", "rw", 10, False, "100us"),     # 1 ms on both generations
         ] + ([(5, "Event timer", "UNSIGNED16", "rw", 0, False, "ms")] if prof.pdo_event_timer else []))
         _record(od, f"Transmit PDO {n + 1} mapping", 0x1A00 + n, [
             (sub, f"Mapped object {sub}", "UNSIGNED32", "rw", 0x60410010 if (n, sub) == (0, 1) else 0)
             for sub in range(1, 9)
-        ])
-        od[0x1A00 + n][0].access_type = "rw"
+        ], sub0_access="rw")
         od[0x1A00 + n][0].default = 1 if n == 0 else 0
 
 
 def _add_drive_objects(od: ObjectDictionary, prof: DriveProfile) -> None:
+    """The drive's objects: those of the profile (each where the profile says it is; a plain
+    variable unless it is part of a record added below) and the generation's own records.
+    "rww": written by SDO or by an RPDO (maxon's files say so of every PDO-mappable setting)."""
     mode_bits = sum(1 << _MODE_BITS[mode] for mode in prof.supported_modes)
     plain = [
-        # (name, ref, access, default, pdo-mappable)
+        # (name, ref, access, default, pdo-mappable); None: the generation has no such object
         ("Error code", prof.error_code, "ro", 0, True),
-        ("Controlword", prof.controlword, "rw", 0, True),
+        ("Controlword", prof.controlword, "rww", 0, True),
         ("Statusword", prof.statusword, "ro", 0, True),
-        ("Modes of operation", prof.modes_of_operation, "rw", 0, True),
-        ("Modes of operation display", prof.modes_display, "ro", 0, True),
+        ("Modes of operation", prof.modes_of_operation, "rww", MODE_PPM, True),
+        ("Modes of operation display", prof.modes_display, "ro", MODE_PPM, True),
         ("Position demand value", prof.position_demand, "ro", 0, True),
         ("Position actual value", prof.position_actual, "ro", 0, True),
-        ("Following error window", prof.following_error_window, "rw", 2000, False),
+        ("Following error window", prof.following_error_window, "rww", 2000, True),
         ("Velocity actual value", prof.velocity_actual, "ro", 0, True),
-        ("Target position", prof.target_position, "rw", 0, True),
-        ("Home offset" if prof.name == "EPOS2" else "Home offset move distance", prof.home_offset, "rw", 0, False),
-        ("Home position", prof.home_position, "rw", 0, False),
-        ("Max profile velocity", prof.max_profile_velocity, "rw", 10000, False),
-        ("Profile velocity", prof.profile_velocity, "rw", 1000, True),
-        ("Profile acceleration", prof.profile_acceleration, "rw", 10000, True),
-        ("Profile deceleration", prof.profile_deceleration, "rw", 10000, True),
-        ("Quick stop deceleration", prof.quick_stop_deceleration, "rw", 10000, False),
-        ("Homing method", prof.homing_method, "rw", 7, False),
-        ("Homing acceleration", prof.homing_acceleration, "rw", 1000, False),
+        ("Target position", prof.target_position, "rww", 0, True),
+        ("Home position", prof.home_position, "rww", 0, True),
+        ("Profile velocity", prof.profile_velocity, "rww", 1000, True),
+        ("Profile acceleration", prof.profile_acceleration, "rww", 10000, True),
+        ("Profile deceleration", prof.profile_deceleration, "rww", 10000, True),
+        ("Quick stop deceleration", prof.quick_stop_deceleration, "rww", 10000, True),
+        ("Quick stop option code", prof.quick_stop_option_code, "rw", 2, False),
+        ("Homing method", prof.homing_method, "rww", 7, True),
+        ("Homing acceleration", prof.homing_acceleration, "rww", 1000, True),
         ("Following error actual value", prof.following_error_actual, "ro", 0, True),
+        ("Current actual value", prof.current_actual, "ro", 0, True),
+        ("Current actual value averaged", prof.current_averaged, "ro", 0, True),
+        ("Position mode setting value", prof.cyclic_target, "rww", 0, True),
     ]
-    if prof.current_actual.subindex == 0:
-        plain.append(("Current actual value", prof.current_actual, "ro", 0, True))
-    if prof.cyclic_target != prof.target_position:
-        plain.append(("Position mode setting value", prof.cyclic_target, "rw", 0, True))
     for name, ref, access, default, mappable in plain:
-        od.add_object(_var(name, ref.index, ref.subindex, ref.data_type, access, default, mappable, ref.unit))
-    od.add_object(_var("Quick stop option code", 0x605A, 0, "INTEGER16", "rw", 2))
-    od.add_object(_var("Motion profile type", 0x6086, 0, "INTEGER16", "rw", 0))
+        if ref is not None and ref.subindex == 0 and ref.index not in od:
+            od.add_object(_var(name, ref.index, ref.subindex, ref.data_type, access, default, mappable, ref.unit))
+    od.add_object(_var("Motion profile type", 0x6086, 0, "INTEGER16", "rww", 0, True))
     od.add_object(_var("Supported drive modes", 0x6502, 0, "UNSIGNED32", "ro", mode_bits))
     lo, hi = prof.software_position_limit
     _record(od, "Software position limit", lo.index, [
         (lo.subindex, "Min position limit", lo.data_type, "rw", -2147483648, False, lo.unit),
         (hi.subindex, "Max position limit", hi.data_type, "rw", 2147483647, False, hi.unit),
-    ], array=True)
+    ], array=True, sub0_access="const")
     search, zero = prof.homing_speeds
     _record(od, "Homing speeds", search.index, [
-        (search.subindex, "Speed for switch search", search.data_type, "rw", 100, False, search.unit),
-        (zero.subindex, "Speed for zero search", zero.data_type, "rw", 10, False, zero.unit),
-    ], array=True)
+        (search.subindex, "Speed for switch search", search.data_type, "rww", 100, True, search.unit),
+        (zero.subindex, "Speed for zero search", zero.data_type, "rww", 10, True, zero.unit),
+    ], array=True, sub0_access="const")
     if prof.name == "EPOS2":
+        # maxon's EDS of the EPOS2 70/10 (firmware 0x2126): its power-up values
         _record(od, "Motor data", 0x6410, [
-            (1, "Continuous current limit", "UNSIGNED16", "rw", 5000, False, "mA"),
-            (2, "Output current limit", "UNSIGNED16", "rw", 10000, False, "mA"),
+            (1, "Continuous current limit", "UNSIGNED16", "rww", 10000, True, "mA"),
+            (2, "Output current limit", "UNSIGNED16", "rww", 25000, True, "mA"),
             (3, "Pole pair number", "UNSIGNED8", "rw", 1),
-            (4, "Maximal speed in current mode", "UNSIGNED32", "rw", 25000, False, "rpm"),
+            (4, "Maximal motor speed", "UNSIGNED32", "rww", 25000, True, "rpm"),
             (5, "Thermal time constant winding", "UNSIGNED16", "rw", 40, False, "0.1s"),
-        ])
+        ], sub0_access="const")
+        od.add_object(_var("Home offset", prof.home_offset.index, 0, "INTEGER32", "rww", 0, True, "qc"))
+        od.add_object(_var("Max profile velocity", prof.max_profile_velocity.index, 0, "UNSIGNED32", "rw", 25000,
+                           False, "rpm"))
     else:
         _record(od, "Motor data", 0x3001, [
             (1, "Nominal current", "UNSIGNED32", "rw", 5000, False, "mA"),
@@ -380,10 +426,29 @@ def _add_drive_objects(od: ObjectDictionary, prof: DriveProfile) -> None:
             (2, "Interpolation time index", "INTEGER8", "rw", -3),
         ])
         od.add_object(_var("Max motor speed", 0x6080, 0, "UNSIGNED32", "rw", 25000, False, "rpm"))
+        od.add_object(_var("Home offset move distance", prof.home_offset.index, 0, "INTEGER32", "rw", 0, False,
+                           "qc"))
+        od.add_object(_var("Max profile velocity", prof.max_profile_velocity.index, 0, "UNSIGNED32", "rw", 10000,
+                           False, "rpm"))
 
 
-def make_object_dictionary(profile_name: str, node_id: int) -> ObjectDictionary:
-    """Build the object dictionary of one EPOS2/EPOS4 drive with node-ID ``node_id`` (1..127).
+def find_variable(od: ObjectDictionary, index: int, subindex: int = 0) -> Optional[ODVariable]:
+    """The variable ``index:subindex`` if the dictionary defines it, else ``None``.
+
+    Unlike ``ObjectDictionary.get_variable``, a sub-index an array does not define is absent
+    (canopen makes one up from the array's first entry), as it is on the drive.
+    """
+    obj = od.get(index)
+    if isinstance(obj, ODVariable):
+        return obj if subindex == 0 else None
+    if isinstance(obj, (ODRecord, ODArray)):
+        return obj.subindices.get(subindex)
+    return None
+
+
+def make_object_dictionary(profile_name: str | DriveProfile, node_id: int) -> ObjectDictionary:
+    """Build the object dictionary of one EPOS2/EPOS4 drive with node-ID ``node_id`` (1..127)
+    (``profile_name``: as for :func:`get_profile`).
 
     Raises:
         ValueError: unknown profile name or a node-ID out of range.
@@ -405,14 +470,14 @@ def make_object_dictionary(profile_name: str, node_id: int) -> ObjectDictionary:
 def required_objects(prof: DriveProfile) -> list[tuple[int, int]]:
     """``(index, sub-index)`` of every object the master reads or writes on a drive of ``prof``:
     the profile's objects and the communication objects of bring-up (heartbeats, identity, PDO
-    parameters and mappings)."""
+    parameters and mappings) and of naming a fault (the error register)."""
     keys = set()
     for f in dataclasses.fields(prof):
         value = getattr(prof, f.name)
         for ref in value if isinstance(value, tuple) else (value,):
             if isinstance(ref, ObjectRef):
                 keys.add((ref.index, ref.subindex))
-    keys |= {(0x1016, 1), (0x1017, 0), (0x1018, 1), (0x1018, 2)}
+    keys |= {(0x1001, 0), (0x1008, 0), (0x1016, 1), (0x1017, 0), (0x1018, 1), (0x1018, 2)}
     for n in range(prof.tpdo_count):
         keys |= {(0x1800 + n, 1), (0x1800 + n, 2), (0x1A00 + n, 0)}
     for n in range(prof.rpdo_count):
@@ -437,7 +502,7 @@ def load_object_dictionary(path: str | os.PathLike, profile_name: str, node_id: 
     except Exception as exc:   # canopen raises what its parsers raise
         raise ValueError(f"object dictionary {path}: not a readable EDS/DCF ({exc})") from exc
     missing = [f"0x{index:04X}:{sub:02X}" for index, sub in required_objects(prof)
-               if od.get_variable(index, sub) is None]
+               if find_variable(od, index, sub) is None]
     if missing:
         raise ValueError(f"object dictionary {path} lacks {', '.join(missing)}, which the master uses "
                          f"on an {prof.name}")

@@ -24,12 +24,28 @@ import canopen
 import numpy as np
 
 from drivers.acquisition import CycleAssembler, cycle_books
+from drivers.axis import check_setpoints
 from drivers.cia import CW_ENABLE_OPERATION, SW_FAULT, SYNC_COB_ID
 from drivers.errors import ConfigError, DriveError, DriveFault, HeartbeatTimeout
 from drivers.gc_freeze import GcPauses, frozen_gc
 from drivers.recording import FlushingLogger, Recording, SampleRecorder
 from drivers.supervision import Supervisor
 from drivers.units import AxesScaling
+
+
+def setpoint_counts(axes: Sequence, targets) -> np.ndarray:
+    """The counts streamed for the set-points ``targets`` (n_cycles, n_axes) in rad|m, one row
+    per SYNC: checked against the axes' software position limits
+    (:func:`drivers.axis.check_setpoints`), rounded to whole counts (:class:`AxesScaling`),
+    within the I32 range of the drives; :class:`ConfigError` otherwise. Pure (no bus): the
+    campaign's check runs it on the set-points before any bus is opened, as
+    :meth:`CyclicStream.check` does before the SYNC starts."""
+    targets = np.asarray(targets, dtype=float)
+    check_setpoints(axes, targets, "run_cyclic targets")
+    counts = AxesScaling([a.scaling for a in axes]).counts_from_position(targets)
+    if np.abs(counts).max() >= 2**31:
+        raise ConfigError("run_cyclic targets: beyond the I32 range of the drives' counts")
+    return counts
 
 
 class TargetStreamer:
@@ -105,15 +121,12 @@ class CyclicStream:
 
     # -- steps ------------------------------------------------------------------------------------
     def check(self) -> None:
-        """Set-points in range, no fault pending, the bus load within the bitrate, the drives at
-        the first set-point (within their following-error window)."""
+        """Set-points in range (:func:`setpoint_counts`), no fault pending, the bus load within
+        the bitrate, the drives at the first set-point (within their following-error window)."""
         group, targets = self.group, self.targets
-        group._check_positions(targets, "run_cyclic targets")
+        self.counts = setpoint_counts(group.axes, targets)
         group.supervisor.raise_if_fault()
         self.load = group.check_bus_load(self.period)
-        self.counts = self.units.counts_from_position(targets)
-        if np.abs(self.counts).max() >= 2**31:
-            raise ConfigError("run_cyclic targets: beyond the I32 range of the drives' counts")
         actual = group.positions()
         for i, a in enumerate(group.axes):
             if abs(actual[i] - targets[0, i]) > a.following_error_window:

@@ -4,7 +4,8 @@ maxon publishes the EPOS4's object dictionary as an EDS ("EPOS4 ... firmware 0x0
 writes DCF files of configured drives ("EPOS4 50/15, firmware 0x0170"). Set
 ``IDENT_HW_MAXON_REFERENCE`` to a folder holding them (``*.eds``, ``*.dcf``) to compare object by
 object; without it that test is skipped. The facts the master depends on are also written out
-below from those files, so that the bring-up check runs everywhere.
+below from those files, so that the bring-up check runs everywhere. The EPOS2's dictionary against
+maxon's EPOS2 files: ``tests/test_real_od_epos2.py``.
 """
 
 import dataclasses

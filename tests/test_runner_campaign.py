@@ -14,9 +14,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from drivers.recording import Recording, decode_log
+from drivers.stream import setpoint_counts
+from drivers.units import AxesScaling
 from ident_hw.config import load_config
+from ident_hw.experiment.plan import drive_axes, plan, setpoints
 
 ROOT = Path(__file__).resolve().parent.parent
 SIM = ROOT / "configs" / "sim-3prrr.yaml"
@@ -36,10 +40,10 @@ def short_config(folder: Path, cycles: int = 1, extra: str = "") -> Path:
     return path
 
 
-def ident_hw(*args, cwd):
+def ident_hw(*args, cwd, timeout=120):
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     return subprocess.run([sys.executable, "-m", "ident_hw.cli", *map(str, args)], capture_output=True,
-                          text=True, cwd=cwd, env=env, timeout=120)
+                          text=True, cwd=cwd, env=env, timeout=timeout)
 
 
 def rig_states(folder: Path) -> list[str]:
@@ -73,6 +77,11 @@ def test_run_then_identify_from_its_raw_can_log_gives_the_same_result(tmp_path):
     rec = Recording.load(res / "data" / "square.npz")
     replay = decode_log(res / "data" / "square.log", axes, max_cycles=CYCLE)
     assert rec.metadata["status"] == "complete" and len(rec.t) == CYCLE
+    # the drives got, cycle by cycle, the set-points the check validated (plan.setpoints) in whole counts
+    (planned,) = plan(load_config(config))
+    streamed = AxesScaling([a.scaling for a in axes]).position_from_counts(
+        setpoint_counts(axes, setpoints(planned.trajectory)))
+    np.testing.assert_array_equal(rec.target, streamed)
     np.testing.assert_array_equal(replay.cycle, rec.cycle)
     np.testing.assert_array_equal(replay.current, rec.current)
 
@@ -160,3 +169,30 @@ def test_scan_monitor_home_and_online_on_the_simulated_rig(tmp_path):
     assert online.returncode == 6, online.stderr      # degraded, as in the first test of this module
     assert "SVD-DLS estimates after square" in online.stdout
     assert (tmp_path / "online" / "online.npz").is_file() and (tmp_path / "online" / "plots" / "online.png").is_file()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("hil", ["hil-3prrr-epos2.yaml", "hil-3prrr-epos4.yaml"])
+def test_a_hil_campaign_that_check_accepts_runs_to_its_end(tmp_path, hil):
+    """The lab's config with its bus swapped for the simulated rig (about 2 min each): `check`
+    accepts it and `run` streams every trajectory to its last set-point, the triangle included
+    (it once stopped there on a carriage drive's limit, after four minutes of motion)."""
+    sim = yaml.safe_load(SIM.read_text())["sim"]
+    config = tmp_path / "hil-sim.yaml"
+    config.write_text(yaml.safe_dump({
+        "extends": str(ROOT / "configs" / hil),
+        "bus": {"interface": "virtual", "channel": f"test-{os.getpid()}-{time.monotonic_ns()}", "sync_rate": 250.0},
+        "sim": sim}, sort_keys=False))
+    check = ident_hw("check", config, cwd=tmp_path)
+    assert check.returncode == 0 and "everything would run" in check.stdout, check.stdout + check.stderr
+    run = ident_hw("run", config, "--out", tmp_path / "run", "--quiet", cwd=tmp_path, timeout=600)
+    status = (tmp_path / "run" / "STATUS").read_text()
+    assert run.returncode in (0, 6) and not status.startswith("partial"), status   # 6: the quality verdict
+    loaded = load_config(config)
+    axes = drive_axes(loaded)
+    units = AxesScaling([a.scaling for a in axes])
+    for planned in plan(loaded):
+        rec = Recording.load(tmp_path / "run" / "data" / f"{planned.config.name}.npz")
+        assert rec.metadata["status"] == "complete", planned.config.name
+        np.testing.assert_array_equal(rec.target, units.position_from_counts(
+            setpoint_counts(axes, setpoints(planned.trajectory))))

@@ -40,8 +40,8 @@ def stream_lockstep(bench, targets, before_sync=None, rpdo_deadline_ms=0):
     """Stream ``targets`` (N, 6) counts, one row per SYNC; returns reported counts and mA (N, 6).
 
     ``before_sync(k)`` runs in the master between the set-points of row k and its SYNC (to stall
-    the master); ``rpdo_deadline_ms``: the drives' RPDO timeout (RPDO1 event timer 0x1400:05,
-    an EPOS2 object: no EPOS4 has it).
+    the master); ``rpdo_deadline_ms``: the drives' RPDO timeout (RPDO1 event timer 0x1400:05:
+    neither EPOS has it, a profile variant with ``pdo_event_timer`` does).
     """
     rows, cycle, complete = [], {}, threading.Event()
 

@@ -2,6 +2,7 @@
 State402 tables, the demand generators against closed-form motion, the object store against
 a drive's dictionary."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -123,6 +124,11 @@ def test_the_object_store_reads_defaults_writes_and_objects_a_drive_lacks():
         assert store[profile.statusword] == default
         store[profile.statusword] = 0x0237
         assert store.get(profile.statusword.index, profile.statusword.subindex) == 0x0237
-    epos4 = ObjectStore(make_object_dictionary("epos4", 1))
-    assert not epos4.has(0x1006) and epos4.optional(0x1006, default=-1) == -1     # no cycle period on an EPOS4
-    assert ObjectStore(make_object_dictionary("epos2", 1)).has(0x1006)
+    for name in ("epos2", "epos4"):                                # no cycle period, no PDO event timer
+        store = ObjectStore(make_object_dictionary(name, 1))
+        assert not store.has(0x1006) and store.optional(0x1006, default=-1) == -1
+        assert not store.has(0x1400, 5) and store.has(0x1400, 2)
+        # an array holds only the sub-indices it defines (canopen would make up the others)
+        assert store.has(0x1003, 5) and not store.has(0x1003, 6) and store.optional(0x1003, 6, default=-1) == -1
+    watching = ObjectStore(make_object_dictionary(dataclasses.replace(EPOS2, pdo_event_timer=True), 1))
+    assert watching.has(0x1400, 5) and watching.optional(0x1400, 5, default=-1) == 0   # a variant with a deadline

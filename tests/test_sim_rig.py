@@ -28,7 +28,7 @@ class Bench:
         self.nodes = []
         self.boot_states = {}
         for d in self.rig.drives:
-            node = node_class(d.id, make_object_dictionary(d.profile.name, d.id))
+            node = node_class(d.id, make_object_dictionary(d.profile, d.id))
             self.master.add_node(node)
             node.nmt.add_heartbeat_callback(lambda state, i=d.id: self.boot_states.setdefault(i, state))
             self.nodes.append(node)
@@ -155,7 +155,9 @@ def test_pdo_mapping_cia402_and_cyclic_following(profile):
         emcy = node.emcy.wait(0x2310, timeout=1.0)
         assert emcy is not None and emcy.register & 0x02
         assert wait_until(lambda: node.state == "FAULT")
-        assert node.sdo[0x1003][1].raw == 0x2310 and node.sdo[0x603F].raw == 0x2310
+        assert node.sdo[0x1003][1].raw == 0x2310 and node.sdo[0x1001].raw & 0x02
+        if profile == "EPOS4":                                          # the EPOS2 has no 0x603F
+            assert node.sdo[0x603F].raw == 0x2310
         node.state = "OPERATION ENABLED"        # canopen: fault reset (0x80 edge) then enable
         assert b.rig.drive(4).state == "OPERATION ENABLED"
         assert node.sdo[0x1001].raw == 0

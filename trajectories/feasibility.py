@@ -75,7 +75,8 @@ class Violation:
     Attributes:
         time: s; sample: index; chain: 1..3, or ``None`` for the platform (cond(A)).
         quantity: ``"reach"``, ``"consistency"``, ``"stroke"``, ``"position"``, ``"speed"``,
-            ``"acceleration"``, ``"serial margin"`` or ``"cond(A)"``.
+            ``"acceleration"``, ``"serial margin"``, ``"cond(A)"``, or ``"set-point"`` (a set-point
+            outside a drive's software position limits, found by the campaign's check).
         name: what was measured (e.g. ``"zeta2d"``); value and limit in ``unit``.
     """
 
@@ -89,12 +90,13 @@ class Violation:
     unit: str = ""
 
     def __str__(self) -> str:
-        where = f"chain {self.chain}" if self.chain else "platform" if self.quantity == "cond(A)" else "all chains"
+        where = (f", chain {self.chain}" if self.chain else ", platform" if self.quantity == "cond(A)" else
+                 "" if self.quantity == "set-point" else ", all chains")
         if self.quantity == "reach":
-            return f"t = {self.time:.4f} s, {where}: pose out of reach ({self.name})"
+            return f"t = {self.time:.4f} s{where}: pose out of reach ({self.name})"
         relation = "below" if self.value < self.limit else "exceeds"    # a margin, a lower bound
         unit = f" {self.unit}" if self.unit else ""
-        return (f"t = {self.time:.4f} s, {where}: {self.quantity} {self.name} = {self.value:.6g}{unit} "
+        return (f"t = {self.time:.4f} s{where}: {self.quantity} {self.name} = {self.value:.6g}{unit} "
                 f"{relation} limit {self.limit:.6g}{unit}")
 
 

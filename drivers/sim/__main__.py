@@ -25,7 +25,7 @@ def main(argv=None) -> None:
     parser.add_argument("--profile", choices=("epos2", "epos4"), default="epos4")
     parser.add_argument("--node-ids", type=int, nargs=6, default=[1, 2, 3, 4, 5, 6], metavar="ID")
     parser.add_argument("--sync-period", type=float, default=None,
-                        help="plant step per SYNC in s (default: 0x1006 or the measured SYNC interval)")
+                        help="plant step per SYNC in s (default: the EPOS4's 0x60C2 or the measured SYNC interval)")
     parser.add_argument("--lockstep", action="store_true",
                         help="answer each SYNC as one step of --sync-period, never by the clock (a master "
                              "with bus.sync: lockstep)")

@@ -7,8 +7,14 @@ power state machine (:mod:`drivers.sim.state_machine`; with the fault reaction: 
 ramp, then FAULT with the power off), the demand of the operating modes
 (:mod:`drivers.sim.modes`: homing (HMM), profile position (PPM) and cyclic position, EPOS4 CSP
 mode 8 on ``0x607A``, EPOS2 position mode -1 on ``0x2062``); and here: the SDO and NMT gates,
-boot-up and NMT reset, EMCY with ``0x1001``/``0x1003``, the heartbeat consumer ``0x1016:01``
-(EMCY ``0x8130`` and a fault when the producer it watches falls silent), the following error.
+boot-up and NMT reset, EMCY with ``0x1001``/``0x1003`` (and ``0x603F`` on a drive that has it),
+the heartbeat consumer ``0x1016:01`` (EMCY ``0x8130`` and a fault when the producer it watches
+falls silent), the following error.
+
+An SDO access to an object the drive's dictionary does not define is aborted as a real drive
+aborts it (CiA 301): ``0x06020000`` for a missing object, ``0x06090011`` for a missing
+sub-index, also of an array (canopen's ``LocalNode`` would answer a sub-index an array does not
+define with a value made up from the array's first entry).
 
 Cyclic set-points are interpolated as a real drive does (its loops run much faster than SYNC):
 the demand is the uniform cubic B-spline whose control points are the received targets. Over the
@@ -40,9 +46,9 @@ import struct
 import canopen
 from canopen.sdo import SdoAbortedError
 
-from drivers.cia import (CW_FAULT_RESET, CW_HALT, CW_NEW_SETPOINT, CW_RELATIVE, EMCY_COB_ID, ERROR_HISTORY,
-                         ERROR_REGISTER, HEARTBEAT_CONSUMER, MODE_HMM, MODE_PPM, NMT_ENTER_PRE_OPERATIONAL,
-                         SW_BIT12, SW_TARGET_REACHED)
+from drivers.cia import (CW_FAULT_RESET, CW_HALT, CW_NEW_SETPOINT, CW_RELATIVE, EMCY_COB_ID, ERROR_CODE,
+                         ERROR_HISTORY, ERROR_REGISTER, HEARTBEAT_CONSUMER, MODE_HMM, MODE_PPM,
+                         NMT_ENTER_PRE_OPERATIONAL, SW_BIT12, SW_TARGET_REACHED)
 from drivers.profiles import get_profile, make_object_dictionary
 from drivers.units import AxisScaling
 
@@ -62,6 +68,12 @@ HOMING_TRAVEL_TURNS = 0.5  # motor turns of the emulated search move of the othe
 
 EMCY_FOLLOWING_ERROR, EMCY_OVERCURRENT, EMCY_HEARTBEAT = 0x8611, 0x2310, 0x8130
 ABORT_VALUE_RANGE = 0x06090030
+#: CiA 301 SDO abort codes: object does not exist in the object dictionary; sub-index does not exist
+ABORT_NO_OBJECT, ABORT_NO_SUBINDEX = 0x06020000, 0x06090011
+#: how a drive without a quick stop option code 0x605A (the EPOS2) ends a quick stop: on the
+#: quick stop ramp, then SWITCH ON DISABLED, as CiA 402 code 2 (the master's quick stop ends in
+#: SWITCH ON DISABLED from QUICK STOP ACTIVE too)
+FIXED_QUICK_STOP_OPTION = 2
 #: NMT command specifiers the drive acts on beyond canopen's state change
 NMT_RESET_NODE, NMT_RESET_COMMUNICATION = 0x81, 0x82
 
@@ -77,12 +89,19 @@ def error_register(code: int) -> int:
     return bits
 
 
+def _sdo_initiate(command: int) -> bool:
+    """An SDO client request that names an object: initiate download or upload, or the
+    initiation of a block upload or download (CiA 301)."""
+    return command & 0xE0 in (0x20, 0x40) or command & 0xE3 == 0xA0 or command & 0xE1 == 0xC0
+
+
 class EmulatedDrive:
     """One emulated drive on a ``canopen.Network`` (the rig owns the network and the plant).
 
     Args:
         node_id: CANopen node-ID.
-        profile_name: ``"epos2"`` or ``"epos4"``.
+        profile_name: ``"epos2"`` or ``"epos4"``, or a :class:`~drivers.profiles.DriveProfile`
+            (e.g. a variant with the RPDO deadline ``0x140x:05``, which neither generation has).
         scaling: the axis' :class:`AxisScaling` (counts per motor turn for the rpm limits).
         network: the rig's network (the node is added to it).
         lock: the rig's lock, held by every handler.
@@ -179,7 +198,7 @@ class EmulatedDrive:
         elif index == ERROR_HISTORY:
             if value != 0:
                 raise SdoAbortedError(ABORT_VALUE_RANGE)
-            for sub in range(1, 9):
+            for sub in range(1, prof.error_history + 1):
                 self.store.values[(ERROR_HISTORY, sub)] = 0
         elif index == prof.modes_of_operation.index:
             if value not in prof.supported_modes:
@@ -279,13 +298,14 @@ class EmulatedDrive:
         with self._lock:
             if self.silent or self.node.nmt.state == "STOPPED":
                 return
-            ccs = data[0] & 0xE0
-            if ccs in (0x20, 0x40) and len(data) >= 4:  # initiate download / upload
+            if _sdo_initiate(data[0]) and len(data) >= 4:
                 key = (data[1] | data[2] << 8, data[3])
-                if key in self.sdo_aborts:
+                code = self.sdo_aborts.get(key)
+                if code is None and not self.store.has(*key):
+                    code = ABORT_NO_SUBINDEX if key[0] in self.node.object_dictionary else ABORT_NO_OBJECT
+                if code is not None:
                     # CiA 301 abort transfer: 0x80, index, sub-index, abort code
-                    self.network.send_message(self.node.sdo.tx_cobid,
-                                              struct.pack("<BHBI", 0x80, key[0], key[1], self.sdo_aborts[key]))
+                    self.network.send_message(self.node.sdo.tx_cobid, struct.pack("<BHBI", 0x80, *key, code))
                     return
             self.node.sdo.on_request(can_id, data, timestamp)
 
@@ -317,23 +337,28 @@ class EmulatedDrive:
 
     # -- EMCY and faults ----------------------------------------------------------------------------
     def emcy(self, code: int, fault: bool = True) -> None:
-        """Signal an error: EMCY frame, ``0x1001``/``0x1003`` updated; with ``fault``, go to FAULT."""
+        """Signal an error: EMCY frame, ``0x1001``/``0x1003`` updated (the newest first, as many
+        as the drive keeps); with ``fault``, ``0x603F`` (a drive that has it) and FAULT."""
         register = error_register(code)
         values = self.store.values
-        history = [self.get(ERROR_HISTORY, s) for s in range(1, 8)]
-        for sub, value in enumerate([code] + history, start=1):
+        depth = self.profile.error_history
+        history = [code] + [self.get(ERROR_HISTORY, s) for s in range(1, depth)]
+        for sub, value in enumerate(history, start=1):
             values[(ERROR_HISTORY, sub)] = value
-        values[(ERROR_HISTORY, 0)] = min(self.get(ERROR_HISTORY, 0) + 1, 8)
+        values[(ERROR_HISTORY, 0)] = min(self.get(ERROR_HISTORY, 0) + 1, depth)
         values[(ERROR_REGISTER, 0)] = register
         if fault:
-            self.store[self.profile.error_code] = code
+            if self.store.has(ERROR_CODE):
+                values[(ERROR_CODE, 0)] = code
             if self.state not in (FAULT_REACTION, FAULT):
                 self._enter(FAULT_REACTION if self.powered else FAULT)
         if self.emcy_enabled:
             self.node.emcy.send(code, register)
 
     def _fault_reset(self) -> None:
-        self.store[self.profile.error_code] = 0
+        """The error goes (``0x603F`` and the error register cleared; the history stays)."""
+        if self.store.has(ERROR_CODE):
+            self.store.values[(ERROR_CODE, 0)] = 0
         self.store.values[(ERROR_REGISTER, 0)] = 0
         self._enter(DISABLED)
         if self.emcy_enabled:
@@ -470,18 +495,20 @@ class EmulatedDrive:
         store[prof.position_actual] = counts
         store[prof.velocity_actual] = rpm
         store[prof.current_actual] = milliamps
-        if prof.current_actual.index == 0x30D1:
-            store.values[(0x30D1, 1)] = milliamps                  # EPOS4: the averaged current too
+        store[prof.current_averaged] = milliamps
         store[prof.position_demand] = int(round(d.position))
         error = int(round(d.position - counts)) if self.powered else 0
-        store[prof.following_error_actual] = error
+        lowest, highest = prof.following_error_actual.value_range   # the EPOS2's 0x20F4 is 16 bits
+        store[prof.following_error_actual] = min(max(error, lowest), highest)
         window = store[prof.following_error_window]
         lo, hi = prof.software_position_limit
         if self.state == ENABLED and 0 < window < 0xFFFFFFFF and abs(error) > window:
             self.emcy(EMCY_FOLLOWING_ERROR)
         elif self.powered and not store[lo] <= counts <= store[hi]:
             self.emcy(prof.software_limit_error)
-        if self.state == QUICK_STOP and rpm == 0 and store[prof.quick_stop_option_code] <= 4:
+        option_code = prof.quick_stop_option_code
+        option = FIXED_QUICK_STOP_OPTION if option_code is None else store[option_code]
+        if self.state == QUICK_STOP and rpm == 0 and option <= 4:
             self._enter(DISABLED)
         elif self.state == FAULT_REACTION and abs(d.velocity) < 1e-6:
             self._enter(FAULT)                              # ramp done: power off

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from canopen.objectdictionary import ObjectDictionary
 
-from drivers.profiles import ObjectRef
+from drivers.profiles import ObjectRef, find_variable
 
 
 class ObjectStore:
@@ -20,7 +20,7 @@ class ObjectStore:
         try:
             return self.values[(index, subindex)]
         except KeyError:
-            value = self.dictionary.get_variable(index, subindex).default
+            value = find_variable(self.dictionary, index, subindex).default
             self.values[(index, subindex)] = value
             return value
 
@@ -32,11 +32,12 @@ class ObjectStore:
         self.values[(ref.index, ref.subindex)] = value
 
     def optional(self, index: int, subindex: int = 0, default=0):
-        """Value of an object this drive may lack (PDO sub-index 5 and 0x1006 exist on an EPOS2,
-        not on an EPOS4): ``default`` where its dictionary has no such object."""
-        if self.dictionary.get_variable(index, subindex) is None:
+        """Value of an object this drive may lack (e.g. the PDO event timer, sub-index 5 of the
+        PDO parameters, which neither EPOS has): ``default`` where its dictionary has no such object."""
+        if not self.has(index, subindex):
             return default
         return self.get(index, subindex)
 
     def has(self, index: int, subindex: int = 0) -> bool:
-        return self.dictionary.get_variable(index, subindex) is not None
+        """The dictionary defines ``index:subindex`` (a sub-index an array lacks is absent)."""
+        return find_variable(self.dictionary, index, subindex) is not None

@@ -16,7 +16,7 @@ import canopen
 from canopen.sdo import SdoAbortedError
 
 from drivers.cia import RPDO_COMM, RPDO_MAP, TPDO_COMM, TPDO_MAP
-from drivers.profiles import DriveProfile
+from drivers.profiles import DriveProfile, find_variable
 
 from .objects import ObjectStore
 
@@ -82,7 +82,7 @@ class PdoEngine:
                 if bits > 64:
                     raise SdoAbortedError(ABORT_PDO_LENGTH)
             elif value:
-                var = od.get_variable(value >> 16, (value >> 8) & 0xFF)
+                var = find_variable(od, value >> 16, (value >> 8) & 0xFF)
                 if (var is None or not var.pdo_mappable or len(var) != value & 0xFF
                         or not (var.writable if receive else var.readable)):
                     raise SdoAbortedError(ABORT_NOT_MAPPABLE)
@@ -93,7 +93,7 @@ class PdoEngine:
         entries, fmt = [], "<"
         for sub in range(1, get(mapping_index, 0) + 1):
             value = get(mapping_index, sub)
-            var = od.get_variable(value >> 16, (value >> 8) & 0xFF)
+            var = find_variable(od, value >> 16, (value >> 8) & 0xFF)
             entries.append((var.index, var.subindex))
             fmt += var.STRUCT_TYPES[var.data_type].format.lstrip("<")
         return struct.Struct(fmt), entries

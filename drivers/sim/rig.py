@@ -10,8 +10,9 @@ Time. While the drives stream (every powered drive OPERATION ENABLED in its cycl
 simulated time is the SYNC's: each SYNC advances the plant by one period and nothing else does,
 so a stalled master (a loaded host, a paused SYNC thread) stalls the robot with it instead of
 letting it run on towards a stale set-point. Once one of them quick-stops or faults, the clock
-thread moves the plant again (its ramp must end without SYNC). The period is ``sync_period``, else ``0x1006``, else the EPOS4's
-interpolation period ``0x60C2``, else the measured SYNC interval. Outside the cyclic
+thread moves the plant again (its ramp must end without SYNC). The period is ``sync_period``, else the
+EPOS4's interpolation period ``0x60C2``, else the measured SYNC interval (neither generation has
+the communication cycle period ``0x1006``). Outside the cyclic
 mode the clock thread steps the plant after ``IDLE_AFTER`` without SYNC.
 
 The drives' watches (heartbeat consumer ``0x1016:01``, RPDO deadline ``0x140x:05``: see
@@ -122,14 +123,14 @@ class SimulatedRig:
     """Emulated EPOS drives (one per actuator) and the simulated robot behind them.
 
     Args:
-        nodes: one ``(node_id, profile_name, AxisScaling)`` or :class:`drivers.axis.AxisConfig`
+        nodes: one ``(node_id, profile, AxisScaling)`` (``profile``: a name or a
+            :class:`~drivers.profiles.DriveProfile`) or :class:`drivers.axis.AxisConfig`
             per actuator, in the plant's actuator order (the 3PRRR: ``theta1..3, zeta1..3``).
         plant: the :class:`Plant` (robot, true parameters, position loops).
         bus: an open python-can bus to use (left open on :meth:`stop`); otherwise one is opened
             from ``bus_kwargs`` (e.g. ``interface="virtual", channel="rig", ignore_config=True``).
-        sync_period: plant step per SYNC in s. Default: ``0x1006`` of the first drive when the
-            master wrote it, else the interpolation period ``0x60C2`` of a streaming EPOS4,
-            else the measured SYNC interval.
+        sync_period: plant step per SYNC in s. Default: the interpolation period ``0x60C2`` of
+            a streaming EPOS4, else the measured SYNC interval.
         current_noise_ma: standard deviation of the Gaussian current noise, mA.
         seed: seed of the current noise and of the frame-loss draws.
         initial_states: ``{node_id: "FAULT" | "STOPPED"}``: drives in the wrong state at start.
@@ -277,14 +278,11 @@ class SimulatedRig:
         return self._nominal_period() or 0.0
 
     def _nominal_period(self) -> float | None:
-        """The SYNC period the drives are configured for (``sync_period``, ``0x1006`` or the
-        EPOS4's interpolation period ``0x60C2``), s: what their set-point interpolation assumes,
-        however late a SYNC comes (a longer interval extrapolates the interpolated demand)."""
+        """The SYNC period the drives are configured for (``sync_period`` or the EPOS4's
+        interpolation period ``0x60C2``), s: what their set-point interpolation assumes, however
+        late a SYNC comes (a longer interval extrapolates the interpolated demand)."""
         if self.sync_period is not None:
             return self.sync_period
-        cycle_us = self.drives[0].optional(0x1006)
-        if cycle_us:
-            return cycle_us * 1e-6
         for drive in self.drives:
             if drive.interpolation_period:
                 return drive.interpolation_period

@@ -142,7 +142,11 @@ class RobotKind:
 def _threeprrr_build(config, tcfg, robot, rate):
     limits = config.robot.feasibility_limits()
     k = tcfg.speed_scale
-    timing = dataclasses.replace(limits, carriage_speed=limits.carriage_speed * k,
+    # a generated path keeps within the stroke and within the carriage drives' software position
+    # limits (those the set-points are checked against): the carriage schedule's bounds
+    room = min(min(-a.limits.position[0], a.limits.position[1]) for a in config.robot.actuators[3:])
+    timing = dataclasses.replace(limits, carriage_stroke=min(limits.carriage_stroke, room),
+                                 carriage_speed=limits.carriage_speed * k,
                                  carriage_accel=limits.carriage_accel * k * k,
                                  revolute_speed=limits.revolute_speed * k,
                                  revolute_accel=limits.revolute_accel * k * k)

@@ -86,8 +86,10 @@ class NmtListener(can.Listener):
 
 def read_node(network: canopen.Network, node_id: int, heard: int | None = None,
               sdo_timeout: float = 0.5) -> NodeInfo:
-    """Identity, device name, firmware (0x100A), NMT state (:func:`nmt_state`; ``heard`` = the
-    state byte of a heartbeat or boot-up seen from it) and CiA 402 state of a node."""
+    """Identity, device name, firmware, NMT state (:func:`nmt_state`; ``heard`` = the state byte
+    of a heartbeat or boot-up seen from it) and CiA 402 state of a node. A maxon drive's firmware
+    is the high word of its revision number ``0x1018:03`` (``0x2126`` in ``0x21260000``; neither
+    EPOS has ``0x100A``), another node's the software version ``0x100A``."""
     node = network.nodes.get(node_id)
     if node is None:
         node = canopen.RemoteNode(node_id, canopen.ObjectDictionary())
@@ -98,7 +100,11 @@ def read_node(network: canopen.Network, node_id: int, heard: int | None = None,
     heartbeat = _upload(node, 0x1017)
     answers = name is not None or heartbeat is not None or identity[0] is not None
     status = _upload(node, 0x6041)
-    return NodeInfo(node_id=node_id, device_name=_text(name), firmware=_text(_upload(node, 0x100A)),
+    if identity[0] == VENDOR_ID_MAXON and identity[2] is not None:
+        firmware = f"0x{identity[2] >> 16:04X}"
+    else:
+        firmware = _text(_upload(node, 0x100A))
+    return NodeInfo(node_id=node_id, device_name=_text(name), firmware=firmware,
                     vendor_id=identity[0], product_code=identity[1], revision=identity[2],
                     nmt_state=nmt_state(heard, answers, struct.unpack_from("<H", heartbeat)[0] if heartbeat else None),
                     cia402_state=state_of(struct.unpack_from("<H", status)[0]) if status else None)

@@ -8,10 +8,11 @@ from pathlib import Path
 import numpy as np
 
 import trajectories
+from drivers.axis import AxisConfig, outside_position_limits
 from ident_hw.config import Config, TrajectoryConfig
 from ident_hw.config.robots import excitation_of, kind_of
 from ident_hw.model import KinematicsError
-from ident_hw.model.interface import RobotModel
+from ident_hw.model.interface import POSITION_UNITS, RobotModel
 
 
 @dataclass
@@ -45,6 +46,25 @@ def robot_model(config: Config) -> RobotModel:
 def sample_rate(config: Config) -> float:
     """Trajectory sample rate = the SYNC rate of the bus (250 Hz without a bus section)."""
     return config.bus.sync_rate if config.bus is not None else 250.0
+
+
+def sync_period(config: Config) -> float:
+    """The period (s) at which ``run`` streams the set-points: one SYNC, one sample of :func:`build`."""
+    return 1.0 / sample_rate(config)
+
+
+def setpoints(traj: trajectories.Trajectory) -> np.ndarray:
+    """The set-points ``run`` streams for ``traj``: ``(n, a)`` rad | m in actuator order, one row
+    per SYNC period (:func:`sync_period`), the first where the drives are moved to before it.
+    The runner hands exactly this array to ``run_cyclic``; :func:`check` validates exactly it."""
+    return traj.Theta
+
+
+def drive_axes(config: Config) -> list[AxisConfig]:
+    """The drives' axis settings of the config's actuators, their software position limits
+    included: those of the run's drive group (:meth:`ident_hw.experiment.session.Session.drive_group`)."""
+    base = Path(config.source).parent
+    return [a.to_driver(base) for a in config.robot.actuators]
 
 
 def build(config: Config, tcfg: TrajectoryConfig, robot: RobotModel) -> trajectories.Trajectory:
@@ -106,11 +126,35 @@ def plan(config: Config, names: list[str] | None = None, online: bool = False) -
 
 
 def check(config: Config, traj: trajectories.Trajectory, robot: RobotModel) -> trajectories.Report:
-    """The feasibility report of ``traj`` on the config's robot (its actuators and safety margins)."""
+    """The feasibility report of ``traj`` on the config's robot: its kind's check (reach, safety
+    margins, speeds and accelerations) and the set-points ``run`` streams checked as
+    ``run_cyclic`` checks them (:func:`setpoint_violations`): a trajectory this accepts streams
+    without a limit stop. The set-point check stands for the kind's ``position`` check (the
+    actuators' limits, the same numbers, drawn here where ``run_cyclic`` draws them); the 3PRRR's
+    ``stroke`` check of the guides stays."""
     acts = config.robot.actuators
     if traj.Theta.shape[1] != len(acts):
         raise ValueError(f"trajectory {traj.name!r} moves {traj.Theta.shape[1]} actuators, the robot has {len(acts)}")
-    return kind_of(config.robot).check(config, traj, robot)
+    report = kind_of(config.robot).check(config, traj, robot)
+    found = [v for v in report.violations if v.quantity != "position"] + setpoint_violations(config, traj)
+    report.violations = sorted(found, key=lambda v: v.sample)
+    return report
+
+
+def setpoint_violations(config: Config, traj: trajectories.Trajectory) -> list[trajectories.Violation]:
+    """Per drive, the first of the set-points ``run`` streams for ``traj`` (:func:`setpoints`)
+    outside its software position limits, by the very test ``run_cyclic`` applies before it
+    streams (:func:`drivers.axis.outside_position_limits`, on the axes of :func:`drive_axes`)."""
+    axes, targets = drive_axes(config), setpoints(traj)
+    outside = outside_position_limits(axes, targets)
+    found = []
+    for j in np.flatnonzero(outside.any(axis=0)):
+        k = int(np.argmax(outside[:, j]))
+        axis, value = axes[j], float(targets[k, j])
+        limit = axis.position_max if value > axis.position_max else axis.position_min
+        found.append(trajectories.Violation(float(traj.t[k]), k, None, "set-point", axis.name, value, limit,
+                                            POSITION_UNITS[axis.scaling.kind]))
+    return found
 
 
 def quantisation_notes(config: Config, traj: trajectories.Trajectory) -> tuple[str, ...]:

@@ -40,7 +40,7 @@ from ident_hw.results import Results, final_status, mark_status, save_results
 
 from .offline import identify
 from .online import CampaignEstimator
-from .plan import PlannedTrajectory, plan, sample_rate
+from .plan import PlannedTrajectory, plan, setpoints, sync_period
 from .session import Session, open_session
 from .signals import shielded, signal_name
 
@@ -163,13 +163,15 @@ def _drive_states(session: Session, group: DriveGroup) -> dict:
 
 def stream(session: Session, group: DriveGroup, planned: PlannedTrajectory, data: Path,
            show_progress: bool) -> Recording:
-    """Move to the trajectory's start, stream it and record it into ``data``."""
+    """Move to the trajectory's start, stream its set-points (:func:`~ident_hw.experiment.plan.setpoints`,
+    the array the campaign's check validated) at the SYNC period and record it into ``data``."""
     config, traj = session.config, planned.trajectory
+    targets = setpoints(traj)
     window = np.array([a.limits.following_error for a in config.robot.actuators])
-    if np.any(np.abs(group.positions() - traj.Theta[0]) > 0.5 * window):
-        group.move_to(traj.Theta[0], speed_fraction=APPROACH_SPEED)
-    with _progress(session.network, traj.name, len(traj.t), show_progress), _injected_events(session, traj.name):
-        return group.run_cyclic(traj.Theta, 1.0 / sample_rate(config), output=data / f"{traj.name}.npz",
+    if np.any(np.abs(group.positions() - targets[0]) > 0.5 * window):
+        group.move_to(targets[0], speed_fraction=APPROACH_SPEED)
+    with _progress(session.network, traj.name, len(targets), show_progress), _injected_events(session, traj.name):
+        return group.run_cyclic(targets, sync_period(config), output=data / f"{traj.name}.npz",
                                 raw_log=data / f"{traj.name}{config.output.raw_log}",
                                 metadata={"trajectory": traj.name, "config": Path(config.source).name})
 

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Iterator
 
 import can
@@ -23,7 +22,7 @@ from drivers.errors import BusOpenError
 from drivers.sim import SimulatedRig
 from drivers.units import MA_PER_AMP
 from ident_hw.config import Config
-from ident_hw.experiment.plan import robot_model
+from ident_hw.experiment.plan import drive_axes, robot_model, sync_period
 
 
 def simulated_rig(config: Config) -> SimulatedRig:
@@ -45,7 +44,7 @@ def simulated_rig(config: Config) -> SimulatedRig:
     return SimulatedRig.build(robot_model(config), config.true_parameters(), axes,
                               bandwidth_hz=sim.bandwidth, damping=sim.damping,
                               **({"max_substep": sim.max_substep} if sim.max_substep else {}),
-                              sync_period=1.0 / config.bus.sync_rate if lockstep else None,
+                              sync_period=sync_period(config) if lockstep else None,
                               current_noise_ma=sim.current_noise * MA_PER_AMP, seed=sim.seed, lockstep=lockstep, brakes=sim.brakes,
                               interface=config.bus.interface, channel=config.bus.channel, ignore_config=True)
 
@@ -61,11 +60,10 @@ class Session:
     def drive_group(self) -> DriveGroup:
         """The six actuators' drives (theta1..3, zeta1..3) with the bus settings of the config."""
         bus = self.config.bus
-        base = Path(self.config.source).parent
-        return DriveGroup(self.network, [a.to_driver(base) for a in self.config.robot.actuators],
+        return DriveGroup(self.network, drive_axes(self.config),
                           heartbeat_period=bus.heartbeat, heartbeat_timeout=bus.heartbeat_timeout,
                           sdo_timeout=bus.sdo_timeout, sync=self.config.sync_mode,
-                          sync_period=1.0 / bus.sync_rate, lockstep_timeout=bus.lockstep_timeout)
+                          sync_period=sync_period(self.config), lockstep_timeout=bus.lockstep_timeout)
 
 
 @contextmanager
