@@ -44,6 +44,13 @@ def drive_term(name: str) -> str | None:
 
 
 
+def check_scales(scales: dict[str, float]) -> None:
+    """Every scale a config gives is positive (FieldError naming the first that is not)."""
+    for name, value in scales.items():
+        if not value > 0:
+            raise FieldError(f"scales.{name}", f"must be positive, got {value}")
+
+
 def parameter_scales(names, cad, scales: dict[str, float], where: str) -> tuple[float, ...]:
     """(n,) the scale of every parameter ``names`` (n,) with CAD values ``cad`` (module
     docstring); ``scales`` the config's overrides, ``where`` their key (for the error).
@@ -87,9 +94,7 @@ class PhysicalConfig:
     scales: dict[str, float] = field(default_factory=dict)
 
     def _check(self) -> None:
-        for name, value in self.scales.items():
-            if not value > 0:
-                raise FieldError(f"scales.{name}", f"must be positive, got {value}")
+        check_scales(self.scales)
 
     def parameter_scales(self, names, cad) -> tuple[float, ...]:
         """(n,) the prior's scale of every parameter (module docstring)."""

@@ -32,7 +32,7 @@ from ident_hw.signal import FilterSettings
 from trajectories.feasibility import ActuatorLimits
 from trajectories.feasibility import Limits as FeasibilityLimits
 
-from .physical import PhysicalConfig, drive_term, parameter_kind, parameter_scales
+from .physical import PhysicalConfig, check_scales, drive_term, parameter_kind, parameter_scales
 from .robots import COMMON_TRAJECTORY_KINDS, DescribedConfig, ParameterSetConfig, kind_of
 from .schema import FieldError, in_range, non_negative, ordered_pair, positive, spec
 
@@ -517,9 +517,7 @@ class OnlineConfig:
             "trajectories streamed after the others, the comparison printed and in the report)"))
 
     def _check(self) -> None:
-        for name, value in self.scales.items():
-            if not value > 0:
-                raise FieldError(f"scales.{name}", f"must be positive, got {value}")
+        check_scales(self.scales)
 
     def parameter_scales(self, names, cad) -> tuple[float, ...]:
         """(n,) the scale of every parameter ``names`` (n,) with CAD values ``cad`` (see the class)."""

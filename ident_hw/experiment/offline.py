@@ -359,13 +359,14 @@ def consistent(config: Config, robot: RobotModel, base_fit: BaseFit, equivalent:
     names = robot.parameter_names
     held = {names.index(p): float(equivalent[names.index(p)]) for p in base_fit.held}
     # a drive term without a CAD value (friction) is scaled by its least-squares value
-    in_body = {i for body in robot.physical_bodies() for i in body.indices}
+    bodies = robot.physical_bodies()
+    in_body = {i for body in bodies for i in body.indices}
     typical = np.array([abs(equivalent[i]) if i not in in_body and not initial[i] else initial[i]
                         for i in range(len(names))])
     try:
         scale = np.array(physical.parameter_scales(names, typical))
         return consistent_parameters(names, tuple(robot.parameter_unit(p) for p in names), base_fit.H, base_fit.coef,
-                                     base_fit.covariance, initial, scale, robot.physical_bodies(), held=held,
+                                     base_fit.covariance, initial, scale, bodies, held=held,
                                      metric=physical.metric, prior_relative=physical.prior, truth=truth)
     except (ConsistencyError, FieldError) as exc:
         next(s for s in steps if s.get("name") == base_fit.step)["consistent"] = str(exc)

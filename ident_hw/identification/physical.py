@@ -42,7 +42,7 @@ from typing import Sequence
 import numpy as np
 from scipy import stats
 
-from ident_hw.model.pseudo_inertia import PhysicalBody, margin, planar_pseudo_inertia, pseudo_inertia
+from ident_hw.model.pseudo_inertia import PhysicalBody, body_pseudo_inertia, pseudo_inertia
 
 METRICS = ("euclidean", "entropic")
 #: a parameter whose prior share is at most this was decided by the data; one whose variance the
@@ -230,8 +230,9 @@ def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndar
     if H.shape != (len(base), n) or prior.shape != (n,) or scale.shape != (n,) or np.any(~(scale > 0)):
         raise ValueError(f"shapes: H {H.shape}, base {base.shape}, prior {prior.shape}, scale {scale.shape} "
                          f"for {n} parameters (scales must be positive)")
-    A = _whitener(covariance) @ H * scale                  # (r, n): whitened base rows in scaled variables
-    b = _whitener(covariance) @ (base - H @ prior)
+    whiten = _whitener(covariance)
+    A = whiten @ H * scale                                 # (r, n): whitened base rows in scaled variables
+    b = whiten @ (base - H @ prior)
     rho2 = prior_relative ** 2
 
     z = cp.Variable(n)
@@ -290,7 +291,7 @@ def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndar
     narrowed[free] = np.diag(P) / rho2
     decided = tuple("held" if i in held else "data" if share[i] <= DECIDED
                     else "prior" if narrowed[i] >= 1 - DECIDED else "data and prior" for i in range(n))
-    residual = _whitener(covariance) @ (H @ values - base)
+    residual = whiten @ (H @ values - base)
     margins = tuple(BodyMargin(body.name, float(body.values(values)[0]), _margin(body, values)) for body in bodies)
     return ConsistentSet(names=names, units=tuple(units), values=values, prior=prior, sigma=sigma, prior_share=share,
                          decided_by=decided, bodies=margins, chi2=float(residual @ residual),
@@ -302,6 +303,6 @@ def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndar
 def _margin(body: PhysicalBody, values: np.ndarray) -> float:
     """The body's margin, 0 where it is rounding of an active constraint (below 1e-9 of the
     pseudo-inertia's size): the solver's tolerance, not a property of the body."""
-    J = planar_pseudo_inertia(body.values(values)) if body.planar else pseudo_inertia(body.values(values))
-    value = margin(body, values)
+    J = body_pseudo_inertia(body, values)
+    value = float(np.linalg.eigvalsh(J)[0])
     return 0.0 if abs(value) <= 1e-9 * max(np.abs(J).max(), 1e-300) else value

@@ -75,6 +75,7 @@ import numpy as np
 import pinocchio as pin
 
 from .described import BODY_PARAMS, DescribedRobot, DescriptionError, load_description
+from .pseudo_inertia import pseudo_inertia
 
 MJCF, URDF = "MJCF", "URDF"
 SUFFIXES = {MJCF: (".xml", ".mjcf"), URDF: (".urdf",)}
@@ -299,10 +300,7 @@ def _physical_body(name: str, p: np.ndarray, where: Path) -> np.ndarray:
     """A body's ten values, checked through its pseudo-inertia ``J`` and projected onto ``J ⪰ 0``
     where it is outside by rounding (``_PHYSICAL_TOL`` of its largest entry)."""
     m, h, I = float(p[0]), np.asarray(p[1:4], dtype=float), _tensor(p[4:10])
-    J = np.zeros((4, 4))
-    J[:3, :3] = 0.5 * np.trace(I) * np.eye(3) - I
-    J[:3, 3] = J[3, :3] = h
-    J[3, 3] = m
+    J = pseudo_inertia(p)
     size = float(np.abs(J).max())
     if size == 0.0:
         return np.zeros(10)

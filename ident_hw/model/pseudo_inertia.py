@@ -84,8 +84,12 @@ def planar_pseudo_inertia(values) -> np.ndarray:
     return J
 
 
+def body_pseudo_inertia(body: PhysicalBody, params) -> np.ndarray:
+    """The body's pseudo-inertia in ``params``: (4, 4), or (3, 3) for a planar body."""
+    values = body.values(params)
+    return planar_pseudo_inertia(values) if body.planar else pseudo_inertia(values)
+
+
 def margin(body: PhysicalBody, params) -> float:
     """Smallest eigenvalue of the body's pseudo-inertia in ``params``: ≥ 0 when consistent."""
-    values = body.values(params)
-    J = planar_pseudo_inertia(values) if body.planar else pseudo_inertia(values)
-    return float(np.linalg.eigvalsh(J)[0])
+    return float(np.linalg.eigvalsh(body_pseudo_inertia(body, params))[0])
