@@ -32,6 +32,7 @@ import numpy as np
 from drivers.affinity import one_cpu
 from drivers.bus import BusConfig, open_network
 from drivers.epos import DriveGroup
+from drivers.sim.lockstep import LockstepSync
 from ident_hw.config import load_config
 from ident_hw.experiment.session import simulated_rig
 
@@ -54,7 +55,7 @@ def run(seconds: float, rate_hz: float, path: Path = CONFIG) -> None:
     axes = [a.to_driver() for a in config.robot.actuators]
     rig = simulated_rig(config).start()
     network = open_network(BusConfig("virtual", config.bus.channel, ignore_config=True))
-    group = DriveGroup(network, axes, sync="lockstep", sync_period=period)
+    group = DriveGroup(network, axes, sync=LockstepSync(period))
     try:
         group.bring_up()
         group.home()

@@ -3,11 +3,11 @@
 
 Everything that talks SDO (bring-up, limits, modes, the CiA 402 power state machine, homing,
 point-to-point moves, stopping after a fault) runs in the calling thread. The streaming run
-(:meth:`DriveGroup.run_cyclic`) sends SYNC with ``network.send_periodic`` (the kernel BCM on
-SocketCAN; on a :class:`drivers.bus.BusNetwork` over a thread-timed bus, a
+(:meth:`DriveGroup.run_cyclic`) takes its SYNC from the group's :class:`drivers.sync.SyncSource`
+(for real drives :class:`drivers.sync.PeriodicSync`: the kernel BCM on SocketCAN, else a
 :class:`drivers.bus.GridPeriodicTask` that skips late slots instead of bursting) and, from the
 notifier thread, answers each SYNC with the next set-points as RPDO frames; it never calls SDO
-there. State machine transitions use canopen's CiA 402 tables (:class:`canopen.profiles.p402.State402`)
+there. The waits of the calling thread count in the SYNC source's time. State machine transitions use canopen's CiA 402 tables (:class:`canopen.profiles.p402.State402`)
 over SDO, which also covers the EPOS2's maxon-specific negative modes (canopen's ``op_mode``
 property does not know them).
 """
@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 import time
+from contextlib import AbstractContextManager, nullcontext
 from typing import Any, Callable, Sequence
 
 import canopen
@@ -35,7 +36,7 @@ from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, load_object_dictionary,
 from drivers.recording import Recording
 from drivers.stream import CyclicStream
 from drivers.supervision import Supervisor
-from drivers.sync import SYNC_MODES, LockstepSync
+from drivers.sync import PeriodicSync, SyncSource
 
 logger = logging.getLogger(__name__)
 
@@ -50,10 +51,12 @@ class EposDrive:
         axis: the axis settings (node-ID, profile, scaling, limits, homing).
         supervisor: where EMCY and heartbeat faults of this node are reported.
         sdo_timeout: SDO response timeout in s.
+        timebase: the clock and the pause of the state waits (quick stop, fault reaction, mode
+            switch): the drive group's SYNC source.
     """
 
     def __init__(self, network: canopen.Network, axis: AxisConfig, supervisor: Supervisor,
-                 sdo_timeout: float = 0.5):
+                 sdo_timeout: float = 0.5, timebase: SyncSource | None = None):
         self.axis = axis
         self.profile = axis.drive_profile
         self.label = axis.label
@@ -70,10 +73,7 @@ class EposDrive:
         network.add_node(self.node)
         self.node.emcy.add_callback(supervisor.emcy_callback(self.label, self.profile.name))
         self.frames: tuple[PdoFrame, ...] = ()
-        #: the time base and the pause of the state waits (quick stop, fault reaction, mode
-        #: switch): wall-clock by default; the drive group's lockstep SYNC in lockstep
-        self.clock: Callable[[], float] = time.monotonic
-        self.tick: Callable[[], None] = lambda: time.sleep(0.002)
+        self.timebase = timebase or PeriodicSync()
 
     # -- SDO access, errors naming node and object ---------------------------------------------
     def _var(self, ref: ObjectRef | tuple[int, int]) -> SdoVariable:
@@ -248,15 +248,15 @@ class EposDrive:
         logger.warning("%s: in FAULT at start (%s), resetting", self.label, self.error_text())
         self._controlword(State402.CW_DISABLE_VOLTAGE)
         self._controlword(CW_FAULT_RESET)
-        deadline = self.clock() + timeout
+        deadline = self.timebase.now() + timeout
         while self.state in ("FAULT", "FAULT REACTION ACTIVE"):
-            if self.clock() > deadline:
+            if self.timebase.now() > deadline:
                 raise NodeError(self.label, f"still in FAULT after a fault reset ({self.error_text()})")
-            self.tick()
+            self.timebase.tick()
 
     def set_state(self, target: str, timeout: float = 1.0) -> None:
         """Walk the CiA 402 state machine to ``target`` (one transition per controlword write)."""
-        deadline = self.clock() + timeout
+        deadline = self.timebase.now() + timeout
         state = self.state
         while state != target:
             if state in ("FAULT", "FAULT REACTION ACTIVE"):
@@ -271,10 +271,10 @@ class EposDrive:
                 state = self.state
                 if state == step or state in ("FAULT", "FAULT REACTION ACTIVE"):
                     break
-                if self.clock() > deadline:
+                if self.timebase.now() > deadline:
                     raise NodeError(self.label, f"stays in {state}, expected {step} on the way to "
                                     f"{target} (statusword 0x{self.statusword:04X})")
-                self.tick()
+                self.timebase.tick()
 
     def enable(self) -> None:
         self.set_state("OPERATION ENABLED")
@@ -282,12 +282,12 @@ class EposDrive:
     def _wait_while(self, busy, timeout: float) -> int:
         """Poll the statusword until ``busy(state, statusword)`` is false or ``timeout`` s passed;
         return the last statusword."""
-        deadline = self.clock() + timeout
+        deadline = self.timebase.now() + timeout
         while True:
             sw = self.statusword
-            if not busy(state_of(sw), sw) or self.clock() > deadline:
+            if not busy(state_of(sw), sw) or self.timebase.now() > deadline:
                 return sw
-            self.tick()
+            self.timebase.tick()
 
     def disable(self, timeout: float = 1.0) -> None:
         """Disable voltage: SWITCH ON DISABLED (the motor is not powered). A drive in its fault
@@ -315,11 +315,11 @@ class EposDrive:
             raise NodeError(self.label, f"mode {mode} is not supported by an {self.profile.name} "
                             f"(supported: {dict(self.profile.supported_modes)})")
         self.write(self.profile.modes_of_operation, mode)
-        deadline = self.clock() + timeout
+        deadline = self.timebase.now() + timeout
         while (shown := self.read(self.profile.modes_display)) != mode:
-            if self.clock() > deadline:
+            if self.timebase.now() > deadline:
                 raise NodeError(self.label, f"mode display shows {shown}, expected {mode}")
-            self.tick()
+            self.timebase.tick()
 
     def prepare_cyclic(self, period: float) -> None:
         """Select the cyclic position mode (EPOS4: CSP with 0x60C2 = SYNC period; EPOS2: mode -1)."""
@@ -430,12 +430,9 @@ class DriveGroup:
         master_id: node-ID under which the master produces its heartbeat (not a drive's).
         with_velocity: map velocity actual (TPDO3) too.
         sdo_timeout: SDO response timeout (s).
-        sync: the SYNC producer, ``"periodic"`` (real drives) or ``"lockstep"`` (a simulated rig
-            serving this bus in lockstep: :mod:`drivers.sync`). In lockstep every wait for the
-            drives (homing, moves, stops) advances the simulated time by SYNC, and
-            :meth:`run_cyclic` sends each SYNC once the previous cycle's TPDOs are in.
-        sync_period: the SYNC period in lockstep (s): the simulated time of one cycle.
-        lockstep_timeout: wall-clock s a lockstep cycle may take before it is a fault.
+        sync: the SYNC producer and the clock of every wait for the drives (homing, moves,
+            stops): :class:`drivers.sync.PeriodicSync` (the default: real drives) or another
+            :class:`~drivers.sync.SyncSource`.
 
     Use as a context manager: on exit every drive is quick-stopped/disabled and the heartbeats
     are stopped (:meth:`close`).
@@ -444,8 +441,7 @@ class DriveGroup:
     def __init__(self, network: canopen.Network, axes: Sequence[AxisConfig],
                  heartbeat_period: float = 0.1, heartbeat_timeout: float | None = None,
                  master_id: int = 127, with_velocity: bool = True,
-                 sdo_timeout: float = 0.5, sync: str = "periodic", sync_period: float | None = None,
-                 lockstep_timeout: float = 10.0):
+                 sdo_timeout: float = 0.5, sync: SyncSource | None = None):
         bus_config = getattr(network, "config", None)
         if not isinstance(bus_config, BusConfig):
             raise ConfigError("DriveGroup: open the network with drivers.bus.open_network (its "
@@ -461,14 +457,8 @@ class DriveGroup:
         if not is_node_id(master_id) or master_id in seen:
             raise ConfigError(f"master_id must be a node-ID in 1..127 that no drive uses, got "
                               f"{master_id!r} (drives: {sorted(seen)})")
-        if sync not in SYNC_MODES:
-            raise ConfigError(f"sync must be one of {SYNC_MODES}, got {sync!r}")
-        if sync == "lockstep" and not (sync_period and sync_period > 0):
-            raise ConfigError(f"lockstep needs a positive sync_period, got {sync_period!r}")
-        self.sync_mode = sync
-        self.sync_period = sync_period
-        self.lockstep_timeout = lockstep_timeout
-        self.lockstep: LockstepSync | None = None   # while brought up in lockstep
+        self.sync: SyncSource = sync or PeriodicSync()
+        self._sync_attached = False
         self.heartbeat_timeout = heartbeat_timeout or 3.5 * heartbeat_period
         if not (0 < heartbeat_period and round(heartbeat_period * 1e3) >= 1
                 and 1 <= round(self.heartbeat_timeout * 1e3) <= 0xFFFF
@@ -483,7 +473,7 @@ class DriveGroup:
         self._master_heartbeat = None  # the periodic task, while running
         self.with_velocity = with_velocity
         self.supervisor = Supervisor()
-        self.drives = [EposDrive(network, a, self.supervisor, sdo_timeout) for a in self.axes]
+        self.drives = [EposDrive(network, a, self.supervisor, sdo_timeout, self.sync) for a in self.axes]
         for drive in self.drives:
             self.supervisor.watch_heartbeat(drive.label, drive.node.nmt, self.heartbeat_timeout)
         self.layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity)) for a in self.axes]
@@ -510,38 +500,21 @@ class DriveGroup:
             drive.wait_operational(timeout)
         self.supervisor.start_heartbeat_monitoring()
         self.supervisor.raise_if_fault()
-        if self.sync_mode == "lockstep" and self.lockstep is None:
-            expected = {f.cob_id(d.axis.node_id): d.label for d, layout in zip(self.drives, self.layouts)
-                        for f in layout.frames if f.direction == "tpdo" and f.per_sync}
-            self.lockstep = LockstepSync(self.network, expected, self.sync_period, self.lockstep_timeout,
-                                         barrier=self._lockstep_barrier)
-            self.network.notifier.add_listener(self.lockstep)
-            for drive in self.drives:
-                drive.clock, drive.tick = self.clock, lambda: self._advance(1)
+        if not self._sync_attached:
+            tpdos = {f.cob_id(d.axis.node_id): d.label for d, layout in zip(self.drives, self.layouts)
+                     for f in layout.frames if f.direction == "tpdo" and f.per_sync}
+            self.sync.attach(self.network, tpdos, self._barrier)
+            self._sync_attached = True
 
-    def _lockstep_barrier(self) -> None:
-        """An SDO round trip to a node the lockstep still waits for: the rig answers frames in
-        order, so its response comes after its answers to every SYNC sent before."""
-        waited = set(self.lockstep.expected.values())
-        drive = next((d for d in self.drives if d.label in waited), None)
-        if drive is not None:
-            drive.read(drive.profile.statusword)
-
-    # -- time ----------------------------------------------------------------------------------------
-    def clock(self) -> float:
-        """s: the simulated time in lockstep (wall-clock once the lockstep broke), else wall-clock."""
-        ls = self.lockstep
-        return ls.time if ls is not None and ls.broken is None else time.monotonic()
-
-    def _advance(self, seconds_or_cycles: float | int) -> None:
-        """Let the drives move while the master waits: in lockstep ``cycles`` SYNC cycles (an
-        int), else sleep ``seconds`` (a float)."""
-        ls = self.lockstep
-        if ls is not None and ls.broken is None:
-            ls.run(seconds_or_cycles if isinstance(seconds_or_cycles, int)
-                   else max(1, round(seconds_or_cycles / ls.period)))
-        else:
-            time.sleep(seconds_or_cycles if isinstance(seconds_or_cycles, float) else 0.002)
+    def _barrier(self) -> None:
+        """An SDO round trip to the first drive that answers: a device answers frames in the order
+        they came, so its response comes after its answers to every SYNC sent before."""
+        for drive in self.drives:
+            try:
+                drive.read(drive.profile.statusword)
+                return
+            except NodeError:
+                continue
 
     def close(self) -> None:
         """Quick-stop and disable every drive, switch off their watch of the master (0x1016:01 =
@@ -549,11 +522,9 @@ class DriveGroup:
         Best effort: errors are logged, not raised."""
         self.stop_motion()
         self.supervisor.stop_heartbeat_monitoring()
-        if self.lockstep is not None:
-            self.network.notifier.remove_listener(self.lockstep)
-            for drive in self.drives:
-                drive.clock, drive.tick = time.monotonic, lambda: time.sleep(0.002)
-            self.lockstep = None
+        if self._sync_attached:
+            self.sync.detach()
+            self._sync_attached = False
         if self._master_heartbeat is None:
             return
         for d in self.drives:
@@ -573,16 +544,17 @@ class DriveGroup:
     # -- commanding (calling thread) -------------------------------------------------------------
     def _wait_all(self, done, timeout: float, what: str) -> None:
         pending = list(self.drives)
-        deadline = self.clock() + timeout
+        deadline = self.sync.now() + timeout
         while pending:
             self.supervisor.raise_if_fault()
             pending = [d for d in pending if not done(d)]
-            if pending and self.clock() > deadline:
+            if pending and self.sync.now() > deadline:
                 raise NodeError(pending[0].label, f"{what} not finished within {timeout:g} s")
             if pending:
-                self._advance(WAIT_POLL)
+                self.sync.wait(WAIT_POLL)
 
-    def _guarded(self, action):
+    def guarded(self, action):
+        """``action()``; on any exception the motion is stopped (:meth:`stop_motion`) first."""
         try:
             return action()
         except BaseException:
@@ -594,7 +566,7 @@ class DriveGroup:
         return np.array([d.position() for d in self.drives])
 
     def enable(self) -> None:
-        self._guarded(lambda: [d.enable() for d in self.drives])
+        self.guarded(lambda: [d.enable() for d in self.drives])
 
     def disable(self) -> None:
         for d in self.drives:
@@ -611,7 +583,7 @@ class DriveGroup:
             self._wait_all(lambda d: d not in drives or d.homing_done(), timeout, "homing")
             for d in drives:
                 d._controlword(CW_ENABLE_OPERATION)
-        self._guarded(run)
+        self.guarded(run)
 
     def move_to(self, positions: Sequence[float], speed_fraction: float = 0.2,
                 timeout: float | None = None) -> None:
@@ -629,7 +601,7 @@ class DriveGroup:
             for d, p, v in zip(self.drives, positions, speeds):
                 d.start_move(float(p), v, v / 0.5)
             self._wait_all(EposDrive.move_done, timeout or 2 * max(durations) + 2.0, "move")
-        self._guarded(run)
+        self.guarded(run)
 
     def stop_motion(self) -> None:
         """Quick stop and disable every drive, best effort (errors are logged, not raised)."""
@@ -639,7 +611,7 @@ class DriveGroup:
             except DriveError as exc:
                 logger.error("%s: could not quick-stop/disable: %s", d.label, exc)
 
-    def _with_error_code(self, error: BaseException) -> BaseException:
+    def with_error_code(self, error: BaseException) -> BaseException:
         """A statusword fault has no code: complete it with the drive's present error over SDO
         (:meth:`EposDrive.fault_code`: ``0x603F``, or ``0x1003:01`` on a drive without it). A
         fault an EMCY announced carries the EMCY's code already."""
@@ -659,7 +631,8 @@ class DriveGroup:
     # -- streaming ---------------------------------------------------------------------------------
     def run_cyclic(self, targets: np.ndarray, period: float, output: str | None = None,
                    raw_log: str | None = None, metadata: dict | None = None,
-                   queue_size: int = 100_000, sync_timeout: float | None = None) -> Recording:
+                   queue_size: int = 100_000, sync_timeout: float | None = None,
+                   quiet: Callable[[], AbstractContextManager] = nullcontext) -> Recording:
         """Stream ``targets`` (n_cycles, n_axes) in rad|m, one row per SYNC, and record.
 
         The drives must stand at ``targets[0]`` (within their following-error window), e.g. after
@@ -675,12 +648,12 @@ class DriveGroup:
         as it would fault if the stream stopped in the cyclic mode; that SDO traffic waits behind
         any SYNCs a drive has not worked off yet, so a device slower than the SYNC rate must have
         no deadline. Otherwise the SYNC stops first and the drives hold the last set-point in the
-        cyclic mode. Either way they stay enabled, e.g. for :meth:`move_to`. While the SYNC runs the garbage collector only walks
-        objects created during the run (:func:`drivers.gc_freeze.frozen_gc`); the metadata keeps
-        ``gc_collections`` and ``gc_longest_pause`` (s) of the run, and ``sync_slots_skipped``: the
-        SYNC slots a thread-timed producer left out because the host woke it too late (``None``
-        under a bus timer); a skipped slot leaves a gap of whole periods in ``t``, the cycles
-        stay consecutive.
+        cyclic mode. Either way they stay enabled, e.g. for :meth:`move_to`. The metadata keeps
+        ``gc_collections`` and ``gc_longest_pause`` (s) of the run and what the SYNC source
+        reports (:meth:`drivers.sync.SyncSource.report`), e.g. ``sync_slots_skipped``: the SYNC
+        slots a thread-timed producer left out because the host woke it too late (``None`` under
+        a bus timer); a skipped slot leaves a gap of whole periods in ``t``, the cycles stay
+        consecutive.
 
         Args:
             targets: set-points, shape (n_cycles, n_axes), rad or m.
@@ -691,5 +664,8 @@ class DriveGroup:
             queue_size: bounded buffer between the notifier and the recorder thread (rows).
             sync_timeout: s without a SYNC before the run is declared stalled
                 (default: max(0.5 s, 50 periods)).
+            quiet: a context entered while the SYNC runs, the caller's choice of how the host
+                keeps out of the way (e.g. :func:`drivers.gc_freeze.frozen_gc`).
         """
-        return CyclicStream(self, targets, period, output, raw_log, metadata, queue_size, sync_timeout).run()
+        return CyclicStream(self, targets, period, output, raw_log, metadata, queue_size, sync_timeout,
+                            quiet).run()

@@ -7,27 +7,31 @@
 :meth:`CyclicStream.run` is the only caller of the steps; they are methods so that each reads on
 its own: :meth:`~CyclicStream.check` (set-points in range, bus load, the drives at the start),
 :meth:`~CyclicStream.prepare` (first set-point, cyclic mode, enable), :meth:`~CyclicStream.start`
-(recorder, raw log, set-point streamer, cycle assembler, SYNC), :meth:`~CyclicStream.wait` (the
-SYNC cycles in lockstep, or a stall watchdog on a periodic SYNC),
-:meth:`~CyclicStream.hold` (leave the cyclic mode while the SYNC still runs, where a drive
-watches its set-points) and :meth:`~CyclicStream.close` (stop the SYNC, stop the motion after an
-error, save the samples).
+(recorder, raw log, set-point streamer, cycle assembler), :meth:`~CyclicStream.stream` (the SYNC
+source runs the cycles, or starts its timer), :meth:`~CyclicStream.wait` (a stall watchdog while
+a free-running SYNC runs), :meth:`~CyclicStream.hold` (leave the cyclic mode while the SYNC
+still runs, where a drive watches its set-points) and :meth:`~CyclicStream.close` (stop the
+SYNC, stop the motion after an error, save the samples).
+
+The SYNC comes from the drive group's :class:`drivers.sync.SyncSource`; what the host does
+meanwhile (the garbage collector, the CPUs the threads run on) is the caller's choice: ``quiet``
+is a context entered while the SYNC runs (e.g. :func:`drivers.gc_freeze.frozen_gc`).
 """
 
 from __future__ import annotations
 
 import time
-from contextlib import ExitStack
-from typing import Sequence
+from contextlib import AbstractContextManager, ExitStack, nullcontext
+from typing import Callable, Sequence
 
 import canopen
 import numpy as np
 
 from drivers.acquisition import CycleAssembler, cycle_books
 from drivers.axis import check_setpoints
-from drivers.cia import CW_ENABLE_OPERATION, SW_FAULT, SYNC_COB_ID
-from drivers.errors import ConfigError, DriveError, DriveFault, HeartbeatTimeout
-from drivers.gc_freeze import GcPauses, frozen_gc
+from drivers.cia import CW_ENABLE_OPERATION, SW_FAULT
+from drivers.errors import ConfigError, DriveError, DriveFault
+from drivers.gc_freeze import GcPauses
 from drivers.recording import FlushingLogger, Recording, SampleRecorder
 from drivers.supervision import Supervisor
 from drivers.units import AxesScaling
@@ -85,8 +89,11 @@ class CyclicStream:
 
     def __init__(self, group, targets, period: float, output: str | None = None,
                  raw_log: str | None = None, metadata: dict | None = None, queue_size: int = 100_000,
-                 sync_timeout: float | None = None):
+                 sync_timeout: float | None = None,
+                 quiet: Callable[[], AbstractContextManager] = nullcontext):
         self.group = group
+        self.sync = group.sync
+        self.quiet = quiet
         self.targets = np.asarray(targets, dtype=float)
         self.period = period
         self.output, self.raw_log, self.metadata = output, raw_log, metadata
@@ -100,8 +107,7 @@ class CyclicStream:
         self.raw: FlushingLogger | None = None
         self.streamer: TargetStreamer | None = None
         self.assembler: CycleAssembler | None = None
-        self.sync = None                 # the periodic SYNC task, None in lockstep
-        self._gc = ExitStack()
+        self._host = ExitStack()
         self._pauses: GcPauses | None = None
 
     def run(self) -> Recording:
@@ -132,61 +138,52 @@ class CyclicStream:
             if abs(actual[i] - targets[0, i]) > a.following_error_window:
                 raise ConfigError(f"{a.label} is at {actual[i]:.6g}, the trajectory starts at "
                                   f"{targets[0, i]:.6g}: move_to() the start first")
-        lockstep = group.lockstep
-        if lockstep is not None and abs(lockstep.period - self.period) > 1e-12:
-            raise ConfigError(f"run_cyclic: period {self.period} s differs from the lockstep SYNC period "
-                              f"{lockstep.period} s")
+        self.sync.check_period(self.period)
 
     def prepare(self) -> None:
         """The first set-point, then the cyclic mode (the drive holds its position when it starts),
         then enable. A drive watching its set-points (an RPDO deadline) must leave the cyclic
-        mode while the SYNC still runs: :meth:`hold`; in lockstep the rig keeps no deadline."""
+        mode while the SYNC still runs (:meth:`hold`): only a free-running SYNC does."""
         group = self.group
         for d, c in zip(group.drives, self.counts[0]):
             d.write(d.profile.cyclic_target, int(c))
-        group._guarded(lambda: [d.prepare_cyclic(self.period) for d in group.drives])
-        self.hold_at_end = group.lockstep is None and any(d.watches_setpoints() for d in group.drives)
+        group.guarded(lambda: [d.prepare_cyclic(self.period) for d in group.drives])
+        self.hold_at_end = self.sync.free_running and any(d.watches_setpoints() for d in group.drives)
         group.enable()
 
     def start(self) -> None:
-        """Recorder, raw log, set-point streamer and cycle assembler on the notifier; the garbage
-        collector frozen (no full collection stalls the threads while the SYNC runs)."""
-        group, lockstep = self.group, self.group.lockstep
+        """Recorder, raw log, set-point streamer and cycle assembler on the notifier; the
+        caller's ``quiet`` context entered, the garbage collector's pauses counted."""
+        group, sync = self.group, self.sync
         meta = dict(self.metadata or {}, sync_period=self.period, with_velocity=group.with_velocity,
-                    bus_load=self.load, bitrate=group.bitrate, n_targets=len(self.targets), sync=group.sync_mode)
+                    bus_load=self.load, bitrate=group.bitrate, n_targets=len(self.targets), sync=sync.name)
         self.recorder = SampleRecorder(group.axes, self.output, meta, maxsize=self.queue_size).start()
         self.raw = FlushingLogger(self.raw_log) if self.raw_log else None
         self.streamer = TargetStreamer(group.network, group.drives, self.counts, group.supervisor)
         self.assembler = CycleAssembler(
-            group.layouts, self.recorder.put, on_sync=None if lockstep else self.streamer.on_sync,
-            period=self.period if lockstep else None,
+            group.layouts, self.recorder.put, on_sync=self.streamer.on_sync if sync.free_running else None,
+            period=sync.row_period,
             on_status=lambda i, sw: group.supervisor.report(DriveFault(
                 group.drives[i].label, None, f"statusword 0x{sw:04X}: " +
                 ("fault bit" if sw & SW_FAULT else "following error bit"))),
             on_bus_error=group.supervisor.bus_error, max_cycles=len(self.targets),
             forward=[self.raw] if self.raw else [])
         group.network.notifier.add_listener(self.assembler)
-        self._gc.enter_context(frozen_gc())
-        self._pauses = self._gc.enter_context(GcPauses())
+        self._host.enter_context(self.quiet())
+        self._pauses = self._host.enter_context(GcPauses())
 
     def stream(self) -> None:
-        """In lockstep: SYNC k goes out once cycle k-1 is in, and one more closes the last row
-        (the drives get the last set-point again). Periodic: the first set-point, then the SYNC."""
-        group, lockstep, streamer = self.group, self.group.lockstep, self.streamer
-        if lockstep is not None:
-            for k in range(len(self.targets) + 1):
-                lockstep.step(lambda k=k: streamer.send(k), poll=group.supervisor.raise_if_fault)
-                group.supervisor.raise_if_fault()
-        else:
-            streamer.send(0)
-            self.sync = group.network.send_periodic(SYNC_COB_ID, b"", self.period)
+        """The SYNC source's part (:meth:`drivers.sync.SyncSource.stream`): a stepped one runs
+        every cycle here, a free-running one starts its timer after the first set-points."""
+        self.sync.stream(self.group.network, self.period, len(self.targets), self.streamer.send,
+                         self.group.supervisor.raise_if_fault)
 
     def wait(self) -> None:
-        """On a periodic SYNC: until the last cycle is recorded, watching faults, heartbeats and
-        a stall (no new cycle for ``sync_timeout`` s)."""
+        """While a free-running SYNC runs: until the last cycle is recorded, watching faults,
+        heartbeats and a stall (no new cycle for ``sync_timeout`` s)."""
         group, assembler = self.group, self.assembler
         last_count, last_progress = -1, time.monotonic()
-        while not assembler.done and group.lockstep is None:
+        while not assembler.done and self.sync.free_running:
             if group.supervisor.fault_event.wait(min(0.05, 10 * self.period)):
                 break
             group.supervisor.check_heartbeats()
@@ -210,14 +207,11 @@ class CyclicStream:
     def close(self, error: BaseException | None) -> Recording:
         """Stop the SYNC; after an error stop the motion (quick stop, disable); save the samples
         with the cycle books; raise ``error`` (a :class:`DriveFault` carries the NPZ path)."""
-        group, lockstep = self.group, self.group.lockstep
-        if self.sync is not None:
-            self.sync.stop()
-        self._gc.close()
+        group = self.group
+        self.sync.stop()
+        self._host.close()
         if error is not None:
-            if lockstep is not None and isinstance(error, HeartbeatTimeout):
-                lockstep.forget(error.node)      # a lost node answers no SYNC
-            error = group._with_error_code(error)
+            error = group.with_error_code(error)
             group.stop_motion()
         group.network.notifier.remove_listener(self.assembler)
         self.assembler.flush()
@@ -228,8 +222,7 @@ class CyclicStream:
                                         raw_log=str(self.raw_log) if self.raw_log else None,
                                         gc_collections=len(self._pauses.durations),
                                         gc_longest_pause=self._pauses.longest,
-                                        sync_slots_skipped=getattr(self.sync, "skipped", None),
-                                        lockstep_retries=lockstep.retries if lockstep else None)
+                                        **self.sync.report())
         if len(recording.t):
             sent = self.units.position_from_counts(self.counts[: len(recording.t)])
             late = np.any(np.abs(recording.target - sent) > self.units.position_from_counts(0.5), axis=1)

@@ -125,6 +125,7 @@ def cmd_run(args) -> int:
     from ident_hw.experiment.online import CampaignEstimator
     from ident_hw.experiment.folders import discard_unused, new_results_folder
     from ident_hw.experiment.runner import CampaignStopped, run_campaign
+    from ident_hw.experiment.session import HostSettings
     from ident_hw.report import online_lines, summary_lines
     folder = new_results_folder(config, args.out, args.command)
     print(f"results folder: {folder}", file=sys.stderr)
@@ -135,7 +136,7 @@ def cmd_run(args) -> int:
         online = CampaignEstimator(config)
     try:
         results = run_campaign(config, folder, show_progress=_progress_bars(args), log=_logger(args), online=online,
-                               planned=planned)
+                               planned=planned, host=HostSettings.for_command(config))
     except BusOpenError:
         if discard_unused(folder):
             print(f"nothing moved, nothing recorded: {folder} removed", file=sys.stderr)
@@ -223,14 +224,14 @@ def cmd_monitor(args) -> int:
 
 def cmd_home(args) -> int:
     """Bring the drives up and home them (CiA 402 homing, methods from the config)."""
-    from ident_hw.experiment.session import open_session
+    from ident_hw.experiment.session import HostSettings, open_session
     config = _load(args.config)
     if config.bus is None:
         print(f"config error: {config.source}: bus: missing section", file=sys.stderr)
         return Exit.CONFIG
     if _needs_arm(config, args, "homing"):
         return Exit.CONFIG
-    with open_session(config) as session:
+    with HostSettings.for_command(config).pinned(), open_session(config) as session:
         with session.drive_group() as group:
             group.bring_up(timeout=config.bus.bring_up_timeout)
             group.home()

@@ -19,6 +19,7 @@ from drivers import bus as bus_module
 from drivers.cia import SYNC_COB_ID
 from ident_hw.config import load_config
 from ident_hw.experiment import runner
+from ident_hw.experiment.session import HostSettings
 from ident_hw.experiment.folders import new_results_folder
 from ident_scenarios import CONFIGS, SWEEP_CAMPAIGN
 
@@ -66,7 +67,8 @@ def test_a_disturbed_sync_ends_within_5_percent_or_degraded(tmp_path, monkeypatc
     _disturb_sync(monkeypatch, seed=attempt)
     folder = new_results_folder(config, tmp_path / "res", "run")
     try:
-        results = runner.run_campaign(config, folder, show_progress=False)
+        results = runner.run_campaign(config, folder, show_progress=False,
+                                host=HostSettings.for_command(config))
     except runner.CampaignStopped as stopped:
         # the drives starved of set-points ran into their following-error window, as real ones do:
         # the run stops, non-zero exit, the recording kept, nothing marked good

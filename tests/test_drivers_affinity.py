@@ -1,5 +1,6 @@
 """drivers.affinity.one_cpu: the calling thread and the threads it starts run on one CPU, the
-CPU set comes back after; the experiment session uses it for the in-process lockstep rig only."""
+CPU set comes back after; the command line's host settings use it for the in-process lockstep
+rig only."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import pytest
 
 from drivers.affinity import _current_cpu, one_cpu
 from ident_hw.config import load_config
-from ident_hw.experiment.session import open_session
+from ident_hw.experiment.session import HostSettings, open_session
 
 SIM = Path(__file__).resolve().parents[1] / "configs" / "sim-3prrr.yaml"
 
@@ -74,12 +75,16 @@ def session_config(folder: Path, sync: str):
 
 @needs_two_cpus
 @pytest.mark.parametrize("sync, pinned", [("lockstep", True), ("periodic", False)])
-def test_the_session_runs_the_in_process_lockstep_rig_and_master_on_one_cpu(tmp_path, sync, pinned):
-    """Every thread the session starts (the rig's notifier and clock, the master's notifier) is on
-    one CPU with the lockstep rig in the process; with a periodic SYNC (real time) nothing is."""
+def test_the_command_runs_the_in_process_lockstep_rig_and_master_on_one_cpu(tmp_path, sync, pinned):
+    """Under the command line's host settings every thread the session starts (the rig's notifier
+    and clock, the master's notifier) is on one CPU with the lockstep rig in the process; with a
+    periodic SYNC (real time) nothing is."""
     before = os.sched_getaffinity(0)
     existing = set(threading.enumerate())
-    with open_session(session_config(tmp_path, sync)) as session:
+    config = session_config(tmp_path, sync)
+    host = HostSettings.for_command(config)
+    assert host.one_cpu is pinned and host.freeze_gc
+    with host.pinned(), open_session(config) as session:
         started = [t for t in threading.enumerate() if t not in existing and t.is_alive()]
         assert session.rig is not None and len(started) >= 3
         sets = {frozenset(cpus_of(t)) for t in started} | {frozenset(os.sched_getaffinity(0))}

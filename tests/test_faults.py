@@ -330,6 +330,7 @@ def test_a_silent_node_is_reported_as_state_unknown_not_as_disabled(tmp_path, mo
     through the session the runner opens): the run stops on its heartbeat, and neither STATUS,
     drives.json nor the stop message claim it was disabled."""
     from ident_hw.experiment import runner
+    from ident_hw.experiment.session import HostSettings
     from ident_hw.experiment.folders import new_results_folder
     config = load_config(short_config(tmp_path, cycles=3))
     folder = new_results_folder(config, tmp_path / "res", "run")
@@ -350,7 +351,8 @@ def test_a_silent_node_is_reported_as_state_unknown_not_as_disabled(tmp_path, mo
             yield session
     monkeypatch.setattr(runner, "open_session", silencing)
     with pytest.raises(runner.CampaignStopped) as stopped:
-        runner.run_campaign(config, folder, show_progress=False)
+        runner.run_campaign(config, folder, show_progress=False,
+                                host=HostSettings.for_command(config))
     message = stopped.value.stop_message()
     assert "node 5 (zeta2)" in message and "state unknown" in message
     disabled = re.search(r"disabled: ([^;]*)", message)
@@ -368,6 +370,7 @@ def test_dropped_pdo_frames_end_the_run_degraded_not_complete(tmp_path, monkeypa
     cycle again): about half the cycles come incomplete; the run ends ``degraded`` with that
     reason, never ``complete``."""
     from ident_hw.experiment import runner
+    from ident_hw.experiment.session import HostSettings
     from ident_hw.experiment.folders import new_results_folder
     config = load_config(short_config(tmp_path, sync="periodic"))
     folder = new_results_folder(config, tmp_path / "res", "run")
@@ -379,7 +382,8 @@ def test_dropped_pdo_frames_end_the_run_degraded_not_complete(tmp_path, monkeypa
             session.rig.frame_faults(drop_probability=0.05)
             yield session
     monkeypatch.setattr(runner, "open_session", lossy)
-    results = runner.run_campaign(config, folder, show_progress=False)
+    results = runner.run_campaign(config, folder, show_progress=False,
+                                host=HostSettings.for_command(config))
     rec = Recording.load(folder / "data" / "square.npz")
     # complete cycles over the SYNC slots: a slot the SYNC thread skipped (counted by the
     # producer) counts as an incomplete cycle

@@ -25,6 +25,7 @@ from ident_hw.config import load_config
 from ident_hw.experiment import runner
 from ident_hw.experiment.offline import identify
 from ident_hw.experiment.online import CampaignEstimator
+from ident_hw.experiment.session import HostSettings
 from ident_hw.experiment.folders import new_results_folder
 from ident_hw.model.parameters import FRICTION_NAMES, INERTIAL_NAMES
 from ident_hw.results import save_results
@@ -99,7 +100,8 @@ class _Cells(HTMLParser):
 def main_job(tmp_path_factory):
     config = load_config(CONFIGS / "sim-3prrr.yaml")
     folder = new_results_folder(config, tmp_path_factory.mktemp("main") / "res", "run")
-    runner.run_campaign(config, folder, show_progress=False)
+    runner.run_campaign(config, folder, show_progress=False,
+                                host=HostSettings.for_command(config))
     return config, folder
 
 
@@ -187,7 +189,8 @@ def test_an_epos2_rig_identifies_the_carriages(tmp_path):
     config = load_config(path)
     assert {a.profile for a in config.robot.actuators} == {"epos2"}
     folder = new_results_folder(config, tmp_path / "res", "run")
-    runner.run_campaign(config, folder, show_progress=False)
+    runner.run_campaign(config, folder, show_progress=False,
+                                host=HostSettings.for_command(config))
     doc = json.loads((folder / "parameters.json").read_text())
     truth = dict(zip(config.sim.truth.to_model().NAMES, config.sim.truth.to_model().as_vector()))
     rows = {r["name"]: r for r in doc["parameters"] if r["step"]}
@@ -243,7 +246,8 @@ def test_svd_dls_tracks_a_payload_added_mid_run(tmp_path):
         "  validation: []\n")
     config = load_config(path)
     folder = new_results_folder(config, tmp_path / "res", "online")
-    results = runner.run_campaign(config, folder, show_progress=False, online=CampaignEstimator(config))
+    results = runner.run_campaign(config, folder, show_progress=False, online=CampaignEstimator(config),
+                                  host=HostSettings.for_command(config))
     trace = results.online
     tracked = [trace.base_names[i] for i in trace.tracked()]
     assert tracked == ["1.5 m_l2 + m_ee", "0.0216 m_l2 + I_ee"]

@@ -20,6 +20,7 @@ import pytest
 
 from drivers.bus import BusConfig, open_network
 from drivers.epos import DriveGroup
+from drivers.sim.lockstep import LockstepSync
 from drivers.errors import ConfigError
 from drivers.profiles import make_object_dictionary
 from drivers.sim import SimulatedRig
@@ -112,7 +113,7 @@ def test_the_master_writes_only_objects_a_real_epos4_has(tmp_path):
     spy = SdoDownloads()
     notifier = can.Notifier(spy_bus, [spy])
     network = open_network(BusConfig("virtual", channel, ignore_config=True))
-    group = DriveGroup(network, axes, sync="lockstep", sync_period=PERIOD)
+    group = DriveGroup(network, axes, sync=LockstepSync(PERIOD))
     try:
         group.bring_up()
         group.home()
@@ -160,7 +161,7 @@ def test_the_master_uses_the_drives_own_eds_and_names_what_it_lacks(tmp_path):
                              lockstep=True, interface="virtual", channel=channel, ignore_config=True).start()
     network = open_network(BusConfig("virtual", channel, ignore_config=True))
     try:
-        group = DriveGroup(network, own, sync="lockstep", sync_period=PERIOD)
+        group = DriveGroup(network, own, sync=LockstepSync(PERIOD))
         group.bring_up()
         rec = group.run_cyclic(np.repeat(group.positions()[None], 20, axis=0), PERIOD)
         assert rec.n_invalid == 0
@@ -169,7 +170,7 @@ def test_the_master_uses_the_drives_own_eds_and_names_what_it_lacks(tmp_path):
                                                                                    without=(0x30D1, 2))))
         with pytest.raises(ConfigError, match=rf"node {axes[4].node_id} \(zeta2\).*node{axes[4].node_id}\.eds "
                                               r"lacks 0x30D1:02"):
-            DriveGroup(network, axes[:4] + [lacking] + axes[5:], sync="lockstep", sync_period=PERIOD)
+            DriveGroup(network, axes[:4] + [lacking] + axes[5:], sync=LockstepSync(PERIOD))
     finally:
         network.disconnect()
         rig.stop()

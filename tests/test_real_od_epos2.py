@@ -22,6 +22,7 @@ from canopen.sdo import SdoAbortedError
 
 from drivers.bus import BusConfig, open_network
 from drivers.epos import DriveGroup
+from drivers.sim.lockstep import LockstepSync
 from drivers.errors import DriveFault
 from drivers.profiles import EPOS2, find_variable, make_object_dictionary, required_objects
 from drivers.sim import Plant, SimulatedRig
@@ -211,7 +212,7 @@ def epos2_rig():
     spy = SdoTraffic()
     notifier = can.Notifier(spy_bus, [spy])
     network = open_network(BusConfig("virtual", channel, ignore_config=True))
-    group = DriveGroup(network, axes, sync="lockstep", sync_period=PERIOD)
+    group = DriveGroup(network, axes, sync=LockstepSync(PERIOD))
     try:
         yield rig, group, spy
     finally:

@@ -13,6 +13,7 @@ import pytest
 from drivers.axis import AxisConfig, HomingConfig
 from drivers.bus import BusConfig, open_network
 from drivers.epos import DriveGroup
+from drivers.sim.lockstep import LockstepSync
 from drivers.sim import Plant, SimulatedRig
 from drivers.units import AxisScaling
 from ident_hw.model import Delta
@@ -98,7 +99,7 @@ def delta_rig():
                              lockstep=True, sync_period=PERIOD, interface="virtual", channel=channel,
                              ignore_config=True).start()
     network = open_network(BusConfig("virtual", channel, ignore_config=True))
-    group = DriveGroup(network, axes, sdo_timeout=0.5, sync="lockstep", sync_period=PERIOD)
+    group = DriveGroup(network, axes, sdo_timeout=0.5, sync=LockstepSync(PERIOD))
     try:
         group.bring_up()
         group.home()

@@ -262,6 +262,11 @@ class EmulatedDrive:
         """Send the frames of the last SYNC's TPDOs again, unchanged (a repeated SYNC)."""
         self.pdo.resend_sync_tpdos()
 
+    @property
+    def sync_frames_sent(self) -> int:
+        """The TPDO frames the last :meth:`send_sync_tpdos` sent."""
+        return len(self.pdo.sync_frames)
+
     def awaits_setpoint(self) -> bool:
         """Streaming with a synchronous RPDO mapped, and no set-point received since the last SYNC."""
         return self.pdo.awaits_setpoint()

@@ -60,13 +60,13 @@ class PdoEngine:
         self.rpdos: dict[int, Pdo] = {}
         self._subscribed: list[int] = []
         self.pending: dict[int, bytes] = {}
-        self._sync_frames: list[tuple[int, bytes]] = []   # the TPDOs of the last SYNC
+        self.sync_frames: list[tuple[int, bytes]] = []   # the TPDOs of the last SYNC
         self.dirty = True
 
     def reset(self) -> None:
         """After a reset of the application: nothing pending, the layouts rebuilt from the dictionary."""
         self.pending = {}
-        self._sync_frames = []
+        self.sync_frames = []
         self.rpdos = {}
         self.dirty = True
 
@@ -137,20 +137,21 @@ class PdoEngine:
 
     def send_sync_tpdos(self, sync_count: int) -> None:
         """Send the SYNC-triggered TPDOs due at SYNC number ``sync_count`` (1, 2, ...)."""
-        self._sync_frames = []
+        self.sync_frames = []
         if not self.operational():
             return
         now = None
         for pdo in self.tpdos:
             if pdo.trans_type <= 240 and sync_count % max(pdo.trans_type, 1) == 0:
                 now = now or self._clock()
-                self._sync_frames.append((pdo.cob_id, self._send(pdo, now)))
+                self.sync_frames.append((pdo.cob_id, self._send(pdo, now)))
 
     def resend_sync_tpdos(self) -> None:
         """Send the frames of the last :meth:`send_sync_tpdos` again, unchanged (a repeated SYNC)."""
-        if self.operational():
-            for cob_id, data in self._sync_frames:
-                self.network.send_message(cob_id, data)
+        if not self.operational():
+            self.sync_frames = []       # nothing sent: the rig's answer counts no frame
+        for cob_id, data in self.sync_frames:
+            self.network.send_message(cob_id, data)
 
     def send_event_tpdos(self, now: float, changed=None) -> None:
         """Send the event-driven TPDOs whose event timer ran out, or that map ``changed`` (index, sub)."""

@@ -22,12 +22,14 @@ rig's clock :attr:`SimulatedRig.time`: it advances with the clock thread's ticks
 at most ``MAX_TICK``, so a hiccup of the host that stops the rig's own thread too does not count
 as a silence of the master; a master that stops sending while the rig runs does.
 
-Lockstep (``lockstep=True``, the master's :class:`drivers.sync.LockstepSync`): the plant moves
+Lockstep (``lockstep=True``, the master's :class:`drivers.sim.lockstep.LockstepSync`): the plant moves
 only on SYNC, one ``sync_period`` per SYNC, in every phase (homing, profile moves and stops too),
 so the simulated time is the SYNC count times the period and a run is the same on any host. A
 SYNC whose counter repeats the last one is a retry of the master: the TPDOs of that cycle are sent
 again and nothing moves. A SYNC that finds set-points for only some of the streaming drives
 (a frame lost on a lossy transport) is left unanswered until the master repeats it with them.
+Each SYNC's answer ends with the answer frame of :mod:`drivers.sim.lockstep` (the frames sent,
+or held), so that the master asks a cycle again as soon as one of its frames was lost.
 The RPDO deadline watch is off (the set-points come with every SYNC by construction); the
 heartbeat watch stays on the rig's clock.
 
@@ -53,6 +55,7 @@ from drivers.axis import AxisConfig
 from drivers.bus import BusConfig, open_bus
 from drivers.cia import SYNC_COB_ID
 from drivers.gc_freeze import frozen_gc
+from drivers.sim.lockstep import ANSWER_COB_ID, answer_frame
 from drivers.sim.drive import EMCY_FOLLOWING_ERROR, FAULT, FAULT_REACTION, EmulatedDrive
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP, Plant, PlantJammed
 from drivers.units import MA_PER_AMP, AxesScaling, AxisScaling
@@ -297,12 +300,14 @@ class SimulatedRig:
                     self.sync_retries += 1
                     for drive in self.drives:
                         drive.resend_sync_tpdos()
+                    self._answer(counter)
                     return
                 # a SYNC overtaking some set-points of its cycle waits for its repetition; a drive
                 # that stopped streaming (halted, faulted, silent) is not waited for
                 awaiting = [d.awaits_setpoint() for d in self.drives if d.streaming and not d.silent]
                 if any(awaiting) and not all(awaiting):
                     self.syncs_held += 1
+                    self._answer(counter, held=True)
                     return
                 self._last_counter = counter
             self.sync_count += 1
@@ -313,7 +318,15 @@ class SimulatedRig:
             self._cycle(period, self.sync_count)
             self.syncs_done += 1
             self.sync_time += period
+            if self.lockstep:
+                self._answer(data[0] if data else 0)
         self.step_seconds.append(time.perf_counter() - started)
+
+    def _answer(self, counter: int, held: bool = False) -> None:
+        """Close the answer to the SYNC with ``counter`` (lockstep): the answer frame of
+        :mod:`drivers.sim.lockstep`, counting the SYNC-triggered TPDO frames the drives sent."""
+        frames = 0 if held else sum(drive.sync_frames_sent for drive in self.drives)
+        self.network.send_message(ANSWER_COB_ID, answer_frame(counter, frames, held))
 
     def schedule(self, after: float, action) -> None:
         """Run ``action()`` (under the rig's lock) at the first SYNC cycle ``after`` s of simulated

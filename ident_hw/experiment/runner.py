@@ -41,7 +41,7 @@ from ident_hw.results import Results, final_status, mark_status, save_results
 from .offline import identify
 from .online import CampaignEstimator
 from .plan import PlannedTrajectory, plan, setpoints, sync_period
-from .session import Session, open_session
+from .session import HostSettings, Session, open_session
 from .signals import shielded, signal_name
 
 #: profile-position moves to a trajectory's start run at this fraction of each axis' speed limit
@@ -162,7 +162,7 @@ def _drive_states(session: Session, group: DriveGroup) -> dict:
 
 
 def stream(session: Session, group: DriveGroup, planned: PlannedTrajectory, data: Path,
-           show_progress: bool) -> Recording:
+           show_progress: bool, host: HostSettings = HostSettings()) -> Recording:
     """Move to the trajectory's start, stream its set-points (:func:`~ident_hw.experiment.plan.setpoints`,
     the array the campaign's check validated) at the SYNC period and record it into ``data``."""
     config, traj = session.config, planned.trajectory
@@ -173,13 +173,16 @@ def stream(session: Session, group: DriveGroup, planned: PlannedTrajectory, data
     with _progress(session.network, traj.name, len(targets), show_progress), _injected_events(session, traj.name):
         return group.run_cyclic(targets, sync_period(config), output=data / f"{traj.name}.npz",
                                 raw_log=data / f"{traj.name}{config.output.raw_log}",
-                                metadata={"trajectory": traj.name, "config": Path(config.source).name})
+                                metadata={"trajectory": traj.name, "config": Path(config.source).name,
+                                          "current": config.current},
+                                quiet=host.quiet)
 
 
 def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = True,
                  log: Callable[[str], None] | None = None,
                  online: CampaignEstimator | None = None,
-                 planned: list[PlannedTrajectory] | None = None) -> Results:
+                 planned: list[PlannedTrajectory] | None = None,
+                 host: HostSettings = HostSettings()) -> Results:
     """Record every trajectory of ``config`` on its bus, identify, validate, save into ``folder``.
 
     Args:
@@ -191,6 +194,7 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
         planned: the config's :func:`~ident_hw.experiment.plan.plan` with ``online=True`` if the
             caller has made it (for its checks); planned here otherwise. Without ``online``, its
             ``online_only`` trajectories are left out.
+        host: how the process hosts the session (:class:`HostSettings`: the command line's choice).
 
     Raises:
         CampaignStopped: Ctrl-C or a fault; the folder is marked ``partial: <reason>``.
@@ -205,7 +209,7 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
     recordings: dict[str, Recording] = {}
     states: dict = {}
     try:
-        with open_session(config) as session:
+        with host.pinned(), open_session(config) as session:
             group = session.drive_group()
             try:
                 say(f"bringing up {len(group.drives)} drives on {config.bus.interface}:{config.bus.channel}")
@@ -215,7 +219,7 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
                     group.home()
                 for i, p in enumerate(planned, 1):
                     say(f"[{i}/{len(planned)}] {p.describe()}")
-                    rec = stream(session, group, p, data, show_progress)
+                    rec = stream(session, group, p, data, show_progress, host)
                     recordings[p.config.name] = rec
                     skipped = rec.metadata.get("sync_slots_skipped") or 0
                     say(f"    recorded {rec.metadata['n_cycles']} cycles, {rec.n_invalid} incomplete"

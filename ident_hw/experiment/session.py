@@ -1,14 +1,17 @@
 """The configured bus, opened: the master's canopen network and, for an in-process simulated
 config, the simulated rig serving the same python-can bus.
 
-    with open_session(config) as session:
+    with host.pinned(), open_session(config) as session:
         group = session.drive_group()        # drivers.epos.DriveGroup of the six actuators
         ...
+
+:class:`HostSettings` are how the process hosts a session (the garbage collector while a SYNC
+runs, the CPUs of its threads): the command line chooses them, the library only applies them.
 """
 
 from __future__ import annotations
 
-from contextlib import contextmanager, nullcontext
+from contextlib import AbstractContextManager, contextmanager, nullcontext
 from dataclasses import dataclass
 from typing import Iterator
 
@@ -19,7 +22,10 @@ from drivers.affinity import one_cpu
 from drivers.bus import open_network
 from drivers.epos import DriveGroup
 from drivers.errors import BusOpenError
+from drivers.gc_freeze import frozen_gc
 from drivers.sim import SimulatedRig
+from drivers.sim.lockstep import LockstepSync
+from drivers.sync import PeriodicSync, SyncSource
 from drivers.units import MA_PER_AMP
 from ident_hw.config import Config
 from ident_hw.experiment.plan import drive_axes, robot_model, sync_period
@@ -49,6 +55,46 @@ def simulated_rig(config: Config) -> SimulatedRig:
                               interface=config.bus.interface, channel=config.bus.channel, ignore_config=True)
 
 
+@dataclass(frozen=True)
+class HostSettings:
+    """How this process hosts a streaming session; the command line chooses
+    (:meth:`for_command`), the library applies them. Neither changes a recorded sample.
+
+    Attributes:
+        freeze_gc: while a SYNC runs, the garbage collector walks only the objects created
+            since it started (:func:`drivers.gc_freeze.frozen_gc`): no full collection stalls the
+            SYNC and set-point threads.
+        one_cpu: every thread of the session (master and in-process rig) on one CPU
+            (:func:`drivers.affinity.one_cpu`): a lockstep cycle's thread hand-offs are cheaper there.
+    """
+
+    freeze_gc: bool = False
+    one_cpu: bool = False
+
+    @classmethod
+    def for_command(cls, config: Config) -> HostSettings:
+        """What ``ident-hw`` uses: the GC frozen while a SYNC runs; one CPU where the rig runs in
+        this process in lockstep (with a periodic SYNC the rig and the master keep both CPUs)."""
+        in_process = config.sim is not None and config.sim.in_process
+        return cls(freeze_gc=True, one_cpu=in_process and config.sync_mode == "lockstep")
+
+    def pinned(self) -> AbstractContextManager:
+        """The section in which the session's threads are started (one CPU, or as they are)."""
+        return one_cpu() if self.one_cpu else nullcontext()
+
+    def quiet(self) -> AbstractContextManager:
+        """The section in which a SYNC runs (the GC frozen, or as it is)."""
+        return frozen_gc() if self.freeze_gc else nullcontext()
+
+
+def sync_source(config: Config) -> SyncSource:
+    """The SYNC producer of ``config``'s runs (``bus.sync``): the simulated rig's lockstep, or
+    the periodic SYNC of real drives."""
+    if config.sync_mode == "lockstep":
+        return LockstepSync(sync_period(config), timeout=config.bus.lockstep_timeout)
+    return PeriodicSync()
+
+
 @dataclass
 class Session:
     """An open bus: ``network`` (the master), ``rig`` (the in-process simulated rig, or None)."""
@@ -62,42 +108,35 @@ class Session:
         bus = self.config.bus
         return DriveGroup(self.network, drive_axes(self.config),
                           heartbeat_period=bus.heartbeat, heartbeat_timeout=bus.heartbeat_timeout,
-                          sdo_timeout=bus.sdo_timeout, sync=self.config.sync_mode,
-                          sync_period=sync_period(self.config), lockstep_timeout=bus.lockstep_timeout)
+                          sdo_timeout=bus.sdo_timeout, sync=sync_source(self.config))
 
 
 @contextmanager
 def open_session(config: Config) -> Iterator[Session]:
-    """Open the config's bus (and start the in-process rig first when ``sim.in_process``).
-
-    With the rig in this process and the SYNC in lockstep, the session's threads (master and
-    rig) run on one CPU (:func:`drivers.affinity.one_cpu`): the cycles' thread hand-offs are
-    cheaper there, and the results are the same.
-    """
+    """Open the config's bus (and start the in-process rig first when ``sim.in_process``)."""
     if config.bus is None:
         raise ValueError(f"{config.source}: bus: missing section (needed to open the bus)")
     in_process = config.sim is not None and config.sim.in_process
-    with one_cpu() if in_process and config.sync_mode == "lockstep" else nullcontext():
-        rig = None
-        if in_process:
-            if not config.simulated:
-                raise ValueError(f"{config.source}: sim.in_process: the simulated rig only serves a virtual "
-                                 f"or vcan bus, not {config.bus.interface}:{config.bus.channel}")
-            rig = simulated_rig(config)
-            try:
-                rig.start()
-            except (can.CanError, OSError) as exc:
-                raise BusOpenError(f"simulated rig: cannot open CAN bus interface={config.bus.interface!r} "
-                                   f"channel={config.bus.channel!r}: {exc}") from exc
+    rig = None
+    if in_process:
+        if not config.simulated:
+            raise ValueError(f"{config.source}: sim.in_process: the simulated rig only serves a virtual "
+                             f"or vcan bus, not {config.bus.interface}:{config.bus.channel}")
+        rig = simulated_rig(config)
         try:
-            network = open_network(config.bus.to_driver())
-        except BaseException:
-            if rig is not None:
-                rig.stop()
-            raise
-        try:
-            yield Session(config, network, rig)
-        finally:
-            network.disconnect()
-            if rig is not None:
-                rig.stop()
+            rig.start()
+        except (can.CanError, OSError) as exc:
+            raise BusOpenError(f"simulated rig: cannot open CAN bus interface={config.bus.interface!r} "
+                               f"channel={config.bus.channel!r}: {exc}") from exc
+    try:
+        network = open_network(config.bus.to_driver())
+    except BaseException:
+        if rig is not None:
+            rig.stop()
+        raise
+    try:
+        yield Session(config, network, rig)
+    finally:
+        network.disconnect()
+        if rig is not None:
+            rig.stop()
