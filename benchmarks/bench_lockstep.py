@@ -13,10 +13,12 @@ Prints the cycles per wall-clock second and the split of one cycle's wall time:
 As in the main job, the threads run on one CPU (:func:`drivers.affinity.one_cpu`); ``spread``
 lets them run on every CPU, for comparison.
 
-    python benchmarks/bench_lockstep.py [seconds=20] [rate_hz=250] [spread] [config=configs/sim-stewart.yaml]
+    python benchmarks/bench_lockstep.py [seconds=20] [rate_hz=250] [spread] [config=configs/sim-stewart.yaml] [drop=0.05]
 
 ``config``: another simulated robot (its rig in lockstep the same way; the sinusoid's amplitude
-a tenth of each actuator's room about home).
+a tenth of each actuator's room about home). ``drop``: the share of the drives' PDO frames the
+rig's fault injection loses (:meth:`drivers.sim.SimulatedRig.frame_faults`); the master asks each
+such cycle again.
 """
 
 from __future__ import annotations
@@ -41,13 +43,13 @@ CONFIG = Path(__file__).resolve().parents[1] / "configs" / "sim-3prrr.yaml"
 MAIN_JOB_AMPLITUDE = np.array([0.05, 0.05, 0.05, 0.004, 0.004, 0.004])
 
 
-def main(seconds: float, rate_hz: float, spread: bool, path: Path = CONFIG) -> None:
+def main(seconds: float, rate_hz: float, spread: bool, path: Path = CONFIG, drop: float = 0.0) -> None:
     with nullcontext(None) if spread else one_cpu() as cpu:
         print(f"threads on CPU {cpu}" if cpu is not None else "threads on every CPU")
-        run(seconds, rate_hz, path)
+        run(seconds, rate_hz, path, drop)
 
 
-def run(seconds: float, rate_hz: float, path: Path = CONFIG) -> None:
+def run(seconds: float, rate_hz: float, path: Path = CONFIG, drop: float = 0.0) -> None:
     config = load_config(path)
     config = dataclasses.replace(config, bus=dataclasses.replace(config.bus, sync_rate=rate_hz,
                                                                  channel="bench-lockstep"))
@@ -65,6 +67,7 @@ def run(seconds: float, rate_hz: float, path: Path = CONFIG) -> None:
         room = np.minimum(start - limits.low, limits.high - start)
         amplitude = MAIN_JOB_AMPLITUDE if Path(path) == CONFIG else 0.1 * room
         targets = start + np.sin(2 * np.pi * 0.5 * t)[:, None] * np.sin(np.pi * t / t[-1])[:, None] * amplitude
+        rig.frame_faults(drop_probability=drop)
         rig.step_seconds.clear()
         began = timeit.default_timer()
         rec = group.run_cyclic(targets, period)
@@ -84,13 +87,14 @@ def run(seconds: float, rate_hz: float, path: Path = CONFIG) -> None:
     per_cycle_us = wall / cycles * 1e6
     print(f"lockstep at {rate_hz:g} Hz, {seconds:g} s simulated: {cycles} cycles in {wall:.1f} s wall = "
           f"{cycles / wall:.0f} cycles/s ({cycles / wall * period:.2f}x real time); "
-          f"{rec.n_invalid} incomplete, {rec.metadata.get('lockstep_retries')} asked again")
+          f"{rec.n_invalid} incomplete, {rec.metadata.get('lockstep_retries')} asked again "
+          f"({rec.metadata.get('lockstep_waited_out')} after waiting; {rig.network.dropped} frames dropped)")
     print(f"per cycle {per_cycle_us:.0f} us: rig {rig_us:.0f} us (plant step {plant_us:.0f} us, drives "
           f"{rig_us - plant_us:.0f} us), master + bus + hand-offs {per_cycle_us - rig_us:.0f} us")
 
 
 if __name__ == "__main__":
-    args = [a for a in sys.argv[1:] if a != "spread" and not a.startswith("config=")]
-    configs = [Path(a.split("=", 1)[1]) for a in sys.argv[1:] if a.startswith("config=")]
+    args = [a for a in sys.argv[1:] if a != "spread" and "=" not in a]
+    options = dict(a.split("=", 1) for a in sys.argv[1:] if "=" in a)
     main(float(args[0]) if args else 20.0, float(args[1]) if len(args) > 1 else 250.0, "spread" in sys.argv[1:],
-         configs[0] if configs else CONFIG)
+         Path(options.get("config", CONFIG)), float(options.get("drop", 0.0)))
