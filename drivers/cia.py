@@ -62,6 +62,14 @@ ERROR_CODE = 0x603F
 MODE_PPM, MODE_HMM = 1, 6
 #: (mask, value) of the statusword per state name (canopen's table)
 STATE_MASKS = State402.SW_MASK
+#: the CiA 402 state names (canopen's ``State402`` names, the keys of :data:`STATE_MASKS`)
+NOT_READY, DISABLED, READY, SWITCHED_ON, ENABLED, QUICK_STOP, FAULT_REACTION, FAULT = (
+    "NOT READY TO SWITCH ON", "SWITCH ON DISABLED", "READY TO SWITCH ON", "SWITCHED ON",
+    "OPERATION ENABLED", "QUICK STOP ACTIVE", "FAULT REACTION ACTIVE", "FAULT")
+#: the states of a drive whose power stage is off and that shows no fault
+UNPOWERED = (NOT_READY, DISABLED, READY)
+#: the states of a fault (its reaction included)
+FAULTED = (FAULT_REACTION, FAULT)
 
 
 def state_of(statusword: int) -> str:

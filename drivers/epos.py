@@ -30,6 +30,7 @@ from drivers.bus import BusConfig, check_bus_load, frame_bits
 from drivers.cia import (CW_CHANGE_IMMEDIATELY, CW_ENABLE_OPERATION, CW_FAULT_RESET, CW_NEW_SETPOINT, ERROR_REGISTER,
                          HEARTBEAT_CONSUMER, MODE_HMM, MODE_PPM, NMT_ENTER_PRE_OPERATIONAL, NMT_OPERATIONAL, RPDO_COMM,
                          SW_BIT12, SW_BIT13, SW_FAULT, SW_TARGET_REACHED, is_node_id, state_of)
+from drivers.cia import DISABLED, ENABLED, FAULT, FAULT_REACTION, FAULTED, NOT_READY, QUICK_STOP
 from drivers.emcy import describe
 from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, NodeError
 from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, load_object_dictionary, make_object_dictionary
@@ -243,13 +244,13 @@ class EposDrive:
 
     def reset_fault(self, timeout: float = 1.0) -> None:
         """Clear a FAULT (rising edge of controlword bit 7)."""
-        if self.state not in ("FAULT", "FAULT REACTION ACTIVE"):
+        if self.state not in FAULTED:
             return
         logger.warning("%s: in FAULT at start (%s), resetting", self.label, self.error_text())
         self._controlword(State402.CW_DISABLE_VOLTAGE)
         self._controlword(CW_FAULT_RESET)
         deadline = self.timebase.now() + timeout
-        while self.state in ("FAULT", "FAULT REACTION ACTIVE"):
+        while self.state in FAULTED:
             if self.timebase.now() > deadline:
                 raise NodeError(self.label, f"still in FAULT after a fault reset ({self.error_text()})")
             self.timebase.tick()
@@ -259,7 +260,7 @@ class EposDrive:
         deadline = self.timebase.now() + timeout
         state = self.state
         while state != target:
-            if state in ("FAULT", "FAULT REACTION ACTIVE"):
+            if state in FAULTED:
                 code, text = self._error()
                 raise DriveFault(self.label, code, f"in {state} while switching to {target} ({text})")
             step = target if (state, target) in State402.TRANSITIONTABLE else \
@@ -269,7 +270,7 @@ class EposDrive:
             self._controlword(State402.TRANSITIONTABLE[(state, step)])
             while True:
                 state = self.state
-                if state == step or state in ("FAULT", "FAULT REACTION ACTIVE"):
+                if state == step or state in FAULTED:
                     break
                 if self.timebase.now() > deadline:
                     raise NodeError(self.label, f"stays in {state}, expected {step} on the way to "
@@ -277,7 +278,7 @@ class EposDrive:
                 self.timebase.tick()
 
     def enable(self) -> None:
-        self.set_state("OPERATION ENABLED")
+        self.set_state(ENABLED)
 
     def _wait_while(self, busy, timeout: float) -> int:
         """Poll the statusword until ``busy(state, statusword)`` is false or ``timeout`` s passed;
@@ -292,20 +293,20 @@ class EposDrive:
     def disable(self, timeout: float = 1.0) -> None:
         """Disable voltage: SWITCH ON DISABLED (the motor is not powered). A drive in its fault
         reaction (braking on its own) is left to end it in FAULT, waiting up to ``timeout`` s."""
-        sw = self._wait_while(lambda state, _: state == "FAULT REACTION ACTIVE", timeout)
+        sw = self._wait_while(lambda state, _: state == FAULT_REACTION, timeout)
         state = state_of(sw)
-        if state == "FAULT REACTION ACTIVE":
+        if state == FAULT_REACTION:
             raise NodeError(self.label, f"still in FAULT REACTION ACTIVE after {timeout:g} s")
-        if state not in ("SWITCH ON DISABLED", "FAULT", "NOT READY TO SWITCH ON"):
-            self.set_state("SWITCH ON DISABLED")
+        if state not in (DISABLED, FAULT, NOT_READY):
+            self.set_state(DISABLED)
 
     def quick_stop(self, timeout: float = 1.0) -> None:
         """Quick stop (decelerate with 0x6085) until halted (statusword bit 10 in QUICK STOP
         ACTIVE, at most ``timeout`` s), then disable."""
-        if self.state == "OPERATION ENABLED":
+        if self.state == ENABLED:
             self._controlword(State402.CW_QUICK_STOP)
-            self._wait_while(lambda state, sw: state == "OPERATION ENABLED" or (
-                state == "QUICK STOP ACTIVE" and not sw & SW_TARGET_REACHED), timeout)
+            self._wait_while(lambda state, sw: state == ENABLED or (
+                state == QUICK_STOP and not sw & SW_TARGET_REACHED), timeout)
         self.disable(timeout)
 
     # -- modes -------------------------------------------------------------------------------------

@@ -4,12 +4,8 @@ keeps the state and acts on the transitions (demand reset, fault reaction, event
 
 from __future__ import annotations
 
-from drivers.cia import SW_HOMED, SW_REMOTE, SW_VOLTAGE_ENABLED, state_bits
-
-# CiA 402 state names (canopen's ``State402`` names; their statusword bits: drivers.cia.state_bits)
-NOT_READY, DISABLED, READY, SWITCHED_ON, ENABLED, QUICK_STOP, FAULT_REACTION, FAULT = (
-    "NOT READY TO SWITCH ON", "SWITCH ON DISABLED", "READY TO SWITCH ON", "SWITCHED ON",
-    "OPERATION ENABLED", "QUICK STOP ACTIVE", "FAULT REACTION ACTIVE", "FAULT")
+from drivers.cia import (DISABLED, ENABLED, FAULT, FAULT_REACTION, NOT_READY, QUICK_STOP, READY,  # noqa: F401
+                         SW_HOMED, SW_REMOTE, SW_VOLTAGE_ENABLED, SWITCHED_ON, state_bits)
 #: states in which the position loop is closed (also while quick-stopping and during the fault reaction)
 POWERED = (ENABLED, QUICK_STOP, FAULT_REACTION)
 

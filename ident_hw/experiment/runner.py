@@ -30,7 +30,7 @@ import can
 import numpy as np
 from tqdm import tqdm
 
-from drivers.cia import SYNC_COB_ID
+from drivers.cia import SYNC_COB_ID, UNPOWERED
 from drivers.epos import DriveGroup
 from drivers.errors import BusOpenError, ConfigError, DriveError, NodeError
 from drivers.recording import Recording
@@ -49,7 +49,6 @@ APPROACH_SPEED = 0.2
 
 
 #: CiA 402 states in which a drive's power stage is off
-DISABLED_STATES = ("SWITCH ON DISABLED", "READY TO SWITCH ON", "NOT READY TO SWITCH ON")
 
 
 class CampaignStopped(Exception):
@@ -81,7 +80,7 @@ def drives_after_stop(master: dict[str, str]) -> str:
     groups: dict[str, list[str]] = {}
     for label, state in master.items():
         key = ("state unknown" if state.startswith("unknown") else
-               "drives disabled" if state in DISABLED_STATES else state)
+               "drives disabled" if state in UNPOWERED else state)
         groups.setdefault(key, []).append(label)
     return "; ".join(f"{key}: {', '.join(labels)}" for key, labels in groups.items())
 
