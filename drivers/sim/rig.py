@@ -439,11 +439,6 @@ class SimulatedRig:
         with self._lock:
             self.plant.external_force = np.array(forces, dtype=float).reshape(self.plant.n)
 
-    @property
-    def true_forces(self) -> np.ndarray:
-        """Actuator forces (N, n) at each logged period start (N·m, N), without sensor noise."""
-        return self.plant.truth()["force"]
-
     # -- fault injection ------------------------------------------------------------------------------
     def silence(self, node_id: int, silent: bool = True) -> None:
         """The drive stops answering: no heartbeat, PDO, SDO, EMCY or NMT (``silent=False`` revives it)."""
