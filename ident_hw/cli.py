@@ -12,6 +12,7 @@ import argparse
 import enum
 import os
 import sys
+from pathlib import Path
 
 
 class Exit(enum.IntEnum):
@@ -108,6 +109,46 @@ def cmd_export(args) -> int:
     from ident_hw.experiment.export import export_description
     print(export_description(args.results, args.to, for_mujoco=args.for_mujoco))
     return Exit.OK
+
+
+def cmd_study(args) -> int:
+    """A Monte-Carlo study: ``--runs`` campaigns of a simulated config, each with its own noise seed."""
+    import time
+
+    from ident_hw.experiment.study import StudyError, run_study
+    from ident_hw.report.study import study_lines, write_study_report
+    config = _load(args.config)
+    folder = Path(args.out) if args.out else Path(config.output.dir) / f"study-{Path(args.config).stem}"
+    print(f"study folder: {folder}", file=sys.stderr)
+    bar, started, first = None, time.monotonic(), []
+    if _progress_bars(args):
+        from tqdm import tqdm
+        bar = tqdm(total=args.runs, unit="run", desc="study", file=sys.stderr)
+
+    def progress(outcome, done: int, runs: int) -> None:
+        first.append(done)
+        if bar is not None:
+            bar.n = done
+            bar.refresh()
+            return
+        if args.quiet:
+            return
+        rate = len(first) / (time.monotonic() - started)
+        print(f"run {outcome.index} (seed {outcome.seed}): {outcome.status.split(':')[0]} in "
+              f"{outcome.wall_seconds:.0f} s; {done} of {runs} done, about {(runs - done) / rate / 60:.1f} min left",
+              file=sys.stderr, flush=True)
+    try:
+        study = run_study(args.config, folder, args.runs, workers=args.workers, scheduler=args.scheduler,
+                          on_outcome=progress)
+    except StudyError as exc:
+        print(f"config error: {exc}", file=sys.stderr)
+        return Exit.CONFIG
+    finally:
+        if bar is not None:
+            bar.close()
+    print("\n".join(study_lines(study)))
+    print(f"study: {folder}  (report: {write_study_report(study)})")
+    return Exit.OK if not study.failed else Exit.DEGRADED
 
 
 def cmd_run(args) -> int:
@@ -279,6 +320,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--arm", action="store_true", help="allow motion on a bus that is not the simulated rig's")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--out", metavar="DIR", help="results folder (default: output.dir/online-<time>)")
+
+    p = command("study", cmd_study, "a Monte-Carlo study: --runs campaigns of a simulated config, each with "
+                "its own noise seed; per parameter the errors against the reported sigma (coverage, bias)")
+    p.add_argument("config", help="YAML config of a simulated rig (in process, lockstep)")
+    p.add_argument("--runs", type=int, required=True, metavar="N", help="campaigns in the study (run i: seed sim.seed + i)")
+    p.add_argument("--out", metavar="DIR", help="study folder (default: output.dir/study-<config name>); "
+                   "a folder holding this config's study is continued")
+    p.add_argument("--workers", type=int, metavar="K", help="worker processes of a local Dask cluster "
+                   "(default: this machine's CPUs); 0: every run in this process")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on the workers of this Dask scheduler instead")
+    p.add_argument("--quiet", action="store_true", help="no progress")
 
     p = command("identify", cmd_identify, "identify offline from recordings (decoded .npz or raw .log/.asc/.blf)")
     p.add_argument("config", help="YAML config of the recorded run")

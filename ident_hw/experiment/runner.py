@@ -181,7 +181,7 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
                  log: Callable[[str], None] | None = None,
                  online: CampaignEstimator | None = None,
                  planned: list[PlannedTrajectory] | None = None,
-                 host: HostSettings = HostSettings()) -> Results:
+                 host: HostSettings = HostSettings(), report: bool = True) -> Results:
     """Record every trajectory of ``config`` on its bus, identify, validate, save into ``folder``.
 
     Args:
@@ -194,6 +194,7 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
             caller has made it (for its checks); planned here otherwise. Without ``online``, its
             ``online_only`` trajectories are left out.
         host: how the process hosts the session (:class:`HostSettings`: the command line's choice).
+        report: build the report (plots, report.html) after saving the results.
 
     Raises:
         CampaignStopped: Ctrl-C or a fault; the folder is marked ``partial: <reason>``.
@@ -237,7 +238,9 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
         if online is not None:
             results.online = online.trace(results.base_fit)
         mark_status(folder, final_status(results))    # before the report, which shows it
-        build_report(save_results(folder, results))
+        save_results(folder, results)
+        if report:
+            build_report(folder)
     except BusOpenError as exc:
         mark_status(folder, f"failed: {exc}; nothing moved, nothing recorded")
         raise

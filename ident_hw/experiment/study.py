@@ -1,0 +1,365 @@
+"""Monte-Carlo studies: many simulated campaigns of one config, each with its own noise seed and
+each identified as ``ident-hw run`` does; then, per parameter, how its errors compare with the
+standard deviation the campaign reported. One run cannot tell noise from bias; many runs can.
+
+    study = run_study("configs/sim-3prrr.yaml", "results/study-sim-3prrr", runs=40)
+    study.summary      # one ParameterSummary per parameter
+
+A run is a pure function of its config and its seed (the simulated rig in lockstep): :func:`run_one`
+takes the config as text (and the files it names) and returns a small :class:`RunOutcome`, so it
+gives the same answer in this process, in a worker process of this machine or on another machine
+of a Dask cluster (:func:`run_study`'s ``scheduler``). Run ``i`` has the seed ``sim.seed + i``:
+run 0 is the config's own campaign.
+
+The study folder::
+
+    study.json           what was asked (the config's name, the runs) and the summary
+    config.yaml          the config, every ``extends:`` merged in (a described robot's file beside it)
+    runs/run-0007.json   one finished run: seed, STATUS, wall time, worker, every estimate with σ
+    study.html, plots/   the report (:mod:`ident_hw.report.study`)
+
+Running a study into a folder that holds one of the same config continues it: finished runs
+are kept, the missing ones run.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import socket
+import tempfile
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Callable, Iterable, Iterator
+
+import numpy as np
+
+from ident_hw.config import Config, load_config, resolved_yaml
+from ident_hw.results import Results, read_status
+
+from .folders import DESCRIPTION_DIR, new_results_folder
+
+#: z of the two-sided 95 % interval of a normal error
+Z95 = 1.959963984540054
+#: what an honest σ must show over a study (issue 30): the 95 % interval's coverage at least this ...
+COVERAGE_TARGET = 0.90
+#: ... and the mean error at most this many mean σ
+BIAS_TARGET = 0.5
+#: a parameter the campaigns call well identified in at least this share of the runs is a claim
+CLAIMED_SHARE = 0.5
+
+STUDY_FILE = "study.json"
+RUNS_DIR = "runs"
+
+
+class StudyError(ValueError):
+    """A study that cannot run as asked (a config that is not a simulated one, a folder holding
+    another study's runs); the message names the file."""
+
+
+# ----------------------------------------------------------------------------- records
+@dataclass(frozen=True)
+class Estimate:
+    """One parameter's estimate in one run: ``kind`` ``physical`` (a row of the parameter table)
+    or ``base`` (a base parameter of the base fit, ``name`` its expression); SI units."""
+
+    kind: str
+    name: str
+    value: float
+    sigma: float | None
+    truth: float
+    well_identified: bool
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """What one simulated campaign of a study gave: its ``seed``, the results folder's ``status``,
+    the wall time (s) and the host it ran on (for the record: no value depends on it), every
+    estimate with a known truth; ``error``: why the run gave none (an exception's text)."""
+
+    index: int
+    seed: int
+    status: str
+    wall_seconds: float
+    host: str
+    estimates: tuple[Estimate, ...]
+    error: str | None = None
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict) -> RunOutcome:
+        return cls(**{**data, "estimates": tuple(Estimate(**e) for e in data["estimates"])})
+
+
+@dataclass(frozen=True)
+class RunTask:
+    """One run as a worker gets it: the config as YAML text, the files it names (relative path,
+    bytes), the run's index and seed. Nothing in it refers to the machine that made it."""
+
+    index: int
+    seed: int
+    config_yaml: str
+    files: tuple[tuple[str, bytes], ...] = ()
+
+
+@dataclass(frozen=True)
+class ParameterSummary:
+    """One parameter over the runs that estimated it with a σ (SI units).
+
+    Attributes:
+        runs: how many runs; ``claimed_share``: the share of them that called it well identified.
+        mean_error, std_error: mean and empirical standard deviation of estimate - truth.
+        mean_sigma: the mean σ the runs reported; ``sigma_ratio`` = std_error / mean_sigma (1 for
+            an honest σ of an unbiased estimate).
+        coverage: the share of runs whose ±1.96σ interval holds the truth (0.95 for an honest σ).
+        mean_z: the mean of (estimate - truth) / σ; ``bias_sigmas`` = mean_error / mean_sigma.
+    """
+
+    kind: str
+    name: str
+    truth: float
+    runs: int
+    claimed_share: float
+    mean_error: float
+    std_error: float
+    mean_sigma: float
+    coverage: float
+    mean_z: float
+
+    @property
+    def sigma_ratio(self) -> float:
+        return self.std_error / self.mean_sigma if self.mean_sigma > 0 else math.nan
+
+    @property
+    def bias_sigmas(self) -> float:
+        return self.mean_error / self.mean_sigma if self.mean_sigma > 0 else math.nan
+
+    @property
+    def claimed(self) -> bool:
+        """The campaigns call it well identified (in at least :data:`CLAIMED_SHARE` of the runs)."""
+        return self.claimed_share >= CLAIMED_SHARE
+
+    @property
+    def honest(self) -> bool:
+        """Its σ tells the truth: coverage at least :data:`COVERAGE_TARGET`, |mean error| at most
+        :data:`BIAS_TARGET` mean σ."""
+        return self.coverage >= COVERAGE_TARGET and abs(self.bias_sigmas) <= BIAS_TARGET
+
+    def to_dict(self) -> dict:
+        return dict(asdict(self), sigma_ratio=self.sigma_ratio, bias_sigmas=self.bias_sigmas,
+                    claimed=self.claimed, honest=self.honest)
+
+
+@dataclass(frozen=True)
+class Study:
+    """A study folder's runs (by index) and their per-parameter summary."""
+
+    folder: Path
+    config_name: str
+    runs_asked: int
+    outcomes: tuple[RunOutcome, ...]
+    summary: tuple[ParameterSummary, ...]
+
+    @property
+    def failed(self) -> tuple[RunOutcome, ...]:
+        return tuple(o for o in self.outcomes if o.error is not None)
+
+
+# ----------------------------------------------------------------------------- one run
+def estimates_of(results: Results) -> tuple[Estimate, ...]:
+    """Every estimate of a campaign's results whose truth is known and that was fitted: the
+    physical parameters (held ones left out), then the base parameters of the base fit."""
+    out = [Estimate("physical", r.name, r.identified, r.sigma, r.truth, r.well_identified)
+           for r in results.parameter_rows() if r.truth is not None and r.step]
+    if results.base_fit is not None:
+        out += [Estimate("base", r.expression, r.identified, r.sigma, r.truth, r.well_identified)
+                for r in results.base_fit.rows() if r.truth is not None]
+    return tuple(out)
+
+
+def run_one(task: RunTask) -> RunOutcome:
+    """One campaign of the study, identified as ``ident-hw run`` does (without its report), in a
+    temporary folder of the machine it runs on; a pure function of ``task``. The linear algebra
+    runs on one thread (``threadpoolctl``): a BLAS splits its sums by its thread count, and a
+    worker process (Dask starts them with one) must give the bits this process gives."""
+    from threadpoolctl import threadpool_limits
+
+    from .runner import run_campaign
+    from .session import HostSettings
+    started = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix=f"ident-hw-study-{task.index:04d}-") as tmp, \
+            threadpool_limits(limits=1):
+        tmp = Path(tmp)
+        for relative, data in task.files:
+            (tmp / relative).parent.mkdir(parents=True, exist_ok=True)
+            (tmp / relative).write_bytes(data)
+        (tmp / "config.yaml").write_text(task.config_yaml)
+        (tmp / "run.yaml").write_text(f"extends: config.yaml\nsim: {{seed: {task.seed}}}\n")
+        try:
+            config = load_config(tmp / "run.yaml")
+            folder = new_results_folder(config, tmp / "results", "study")
+            results = run_campaign(config, folder, show_progress=False, report=False,
+                                   host=HostSettings.for_command(config))
+            estimates, status, error = estimates_of(results), read_status(folder), None
+        except Exception as exc:  # noqa: BLE001 - a failed run is a result of the study, not its end
+            estimates, status, error = (), "failed", f"{type(exc).__name__}: {exc}"
+    return RunOutcome(task.index, task.seed, status, time.perf_counter() - started, socket.gethostname(),
+                      estimates, error)
+
+
+# ----------------------------------------------------------------------------- the summary
+def summarize(outcomes: Iterable[RunOutcome]) -> tuple[ParameterSummary, ...]:
+    """Per parameter (in the order the first run lists them), over the runs that estimated it
+    with a finite σ: see :class:`ParameterSummary`."""
+    by_key: dict[tuple[str, str], list[Estimate]] = {}
+    for outcome in outcomes:
+        for e in outcome.estimates:
+            if e.sigma is not None and math.isfinite(e.sigma) and e.sigma > 0:
+                by_key.setdefault((e.kind, e.name), []).append(e)
+    out = []
+    for (kind, name), estimates in by_key.items():
+        error = np.array([e.value - e.truth for e in estimates])
+        sigma = np.array([e.sigma for e in estimates])
+        z = error / sigma
+        out.append(ParameterSummary(
+            kind=kind, name=name, truth=estimates[0].truth, runs=len(estimates),
+            claimed_share=float(np.mean([e.well_identified for e in estimates])),
+            mean_error=float(error.mean()), std_error=float(error.std(ddof=1)) if len(error) > 1 else math.nan,
+            mean_sigma=float(sigma.mean()), coverage=float(np.mean(np.abs(z) <= Z95)), mean_z=float(z.mean())))
+    return tuple(out)
+
+
+# ----------------------------------------------------------------------------- the study
+def study_task_source(config: Config) -> tuple[str, tuple[tuple[str, bytes], ...]]:
+    """The config as one YAML text and the files it names (a described robot's description file,
+    under ``description/``), as a worker on any machine needs them."""
+    described = config.robot.described
+    if described is None:
+        return resolved_yaml(config.source), ()
+    relative = (Path(DESCRIPTION_DIR) / Path(described.description).name).as_posix()
+    return (resolved_yaml(config.source, {"robot.described.description": relative}),
+            ((relative, Path(described.description).read_bytes()),))
+
+
+def check_config(config: Config) -> None:
+    """A study needs a simulated rig in this process, in lockstep (a run is then a pure function
+    of its config and seed), and a truth to compare with."""
+    where = config.source
+    if config.sim is None or not config.simulated:
+        raise StudyError(f"{where}: a study runs the simulated rig: the config needs a sim: section and a "
+                         f"bus the rig serves (virtual, vcan, local udp_multicast)")
+    if not config.sim.in_process:
+        raise StudyError(f"{where}: sim.in_process: false: a study's runs start their own rig (set it true)")
+    if config.sync_mode != "lockstep":
+        raise StudyError(f"{where}: bus.sync: {config.sync_mode}: a study needs lockstep (a run is then the "
+                         f"same wherever it runs)")
+
+
+def run_file(folder: Path, index: int) -> Path:
+    return folder / RUNS_DIR / f"run-{index:04d}.json"
+
+
+def _write_json(path: Path, data) -> None:
+    """Atomically: a reader (or a study continued after Ctrl-C) never sees half a file."""
+    tmp = path.with_name(path.name + ".part")
+    tmp.write_text(json.dumps(data, indent=1))
+    os.replace(tmp, path)
+
+
+def _prepare_folder(folder: Path, config: Config, config_yaml: str, runs: int) -> None:
+    """Create the study folder, or check that the one there holds this config's study."""
+    (folder / RUNS_DIR).mkdir(parents=True, exist_ok=True)
+    copy = folder / "config.yaml"
+    if copy.exists() and copy.read_text() != config_yaml:
+        raise StudyError(f"{folder}: holds a study of another config (its config.yaml differs from "
+                         f"{config.source}); choose another --out")
+    copy.write_text(config_yaml)
+    study_file = folder / STUDY_FILE
+    asked = runs
+    if study_file.exists():
+        asked = max(runs, json.loads(study_file.read_text()).get("runs_asked", runs))
+    _write_json(study_file, {"config": Path(config.source).name, "runs_asked": asked})
+
+
+def load_outcomes(folder: Path, runs: int) -> tuple[RunOutcome, ...]:
+    """The finished runs among the first ``runs`` of the study in ``folder``."""
+    found = []
+    for i in range(runs):
+        path = run_file(folder, i)
+        if path.exists():
+            found.append(RunOutcome.from_dict(json.loads(path.read_text())))
+    return tuple(found)
+
+
+def run_study(config_path: str | Path, folder: str | Path, runs: int, *, workers: int | None = None,
+              scheduler: str | None = None,
+              on_outcome: Callable[[RunOutcome, int, int], None] | None = None) -> Study:
+    """Run the ``runs`` campaigns of ``config_path`` that ``folder`` does not hold yet, and
+    summarize all of them.
+
+    Args:
+        config_path: a simulated config (:func:`check_config`).
+        folder: the study folder (created; a folder holding this config's study is continued).
+        runs: how many runs the study has (run ``i`` with seed ``sim.seed + i``).
+        workers: worker processes of a Dask ``LocalCluster`` on this machine (default: the CPUs
+            this process may use); 0: every run in this process, one after the other, no Dask.
+        scheduler: the address of a running Dask scheduler (``tcp://HOST:PORT``) whose workers run
+            the study instead; they need ident_hw installed, nothing of this machine.
+        on_outcome: called with each finished run, the runs finished and the runs asked (progress).
+    """
+    if runs < 1:
+        raise StudyError(f"--runs must be at least 1, got {runs}")
+    config = load_config(config_path)
+    check_config(config)
+    folder = Path(folder)
+    config_yaml, files = study_task_source(config)
+    _prepare_folder(folder, config, config_yaml, runs)
+    done = len(load_outcomes(folder, runs))
+    tasks = [RunTask(i, config.sim.seed + i, config_yaml, files) for i in range(runs)
+             if not run_file(folder, i).exists()]
+    for outcome in _execute(tasks, workers, scheduler):
+        _write_json(run_file(folder, outcome.index), outcome.to_dict())
+        done += 1
+        if on_outcome is not None:
+            on_outcome(outcome, done, runs)
+    outcomes = load_outcomes(folder, runs)
+    study = Study(folder, Path(config.source).name, runs, outcomes, summarize(outcomes))
+    data = json.loads((folder / STUDY_FILE).read_text())
+    data["summary"] = [s.to_dict() for s in study.summary]
+    data["runs_finished"], data["runs_failed"] = len(outcomes), len(study.failed)
+    _write_json(folder / STUDY_FILE, data)
+    return study
+
+
+def _execute(tasks: list[RunTask], workers: int | None, scheduler: str | None) -> Iterator[RunOutcome]:
+    """The outcomes of ``tasks`` as they finish: in this process (``workers == 0``), else on Dask."""
+    if not tasks:
+        return
+    if workers == 0 and scheduler is None:
+        for task in tasks:
+            yield run_one(task)
+        return
+    try:
+        from dask.distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise StudyError("a study on worker processes needs Dask: pip install 'ident-hw[study]' "
+                         "(or --workers 0: every run in this process)") from None
+    if scheduler is not None:
+        client, cluster = Client(scheduler), None
+    else:
+        n = workers or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count())
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                               dashboard_address=None)
+        client = Client(cluster)
+    try:
+        futures = [client.submit(run_one, task, pure=False, key=f"run-{task.index:04d}") for task in tasks]
+        for future in as_completed(futures):
+            yield future.result()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

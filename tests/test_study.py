@@ -1,0 +1,124 @@
+"""Monte-Carlo studies (``ident-hw study``): each run is a pure function of its config and seed,
+wherever it runs (a Dask LocalCluster of two worker processes on loopback, or this process); run 0
+is the config's own campaign; a study continues where it stopped; the summary's statistics."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ident_hw.experiment.study import (Estimate, RunOutcome, StudyError, run_file, run_study, summarize)
+from ident_hw.report.study import study_lines, write_study_report
+
+ROOT = Path(__file__).resolve().parents[1]
+SIM = ROOT / "configs" / "sim-3prrr.yaml"
+
+
+def short_config(folder: Path) -> Path:
+    """One 6 cm square at 100 Hz on the in-process rig, the links' masses fitted on it (a run
+    takes seconds)."""
+    path = folder / "short.yaml"
+    path.write_text(
+        f"extends: {SIM}\n"
+        f"bus: {{interface: virtual, channel: study-{os.getpid()}-{time.monotonic_ns()}, sync_rate: 100.0}}\n"
+        "trajectories:\n  - {name: square, kind: square, size: 0.06, cycles: 1, speed_scale: 0.6}\n"
+        "identification:\n"
+        "  steps: [{name: links, trajectories: [square], parameters: [m_l2, m_ee, I_l1]}]\n"
+        "  validation: []\n")
+    return path
+
+
+def outcome(folder: Path, i: int) -> dict:
+    return json.loads(run_file(folder, i).read_text())
+
+
+def test_runs_on_two_worker_processes_equal_the_same_runs_in_this_process(tmp_path):
+    pytest.importorskip("distributed")
+    config = short_config(tmp_path)
+    here = run_study(config, tmp_path / "here", runs=3, workers=0)
+    there = run_study(config, tmp_path / "there", runs=3, workers=2)
+    assert len(here.outcomes) == len(there.outcomes) == 3 and not here.failed and not there.failed
+    for i in range(3):
+        a, b = outcome(tmp_path / "here", i), outcome(tmp_path / "there", i)
+        assert a["seed"] == b["seed"] == 1 + i           # sim.seed of sim-3prrr.yaml is 1
+        assert a["estimates"] == b["estimates"] and a["status"] == b["status"]
+        assert {e["name"] for e in a["estimates"] if e["kind"] == "physical"} == {"m_l2", "m_ee", "I_l1"}
+    # the seeds differ, and so do the estimates
+    assert outcome(tmp_path / "here", 0)["estimates"] != outcome(tmp_path / "here", 1)["estimates"]
+
+
+def test_run_zero_is_the_configs_own_campaign_and_a_study_continues_where_it_stopped(tmp_path):
+    config = short_config(tmp_path)
+    folder = tmp_path / "study"
+    run_study(config, folder, runs=2, workers=0)
+    # `ident-hw run` of the same config: the values of run 0 (the config's seed)
+    out = tmp_path / "run"
+    done = subprocess.run([sys.executable, "-m", "ident_hw.cli", "run", str(config), "--quiet", "--out", str(out)],
+                          capture_output=True, text=True, cwd=tmp_path)
+    assert done.returncode in (0, 6), done.stderr          # 6: degraded (the short square's verdict)
+    rows = {r["name"]: r for r in json.loads((out / "parameters.json").read_text())["parameters"]}
+    for e in outcome(folder, 0)["estimates"]:
+        if e["kind"] == "physical":
+            assert e["value"] == rows[e["name"]]["identified"] and e["sigma"] == rows[e["name"]]["sigma"]
+    # a lost run and one more asked: only those two run again, the others are kept as they were
+    kept = outcome(folder, 0)
+    run_file(folder, 1).unlink()
+    ran = []
+    study = run_study(config, folder, runs=3, workers=0, on_outcome=lambda o, done, runs: ran.append(o.index))
+    assert sorted(ran) == [1, 2] and outcome(folder, 0) == kept and len(study.outcomes) == 3
+    assert json.loads((folder / "study.json").read_text())["runs_finished"] == 3
+    lines = study_lines(study)
+    assert lines[0].startswith("study of short.yaml: 3 of 3 runs finished")
+    assert any(line.split()[:2] == ["physical", "m_l2"] for line in lines)
+    page = write_study_report(study).read_text()
+    assert "m_l2" in page and (folder / "plots" / "error_vs_sigma.png").is_file()
+
+
+def test_a_folder_of_another_configs_study_and_a_hardware_config_are_refused(tmp_path):
+    config = short_config(tmp_path)
+    folder = tmp_path / "study"
+    (folder).mkdir()
+    (folder / "config.yaml").write_text("robot: {}\n")
+    with pytest.raises(StudyError, match="holds a study of another config"):
+        run_study(config, folder, runs=1, workers=0)
+    hardware = tmp_path / "hw.yaml"
+    hardware.write_text(f"extends: {ROOT / 'configs' / 'hil-3prrr-epos4.yaml'}\n")
+    with pytest.raises(StudyError, match=r"hw\.yaml: a study runs the simulated rig"):
+        run_study(hardware, tmp_path / "hw-study", runs=1, workers=0)
+
+
+def test_the_summary_against_statistics_computed_by_hand():
+    """Five runs of two parameters with known errors and sigmas: the mean and the sample standard
+    deviation of the error, the mean sigma, the coverage of +-1.96 sigma and the mean z, each
+    computed here term by term."""
+    truth = {"a": 2.0, "b": -1.0}
+    errors = {"a": [0.1, -0.2, 0.05, 0.3, -0.05], "b": [0.01, 0.02, 0.03, -0.01, 0.5]}
+    sigmas = {"a": [0.1, 0.1, 0.2, 0.1, 0.1], "b": [0.02, 0.02, 0.02, 0.02, 0.02]}
+    claimed = {"a": [True, True, True, False, True], "b": [False, False, True, False, False]}
+    outcomes = [RunOutcome(i, i, "complete", 1.0, "here", tuple(
+        Estimate("physical", n, truth[n] + errors[n][i], sigmas[n][i], truth[n], claimed[n][i]) for n in truth)) for i in range(5)]
+    summary = {s.name: s for s in summarize(outcomes)}
+    for n in truth:
+        e, s = errors[n], sigmas[n]
+        mean = sum(e) / 5
+        std = math.sqrt(sum((x - mean) ** 2 for x in e) / 4)
+        inside = sum(1 for x, y in zip(e, s) if abs(x) <= 1.959963984540054 * y)
+        got = summary[n]
+        assert got.runs == 5 and got.truth == truth[n]
+        assert got.mean_error == pytest.approx(mean, abs=1e-15) and got.std_error == pytest.approx(std, rel=1e-12)
+        assert got.mean_sigma == pytest.approx(sum(s) / 5) and got.coverage == inside / 5
+        assert got.mean_z == pytest.approx(sum(x / y for x, y in zip(e, s)) / 5)
+        assert got.claimed_share == sum(claimed[n]) / 5
+    # a: claimed by 4 of 5 runs; -0.2 (2 sigma) and 0.3 (3 sigma) fall outside: 3 of 5 inside
+    assert summary["a"].claimed and summary["a"].coverage == 0.6 and not summary["a"].honest
+    # b: claimed by one run only; the 0.5 error (25 sigma) is outside
+    assert not summary["b"].claimed and summary["b"].coverage == 0.8
+    assert np.isclose(summary["b"].bias_sigmas, np.mean(errors["b"]) / 0.02)
