@@ -68,12 +68,14 @@ def test_run_zero_is_the_configs_own_campaign_and_a_study_continues_where_it_sto
     for e in outcome(folder, 0)["estimates"]:
         if e["kind"] == "physical":
             assert e["value"] == rows[e["name"]]["identified"] and e["sigma"] == rows[e["name"]]["sigma"]
-    # a lost run and one more asked: only those two run again, the others are kept as they were
-    kept = outcome(folder, 0)
-    run_file(folder, 1).unlink()
+    # a run that raised (its machine's fault, say) and one more asked: only those two run, the
+    # finished one is kept as it was
+    kept, redone = outcome(folder, 0), outcome(folder, 1)
+    run_file(folder, 1).write_text(json.dumps(dict(redone, estimates=[], error="OSError: disk full")))
     ran = []
     study = run_study(config, folder, runs=3, workers=0, on_outcome=lambda o, done, runs: ran.append(o.index))
     assert sorted(ran) == [1, 2] and outcome(folder, 0) == kept and len(study.outcomes) == 3
+    assert outcome(folder, 1)["estimates"] == redone["estimates"] and outcome(folder, 1)["error"] is None
     assert json.loads((folder / "study.json").read_text())["runs_finished"] == 3
     lines = study_lines(study)
     assert lines[0].startswith("study of short.yaml: 3 of 3 runs finished")

@@ -19,7 +19,7 @@ The study folder::
     study.html, plots/   the report (:mod:`ident_hw.report.study`)
 
 Running a study into a folder that holds one of the same config continues it: finished runs
-are kept, the missing ones run.
+are kept, the missing ones and those that raised run.
 """
 
 from __future__ import annotations
@@ -263,6 +263,13 @@ def run_file(folder: Path, index: int) -> Path:
     return folder / RUNS_DIR / f"run-{index:04d}.json"
 
 
+def finished(folder: Path, index: int) -> bool:
+    """Run ``index`` of the study in ``folder`` gave its estimates (a run that raised runs again
+    when the study is continued: its failure may have been the machine's)."""
+    path = run_file(folder, index)
+    return path.exists() and json.loads(path.read_text()).get("error") is None
+
+
 def _write_json(path: Path, data) -> None:
     """Atomically: a reader (or a study continued after Ctrl-C) never sees half a file."""
     tmp = path.with_name(path.name + ".part")
@@ -318,9 +325,8 @@ def run_study(config_path: str | Path, folder: str | Path, runs: int, *, workers
     folder = Path(folder)
     config_yaml, files = study_task_source(config)
     _prepare_folder(folder, config, config_yaml, runs)
-    done = len(load_outcomes(folder, runs))
-    tasks = [RunTask(i, config.sim.seed + i, config_yaml, files) for i in range(runs)
-             if not run_file(folder, i).exists()]
+    tasks = [RunTask(i, config.sim.seed + i, config_yaml, files) for i in range(runs) if not finished(folder, i)]
+    done = runs - len(tasks)
     for outcome in _execute(tasks, workers, scheduler):
         _write_json(run_file(folder, outcome.index), outcome.to_dict())
         done += 1
