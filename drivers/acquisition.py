@@ -12,10 +12,13 @@ The master maps, per drive (see :func:`pdo_layout`):
 cycles: the SYNC frame (received back with ``receive_own_messages``, or from the kernel BCM on
 SocketCAN) opens a cycle and gives its timestamp; the SYNC-triggered TPDOs received until the
 next SYNC fill it; the RPDO echoes seen in a cycle are the set-points the drives take over at
-the next SYNC, so they become the ``target`` of the next row. A frame is placed in its cycle
-only where the bus proves it belongs there (one frame per TPDO per SYNC, in order; see the
+the next SYNC, so they become the ``target`` of the next row (a streaming run records the
+set-points it sent instead, :class:`drivers.recording.SampleRecorder`). A frame is placed in its
+cycle only where the bus proves it belongs there (one frame per TPDO per SYNC, in order; see the
 class): a cycle that misses a frame, or holds one that was late or cannot be placed, is invalid
-for that axis and its values are left out, never filled from another cycle. A SYNC that repeats
+for that axis, and the values that frame carries are left out, never filled from another cycle;
+the values of the axis's other TPDOs of that cycle are kept (validity per TPDO: a lost velocity
+frame costs no position or current). A SYNC that repeats
 the counter of the open cycle (a lockstep retry, :mod:`drivers.sync`) opens no new cycle; the
 TPDOs answering it are the same frames again and are taken as such. In lockstep (``period``
 given) a row's time is its cycle index times the period: the simulated time.
@@ -111,6 +114,71 @@ class AxisLayout:
     frames: tuple[PdoFrame, ...]
 
 
+#: version of the stored form of a PDO layout (:func:`layout_record`)
+LAYOUT_VERSION = 1
+
+
+def layout_record(axes: Sequence[AxisLayout]) -> dict:
+    """The PDO layout of a run's axes as JSON-able data, stored with its recording and beside
+    its raw log, so that both decode with the layout they were recorded with, whatever the
+    master maps later (:func:`layout_from_record` reads it back).
+
+    ``{"version": 1, "axes": [{"node_id": 1, "frames": [{"direction": "tpdo", "number": 1,
+    "cob_id": 385, "trans_type": 1, "event_timer": null, "entries": [{"field": "position",
+    "index": 24676, "subindex": 0, "data_type": "INTEGER32", "unit": "qc"}, ...]}, ...]}, ...]}``:
+    per axis in sample order, every PDO with its COB-ID and its mapped objects in mapping order
+    (CiA 301 data type names, drive units).
+    """
+    return {"version": LAYOUT_VERSION, "axes": [
+        {"node_id": axis.node_id, "frames": [
+            {"direction": f.direction, "number": f.number, "cob_id": f.cob_id(axis.node_id),
+             "trans_type": f.trans_type, "event_timer": f.event_timer,
+             "entries": [{"field": name, "index": ref.index, "subindex": ref.subindex,
+                          "data_type": ref.data_type, "unit": ref.unit} for name, ref in f.entries]}
+            for f in axis.frames]}
+        for axis in axes]}
+
+
+def layout_from_record(record) -> tuple[AxisLayout, ...]:
+    """The axes' layouts stored by :func:`layout_record`.
+
+    Raises:
+        ValueError: not such a record, or one the assembler cannot decode with (an unknown
+            version, field or data type, a COB-ID other than CiA 301's default for its PDO, a
+            frame longer than 8 bytes, an RPDO without the set-point); the message says what.
+    """
+    if not isinstance(record, dict) or record.get("version") != LAYOUT_VERSION:
+        raise ValueError(f"not a PDO layout of version {LAYOUT_VERSION} "
+                         f"(version {record.get('version') if isinstance(record, dict) else None!r})")
+    axes = []
+    try:
+        for axis in record["axes"]:
+            node_id = int(axis["node_id"])
+            frames = []
+            for f in axis["frames"]:
+                entries = []
+                for e in f["entries"]:
+                    if e["field"] not in FIELDS + ("controlword",):
+                        raise ValueError(f"node {node_id}: unknown field {e['field']!r}")
+                    entries.append((e["field"], ObjectRef(int(e["index"]), int(e["subindex"]), e["data_type"],
+                                                          e.get("unit", ""))))
+                frame = PdoFrame(f["direction"], int(f["number"]), tuple(entries), int(f["trans_type"]),
+                                 f.get("event_timer"))
+                where = f"node {node_id} {frame.direction.upper()}{frame.number}"
+                if frame.cob_id(node_id) != int(f["cob_id"]):
+                    raise ValueError(f"{where}: COB-ID 0x{int(f['cob_id']):03X}, not CiA 301's default "
+                                     f"0x{frame.cob_id(node_id):03X} (not supported)")
+                if frame.size > 8:
+                    raise ValueError(f"{where}: {frame.size} bytes, more than a CAN frame holds")
+                if frame.direction == "rpdo" and "target" not in (name for name, _ in entries):
+                    raise ValueError(f"{where}: an RPDO without the set-point")
+                frames.append(frame)
+            axes.append(AxisLayout(node_id, tuple(frames)))
+    except (KeyError, TypeError) as exc:
+        raise ValueError(f"damaged PDO layout ({type(exc).__name__}: {exc})") from None
+    return tuple(axes)
+
+
 def cycle_frame_sizes(axes: Sequence[AxisLayout]) -> list[int]:
     """Data lengths of all frames sent once per SYNC cycle, the SYNC (0 bytes) included."""
     return [0] + [f.size for a in axes for f in a.frames if f.per_sync]
@@ -128,8 +196,10 @@ class Row:
     """One SYNC cycle of all axes, in drive units.
 
     ``position``, ``velocity``, ``current``, ``target``: lists (one value per axis, ``None``
-    when not received); ``statusword``: last received per axis; ``valid``: per axis, every
-    SYNC-triggered TPDO of the axis was received exactly once in this cycle.
+    when not received: a measured value is ``None`` exactly when the TPDO carrying it is not
+    provably this cycle's, whatever the axis's other TPDOs did); ``statusword``: last received
+    per axis; ``valid``: per axis, every SYNC-triggered TPDO of the axis was received exactly
+    once in this cycle.
     """
 
     cycle: int
@@ -395,15 +465,14 @@ class CycleAssembler(can.Listener):
             n = self.n_axes
             values = {"position": [None] * n, "velocity": [None] * n, "current": [None] * n}
             valid = [True] * n
-            for cob_id, (state, _) in cells.items():
-                if state != _OK:
-                    valid[self._streams[cob_id].axis] = False
             for cob_id, (state, data) in cells.items():
                 stream = self._streams[cob_id]
-                if valid[stream.axis]:
-                    for name, value in zip(stream.fields, stream.unpack(data)):
-                        if name in values:
-                            values[name][stream.axis] = value
+                if state != _OK:     # this TPDO's values stay None; the axis's others are kept
+                    valid[stream.axis] = False
+                    continue
+                for name, value in zip(stream.fields, stream.unpack(data)):
+                    if name in values:
+                        values[name][stream.axis] = value
             if not all(valid):
                 self.invalid_cycles += 1
             self._sink(Row(self.emitted, timestamp, values["position"], values["velocity"],

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Sequence
@@ -12,6 +13,12 @@ from drivers.cia import is_node_id
 from drivers.errors import ConfigError
 from drivers.profiles import DriveProfile, get_profile
 from drivers.units import AxisScaling
+
+#: which motor current an axis streams: the drive's instantaneous sample (its "current actual
+#: value") or its running average (its "current actual value averaged", a 50 Hz first-order
+#: low-pass: :class:`drivers.profiles.AveragingFilter`)
+INSTANTANEOUS, AVERAGED = "instantaneous", "averaged"
+CURRENTS = (INSTANTANEOUS, AVERAGED)
 
 
 @dataclass(frozen=True)
@@ -61,6 +68,8 @@ class AxisConfig:
         homing: homing settings, ``None`` if the axis is not homed.
         object_dictionary: the drive's EDS or DCF file, whose dictionary the master then uses
             (``None``: the built-in one of ``profile``).
+        current: the motor current the master streams, :data:`INSTANTANEOUS` or :data:`AVERAGED`
+            (see :attr:`drive_profile`).
     """
 
     name: str
@@ -75,9 +84,12 @@ class AxisConfig:
     product_code: int | None = None
     homing: HomingConfig | None = None
     object_dictionary: str | None = None
+    current: str = INSTANTANEOUS
 
     def __post_init__(self) -> None:
         where = f"axis {self.name!r}"
+        if self.current not in CURRENTS:
+            raise ConfigError(f"{where}: current must be one of {CURRENTS}, got {self.current!r}")
         if not is_node_id(self.node_id):
             raise ConfigError(f"{where}: node_id must be an integer in 1..127, got {self.node_id!r}")
         try:
@@ -95,7 +107,14 @@ class AxisConfig:
 
     @property
     def drive_profile(self) -> DriveProfile:
-        return get_profile(self.profile)
+        """The profile the master uses on this axis: its generation's, whose streamed current
+        ``current_actual`` (the one :func:`drivers.acquisition.pdo_layout` maps into TPDO1) is the
+        drive's averaged current ``current_averaged`` when :attr:`current` is :data:`AVERAGED`
+        (same data type on either generation: the PDO layout keeps its size)."""
+        profile = get_profile(self.profile)
+        if self.current == AVERAGED:
+            profile = dataclasses.replace(profile, current_actual=profile.current_averaged)
+        return profile
 
     @property
     def label(self) -> str:

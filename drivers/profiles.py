@@ -29,6 +29,11 @@ What the EPOS2 lacks, and what the profile names instead:
 * no ``0x605A`` (quick stop option code): its quick stop is fixed;
 * its averaged current is ``0x2027`` (INTEGER16, mA), the EPOS4's ``0x30D1:01`` (INTEGER32).
 
+Both averaged currents are a running first-order low-pass of the current with a 50 Hz cut-off
+(maxon's firmware specifications), run at the rate of the current loop: 25 kHz on the EPOS4,
+10 kHz on the EPOS2 (their hardware references' sampling rate of the PI current controller);
+:class:`AveragingFilter`, ``DriveProfile.current_averaging``.
+
 Other differences kept as on the real devices: the EPOS2 reports its current in ``0x6078``
 (I16, mA) and has no ``0x30D1`` or torque-constant object; the EPOS4 reports it in ``0x30D1:02``
 (I32, mA) and has no ``0x6078``. The EPOS2 streams positions through its maxon "position mode"
@@ -54,6 +59,7 @@ specification (re-check against the "EPOS2 Firmware Specification" when it is in
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -115,6 +121,53 @@ class ObjectRef:
         return f"0x{self.index:04X}:{self.subindex:02X}"
 
 
+#: Hz, cut-off of a drive's averaged current: maxon's firmware specifications of both
+#: generations define it as the current actual value "filtered by 1st order digital low-pass
+#: filter with a cut-off frequency of 50 Hz"
+AVERAGING_CUTOFF = 50.0
+
+
+@dataclass(frozen=True)
+class AveragingFilter:
+    """The running average behind a drive's averaged current (``current_averaged``): a
+    first-order digital low-pass of cut-off ``cutoff`` (Hz) run at the current loop's sample
+    rate ``rate`` (Hz) on the current it measures,
+
+        ``y[n] = a y[n-1] + (1 - a) x[n]``,  ``a = exp(-2 pi cutoff / rate)``
+
+    (the analogue filter's pole mapped to the loop rate; maxon does not publish the
+    discretisation, and at the loop rate the usual ones differ by less than one loop sample of
+    delay). Its time constant is ``1 / (2 pi cutoff)``, 3.2 ms at 50 Hz.
+
+    :meth:`over_period` is the same filter seen at the SYNC rate: the exact result of the
+    ``N = period * rate`` loop samples of a SYNC period over which the current runs linearly
+    between its samples at the period's two ends. The emulated drives run it; the
+    identification filters the regressor by it (:func:`ident_hw.signal.running_average`).
+    """
+
+    cutoff: float
+    rate: float
+
+    def __post_init__(self) -> None:
+        if not 0 < self.cutoff < 0.5 * self.rate:
+            raise ValueError(f"averaging filter: need 0 < cutoff < rate / 2, got {self.cutoff} Hz at {self.rate} Hz")
+
+    def over_period(self, period: float) -> tuple[float, float, float]:
+        """``(A, B0, B1)`` with ``y1 = A y0 + B0 x0 + B1 x1``: the filter's output ``y1`` at the
+        end of a ``period`` (s) from its output ``y0`` at the start, for a current running
+        linearly from ``x0`` (the start) to ``x1`` (the end), sampled at the loop rate at
+        ``n / rate``, ``n = 1 .. N``. ``A + B0 + B1 = 1`` (unit gain at rest); ``N`` need not be
+        a whole number (the closed form is continuous in it); a period of 0 leaves ``y``."""
+        n = period * self.rate
+        if not n > 0:
+            return 1.0, 0.0, 0.0
+        a = math.exp(-2.0 * math.pi * self.cutoff / self.rate)
+        a_n = a ** n
+        # x0's weight: (1 - a) times the sum over the samples k = 1..N of a^(N-k) (1 - k / N)
+        b0 = (a - n * a_n + (n - 1.0) * a_n * a) / ((1.0 - a) * n)
+        return a_n, b0, 1.0 - a_n - b0
+
+
 @dataclass(frozen=True)
 class DriveProfile:
     """Which objects a drive generation uses for what (indices, types and units as data).
@@ -123,6 +176,10 @@ class DriveProfile:
     where the code of the drive's present error is read: the CiA 402 error code ``0x603F``, or
     (a drive without it) the newest entry of the pre-defined error field ``0x1003:01``, whose
     bits 0-15 are the code; either counts only while the error register ``0x1001`` is not 0.
+    ``current_actual`` is the motor current the master streams (TPDO1,
+    :func:`drivers.acquisition.pdo_layout`): the drive's instantaneous current in the
+    generation's profile, its averaged one ``current_averaged`` in the profile of an axis set to
+    stream that (:attr:`drivers.axis.AxisConfig.drive_profile`).
     """
 
     name: str
@@ -163,6 +220,8 @@ class DriveProfile:
     software_limit_error: int
     #: access of the CiA 301 objects SYNC COB-ID 0x1005, device name 0x1008, EMCY COB-ID 0x1014
     communication_access: Mapping[int, str]
+    #: the filter behind ``current_averaged``, at the sample rate of the generation's current loop
+    current_averaging: AveragingFilter
     tpdo_count: int = 4
     rpdo_count: int = 4
     max_tpdo_bytes: int = 8
@@ -225,6 +284,7 @@ EPOS2 = DriveProfile(
     home_position=_r(0x2081, 0, "INTEGER32", "qc"),
     software_limit_error=0xFF09,
     communication_access=MappingProxyType({0x1005: "rw", 0x1008: "const", 0x1014: "rw"}),
+    current_averaging=AveragingFilter(AVERAGING_CUTOFF, 10_000.0),   # PI current controller: 10 kHz
     **_COMMON,
 )
 
@@ -252,6 +312,7 @@ EPOS4 = DriveProfile(
     # maxon's EPOS4 EDS (firmware 0x0110) and a DCF (firmware 0x0170): 0x1005 const, 0x1008 and
     # 0x1014 read-only
     communication_access=MappingProxyType({0x1005: "const", 0x1008: "ro", 0x1014: "ro"}),
+    current_averaging=AveragingFilter(AVERAGING_CUTOFF, 25_000.0),   # PI current controller: 25 kHz
     **_COMMON,
 )
 

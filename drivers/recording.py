@@ -1,12 +1,24 @@
 """Recording a streaming run: raw CAN traffic and decoded samples in SI units.
 
 * Raw traffic: python-can's :class:`can.Logger` (``.log`` candump, ``.asc``, ``.blf``, chosen by
-  the file suffix) fed by the same listener as the decoder, flushed periodically.
+  the file suffix) fed by the same listener as the decoder, flushed periodically; beside it a
+  JSON *sidecar* (:class:`LogSidecar`, ``<log>.json``: the PDO layout and the set-points sent),
+  written before the first frame, so that the log decodes later with the layout it was
+  recorded with, whatever the master maps by then.
 * Samples: :class:`Recording`, saved as NPZ with arrays ``t`` (s, from the first SYNC; see below),
   ``cycle``, ``position`` (N, n_axes) rad|m, ``velocity`` rad/s|m/s, ``current`` A (motor
-  current), ``statusword`` (-1 = none received yet), ``target`` rad|m, ``valid`` (N, n_axes) and
-  ``metadata`` (a JSON string: axes, units, scalings, node-IDs, profiles, SYNC period, counts of
-  missing cycles / late frames / buffer overflows, the caller's config). Invalid values are NaN.
+  current), ``statusword`` (-1 = none received yet), ``target`` rad|m, ``valid`` (N, n_axes):
+  every TPDO of the axis placed in its cycle, ``position_valid``, ``velocity_valid``,
+  ``current_valid`` (N, n_axes): the TPDO carrying that value placed in its cycle (validity per
+  TPDO: a lost velocity frame leaves position and current valid), and ``metadata`` (a JSON
+  string: axes, units, scalings, node-IDs, profiles, the PDO layout ``pdo_layout``, SYNC period,
+  counts of missing cycles / late frames / buffer overflows, the caller's config). Invalid
+  values are NaN.
+* ``target``: the set-point of each row. A streaming run records the set-points it sent, row k
+  the one sent for SYNC k (:func:`take_sent_setpoints`); the RPDO echoes the assembler saw only
+  count the rows whose echo disagreed (``late_setpoints``: the set-point reached the bus after
+  its SYNC, or its echo came back out of order, as SocketCAN's can under load). A raw log decodes
+  to the sent set-points its sidecar holds, else to the echoes.
 * :class:`SampleRecorder` drains the bounded queue the assembler writes into, in its own thread,
   and rewrites the NPZ atomically at least every ``checkpoint_interval`` s, so a crash or Ctrl-C
   keeps what was recorded.
@@ -36,7 +48,8 @@ from typing import Any, Sequence
 import can
 import numpy as np
 
-from drivers.acquisition import AxisLayout, CycleAssembler, Row, cycle_books, pdo_layout
+from drivers.acquisition import (AxisLayout, CycleAssembler, Row, cycle_books, layout_from_record, layout_record,
+                                 pdo_layout)
 from drivers.axis import AxisConfig
 from drivers.errors import ConfigError, RecordingError
 from drivers.units import REVOLUTE, AxesScaling
@@ -44,8 +57,14 @@ from drivers.units import REVOLUTE, AxesScaling
 logger = logging.getLogger(__name__)
 
 RAW_LOG_SUFFIXES = (".log", ".asc", ".blf")
-ARRAYS = ("t", "cycle", "position", "velocity", "current", "statusword", "target", "valid")
-FORMAT_VERSION = 1
+#: the measured values, each with its own validity array ``<name>_valid``
+CHANNELS = ("position", "velocity", "current")
+ARRAYS = ("t", "cycle", "position", "velocity", "current", "statusword", "target", "valid",
+          "position_valid", "velocity_valid", "current_valid")
+#: 2: validity per TPDO (``<channel>_valid``), the PDO layout in the metadata, sent set-points
+FORMAT_VERSION = 2
+#: the arrays a recording of format 1 may lack (derived from ``valid`` when read)
+_SINCE_VERSION_2 = tuple(f"{c}_valid" for c in CHANNELS)
 
 
 def axis_units(axis: AxisConfig) -> dict[str, str]:
@@ -55,9 +74,10 @@ def axis_units(axis: AxisConfig) -> dict[str, str]:
 
 
 def axes_metadata(axes: Sequence[AxisConfig]) -> list[dict[str, Any]]:
-    """JSON-able description of the axes (names, node-IDs, profiles, scalings, units)."""
+    """JSON-able description of the axes (names, node-IDs, profiles, scalings, units, the motor
+    current streamed: ``instantaneous`` or ``averaged``)."""
     return [{"name": a.name, "node_id": a.node_id, "profile": a.drive_profile.name,
-             "scaling": dataclasses.asdict(a.scaling), "units": axis_units(a)} for a in axes]
+             "scaling": dataclasses.asdict(a.scaling), "units": axis_units(a), "current": a.current} for a in axes]
 
 
 def rows_to_arrays(rows: Sequence[Row], axes: Sequence[AxisConfig]) -> dict[str, np.ndarray]:
@@ -71,6 +91,9 @@ def rows_to_arrays(rows: Sequence[Row], axes: Sequence[AxisConfig]) -> dict[str,
         data = [[missing if v is None else v for v in getattr(r, name)] for r in rows]
         return np.array(data, dtype=dtype).reshape(len(rows), n)
 
+    def received(name: str) -> np.ndarray:
+        return np.array([[v is not None for v in getattr(r, name)] for r in rows], dtype=bool).reshape(len(rows), n)
+
     units = AxesScaling([a.scaling for a in axes])
     return {
         "t": np.array([r.timestamp for r in rows], dtype=float),
@@ -81,12 +104,18 @@ def rows_to_arrays(rows: Sequence[Row], axes: Sequence[AxisConfig]) -> dict[str,
         "statusword": column("statusword", -1, np.int32),
         "target": units.position_from_counts(column("target", np.nan, float)),
         "valid": column("valid", False, bool),
+        **{f"{name}_valid": received(name) for name in CHANNELS},
     }
 
 
 @dataclass
 class Recording:
-    """Decoded samples of a run (arrays as described in the module docstring)."""
+    """Decoded samples of a run (arrays as described in the module docstring).
+
+    ``position_valid``, ``velocity_valid``, ``current_valid`` (N, n_axes) bool default to
+    ``valid`` (a recording made before validity per TPDO, or by hand: a value is valid where
+    every TPDO of its axis is).
+    """
 
     t: np.ndarray
     cycle: np.ndarray
@@ -97,6 +126,14 @@ class Recording:
     target: np.ndarray
     valid: np.ndarray
     metadata: dict[str, Any] = field(default_factory=dict)
+    position_valid: np.ndarray | None = None
+    velocity_valid: np.ndarray | None = None
+    current_valid: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        for name in _SINCE_VERSION_2:
+            if getattr(self, name) is None:
+                setattr(self, name, np.array(self.valid, dtype=bool, copy=True))
 
     @classmethod
     def from_chunks(cls, chunks: Sequence[dict[str, np.ndarray]], n_axes: int,
@@ -106,7 +143,7 @@ class Recording:
             arrays = {k: np.concatenate([c[k] for c in chunks]) for k in ARRAYS}
         else:
             arrays = {k: np.zeros((0,) if k in ("t", "cycle") else (0, n_axes),
-                                  dtype=bool if k == "valid" else np.int32 if k == "statusword"
+                                  dtype=bool if k.endswith("valid") else np.int32 if k == "statusword"
                                   else np.int64 if k == "cycle" else float) for k in ARRAYS}
         metadata = dict(metadata)
         if len(arrays["t"]):
@@ -151,11 +188,11 @@ class Recording:
         if not isinstance(data, np.lib.npyio.NpzFile):
             raise RecordingError(f"{path}: not a recording (an NPZ file with arrays {ARRAYS})")
         with data:
-            missing = [k for k in (*ARRAYS, "metadata") if k not in data]
+            missing = [k for k in (*ARRAYS, "metadata") if k not in data and k not in _SINCE_VERSION_2]
             if missing:
                 raise RecordingError(f"{path}: not a recording, missing arrays {missing}")
             try:
-                arrays = {k: data[k] for k in ARRAYS}
+                arrays = {k: data[k] for k in ARRAYS if k in data}    # format 1: validity per axis only
                 metadata = json.loads(str(data["metadata"]))
             except Exception as exc:   # a member cut short or corrupt (BadZipFile, zlib, EOFError)
                 raise RecordingError(f"{path}: damaged recording ({_why(exc)})") from exc
@@ -164,6 +201,30 @@ class Recording:
             raise RecordingError(f"{path}: damaged recording: arrays of different lengths "
                                  f"{ {k: len(a) for k, a in arrays.items()} }")
         return cls(**arrays, metadata=metadata)
+
+
+def take_sent_setpoints(rec: Recording, sent_counts: np.ndarray, axes: Sequence[AxisConfig]) -> None:
+    """Make the set-points of ``rec`` the ones the master sent: row k (cycle k) gets
+    ``sent_counts[k]`` (the set-points sent for SYNC k, counts, (n_targets, n_axes); a cycle past
+    the last one gets the last: the streamer repeats it), converted with the axes' scalings.
+
+    The set-points ``rec`` held are the RPDO echoes the assembler saw; the rows where an echo
+    differs from the sent set-point by more than half a count (or is missing) on any axis are
+    counted in ``metadata["late_setpoints"]``: the set-point reached the bus after its SYNC, or
+    its echo came back out of order. A row's set-point is never taken from the echo order.
+    ``metadata["setpoints"]`` says ``"sent"``. In place; nothing happens to an empty recording.
+    """
+    if not len(rec.t):
+        return
+    counts = np.asarray(sent_counts)
+    if counts.ndim != 2 or counts.shape[1] != len(axes) or not len(counts):
+        raise ValueError(f"sent set-points of shape {counts.shape}, expected (n_targets, {len(axes)})")
+    units = AxesScaling([a.scaling for a in axes])
+    sent = units.position_from_counts(counts[np.minimum(rec.cycle, len(counts) - 1)])
+    echoed_off = ~(np.abs(rec.target - sent) <= units.position_from_counts(0.5))   # NaN: no echo
+    rec.metadata["late_setpoints"] = int(np.count_nonzero(echoed_off.any(axis=1)))
+    rec.metadata["setpoints"] = "sent"
+    rec.target = sent
 
 
 def _why(exc: BaseException) -> str:
@@ -195,16 +256,29 @@ class SampleRecorder:
             :attr:`overflows` (and in the metadata), never silently dropped.
         checkpoint_interval: s between rewrites of the NPZ while running (grows to 10× the time
             a write takes, so that long runs do not spend their time writing).
+        layouts: the PDO layout the master configured, per axis, stored in the metadata
+            (``pdo_layout``, :func:`drivers.acquisition.layout_record`); ``None``: the master's
+            :func:`~drivers.acquisition.pdo_layout` of the axes' profiles (with the velocity TPDO
+            unless the metadata's ``with_velocity`` says otherwise).
+        setpoints: the set-points the master sends, counts (n_targets, n_axes), row k for SYNC
+            k: every recording written (checkpoints too) holds them as its ``target``
+            (:func:`take_sent_setpoints`); ``None``: the RPDO echoes the assembler saw.
     """
 
     def __init__(self, axes: Sequence[AxisConfig], path: str | os.PathLike | None = None,
                  metadata: dict[str, Any] | None = None, maxsize: int = 100_000,
-                 checkpoint_interval: float = 1.0):
+                 checkpoint_interval: float = 1.0, layouts: Sequence[AxisLayout] | None = None,
+                 setpoints: np.ndarray | None = None):
         self.axes = list(axes)
         self.path = Path(path) if path is not None else None
         self.metadata = dict(metadata or {})
         self.metadata.setdefault("axes", axes_metadata(self.axes))
         self.metadata["format_version"] = FORMAT_VERSION
+        if layouts is None:
+            with_velocity = bool(self.metadata.get("with_velocity", True))
+            layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity)) for a in self.axes]
+        self.metadata["pdo_layout"] = layout_record(layouts)
+        self.setpoints = None if setpoints is None else np.array(setpoints, dtype=np.int64)
         self.queue: queue.Queue[Row] = queue.Queue(maxsize)
         self.overflows = 0
         self.checkpoint_interval = checkpoint_interval
@@ -252,7 +326,10 @@ class SampleRecorder:
     def recording(self, status: str) -> Recording:
         """The samples drained so far."""
         meta = dict(self.metadata, status=status, buffer_overflows=self.overflows)
-        return Recording.from_chunks(self._chunks, len(self.axes), meta)
+        rec = Recording.from_chunks(self._chunks, len(self.axes), meta)
+        if self.setpoints is not None:
+            take_sent_setpoints(rec, self.setpoints, self.axes)
+        return rec
 
     def close(self, status: str = "complete", **extra_metadata) -> Recording:
         """Stop the thread, drain the queue, write the final NPZ and return the recording."""
@@ -269,19 +346,86 @@ class SampleRecorder:
         return rec
 
 
+@dataclass(frozen=True)
+class LogSidecar:
+    """What a raw CAN log needs beside its frames to decode later: the PDO layout of each axis
+    (:class:`~drivers.acquisition.AxisLayout`, in sample order) and the set-points the master
+    sent (counts, (n_targets, n_axes), row k for SYNC k; ``None`` when not known).
+
+    Stored as JSON next to the log (:func:`sidecar_path`: ``run.log`` → ``run.log.json``), a
+    file of its own since python-can's ``.blf`` has no place for text:
+    ``{"format": "ident_hw raw CAN log sidecar", "version": 1, "pdo_layout": <layout record>,
+    "setpoints": [[...], ...] | null}``.
+    """
+
+    layouts: tuple[AxisLayout, ...]
+    setpoints: np.ndarray | None = None
+
+    FORMAT = "ident_hw raw CAN log sidecar"
+    VERSION = 1
+
+    def write(self, log: str | os.PathLike) -> Path:
+        """Write the sidecar of ``log`` atomically (temporary file, then rename)."""
+        path = sidecar_path(log)
+        doc = {"format": self.FORMAT, "version": self.VERSION, "log": Path(log).name,
+               "pdo_layout": layout_record(self.layouts),
+               "setpoints": None if self.setpoints is None else np.asarray(self.setpoints, dtype=np.int64).tolist()}
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_text(json.dumps(doc, separators=(",", ":")))
+        os.replace(tmp, path)
+        return path
+
+    @classmethod
+    def read(cls, log: str | os.PathLike) -> "LogSidecar | None":
+        """The sidecar of ``log``; ``None`` if it has none.
+
+        Raises:
+            RecordingError: a sidecar that cannot be read or is not one (names the file).
+        """
+        path = sidecar_path(log)
+        if not path.is_file():
+            return None
+        try:
+            doc = json.loads(path.read_text())
+            if not isinstance(doc, dict) or doc.get("format") != cls.FORMAT or doc.get("version") != cls.VERSION:
+                raise ValueError(f"not a {cls.FORMAT} of version {cls.VERSION}")
+            layouts = layout_from_record(doc["pdo_layout"])
+            setpoints = doc.get("setpoints")
+            if setpoints is not None:
+                setpoints = np.array(setpoints, dtype=np.int64)
+                if setpoints.ndim != 2 or setpoints.shape[1] != len(layouts):
+                    raise ValueError(f"set-points of shape {setpoints.shape} for {len(layouts)} axes")
+        except (OSError, ValueError, KeyError) as exc:
+            raise RecordingError(f"{path}: damaged sidecar of the raw CAN log ({_why(exc)})") from exc
+        return cls(layouts, setpoints)
+
+
+def sidecar_path(log: str | os.PathLike) -> Path:
+    """The :class:`LogSidecar` file of the raw CAN log ``log``: its name plus ``.json``."""
+    log = Path(log)
+    return log.with_name(log.name + ".json")
+
+
 class FlushingLogger(can.Listener):
     """python-can's :class:`can.Logger` for ``path``, flushed to disk every ``interval`` s.
 
     The flush happens in the thread that delivers the messages, so the writer is never used
-    from two threads at once.
+    from two threads at once. With ``layouts`` (the PDO layout the master configured, per axis)
+    the log's :class:`LogSidecar` is written first, with ``setpoints`` (counts the master
+    sends, (n_targets, n_axes)), so that :func:`decode_log` decodes the log as recorded.
     """
 
-    def __init__(self, path: str | os.PathLike, interval: float = 0.5):
+    def __init__(self, path: str | os.PathLike, interval: float = 0.5,
+                 layouts: Sequence[AxisLayout] | None = None, setpoints: np.ndarray | None = None):
         suffix = Path(path).suffix.lower()
         if suffix not in RAW_LOG_SUFFIXES:
             raise ConfigError(f"raw CAN log {path}: suffix must be one of {RAW_LOG_SUFFIXES}, "
                               f"got {suffix!r}")
         self.path = Path(path)
+        if layouts is not None:
+            LogSidecar(tuple(layouts), setpoints).write(self.path)
+        elif sidecar_path(self.path).exists():
+            sidecar_path(self.path).unlink()     # a previous log's, which this one would be read with
         self.writer = can.Logger(path)
         self.interval = interval
         self._last = time.monotonic()
@@ -307,6 +451,12 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
                metadata: dict[str, Any] | None = None, lockstep_period: float | None = None) -> Recording:
     """Replay a raw CAN log through the acquisition decoder.
 
+    The log decodes with the PDO layout of its :class:`LogSidecar` (the one it was recorded
+    with), and its rows get the set-points the sidecar holds (:func:`take_sent_setpoints`); a
+    log without a sidecar (a ``candump``, or one written before the sidecar existed) decodes
+    with today's layout of ``axes`` and the RPDO echoes, and a warning and the metadata
+    (``pdo_layout_source``) say so. The metadata holds the layout used (``pdo_layout``).
+
     A log cut short (copied or killed while written) is read up to its last complete frame: a
     text log's last line without its newline is left out (it would parse as a shorter frame),
     and a frame the reader cannot parse ends the reading. The metadata says so
@@ -315,19 +465,32 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
     Args:
         path: ``.log``/``.asc``/``.blf`` file written during a run.
         axes: the axes of the run, in sample order (node-IDs, profiles, scalings).
-        with_velocity: whether the run mapped the velocity TPDO.
+        with_velocity: whether the run mapped the velocity TPDO (for a log without a sidecar).
         max_cycles: stop after this many cycles (the run's ``n_cycles``; ``None``: all).
         metadata: extra metadata for the result.
         lockstep_period: the SYNC period (s) of a run in lockstep, whose row times are the cycle
             index times the period (the simulated time); ``None``: the SYNCs' bus time stamps.
 
     Raises:
-        RecordingError: the file is missing or is not a CAN log of that format.
+        RecordingError: the file is missing or is not a CAN log of that format, or its sidecar is
+            damaged or names other nodes than ``axes``.
     """
     path = Path(path)
     if not path.is_file():
         raise RecordingError(f"raw CAN log {path}: no such file")
-    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity)) for a in axes]
+    sidecar = LogSidecar.read(path)
+    if sidecar is not None:
+        layouts = list(sidecar.layouts)
+        recorded, configured = [a.node_id for a in layouts], [a.node_id for a in axes]
+        if recorded != configured:
+            raise RecordingError(f"raw CAN log {path}: recorded from nodes {recorded} ({sidecar_path(path).name}), "
+                                 f"the axes given are nodes {configured}")
+        source = f"stored ({sidecar_path(path).name})"
+    else:
+        layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity)) for a in axes]
+        source = "assumed: the layout the master maps today (the log has no sidecar)"
+        logger.warning("raw CAN log %s: no %s beside it; decoded with the PDO layout the master maps today, "
+                       "which may not be the one it was recorded with", path, sidecar_path(path).name)
     rows: list[Row] = []
     assembler = CycleAssembler(layouts, rows.append, max_cycles=max_cycles, period=lockstep_period)
     heard: set[int] = set()
@@ -353,9 +516,12 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
     assembler.flush()
     meta = dict(metadata or {}, axes=axes_metadata(axes), source=str(path), status="decoded",
                 **cycle_books(assembler), format_version=FORMAT_VERSION, log_truncated=truncated,
-                nodes_heard=sorted(heard))
+                nodes_heard=sorted(heard), pdo_layout=layout_record(layouts), pdo_layout_source=source)
     chunks = [rows_to_arrays(rows, axes)] if rows else []
-    return Recording.from_chunks(chunks, len(axes), meta)
+    rec = Recording.from_chunks(chunks, len(axes), meta)
+    if sidecar is not None and sidecar.setpoints is not None:
+        take_sent_setpoints(rec, sidecar.setpoints, axes)
+    return rec
 
 
 def _log_reader(path: Path):

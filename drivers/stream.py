@@ -99,7 +99,6 @@ class CyclicStream:
         self.output, self.raw_log, self.metadata = output, raw_log, metadata
         self.queue_size = queue_size
         self.sync_timeout = sync_timeout or max(0.5, 50 * period)
-        self.units = AxesScaling([a.scaling for a in group.axes])
         self.counts: np.ndarray | None = None
         self.load = 0.0
         self.hold_at_end = False
@@ -157,8 +156,10 @@ class CyclicStream:
         group, sync = self.group, self.sync
         meta = dict(self.metadata or {}, sync_period=self.period, with_velocity=group.with_velocity,
                     bus_load=self.load, bitrate=group.bitrate, n_targets=len(self.targets), sync=sync.name)
-        self.recorder = SampleRecorder(group.axes, self.output, meta, maxsize=self.queue_size).start()
-        self.raw = FlushingLogger(self.raw_log) if self.raw_log else None
+        self.recorder = SampleRecorder(group.axes, self.output, meta, maxsize=self.queue_size,
+                                       layouts=group.layouts, setpoints=self.counts).start()
+        self.raw = (FlushingLogger(self.raw_log, layouts=group.layouts, setpoints=self.counts)
+                    if self.raw_log else None)
         self.streamer = TargetStreamer(group.network, group.drives, self.counts, group.supervisor)
         self.assembler = CycleAssembler(
             group.layouts, self.recorder.put, on_sync=self.streamer.on_sync if sync.free_running else None,
@@ -223,10 +224,6 @@ class CyclicStream:
                                         gc_collections=len(self._pauses.durations),
                                         gc_longest_pause=self._pauses.longest,
                                         **self.sync.report())
-        if len(recording.t):
-            sent = self.units.position_from_counts(self.counts[: len(recording.t)])
-            late = np.any(np.abs(recording.target - sent) > self.units.position_from_counts(0.5), axis=1)
-            recording.metadata["late_setpoints"] = int(np.count_nonzero(late))
         if error is not None:
             if isinstance(error, DriveFault):
                 error.recording = self.output

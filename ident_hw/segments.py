@@ -9,14 +9,18 @@ SYNC slot leaves a *gap*: two rows more than :data:`SKIPPED_SLOT` periods apart.
 Rows the model cannot explain are left out, each by one rule, counted in
 :attr:`Segments.left_out` (rows at the input rate):
 
-* ``incomplete``: an axis' frame missing, late or not placeable in that cycle (invalid cell);
+* ``incomplete``: an axis' position or current missing, late or not placeable in that cycle
+  (the TPDO carrying it invalid; identification uses no other measured value, so a lost
+  velocity or statusword frame leaves the row in);
 * ``saturated``: a current within :data:`SATURATION` of the drive's limit (clipped);
 * ``late_setpoint``: a set-point sequence accelerating faster than :data:`SETPOINT_JUMP` × the
   axis' limit (it was not delivered on time: the drive held the old one, then jumped);
-* ``edges``: the filters' support at both ends of every stretch (``trim`` rows);
+* ``edges``: the filters' support at both ends of every stretch: ``trim`` rows at the
+  recording's own first and last row, ``cut_trim`` rows at a cut inside it
+  (:class:`ident_hw.signal.Ends`, :attr:`ident_hw.signal.FilterSettings.cut_trim`);
 * ``short``: stretches too short to filter at all.
 
-The recording is cut at every gap and every left-out row into :attr:`Segments.slices` of
+The recording is cut at every gap and every left-out row into :attr:`Segments.stretches` of
 consecutive good rows; each is filtered and differentiated on its own
 (:func:`ident_hw.signal.prepare_actuated`), so no filter or derivative stencil reaches across a
 gap or a row without data, and nothing is interpolated across one.
@@ -28,6 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.interpolate import CubicSpline
+
+from ident_hw.signal import Ends
 
 #: two SYNCs further apart than this many periods: the producer skipped a slot
 SKIPPED_SLOT = 1.5
@@ -51,23 +57,38 @@ def slot_indices(t: np.ndarray, period: float) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(steps)])
 
 
+@dataclass(frozen=True)
+class Stretch:
+    """Consecutive good rows of a recording, filtered on their own: ``rows`` (a slice of the
+    recording's rows) and where they end (``ends``: at a cut inside the recording, or at its own
+    first or last row), which sets the rows the filters take at each end."""
+
+    rows: slice
+    ends: Ends
+
+
 @dataclass
 class Segments:
     """How the rows of one recording are used.
 
     Attributes:
         t: (N,) sample times of all rows, s (from the first row).
-        slices: the stretches of consecutive good rows, long enough to filter.
+        stretches: the stretches of consecutive good rows, long enough to filter.
         skipped_slots: SYNC slots without a row (gaps).
         gaps: places the recording is cut because slots were skipped.
         left_out: rows left out per rule (:data:`RULES`).
     """
 
     t: np.ndarray
-    slices: list[slice]
+    stretches: list[Stretch]
     skipped_slots: int
     gaps: int
     left_out: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def slices(self) -> list[slice]:
+        """The rows of every stretch."""
+        return [s.rows for s in self.stretches]
 
     def describe(self) -> str:
         """``3 gaps (12 SYNC slots skipped); left out: 40 incomplete, 96 edges`` (or ``""``)."""
@@ -84,17 +105,20 @@ class Segments:
 
 def split(t: np.ndarray, period: float, valid: np.ndarray, current: np.ndarray, target: np.ndarray,
           current_limit: np.ndarray, acceleration_limit: np.ndarray, counts_per_unit: np.ndarray,
-          trim: int, min_length: int) -> Segments:
+          trim: int, min_kept: int, cut_trim: int | None = None) -> Segments:
     """Cut a recording into the stretches the filters may use (see the module docstring).
 
     Args:
         t: (N,) row times, s. period: the SYNC period, s.
-        valid: (N, m) per-axis validity of the rows.
+        valid: (N, m) per-axis validity of the values the rows are used for (positions and
+            currents).
         current: (N, m) motor currents, A (NaN where invalid). target: (N, m) set-points.
         current_limit: (m,) A. acceleration_limit: (m,) rad/s² or m/s².
         counts_per_unit: (m,) encoder counts per rad or m (a set-point is whole counts).
-        trim: rows the filters need at each end of a stretch.
-        min_length: the fewest rows a stretch needs before trimming (shorter ones are left out).
+        trim: rows the filters need at the recording's own first and last row.
+        min_kept: the fewest rows a stretch must keep beyond the rows trimmed at its two ends
+            (shorter ones are left out, ``short``); at least 1.
+        cut_trim: rows the filters need at a cut inside the recording (``None``: ``trim``).
     """
     t = np.asarray(t, dtype=float)
     n = len(t)
@@ -115,21 +139,24 @@ def split(t: np.ndarray, period: float, valid: np.ndarray, current: np.ndarray, 
     late &= ~bad
     left_out["late_setpoint"] = int(late.sum())
     bad |= late
-    slices = []
+    cut_trim = trim if cut_trim is None else cut_trim
+    stretches = []
     start = None
     for i in range(n + 1):
         ends = i == n or bad[i] or cut_before[i]
         if ends and start is not None:
             length = i - start
-            if length >= max(min_length, 2 * trim + 1):
-                slices.append(slice(start, i))
-                left_out["edges"] += 2 * trim
+            where = Ends(head_cut=start > 0, tail_cut=i < n)
+            trimmed = (cut_trim if where.head_cut else trim) + (cut_trim if where.tail_cut else trim)
+            if length >= trimmed + max(min_kept, 1):
+                stretches.append(Stretch(slice(start, i), where))
+                left_out["edges"] += trimmed
             else:
                 left_out["short"] += length
             start = None
         if i < n and not bad[i] and start is None:
             start = i
-    return Segments(t=t - t[0] if n else t, slices=slices,
+    return Segments(t=t - t[0] if n else t, stretches=stretches,
                     skipped_slots=int(slots[-1] + 1 - n) if n else 0, gaps=int(cut_before.sum()),
                     left_out=left_out)
 

@@ -13,6 +13,23 @@ The chain used by :func:`ident_hw.identification.dataset.build_dataset` is
 
 Because the filter of step 4 is linear and identical for both sides, ``tau = Y pi`` still
 holds exactly after it: parallel filtering removes noise without biasing the estimate.
+
+A recording is filtered stretch by stretch (:mod:`ident_hw.segments`), and a stretch ends
+either at the recording's own first or last row or at a *cut* inside it (a skipped SYNC slot, a
+row without data): :class:`Ends`. At a recording's end the filters reflect the data as
+``sosfiltfilt`` does (odd) and the stretch loses ``FilterSettings.trim`` rows there, three
+periods of the cut-off (the robot is at rest at a trajectory's ends: nothing is lost there). A
+cut, which may fall anywhere in the motion, costs only what the filters need
+(:attr:`FilterSettings.cut_trim`, the half-width of their main lobe): the positions are extended
+past the cut by the least-squares quartic of the rows next to it (:data:`POLYNOMIAL`), which
+follows the motion's acceleration and jerk where the odd reflection flips the acceleration, and
+the parallel filter mirrors the rows (:data:`EVEN`), which keeps the noise of the rows next to
+the cut averaged where the odd reflection hands the first row's noise through unfiltered. Both
+extensions are linear in the data and built from the stretch's own rows only: nothing reaches
+across the cut.
+
+Forces from the drives' averaged currents have been through a filter already, the drives'
+running average; :func:`running_average` puts the regressor through the same one before step 4.
 """
 
 from __future__ import annotations
@@ -92,11 +109,81 @@ class FilterSettings:
         """Sample rate after decimation, Hz."""
         return self.sample_rate / self.decimation
 
+    @property
+    def cut_trim(self) -> int:
+        """Samples (input rate) a stretch loses at a cut inside a recording: the half-width of the
+        main lobe of the wider of its two filters (:func:`lobe_width`; 13 at 250 Hz and a 10 Hz
+        cut-off, 9 at 15 Hz). From there on a filtered sample weighs the stretch's own rows with
+        its whole main lobe; what the extensions past the cut (:class:`Ends`) contribute is the
+        filters' side lobes, on a polynomial continuation of the motion and mirrored noise."""
+        return max(lobe_width(self.sample_rate, self.cutoff_hz, self.order),
+                   lobe_width(self.sample_rate, self.decimation_cutoff_hz, self.order))
 
-def lowpass(x: np.ndarray, sample_rate: float, cutoff_hz: float, order: int = 4) -> np.ndarray:
-    """Zero-phase Butterworth low-pass of ``x`` along axis 0 (``butter`` + ``sosfiltfilt``)."""
+    def trims(self, ends: "Ends") -> tuple[int, int]:
+        """Samples dropped at the start and at the end of a stretch with ``ends``: :attr:`trim`
+        at a recording's own end, :attr:`cut_trim` at a cut."""
+        return (self.cut_trim if ends.head_cut else self.trim, self.cut_trim if ends.tail_cut else self.trim)
+
+
+#: how a zero-phase filter extends a stretch past one of its ends (:func:`lowpass`): ``ODD``
+#: ``sosfiltfilt``'s odd reflection (``2 x[0] - x[k]``), ``EVEN`` the mirror image (``x[k]``),
+#: both over ``sosfiltfilt``'s default pad length; ``POLYNOMIAL`` the least-squares polynomial of
+#: degree :data:`EXTENSION_DEGREE` through the ``2 lobe_width`` rows next to the end (the
+#: filter's main lobe, both sides), over :func:`settling_length` samples
+ODD, EVEN, POLYNOMIAL = "odd", "even", "polynomial"
+#: degree of the ``POLYNOMIAL`` extension: a quartic follows the motion's acceleration, jerk and
+#: snap across the cut; how the degree was chosen: docs/drives.md, *Data kept on a lossy bus*
+EXTENSION_DEGREE = 4
+
+
+@dataclass(frozen=True)
+class Ends:
+    """Where a stretch of samples begins (``head_cut``) and ends (``tail_cut``): True at a cut
+    inside a recording (a skipped SYNC slot, a row without data), False at the recording's own
+    first or last row. See the module docstring for what each costs."""
+
+    head_cut: bool = False
+    tail_cut: bool = False
+
+
+#: a stretch that is a whole recording
+WHOLE = Ends()
+
+
+def lowpass(x: np.ndarray, sample_rate: float, cutoff_hz: float, order: int = 4,
+            ends: tuple[str, str] = (ODD, ODD)) -> np.ndarray:
+    """Zero-phase Butterworth low-pass of ``x`` along axis 0 (``butter`` + ``sosfiltfilt``).
+
+    ``ends``: how ``x`` is extended past its first and its last sample (:data:`ODD`, :data:`EVEN`,
+    :data:`POLYNOMIAL`); ``(ODD, ODD)`` is ``sosfiltfilt``'s own padding, bit for bit.
+    """
     sos = sps.butter(order, cutoff_hz, btype="low", fs=sample_rate, output="sos")
-    return sps.sosfiltfilt(sos, np.asarray(x, dtype=float), axis=0)
+    x = np.asarray(x, dtype=float)
+    if tuple(ends) == (ODD, ODD):
+        return sps.sosfiltfilt(sos, x, axis=0)
+    head = _extension(x, ends[0], sos, sample_rate, cutoff_hz, order)
+    tail = _extension(x[::-1], ends[1], sos, sample_rate, cutoff_hz, order)[::-1]
+    extended = np.concatenate([head, x, tail])
+    return sps.sosfiltfilt(sos, extended, axis=0, padtype=None)[len(head): len(head) + len(x)]
+
+
+def _extension(x: np.ndarray, kind: str, sos: np.ndarray, sample_rate: float, cutoff_hz: float,
+               order: int) -> np.ndarray:
+    """The samples to put before ``x[0]`` (in time order) for a filter pass of :func:`lowpass`."""
+    if kind in (ODD, EVEN):
+        # sosfiltfilt's default pad length (its sections have no zeros at the origin)
+        n = min(3 * (2 * len(sos) + 1), len(x) - 1)
+        mirrored = x[n:0:-1]
+        return 2 * x[0] - mirrored if kind == ODD else mirrored
+    if kind != POLYNOMIAL:
+        raise ValueError(f"unknown extension {kind!r} (one of {ODD}, {EVEN}, {POLYNOMIAL})")
+    fit = min(2 * lobe_width(sample_rate, cutoff_hz, order), len(x))
+    length = settling_length(sample_rate, cutoff_hz, order)
+    degree = min(EXTENSION_DEGREE, fit - 1)
+    k = np.arange(fit) / fit                                   # abscissa scaled to [0, 1): conditioning
+    coef, *_ = np.linalg.lstsq(np.vander(k, degree + 1), x[:fit].reshape(fit, -1), rcond=None)
+    before = np.vander(np.arange(-length, 0) / fit, degree + 1) @ coef
+    return before.reshape((length,) + x.shape[1:])
 
 
 #: fourth-order central-difference stencils (offsets -2..2) of the first and second derivative
@@ -130,36 +217,55 @@ def central_derivatives(x: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.nd
     return xd, xdd
 
 
-def parallel_decimate(settings: FilterSettings, *arrays: np.ndarray) -> tuple[np.ndarray, ...]:
+def parallel_decimate(settings: FilterSettings, *arrays: np.ndarray, ends: Ends = WHOLE) -> tuple[np.ndarray, ...]:
     """Filter every array with the same zero-phase low-pass, trim the edges, decimate.
 
     Each array has the sample index on axis 0 (e.g. torques (N, k) and regressor (N, k, n));
-    all must have the same length N. Returns the arrays of length
-    ``ceil((N - 2 trim) / decimation)``, in the order given.
+    all must have the same length N. ``ends``: where the stretch ends (:class:`Ends`): mirrored
+    (:data:`EVEN`) past a cut and trimmed by :attr:`FilterSettings.cut_trim` there, reflected
+    (:data:`ODD`) and trimmed by ``trim`` at a recording's own end. Returns the arrays of length
+    ``ceil((N - head - tail) / decimation)`` (``head, tail = settings.trims(ends)``), in the
+    order given.
     """
     lengths = {len(a) for a in arrays}
     if len(lengths) != 1:
         raise ValueError(f"parallel_decimate needs arrays of one length, got lengths {sorted(lengths)}")
     n = lengths.pop()
-    if n <= 2 * settings.trim:
-        raise ValueError(f"{n} samples are too few for trimming {settings.trim} samples at each end")
-    window = kept_samples(settings, n)
+    head, tail = settings.trims(ends)
+    if n <= head + tail:
+        raise ValueError(f"{n} samples are too few for trimming {head} and {tail} samples at the ends")
+    window = kept_samples(settings, n, ends)
+    pads = (EVEN if ends.head_cut else ODD, EVEN if ends.tail_cut else ODD)
     return tuple(
-        lowpass(a, settings.sample_rate, settings.decimation_cutoff_hz, settings.order)[window] for a in arrays
+        lowpass(a, settings.sample_rate, settings.decimation_cutoff_hz, settings.order, pads)[window] for a in arrays
     )
 
 
 @functools.lru_cache(maxsize=None)
-def main_lobe(settings: FilterSettings) -> int:
-    """Half-width (samples at the input rate) of the main lobe of the parallel filter's impulse
-    response (:func:`parallel_decimate`): a filtered sample is a weighted mean of the input
-    over about this many samples on each side (about half a period of the cut-off for the
-    zero-phase Butterworth)."""
-    n = 4 * math.ceil(settings.sample_rate / settings.decimation_cutoff_hz) + 1
+def lobe_width(sample_rate: float, cutoff_hz: float, order: int = 4) -> int:
+    """Half-width (samples at ``sample_rate``) of the main lobe of the impulse response of the
+    zero-phase Butterworth low-pass (:func:`lowpass`): the samples to its first zero crossing.
+    A filtered sample is a weighted mean of the input over about this many samples on each side
+    (about half a period of the cut-off)."""
+    n = 4 * math.ceil(sample_rate / cutoff_hz) + 1
     impulse = np.zeros(2 * n + 1)
     impulse[n] = 1.0
-    response = lowpass(impulse, settings.sample_rate, settings.decimation_cutoff_hz, settings.order)[n:]
+    response = lowpass(impulse, sample_rate, cutoff_hz, order)[n:]
     return int(np.argmax(response <= 0.0))
+
+
+def settling_length(sample_rate: float, cutoff_hz: float, order: int = 4) -> int:
+    """Samples (at ``sample_rate``) over which the transient of the Butterworth low-pass decays by
+    1e-9: the slowest pole's decay, ``exp(-2 pi cutoff sin(pi / (2 order)) t)`` (216 samples at
+    250 Hz, 10 Hz, order 4). A pass of :func:`lowpass` starts at rest on the first sample of the
+    extended stretch; past an extension this long its start is gone before the data begins."""
+    return math.ceil(math.log(1e9) / (2.0 * math.pi * cutoff_hz * math.sin(math.pi / (2 * order))) * sample_rate)
+
+
+def main_lobe(settings: FilterSettings) -> int:
+    """Half-width (samples at the input rate) of the main lobe of the parallel filter's impulse
+    response (:func:`parallel_decimate`, :func:`lobe_width`)."""
+    return lobe_width(settings.sample_rate, settings.decimation_cutoff_hz, settings.order)
 
 
 def _window_count(mask: np.ndarray, before: int, after: int) -> np.ndarray:
@@ -201,9 +307,35 @@ def near_rest(slow: np.ndarray, settings: FilterSettings) -> np.ndarray:
     return slow | near(runs_at_least(slow, lobe // 2), lobe)
 
 
-def kept_samples(settings: FilterSettings, n: int) -> slice:
-    """The samples (of n) that :func:`parallel_decimate` keeps: edges trimmed, decimated."""
-    return slice(settings.trim, n - settings.trim, settings.decimation)
+def running_average(x: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    """What the drives' running average of their current makes of ``x`` (N, a, ...), sampled
+    on a uniform SYNC grid: along axis 0, the part of axis ``j`` (axis 1) filtered by
+    ``y[k+1] = A y[k] + B0 x[k] + B1 x[k+1]``, ``steps[j] = (A, B0, B1)`` (the
+    :meth:`drivers.profiles.AveragingFilter.over_period` of the grid's period), from rest on
+    ``x[0]`` (``y[0] = x[0]``).
+
+    The filter is linear and time-invariant, and so is ``tau = Y pi`` in its parameters: forces
+    from averaged currents are the averaged forces of the model, ``avg(tau) = avg(Y) pi``, so the
+    regressor filtered by this matches them exactly once the start (a few filter time
+    constants, inside the preparation's trim) has passed.
+    """
+    x = np.asarray(x, dtype=float)
+    steps = np.asarray(steps, dtype=float)
+    if x.ndim < 2 or steps.shape != (x.shape[1], 3):
+        raise ValueError(f"expected x (N, a, ...) and steps (a, 3), got {x.shape} and {steps.shape}")
+    out = np.empty_like(x)
+    for j, (pole, b0, b1) in enumerate(steps):
+        b, a = [b1, b0], [1.0, -pole]
+        start = sps.lfilter_zi(b, a)[0] * x[:1, j]        # the filter at rest on the first sample
+        out[:, j], _ = sps.lfilter(b, a, x[:, j], axis=0, zi=start)
+    return out
+
+
+def kept_samples(settings: FilterSettings, n: int, ends: Ends = WHOLE) -> slice:
+    """The samples (of n) that :func:`parallel_decimate` keeps: edges trimmed (per ``ends``,
+    :meth:`FilterSettings.trims`), decimated."""
+    head, tail = settings.trims(ends)
+    return slice(head, n - tail, settings.decimation)
 
 
 @dataclass(frozen=True)
@@ -230,6 +362,7 @@ def prepare_actuated(
     current: np.ndarray,
     force_per_amp: np.ndarray,
     settings: FilterSettings | None = None,
+    ends: Ends = WHOLE,
 ) -> ActuatedSamples:
     """Measured positions and currents → filtered positions, rates, accelerations and forces.
 
@@ -239,6 +372,9 @@ def prepare_actuated(
         current: motor currents (N, m), A.
         force_per_amp: (m,) N·m/A or N/A per axis (``drivers.units.AxisScaling.force_per_amp``).
         settings: filter settings; default ``FilterSettings.for_sample_rate`` of the data.
+        ends: where the stretch ends (:class:`Ends`): past a cut the positions are extended by
+            their least-squares polynomial (:data:`POLYNOMIAL`), at a recording's own end
+            reflected (:data:`ODD`).
 
     The forces are *not* filtered here: they get the parallel filter together with the
     regressor (:func:`parallel_decimate`).
@@ -258,6 +394,7 @@ def prepare_actuated(
         raise ValueError(f"sample times must be strictly increasing (first bad index {int(np.argmax(dt <= 0)) + 1})")
     if settings is None:
         settings = FilterSettings.for_sample_rate(1.0 / float(np.median(dt)))
-    filtered = lowpass(Theta, settings.sample_rate, settings.cutoff_hz, settings.order)
+    filtered = lowpass(Theta, settings.sample_rate, settings.cutoff_hz, settings.order,
+                       (POLYNOMIAL if ends.head_cut else ODD, POLYNOMIAL if ends.tail_cut else ODD))
     Thetad, Thetadd = central_derivatives(filtered, t)
     return ActuatedSamples(t=t, Theta=filtered, Thetad=Thetad, Thetadd=Thetadd, tau=current * force_per_amp)

@@ -105,16 +105,17 @@ def _sync_stamps(raw_log):
 
 
 def _check_bookkeeping(rec, targets, period, raw_log):
-    """What holds however late the frames come: every cycle accounted for, an invalid cell is NaN
-    (never filled) and a valid one is not, ``t`` is the measured SYNC timestamps, the recorded
-    set-points are the commanded ones (or, sent late, one commanded shortly before)."""
+    """What holds however late the frames come: every cycle accounted for, an invalid value is NaN
+    (never filled) and a valid one is not (validity per TPDO), ``t`` is the measured SYNC
+    timestamps, the recorded set-points are the commanded ones (or, sent late, one commanded
+    shortly before)."""
     n = len(targets)
     assert rec.metadata["n_cycles"] == n and list(rec.cycle) == list(range(n))
     assert rec.metadata["buffer_overflows"] == 0
     bad = ~rec.valid
     for name in ("position", "velocity", "current"):
-        values = getattr(rec, name)
-        assert np.isnan(values[bad]).all() and np.isfinite(values[~bad]).all(), name
+        values, valid = getattr(rec, name), getattr(rec, f"{name}_valid")
+        assert np.isnan(values[~valid]).all() and np.isfinite(values[valid]).all(), name
     assert rec.metadata["invalid_cycles"] == rec.n_invalid == np.count_nonzero(bad.any(axis=1))
     if rec.metadata["sync"] == "lockstep":
         # the simulated time: the SYNC count times the period, whatever the host did
@@ -132,7 +133,10 @@ def _check_bookkeeping(rec, targets, period, raw_log):
     span = rec.t[-1] - rec.t[0]
     assert 0.99 * (n - 1) * period - 2 * period <= span <= 1.01 * (n - 1 + skipped) * period + 2 * period
     exact, near = _setpoints_on_time(rec, targets, max_lag=round(0.2 / period))
-    assert rec.metadata["late_setpoints"] == np.count_nonzero(~exact)
+    if rec.metadata.get("setpoints") == "sent":     # the recording holds the sent set-points
+        assert exact.all()
+    else:                                           # the RPDO echoes: late ones count
+        assert rec.metadata["late_setpoints"] == np.count_nonzero(~exact)
     assert near.all()
     log = logging.getLogger(__name__)
     log.warning("%g Hz: late set-points %d, invalid cycles %d of %d, SYNC slots skipped %d", 1 / period,
@@ -442,7 +446,12 @@ def test_dropped_frames_are_flagged_not_filled(rig_factory):
     rec = group.run_cyclic(targets, 0.004)
     dropped_cycles = ~rec.valid[:, 5]
     assert dropped_cycles.sum() >= 5
-    assert np.isnan(rec.position[dropped_cycles, 5]).all() and np.isnan(rec.current[dropped_cycles, 5]).all()
+    # validity per TPDO: a lost TPDO1 leaves position and current out, a lost TPDO2 the velocity
+    lost_first, lost_second = ~rec.position_valid[:, 5], ~rec.velocity_valid[:, 5]
+    np.testing.assert_array_equal(lost_first, ~rec.current_valid[:, 5])
+    np.testing.assert_array_equal(dropped_cycles, lost_first | lost_second)
+    assert np.isnan(rec.position[lost_first, 5]).all() and np.isnan(rec.current[lost_first, 5]).all()
+    assert np.isnan(rec.velocity[lost_second, 5]).all() and np.isfinite(rec.position[lost_second & ~lost_first, 5]).all()
     assert rec.metadata["invalid_cycles"] >= dropped_cycles.sum()
 
 
@@ -479,7 +488,8 @@ def test_late_jittered_and_dropped_frames_leave_no_valid_cell_of_another_cycle(r
         scale = [{"position": a.scaling.counts_per_unit, "velocity": a.scaling.rpm_per_unit_velocity,
                   "current": 1e3}[name] for a in AXES]
         got = np.rint(getattr(rec, name) * scale)       # back to drive units (whole numbers)
-        np.testing.assert_array_equal(got[rec.valid], expected[rec.valid], err_msg=name)
+        valid = getattr(rec, f"{name}_valid")           # per TPDO: kept in an incomplete cycle too
+        np.testing.assert_array_equal(got[valid], expected[valid], err_msg=name)
     faulty = [i for i, a in enumerate(AXES) if a.node_id in (2, 3, 5)]
     meta = rec.metadata
     logging.getLogger(__name__).warning(

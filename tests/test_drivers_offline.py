@@ -7,13 +7,14 @@ import canopen
 import numpy as np
 import pytest
 
-from drivers.acquisition import LOOKAHEAD, AxisLayout, CycleAssembler, pdo_layout
+from drivers.acquisition import LOOKAHEAD, AxisLayout, CycleAssembler, PdoFrame, layout_record, pdo_layout
 from drivers.axis import AxisConfig
 from drivers.bus import BusConfig, check_bus_load, frame_bits, max_sync_rate, open_network
 from drivers.emcy import describe
 from drivers.epos import DriveGroup
 from drivers.errors import BusLoadError, ConfigError, RecordingError
-from drivers.recording import FlushingLogger, Recording, decode_log, rows_to_arrays
+from drivers.recording import (FlushingLogger, Recording, SampleRecorder, decode_log, rows_to_arrays,
+                               sidecar_path)
 from drivers.units import AxesScaling, AxisScaling
 
 
@@ -236,3 +237,173 @@ def test_axes_scaling_converts_columns_by_hand_values():
     np.testing.assert_allclose(units.force_from_current([[1.0, 1.0]]),
                                [[0.0369 * 26, 0.0603 * 2 * np.pi / 0.002]], rtol=1e-15)
     np.testing.assert_allclose(units.current_from_force(units.force_from_current([[0.3, -0.7]])), [[0.3, -0.7]])
+
+
+def _layout_frames(axes, layouts, k, values, sync_stamp=None):
+    """Frames of cycle k for ``layouts`` (SYNC, then each axis's TPDOs and RPDO echo), the fields'
+    values (drive units) per axis from ``values(k, i)``."""
+    stamp = k * 0.004 if sync_stamp is None else sync_stamp
+    msgs = [can.Message(arbitration_id=0x80, data=b"", is_extended_id=False, timestamp=stamp)]
+    for i, layout in enumerate(layouts):
+        for f in layout.frames:
+            v = values(k, i)
+            data = f.struct.pack(*[v[name] for name, _ in f.entries])
+            msgs.append(can.Message(arbitration_id=f.cob_id(layout.node_id), data=data, is_extended_id=False,
+                                    timestamp=stamp + 1e-4 * (i + 1)))
+    return msgs
+
+
+def test_a_lost_velocity_frame_leaves_position_and_current_valid():
+    """EPOS4 axes: TPDO1 (position, current) and TPDO2 (velocity, statusword). A lost TPDO2
+    leaves its axis's position and current in the row (validity per TPDO); a lost TPDO1 leaves
+    its velocity. Every frame carries its cycle in its values."""
+    axes = _axes("epos4", 2)
+    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes]
+    rows = []
+    asm = CycleAssembler(layouts, rows.append, max_cycles=30)
+    lose = {(5, 0x281), (9, 0x182)}           # cycle 5: axis 0's TPDO2; cycle 9: axis 1's TPDO1
+    for k in range(31):
+        for m in _layout_frames(axes, layouts, k, lambda k, i: {
+                "position": 100 * k + i, "current": 10 * k + i, "velocity": 1000 + k, "statusword": 0x0237,
+                "target": 0, "controlword": 0x0F}):
+            if (k, m.arbitration_id) not in lose:
+                asm.on_message_received(m)
+    assert len(rows) == 30
+    assert rows[5].valid == [False, True] and rows[5].velocity == [None, 1005]
+    assert rows[5].position == [500, 501] and rows[5].current == [50, 51]
+    assert rows[9].valid == [True, False] and rows[9].position == [900, None] and rows[9].current == [90, None]
+    assert rows[9].velocity == [1009, 1009]
+    rec = Recording.from_chunks([rows_to_arrays(rows, axes)], 2, {})
+    np.testing.assert_array_equal(rec.velocity_valid[5], [False, True])
+    np.testing.assert_array_equal(rec.position_valid[5], [True, True])
+    np.testing.assert_array_equal(rec.current_valid[9], [True, False])
+    assert rec.n_invalid == 2 and np.isnan(rec.velocity[5, 0]) and np.isfinite(rec.position[5]).all()
+
+
+def _changed_layout(axis):
+    """An EPOS4 layout other than today's: TPDO1 current (the averaged one, 0x30D1:01) before
+    position, TPDO2 statusword before velocity; the RPDO as today."""
+    profile = axis.drive_profile
+    return AxisLayout(axis.node_id, (
+        PdoFrame("tpdo", 1, (("current", profile.current_averaged), ("position", profile.position_actual)), 1),
+        PdoFrame("tpdo", 2, (("statusword", profile.statusword), ("velocity", profile.velocity_actual)), 1),
+        next(f for f in pdo_layout(profile) if f.direction == "rpdo")))
+
+
+@pytest.mark.parametrize("suffix", [".log", ".asc", ".blf"])
+def test_raw_logs_of_today_s_layout_and_of_a_changed_one_both_decode(tmp_path, suffix, caplog):
+    """Two runs' raw logs, one with today's PDO layout, one with another (objects in another
+    order, another current object), each written with its sidecar: both decode to the values the
+    drives sent (counts, mA, rpm converted by hand). Without its sidecar the changed log would be
+    read with today's layout, to wrong values, and the decoder says it assumed today's layout."""
+    axes = _axes("epos4", 2)
+    scaling = axes[0].scaling
+    values = lambda k, i: {"position": 4096 * k + 7 * i, "current": 300 + 10 * k - 600 * i,  # noqa: E731
+                           "velocity": 60 * k + i, "statusword": 0x0237, "target": 4096 * (k + 1), "controlword": 0x0F}
+    n = 12
+    for label, layouts in (("today", [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes]),
+                           ("changed", [_changed_layout(a) for a in axes])):
+        path = tmp_path / f"{label}{suffix}"
+        logger = FlushingLogger(path, layouts=layouts)
+        for k in range(n + 1):
+            for m in _layout_frames(axes, layouts, k, values, sync_stamp=1.7e9 + k * 0.004):
+                logger.on_message_received(m)
+        logger.stop()
+        rec = decode_log(path, axes, max_cycles=n)
+        assert rec.metadata["pdo_layout_source"].startswith("stored") and rec.n_invalid == 0, label
+        assert rec.metadata["pdo_layout"] == layout_record(layouts)
+        k = np.arange(n)[:, None]
+        i = np.arange(2)[None, :]
+        # by hand: 4096 counts = 2 motor turns = 2/26 joint turns; mA / 1000; rpm of the motor / gear
+        np.testing.assert_allclose(rec.position, (4096 * k + 7 * i) * 2 * np.pi / (2048 * 26), rtol=1e-12, err_msg=label)
+        np.testing.assert_allclose(rec.current, (300 + 10 * k - 600 * i) / 1000, rtol=1e-12, err_msg=label)
+        np.testing.assert_allclose(rec.velocity, (60 * k + i) * 2 * np.pi / 60 / 26, rtol=1e-12, err_msg=label)
+        assert scaling.counts_per_turn == 2048 and scaling.gear_ratio == 26.0
+    sidecar_path(tmp_path / f"changed{suffix}").unlink()
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="drivers.recording"):
+        wrong = decode_log(tmp_path / f"changed{suffix}", axes, max_cycles=n)
+    assert wrong.metadata["pdo_layout_source"].startswith("assumed") and "no changed" in caplog.text
+    assert not np.allclose(wrong.position, rec.position)
+
+
+def test_a_raw_log_names_the_nodes_its_layout_was_recorded_from(tmp_path):
+    axes = _axes("epos4", 2)
+    path = tmp_path / "other.log"
+    FlushingLogger(path, layouts=[AxisLayout(a.node_id + 10, pdo_layout(a.drive_profile)) for a in axes]).stop()
+    with pytest.raises(RecordingError, match=r"recorded from nodes \[11, 12\].*nodes \[1, 2\]"):
+        decode_log(path, axes)
+    sidecar_path(path).write_text("{not json")
+    with pytest.raises(RecordingError, match="damaged sidecar"):
+        decode_log(path, axes)
+
+
+def test_the_set_points_are_the_ones_sent_not_the_echo_order(tmp_path):
+    """The master sends the set-point of cycle k+1 after SYNC k; cycle 6's echo comes back after
+    SYNC 6 (late, or out of order on a loaded SocketCAN). Read from the echoes, row 6 would hold
+    cycle 5's set-point; the recording and the decoded raw log both hold the sent ones and count
+    the row in ``late_setpoints``."""
+    axes = _axes("epos4", 2)
+    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes]
+    n = 10
+    sent = np.array([[1000 * k, -1000 * k] for k in range(n)], dtype=np.int64)
+    log = tmp_path / "run.log"
+    raw = FlushingLogger(log, layouts=layouts, setpoints=sent)
+    recorder = SampleRecorder(axes, tmp_path / "run.npz", {"n_targets": n}, layouts=layouts, setpoints=sent)
+    asm = CycleAssembler(layouts, recorder.put, max_cycles=n, forward=[raw])
+    recorder.start()
+    echoes = [can.Message(arbitration_id=0x200 + a.node_id, is_extended_id=False,
+                          data=layouts[0].frames[-1].struct.pack(int(sent[0, i]), 0x0F)) for i, a in enumerate(axes)]
+    for m in echoes:
+        asm.on_message_received(m)
+    held = []
+    for k in range(n + 1):
+        msgs = _layout_frames(axes, layouts, k, lambda k, i: {
+            "position": k, "current": k, "velocity": k, "statusword": 0x0237,
+            "target": int(sent[min(k + 1, n - 1), i]), "controlword": 0x0F})
+        sync, rest = msgs[0], msgs[1:]
+        asm.on_message_received(sync)
+        for m in held:
+            asm.on_message_received(m)
+        held = [m for m in rest if m.arbitration_id >= 0x200] if k == 5 else []
+        for m in rest:
+            if m not in held:
+                asm.on_message_received(m)
+    raw.stop()
+    rec = recorder.close()
+    units = AxesScaling([a.scaling for a in axes])
+    np.testing.assert_array_equal(rec.target, units.position_from_counts(sent))
+    assert rec.metadata["late_setpoints"] == 1 and rec.metadata["setpoints"] == "sent"
+    echoed = units.position_from_counts(sent)
+    echoed[6] = echoed[5]
+    np.testing.assert_array_equal(rows_to_arrays_target(log, axes, n), echoed)     # what the echoes said
+    again = Recording.load(tmp_path / "run.npz")
+    np.testing.assert_array_equal(again.target, rec.target)
+    assert again.metadata["late_setpoints"] == 1 and again.metadata["pdo_layout"] == layout_record(layouts)
+    replay = decode_log(log, axes, max_cycles=n)
+    np.testing.assert_array_equal(replay.target, rec.target)
+    assert replay.metadata["late_setpoints"] == 1
+
+
+def rows_to_arrays_target(log, axes, n):
+    """The set-points a raw log's RPDO echoes give, read without its sidecar's sent ones."""
+    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes]
+    rows = []
+    asm = CycleAssembler(layouts, rows.append, max_cycles=n)
+    with can.LogReader(log) as reader:
+        for m in reader:
+            asm.on_message_received(m)
+    return rows_to_arrays(rows, axes)["target"]
+
+
+def test_a_recording_of_format_1_loads_with_validity_per_axis(tmp_path):
+    """A recording written before validity per TPDO (no ``*_valid`` arrays): each value is valid
+    where its axis is."""
+    valid = np.array([[True, False], [True, True]])
+    arrays = {"t": np.zeros(2), "cycle": np.arange(2), "position": np.ones((2, 2)), "velocity": np.ones((2, 2)),
+              "current": np.ones((2, 2)), "statusword": np.zeros((2, 2), np.int32), "target": np.ones((2, 2)),
+              "valid": valid}
+    np.savez(tmp_path / "old.npz", **arrays, metadata=np.array('{"format_version": 1}'))
+    rec = Recording.load(tmp_path / "old.npz")
+    for name in ("position_valid", "velocity_valid", "current_valid"):
+        np.testing.assert_array_equal(getattr(rec, name), valid, err_msg=name)

@@ -362,9 +362,8 @@ class SimulatedRig:
             milliamps += self._rng.normal(0.0, self.current_noise_ma, len(self.drives))
         counts = self._units.counts_from_position(plant.Theta) - offsets.astype(np.int64)
         rpm = self._units.rpm_from_velocity(plant.Thetad)
-        milliamps = np.rint(milliamps).astype(np.int64)
-        for j, drive in enumerate(self.drives):
-            drive.update(int(counts[j]), int(rpm[j]), int(milliamps[j]), period)
+        for j, drive in enumerate(self.drives):     # each drive rounds to whole mA (and averages)
+            drive.update(int(counts[j]), int(rpm[j]), float(milliamps[j]), period)
         if sync_count is not None:
             self.network.sync_count = sync_count
             for drive in self.drives:

@@ -182,9 +182,11 @@ class ActuatorConfig:
                            torque_constant=self.torque_constant, gear_ratio=self.gear_ratio,
                            screw_lead=self.screw_lead)
 
-    def to_driver(self, base: Path | None = None) -> drivers.axis.AxisConfig:
+    def to_driver(self, base: Path | None = None,
+                  current: str = drivers.axis.INSTANTANEOUS) -> drivers.axis.AxisConfig:
         """The drive driver's axis settings (SI); ``base``: the folder ``object_dictionary`` is
-        relative to (the config file's)."""
+        relative to (the config file's); ``current``: the motor current it streams
+        (``bus.current``)."""
         od_file = self.object_dictionary
         if od_file is not None and base is not None:
             od_file = str(Path(base) / od_file)
@@ -193,7 +195,7 @@ class ActuatorConfig:
             position_min=self.limits.position[0], position_max=self.limits.position[1],
             max_velocity=self.limits.velocity, max_current=self.limits.current,
             following_error_window=self.limits.following_error, product_code=self.product_code,
-            homing=self.homing, object_dictionary=od_file)
+            homing=self.homing, object_dictionary=od_file, current=current)
 
 
 @dataclass(frozen=True)
@@ -309,6 +311,10 @@ class BusConfig:
             "simulated rig, periodic otherwise"))
     lockstep_timeout: float = field(default=10.0, metadata=spec(
         positive, unit="s", doc="wall-clock time a lockstep cycle may take before it is a fault"))
+    current: Literal["instantaneous", "averaged"] = field(default="instantaneous", metadata=spec(
+        doc="the motor current TPDO1 carries: 'instantaneous' (the drive's current actual value, sampled at "
+            "each SYNC: EPOS4 0x30D1:02, EPOS2 0x6078) or 'averaged' (its running 50 Hz first-order low-pass: "
+            "EPOS4 0x30D1:01, EPOS2 0x2027; the identification then filters the regressor by the same filter)"))
 
     def to_driver(self, ignore_config: bool = True) -> drivers.bus.BusConfig:
         """python-can settings of the bus (``ignore_config``: ignore the user's python-can files)."""
@@ -707,6 +713,11 @@ class Config:
         if self.bus is not None and self.bus.sync is not None:
             return self.bus.sync
         return "lockstep" if self.simulated else "periodic"
+
+    @property
+    def current(self) -> str:
+        """The motor current the drives stream: ``bus.current`` (the instantaneous one without a bus)."""
+        return self.bus.current if self.bus is not None else drivers.axis.INSTANTANEOUS
 
     def trajectory(self, name: str) -> TrajectoryConfig:
         return next(t for t in self.trajectories if t.name == name)

@@ -22,7 +22,9 @@ from typing import Callable, Mapping
 
 import numpy as np
 
+from drivers.axis import AVERAGED, INSTANTANEOUS
 from drivers.errors import RecordingError
+from drivers.profiles import AveragingFilter, get_profile
 from drivers.recording import Recording
 from ident_hw.config import Config
 from ident_hw.config.schema import FieldError
@@ -37,7 +39,7 @@ from ident_hw.model.interface import RobotModel
 from ident_hw.report import coverage_text
 from ident_hw.results import BaseFit, ParameterTable, Results, TrajectoryFit
 from ident_hw.segments import Segments, slot_indices, split, uniform
-from ident_hw.signal import kept_samples, near_rest, parallel_decimate, prepare_actuated
+from ident_hw.signal import kept_samples, near_rest, parallel_decimate, prepare_actuated, running_average
 
 from .plan import motion_bandwidth, robot_model
 from .quality import verdict
@@ -45,6 +47,13 @@ from .recordings import planned_cycles, require_trajectories
 
 #: rows a stretch needs beyond the filters' support at its two ends
 MIN_FILTERED = 8
+
+
+def identification_valid(rec: Recording) -> np.ndarray:
+    """(N, n_axes) bool: the rows of each axis whose values identification uses, its position
+    and its current, were received in their cycle (a lost velocity or statusword frame does not
+    matter here)."""
+    return rec.position_valid & rec.current_valid
 
 
 @dataclass
@@ -83,14 +92,25 @@ def recording_period(rec: Recording) -> float:
     return float(np.median(np.diff(rec.t)))
 
 
-def segments_of(config: Config, rec: Recording, trim: int = 0, min_length: int = 1) -> Segments:
-    """The rows of ``rec`` the identification may use (:func:`ident_hw.segments.split`)."""
+def current_averaging(config: Config, rec: Recording) -> list[AveragingFilter] | None:
+    """Each actuator's running average (its drive generation's filter) when ``rec`` holds the
+    drives' averaged currents (metadata ``current``; a recording without it holds the
+    instantaneous ones), else None."""
+    if rec.metadata.get("current", INSTANTANEOUS) != AVERAGED:
+        return None
+    return [get_profile(a.profile).current_averaging for a in config.robot.actuators]
+
+
+def segments_of(config: Config, rec: Recording, trim: int = 0, min_kept: int = 1,
+                cut_trim: int | None = None) -> Segments:
+    """The rows of ``rec`` the identification may use (:func:`ident_hw.segments.split`: a row
+    whose positions and currents all arrived, :func:`identification_valid`)."""
     acts = config.robot.actuators
-    return split(rec.t, recording_period(rec), rec.valid, rec.current, rec.target,
+    return split(rec.t, recording_period(rec), identification_valid(rec), rec.current, rec.target,
                  current_limit=np.array([a.limits.current for a in acts]),
                  acceleration_limit=np.array([a.limits.acceleration for a in acts]),
                  counts_per_unit=np.array([a.scaling().counts_per_unit for a in acts]),
-                 trim=trim, min_length=min_length)
+                 trim=trim, min_kept=min_kept, cut_trim=cut_trim)
 
 
 def coverage(config: Config, name: str, rec: Recording) -> dict:
@@ -142,17 +162,21 @@ def _bridged(t: np.ndarray, values: np.ndarray) -> np.ndarray:
 def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar_models: bool = False) -> Prepared:
     """Recording → filtered motion, regressor and forces, decimated in parallel, stretch by
     stretch (:func:`segments_of`: cut at gaps and at rows left out, each stretch filtered on
-    its own and trimmed at both ends). ``scalar_models``: also the power and energy models' rows
-    of every stretch, from the same filtered motion and forces
-    (:func:`ident_hw.identification.model_comparison.power_energy_rows`)."""
+    its own and trimmed at both ends: ``trim`` rows at the recording's own ends, ``cut_trim``
+    at a cut, :class:`ident_hw.signal.Ends`); from averaged currents (:func:`current_averaging`), the
+    regressor goes through the drives' running average too. ``scalar_models``: also the power
+    and energy models' rows of every stretch, from the same filtered motion and forces
+    (:func:`ident_hw.identification.model_comparison.power_energy_rows`; not matched to averaged
+    currents, whose average does not commute with the product of force and velocity)."""
     where = f"{rec.metadata.get('file', 'recording')} (trajectory {name!r})"
     if len(rec.t) < 3:
         raise RecordingError(f"{where}: {len(rec.t)} samples, too few to identify from")
-    empty = [f"node {a.node_id} ({a.name})" for a, ok in zip(config.robot.actuators, rec.valid.any(axis=0)) if not ok]
+    empty = [f"node {a.node_id} ({a.name})"
+             for a, ok in zip(config.robot.actuators, identification_valid(rec).any(axis=0)) if not ok]
     if empty:
         raise RecordingError(f"{where}: no valid sample of {', '.join(empty)}")
     settings = config.identification.filter.settings(1.0 / recording_period(rec), motion_bandwidth(config, name))
-    segments = segments_of(config, rec, settings.trim, 2 * settings.trim + MIN_FILTERED)
+    segments = segments_of(config, rec, settings.trim, MIN_FILTERED, settings.cut_trim)
     if not segments.slices:      # nothing to fit; the quality verdict says why
         a, m = len(robot.actuator_names), len(robot.parameter_names)
         return Prepared(name, np.zeros(0), np.zeros((0, a)), np.zeros((0, robot.pose_size)), np.zeros((0, a, m)),
@@ -162,20 +186,25 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
     # start poses for the forward kinematics of each stretch: a continuation from the home pose
     # along the whole recording, across its gaps (a Newton start only, never data)
     guess = robot.pose_series(_bridged(segments.t, rec.position), np.zeros(robot.pose_size))
+    averaging = current_averaging(config, rec)
     parts, scalar = [], []
-    for rows in segments.slices:
+    for stretch in segments.stretches:
+        rows, ends = stretch.rows, stretch.ends
         t, Theta, current = uniform(segments.t[rows], rec.position[rows], rec.current[rows])
-        samples = prepare_actuated(t, Theta, current, force_per_amp, settings)
+        samples = prepare_actuated(t, Theta, current, force_per_amp, settings, ends)
         regressor, X = robot.identification_regressor(samples.Theta, samples.Thetad, samples.Thetadd, guess[rows])
-        Y, tau = parallel_decimate(settings, regressor, samples.tau)
-        kept = kept_samples(settings, len(t))
+        if averaging is not None:   # forces from averaged currents: the regressor through the same average
+            period = (t[-1] - t[0]) / (len(t) - 1)
+            regressor = running_average(regressor, [f.over_period(period) for f in averaging])
+        Y, tau = parallel_decimate(settings, regressor, samples.tau, ends=ends)
+        kept = kept_samples(settings, len(t), ends)
         slow = np.abs(samples.Thetad) < config.identification.min_speed * speed_limit
         parts.append((t[kept], samples.Theta[kept], X[kept], Y, tau, ~near_rest(slow, settings)[kept]))
-        if scalar_models:
+        if scalar_models and len(t) > 2 * settings.trim:    # they trim ``trim`` at both ends
             scalar.append(power_energy_rows(robot, t, samples.Theta, samples.Thetad, samples.tau, guess[rows],
                                             settings))
     t, Theta, X, Y, tau, moving = (np.concatenate(column) for column in zip(*parts))
-    if scalar_models:
+    if scalar:
         power, energy = (ModelRows.concatenate(column) for column in zip(*scalar))
         return Prepared(name, t, Theta, X, Y, tau, moving, segments=segments, power=power, energy=energy)
     return Prepared(name, t, Theta, X, Y, tau, moving, segments=segments)

@@ -64,7 +64,7 @@ def drive_axes(config: Config) -> list[AxisConfig]:
     """The drives' axis settings of the config's actuators, their software position limits
     included: those of the run's drive group (:meth:`ident_hw.experiment.session.Session.drive_group`)."""
     base = Path(config.source).parent
-    return [a.to_driver(base) for a in config.robot.actuators]
+    return [a.to_driver(base, config.current) for a in config.robot.actuators]
 
 
 def build(config: Config, tcfg: TrajectoryConfig, robot: RobotModel) -> trajectories.Trajectory:

@@ -48,17 +48,18 @@ def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
     log is decoded up to the length of the config's trajectory of that name (the SYNC keeps
     running for a few cycles after the last set-point), on the config's SYNC period (in lockstep
     the row times are the cycle times, as the run recorded them). The
-    metadata gets ``file`` (the path) and, for a raw log, ``n_targets`` (the planned cycles).
+    metadata gets ``file`` (the path) and, for a raw log, ``n_targets`` (the planned cycles) and
+    ``current`` (the motor current the log's TPDOs carried: the config's ``bus.current``).
 
     Raises:
         RecordingError: unreadable file, or a recording that does not fit the config (node-IDs,
             profiles, drive scaling); the message names the file, the config and the axis.
     """
     path = Path(path)
-    axes = [a.to_driver() for a in config.robot.actuators]
+    axes = [a.to_driver(current=config.current) for a in config.robot.actuators]
     if path.suffix.lower() in RAW_LOG_SUFFIXES:
         name = path.stem
-        meta = {"trajectory": name, "file": str(path)}
+        meta = {"trajectory": name, "file": str(path), "current": config.current}
         lockstep_period = None
         if config.bus is not None:
             meta["sync_period"] = 1.0 / config.bus.sync_rate
@@ -114,7 +115,8 @@ def check_log_nodes(path: Path, rec: Recording, config: Config) -> None:
     if not len(rec.t):
         raise RecordingError(f"{path}: no SYNC cycle of the configured nodes in the log (nodes heard: "
                              f"{heard or 'none'})")
-    silent = [f"node {a.node_id} ({a.name})" for a, any_valid in zip(config.robot.actuators, rec.valid.any(axis=0))
+    received = (rec.position_valid & rec.current_valid).any(axis=0)    # what identification uses
+    silent = [f"node {a.node_id} ({a.name})" for a, any_valid in zip(config.robot.actuators, received)
               if not any_valid]
     if silent:
         raise RecordingError(f"{path}: no sample of {', '.join(silent)} configured in {config.source}; the log "

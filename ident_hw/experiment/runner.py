@@ -172,7 +172,8 @@ def stream(session: Session, group: DriveGroup, planned: PlannedTrajectory, data
     with _progress(session.network, traj.name, len(targets), show_progress), _injected_events(session, traj.name):
         return group.run_cyclic(targets, sync_period(config), output=data / f"{traj.name}.npz",
                                 raw_log=data / f"{traj.name}{config.output.raw_log}",
-                                metadata={"trajectory": traj.name, "config": Path(config.source).name},
+                                metadata={"trajectory": traj.name, "config": Path(config.source).name,
+                                          "current": config.current},
                                 quiet=host.quiet)
 
 
