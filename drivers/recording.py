@@ -483,8 +483,11 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
         layouts = list(sidecar.layouts)
         recorded, configured = [a.node_id for a in layouts], [a.node_id for a in axes]
         if recorded != configured:
+            differ = [f"{a.label} is node {r} in the log" for a, r in zip(axes, recorded) if a.node_id != r]
+            if len(recorded) != len(configured):
+                differ.append(f"{len(recorded)} axes in the log, {len(configured)} given")
             raise RecordingError(f"raw CAN log {path}: recorded from nodes {recorded} ({sidecar_path(path).name}), "
-                                 f"the axes given are nodes {configured}")
+                                 f"the axes given are nodes {configured}: {'; '.join(differ)}")
         source = f"stored ({sidecar_path(path).name})"
     else:
         layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity)) for a in axes]
