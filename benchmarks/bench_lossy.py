@@ -4,8 +4,8 @@ of a seeded share of its SYNC cycles (any TPDO of any drive alike), decoded and 
 simulated truth: the worst of ``|error| / (3 σ + 1 % of the truth)`` (the main job's test passes
 below 1), the largest error and the largest relative σ.
 
-    ident-hw run configs/sim-3prrr.yaml --out /tmp/main
-    python benchmarks/bench_lossy.py /tmp/main [0.001,0.01,0.05] [seeds: 0,1,2]
+    ident-hw run configs/sim-3prrr.yaml --out results/main
+    python benchmarks/bench_lossy.py results/main [0.001,0.01,0.05] [seeds: 0,1,2]
 """
 
 import sys
