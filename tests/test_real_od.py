@@ -9,6 +9,7 @@ maxon's EPOS2 files: ``tests/test_real_od_epos2.py``.
 """
 
 import dataclasses
+from contextlib import contextmanager
 import itertools
 import os
 from pathlib import Path
@@ -88,16 +89,44 @@ def test_builtin_epos4_dictionary_agrees_with_maxons_files():
         assert all(not _writable(ref[key]) for ref in references if key in ref), key
 
 
-class SdoDownloads(can.Listener):
-    """Every SDO download (write) request on the bus, as (node-ID, index, sub-index)."""
+class SdoTraffic(can.Listener):
+    """Every SDO request naming an object, as (node-ID, "upload" | "download", index, sub-index),
+    and every SDO abort a node answered."""
 
     def __init__(self):
-        self.writes = []
+        self.requests, self.aborts = [], []
 
     def on_message_received(self, msg):
-        cob = msg.arbitration_id
-        if 0x601 <= cob <= 0x67F and msg.dlc == 8 and msg.data[0] & 0xE0 == 0x20:   # initiate download
-            self.writes.append((cob - 0x600, msg.data[1] | msg.data[2] << 8, msg.data[3]))
+        cob, data = msg.arbitration_id, msg.data
+        if 0x601 <= cob <= 0x67F and msg.dlc == 8 and data[0] & 0xE0 in (0x20, 0x40):
+            self.requests.append((cob - 0x600, "download" if data[0] & 0xE0 == 0x20 else "upload",
+                                  data[1] | data[2] << 8, data[3]))
+        elif 0x581 <= cob <= 0x5FF and msg.dlc == 8 and data[0] == 0x80:
+            self.aborts.append((cob - 0x580, data[1] | data[2] << 8, data[3], int.from_bytes(data[4:8], "little")))
+
+
+@contextmanager
+def spied_rig(axes, name: str):
+    """Emulated drives for ``axes`` in lockstep (the sim config's robot and truth), a master's
+    :class:`DriveGroup` on them (not brought up) and a :class:`SdoTraffic` spy, all on one fresh
+    python-can virtual channel named after ``name``; yields ``(rig, group, spy)`` and closes all."""
+    channel = f"{name}-{next(_channels)}"
+    rig = SimulatedRig.build(robot_model(CONFIG), CONFIG.sim.truth.to_model(),
+                             [(a.node_id, a.profile, a.scaling) for a in axes], sync_period=PERIOD, seed=1,
+                             lockstep=True, interface="virtual", channel=channel, ignore_config=True).start()
+    spy_bus = can.Bus(interface="virtual", channel=channel, ignore_config=True)
+    spy = SdoTraffic()
+    notifier = can.Notifier(spy_bus, [spy])
+    network = open_network(BusConfig("virtual", channel, ignore_config=True))
+    group = DriveGroup(network, axes, sync=LockstepSync(PERIOD))
+    try:
+        yield rig, group, spy
+    finally:
+        group.close()
+        network.disconnect()
+        notifier.stop()
+        spy_bus.shutdown()
+        rig.stop()
 
 
 def test_the_master_writes_only_objects_a_real_epos4_has(tmp_path):
@@ -105,30 +134,15 @@ def test_the_master_writes_only_objects_a_real_epos4_has(tmp_path):
     over SDO exists in the dictionary (checked against maxon's above) and is writable there, and
     none is one maxon's files say an EPOS4 lacks or keeps read-only (a real drive would abort)."""
     axes = [dataclasses.replace(a.to_driver(), profile="epos4") for a in CONFIG.robot.actuators]
-    channel = f"real-od-{next(_channels)}"
-    rig = SimulatedRig.build(robot_model(CONFIG), CONFIG.sim.truth.to_model(),
-                             [(a.node_id, a.profile, a.scaling) for a in axes], sync_period=PERIOD,
-                             lockstep=True, interface="virtual", channel=channel, ignore_config=True).start()
-    spy_bus = can.Bus(interface="virtual", channel=channel, ignore_config=True)
-    spy = SdoDownloads()
-    notifier = can.Notifier(spy_bus, [spy])
-    network = open_network(BusConfig("virtual", channel, ignore_config=True))
-    group = DriveGroup(network, axes, sync=LockstepSync(PERIOD))
-    try:
+    with spied_rig(axes, "real-od") as (_, group, spy):
         group.bring_up()
         group.home()
         start = group.positions()
         t = np.arange(100) * PERIOD
         rec = group.run_cyclic(start + np.sin(2 * np.pi * t)[:, None] * 1e-3, PERIOD)
         assert rec.n_invalid == 0
-    finally:
-        group.close()
-        network.disconnect()
-        notifier.stop()
-        spy_bus.shutdown()
-        rig.stop()
     ours = _variables(make_object_dictionary("epos4", 1))
-    written = sorted(set((index, sub) for _, index, sub in spy.writes))
+    written = sorted(set((index, sub) for _, kind, index, sub in spy.requests if kind == "download"))
     assert len(written) > 20, written      # the spy saw the bring-up
     bad = [f"0x{i:04X}:{s:02X}" for i, s in written
            if (i, s) in ABSENT_ON_EPOS4 or (i, s) in READ_ONLY_ON_EPOS4 or (i, s) not in ours

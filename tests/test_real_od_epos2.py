@@ -10,31 +10,22 @@ that the other tests run everywhere, and the comparison checks them against the 
 """
 
 import dataclasses
-import itertools
 import os
 from pathlib import Path
 
-import can
 import canopen
 import numpy as np
 import pytest
 from canopen.sdo import SdoAbortedError
 
-from drivers.bus import BusConfig, open_network
-from drivers.epos import DriveGroup
-from drivers.sim.lockstep import LockstepSync
 from drivers.errors import DriveFault
 from drivers.profiles import EPOS2, find_variable, make_object_dictionary, required_objects
-from drivers.sim import Plant, SimulatedRig
 from ident_hw.config import load_config
-from ident_hw.model import ThreePRRR
 
-from test_real_od import _variables, _writable
+from test_real_od import PERIOD, _variables, _writable, spied_rig
 from test_sim_rig import Bench
 
 CONFIG = load_config(Path(__file__).resolve().parent.parent / "configs" / "sim-3prrr.yaml")
-PERIOD = 0.004
-_channels = itertools.count()
 
 ABORT_NO_OBJECT, ABORT_NO_SUBINDEX = 0x06020000, 0x06090011
 
@@ -171,22 +162,6 @@ def test_the_epos2_profile_and_dictionary_hold_the_facts_the_master_depends_on()
     assert 8 not in p.supported_modes and not od[0x6502].default & CSP_BIT
 
 
-class SdoTraffic(can.Listener):
-    """Every SDO request naming an object, as (node-ID, "upload" | "download", index, sub-index),
-    and every SDO abort a node answered."""
-
-    def __init__(self):
-        self.requests, self.aborts = [], []
-
-    def on_message_received(self, msg):
-        cob, data = msg.arbitration_id, msg.data
-        if 0x601 <= cob <= 0x67F and msg.dlc == 8 and data[0] & 0xE0 in (0x20, 0x40):
-            self.requests.append((cob - 0x600, "download" if data[0] & 0xE0 == 0x20 else "upload",
-                                  data[1] | data[2] << 8, data[3]))
-        elif 0x581 <= cob <= 0x5FF and msg.dlc == 8 and data[0] == 0x80:
-            self.aborts.append((cob - 0x580, data[1] | data[2] << 8, data[3], int.from_bytes(data[4:8], "little")))
-
-
 def _epos2_axes():
     """The simulated 3PRRR's axes on six EPOS2 (homing on the actual position: method 35 there)."""
     axes = []
@@ -202,25 +177,8 @@ def _epos2_axes():
 def epos2_rig():
     """Six emulated EPOS2 in lockstep, a master's :class:`DriveGroup` (not brought up) and a spy
     on the SDO traffic, all on one fresh python-can virtual channel."""
-    axes = _epos2_axes()
-    channel = f"real-od-epos2-{next(_channels)}"
-    robot = ThreePRRR(CONFIG.robot.geometry.to_model(), coulomb_width=CONFIG.robot.coulomb_width)
-    rig = SimulatedRig([(a.node_id, a.profile, a.scaling) for a in axes], Plant(robot, CONFIG.sim.truth.to_model()),
-                       seed=1, interface="virtual", channel=channel, ignore_config=True, lockstep=True,
-                       sync_period=PERIOD).start()
-    spy_bus = can.Bus(interface="virtual", channel=channel, ignore_config=True)
-    spy = SdoTraffic()
-    notifier = can.Notifier(spy_bus, [spy])
-    network = open_network(BusConfig("virtual", channel, ignore_config=True))
-    group = DriveGroup(network, axes, sync=LockstepSync(PERIOD))
-    try:
-        yield rig, group, spy
-    finally:
-        group.close()
-        network.disconnect()
-        notifier.stop()
-        spy_bus.shutdown()
-        rig.stop()
+    with spied_rig(_epos2_axes(), "real-od-epos2") as parts:
+        yield parts
 
 
 def _targets(group, n=100, amplitude=1e-3):
