@@ -16,7 +16,7 @@ from pathlib import Path
 
 import can
 
-from drivers.acquisition import AxisLayout, CycleAssembler, pdo_layout
+from drivers.acquisition import CycleAssembler, master_layouts
 from drivers.axis import AxisConfig
 from drivers.bus import BusConfig, open_network
 from drivers.recording import SampleRecorder
@@ -26,7 +26,7 @@ from drivers.units import AxisScaling
 def main(n_cycles: int = 20000, profile: str = "epos4") -> None:
     scaling = AxisScaling("revolute", 2048, 0.0369, gear_ratio=26.0)
     axes = [AxisConfig(f"a{i}", i + 1, profile, scaling, -6, 6, 3, 4, 0.05) for i in range(6)]
-    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes]
+    layouts = master_layouts(axes)
     per_cycle = []
     for a, lay in zip(axes, layouts):
         for f in lay.frames:

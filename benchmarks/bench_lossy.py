@@ -14,7 +14,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from drivers.acquisition import AxisLayout, pdo_layout  # noqa: E402
+from drivers.acquisition import master_layouts  # noqa: E402
 from drivers.recording import Recording  # noqa: E402
 from ident_hw.config import load_config  # noqa: E402
 from ident_hw.experiment.offline import identify  # noqa: E402
@@ -34,7 +34,7 @@ def main(folder: Path, shares: list[float], seeds: list[int]) -> None:
                         "  validation: []\n")
         config = load_config(path)
         truth = dict(zip(config.robot.to_model().parameter_names, config.true_parameters()))
-        layouts = [AxisLayout(a.node_id, pdo_layout(a.to_driver().drive_profile)) for a in config.robot.actuators]
+        layouts = master_layouts([a.to_driver() for a in config.robot.actuators])
         cycles = len(Recording.load(folder / "data" / "excitation.npz").t)
         for share in [0.0] + shares:
             for seed in seeds if share else [0]:

@@ -114,6 +114,12 @@ class AxisLayout:
     frames: tuple[PdoFrame, ...]
 
 
+def master_layouts(axes: Sequence, with_velocity: bool = True) -> list[AxisLayout]:
+    """The PDO layout the master maps on each of ``axes`` (:class:`drivers.axis.AxisConfig`:
+    node-ID and drive profile), in their order: :func:`pdo_layout` of each."""
+    return [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity)) for a in axes]
+
+
 #: version of the stored form of a PDO layout (:func:`layout_record`)
 LAYOUT_VERSION = 1
 

@@ -24,7 +24,7 @@ import numpy as np
 from canopen.profiles.p402 import Homing, State402
 from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
 
-from drivers.acquisition import AxisLayout, PdoFrame, cycle_frame_sizes, event_bits_per_s, pdo_layout
+from drivers.acquisition import PdoFrame, cycle_frame_sizes, event_bits_per_s, master_layouts
 from drivers.axis import AxisConfig, check_setpoints
 from drivers.bus import BusConfig, check_bus_load, frame_bits
 from drivers.cia import (CW_CHANGE_IMMEDIATELY, CW_ENABLE_OPERATION, CW_FAULT_RESET, CW_NEW_SETPOINT, ERROR_REGISTER,
@@ -477,7 +477,7 @@ class DriveGroup:
         self.drives = [EposDrive(network, a, self.supervisor, sdo_timeout, self.sync) for a in self.axes]
         for drive in self.drives:
             self.supervisor.watch_heartbeat(drive.label, drive.node.nmt, self.heartbeat_timeout)
-        self.layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity)) for a in self.axes]
+        self.layouts = master_layouts(self.axes, with_velocity)
 
     def __enter__(self) -> "DriveGroup":
         return self

@@ -49,7 +49,7 @@ import can
 import numpy as np
 
 from drivers.acquisition import (AxisLayout, CycleAssembler, Row, cycle_books, layout_from_record, layout_record,
-                                 pdo_layout)
+                                 master_layouts)
 from drivers.axis import AxisConfig
 from drivers.errors import ConfigError, RecordingError
 from drivers.units import REVOLUTE, AxesScaling
@@ -276,7 +276,7 @@ class SampleRecorder:
         self.metadata["format_version"] = FORMAT_VERSION
         if layouts is None:
             with_velocity = bool(self.metadata.get("with_velocity", True))
-            layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity)) for a in self.axes]
+            layouts = master_layouts(self.axes, with_velocity)
         self.metadata["pdo_layout"] = layout_record(layouts)
         self.setpoints = None if setpoints is None else np.array(setpoints, dtype=np.int64)
         self.queue: queue.Queue[Row] = queue.Queue(maxsize)
@@ -490,7 +490,7 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
                                  f"the axes given are nodes {configured}: {'; '.join(differ)}")
         source = f"stored ({sidecar_path(path).name})"
     else:
-        layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity)) for a in axes]
+        layouts = master_layouts(axes, with_velocity)
         source = "assumed: the layout the master maps today (the log has no sidecar)"
         logger.warning("raw CAN log %s: no %s beside it; decoded with the PDO layout the master maps today, "
                        "which may not be the one it was recorded with", path, sidecar_path(path).name)

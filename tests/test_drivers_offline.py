@@ -7,7 +7,8 @@ import canopen
 import numpy as np
 import pytest
 
-from drivers.acquisition import LOOKAHEAD, AxisLayout, CycleAssembler, PdoFrame, layout_record, pdo_layout
+from drivers.acquisition import (LOOKAHEAD, AxisLayout, CycleAssembler, PdoFrame, layout_record, master_layouts,
+                                 pdo_layout)
 from drivers.axis import AxisConfig
 from drivers.bus import BusConfig, check_bus_load, frame_bits, max_sync_rate, open_network
 from drivers.emcy import describe
@@ -74,7 +75,7 @@ def _frames(axes, k, counts, ma, sw=0x0237, drop=()):
 @pytest.mark.parametrize("profile", ["epos2", "epos4"])
 def test_assembler_flags_missing_and_late_frames_never_fills(profile):
     axes = _axes(profile)
-    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes]
+    layouts = master_layouts(axes)
     rows = []
     asm = CycleAssembler(layouts, rows.append)
     msgs = []
@@ -104,7 +105,7 @@ def test_assembler_places_no_frame_in_another_cycle():
     lost once, sent twice once, late by two in a burst, and lost just before the end. Each frame
     carries its cycle in the position; no valid cell may hold another cycle's."""
     axes = _axes("epos2")
-    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes]
+    layouts = master_layouts(axes)
     n = 75
     arrivals = {k: [k] for k in range(n)}           # cycle -> windows its axis-0 TPDO1 arrives in
     for k in (3, 4, 5):
@@ -148,7 +149,7 @@ def _sync_at(msgs, k):
 def test_assembler_reports_statusword_fault_once():
     axes = _axes("epos2")
     seen = []
-    asm = CycleAssembler([AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes],
+    asm = CycleAssembler(master_layouts(axes),
                          lambda r: None, on_status=lambda i, sw: seen.append((i, sw)))
     for k in range(3):
         for m in _frames(axes, k, [0, 0], [0, 0], sw=0x0237 if k == 0 else 0x2237):
@@ -159,7 +160,7 @@ def test_assembler_reports_statusword_fault_once():
 @pytest.mark.parametrize("suffix", [".log", ".asc", ".blf"])
 def test_decode_log_reproduces_rows_from_hand_made_traffic(tmp_path, suffix):
     axes = _axes("epos4", 3)
-    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes]
+    layouts = master_layouts(axes)
     rows = []
     logger = FlushingLogger(tmp_path / f"raw{suffix}")
     asm = CycleAssembler(layouts, rows.append, forward=[logger], max_cycles=40)
@@ -182,7 +183,7 @@ def test_decode_log_reproduces_rows_from_hand_made_traffic(tmp_path, suffix):
 def test_recording_round_trip_and_bad_files(tmp_path):
     axes = _axes()
     rows = []
-    asm = CycleAssembler([AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes], rows.append)
+    asm = CycleAssembler(master_layouts(axes), rows.append)
     for k in range(4):
         for m in _frames(axes, k, [4096 * k, 0], [1500, -20]):
             asm.on_message_received(m)
@@ -258,7 +259,7 @@ def test_a_lost_velocity_frame_leaves_position_and_current_valid():
     leaves its axis's position and current in the row (validity per TPDO); a lost TPDO1 leaves
     its velocity. Every frame carries its cycle in its values."""
     axes = _axes("epos4", 2)
-    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes]
+    layouts = master_layouts(axes)
     rows = []
     asm = CycleAssembler(layouts, rows.append, max_cycles=30)
     lose = {(5, 0x281), (9, 0x182)}           # cycle 5: axis 0's TPDO2; cycle 9: axis 1's TPDO1
@@ -301,7 +302,7 @@ def test_raw_logs_of_today_s_layout_and_of_a_changed_one_both_decode(tmp_path, s
     values = lambda k, i: {"position": 4096 * k + 7 * i, "current": 300 + 10 * k - 600 * i,  # noqa: E731
                            "velocity": 60 * k + i, "statusword": 0x0237, "target": 4096 * (k + 1), "controlword": 0x0F}
     n = 12
-    for label, layouts in (("today", [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes]),
+    for label, layouts in (("today", master_layouts(axes)),
                            ("changed", [_changed_layout(a) for a in axes])):
         path = tmp_path / f"{label}{suffix}"
         logger = FlushingLogger(path, layouts=layouts)
@@ -344,7 +345,7 @@ def test_the_set_points_are_the_ones_sent_not_the_echo_order(tmp_path):
     cycle 5's set-point; the recording and the decoded raw log both hold the sent ones and count
     the row in ``late_setpoints``."""
     axes = _axes("epos4", 2)
-    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes]
+    layouts = master_layouts(axes)
     n = 10
     sent = np.array([[1000 * k, -1000 * k] for k in range(n)], dtype=np.int64)
     log = tmp_path / "run.log"
@@ -387,7 +388,7 @@ def test_the_set_points_are_the_ones_sent_not_the_echo_order(tmp_path):
 
 def rows_to_arrays_target(log, axes, n):
     """The set-points a raw log's RPDO echoes give, read without its sidecar's sent ones."""
-    layouts = [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes]
+    layouts = master_layouts(axes)
     rows = []
     asm = CycleAssembler(layouts, rows.append, max_cycles=n)
     with can.LogReader(log) as reader:

@@ -329,7 +329,7 @@ def test_a_run_with_one_percent_of_cycles_incomplete_keeps_its_rows_and_its_accu
     current cuts the run, which loses only the filters' main lobe on each side of the cut: at
     least 80 % of the excitation's rows are used, and every base parameter is well identified and
     within the main job's bounds of the truth (``3 σ + BIAS_BUDGET``, truth from the config)."""
-    from drivers.acquisition import AxisLayout, pdo_layout
+    from drivers.acquisition import master_layouts
     from ident_hw.experiment.recordings import load_recording
     from lossy_logs import drop_frames
 
@@ -343,7 +343,7 @@ def test_a_run_with_one_percent_of_cycles_incomplete_keeps_its_rows_and_its_accu
     axes = [a.to_driver() for a in base_only.robot.actuators]
     cycles = len(Recording.load(folder / "data" / "excitation.npz").t)
     dropped = drop_frames(folder / "data" / "excitation.log", tmp_path / "excitation.log",
-                          [AxisLayout(a.node_id, pdo_layout(a.drive_profile)) for a in axes], 0.01, cycles, seed=0)
+                          master_layouts(axes), 0.01, cycles, seed=0)
     name, rec = load_recording(tmp_path / "excitation.log", base_only)
     assert rec.n_invalid == len(dropped.cycles) == round(0.01 * cycles)
     assert len(dropped.measured) > 20 and len(dropped.others) > 20
