@@ -147,7 +147,7 @@ def split(t: np.ndarray, period: float, valid: np.ndarray, current: np.ndarray, 
         if ends and start is not None:
             length = i - start
             where = Ends(head_cut=start > 0, tail_cut=i < n)
-            trimmed = (cut_trim if where.head_cut else trim) + (cut_trim if where.tail_cut else trim)
+            trimmed = sum(where.pick(cut_trim, trim))
             if length >= trimmed + max(min_kept, 1):
                 stretches.append(Stretch(slice(start, i), where))
                 left_out["edges"] += trimmed

@@ -122,7 +122,7 @@ class FilterSettings:
     def trims(self, ends: "Ends") -> tuple[int, int]:
         """Samples dropped at the start and at the end of a stretch with ``ends``: :attr:`trim`
         at a recording's own end, :attr:`cut_trim` at a cut."""
-        return (self.cut_trim if ends.head_cut else self.trim, self.cut_trim if ends.tail_cut else self.trim)
+        return ends.pick(self.cut_trim, self.trim)
 
 
 #: how a zero-phase filter extends a stretch past one of its ends (:func:`lowpass`): ``ODD``
@@ -144,6 +144,11 @@ class Ends:
 
     head_cut: bool = False
     tail_cut: bool = False
+
+    def pick(self, at_cut, at_end) -> tuple:
+        """``(start, end)`` of a stretch with these ends: ``at_cut`` where it ends at a cut,
+        ``at_end`` where at a recording's own end (rows trimmed, how a filter extends it)."""
+        return (at_cut if self.head_cut else at_end, at_cut if self.tail_cut else at_end)
 
 
 #: a stretch that is a whole recording
@@ -235,7 +240,7 @@ def parallel_decimate(settings: FilterSettings, *arrays: np.ndarray, ends: Ends 
     if n <= head + tail:
         raise ValueError(f"{n} samples are too few for trimming {head} and {tail} samples at the ends")
     window = kept_samples(settings, n, ends)
-    pads = (EVEN if ends.head_cut else ODD, EVEN if ends.tail_cut else ODD)
+    pads = ends.pick(EVEN, ODD)
     return tuple(
         lowpass(a, settings.sample_rate, settings.decimation_cutoff_hz, settings.order, pads)[window] for a in arrays
     )
@@ -395,6 +400,6 @@ def prepare_actuated(
     if settings is None:
         settings = FilterSettings.for_sample_rate(1.0 / float(np.median(dt)))
     filtered = lowpass(Theta, settings.sample_rate, settings.cutoff_hz, settings.order,
-                       (POLYNOMIAL if ends.head_cut else ODD, POLYNOMIAL if ends.tail_cut else ODD))
+                       ends.pick(POLYNOMIAL, ODD))
     Thetad, Thetadd = central_derivatives(filtered, t)
     return ActuatedSamples(t=t, Theta=filtered, Thetad=Thetad, Thetadd=Thetadd, tau=current * force_per_amp)
