@@ -43,17 +43,10 @@ from ident_hw.signal import kept_samples, near_rest, parallel_decimate, prepare_
 
 from .plan import motion_bandwidth, robot_model
 from .quality import verdict
-from .recordings import planned_cycles, require_trajectories
+from .recordings import identification_valid, planned_cycles, require_trajectories
 
 #: rows a stretch needs beyond the filters' support at its two ends
 MIN_FILTERED = 8
-
-
-def identification_valid(rec: Recording) -> np.ndarray:
-    """(N, n_axes) bool: the rows of each axis whose values identification uses, its position
-    and its current, were received in their cycle (a lost velocity or statusword frame does not
-    matter here)."""
-    return rec.position_valid & rec.current_valid
 
 
 @dataclass

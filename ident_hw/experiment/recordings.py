@@ -14,6 +14,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
+
 from drivers.errors import RecordingError
 from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log
 from ident_hw.config import Config
@@ -22,6 +24,13 @@ from .plan import plan
 
 #: drive-scaling fields compared between a recording and the config (drivers.units.AxisScaling)
 SCALING_FIELDS = ("kind", "counts_per_turn", "torque_constant", "gear_ratio", "screw_lead")
+
+
+def identification_valid(rec: Recording) -> np.ndarray:
+    """(N, n_axes) bool: the rows of each axis whose values identification uses, its position
+    and its current, were received in their cycle (a lost velocity or statusword frame does not
+    matter here)."""
+    return rec.position_valid & rec.current_valid
 
 
 def require_trajectories(config: Config, names) -> None:
@@ -115,7 +124,7 @@ def check_log_nodes(path: Path, rec: Recording, config: Config) -> None:
     if not len(rec.t):
         raise RecordingError(f"{path}: no SYNC cycle of the configured nodes in the log (nodes heard: "
                              f"{heard or 'none'})")
-    received = (rec.position_valid & rec.current_valid).any(axis=0)    # what identification uses
+    received = identification_valid(rec).any(axis=0)
     silent = [f"node {a.node_id} ({a.name})" for a, any_valid in zip(config.robot.actuators, received)
               if not any_valid]
     if silent:
