@@ -411,12 +411,18 @@ class Results:
 
 
 # ----------------------------------------------------------------------------- status
+def write_atomically(path: str | Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file renamed over it: a reader (or a run
+    continued after Ctrl-C) never sees half of it."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
 def mark_status(folder: str | Path, status: str) -> None:
     """Write STATUS (see the module docstring), atomically: a reader never sees half of it."""
-    path = Path(folder, STATUS_FILE)
-    tmp = path.with_name(STATUS_FILE + ".tmp")
-    tmp.write_text(status.strip() + "\n")
-    tmp.replace(path)
+    write_atomically(Path(folder, STATUS_FILE), status.strip() + "\n")
 
 
 def final_status(results: Results) -> str:

@@ -37,7 +37,7 @@ from typing import Callable, Iterable, Iterator
 import numpy as np
 
 from ident_hw.config import Config, load_config, resolved_yaml
-from ident_hw.results import Results, read_status
+from ident_hw.results import Results, read_status, write_atomically
 
 from .folders import DESCRIPTION_DIR, new_results_folder
 
@@ -271,10 +271,7 @@ def finished(folder: Path, index: int) -> bool:
 
 
 def _write_json(path: Path, data) -> None:
-    """Atomically: a reader (or a study continued after Ctrl-C) never sees half a file."""
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(json.dumps(data, indent=1))
-    os.replace(tmp, path)
+    write_atomically(path, json.dumps(data, indent=1))
 
 
 def _prepare_folder(folder: Path, config: Config, config_yaml: str, runs: int) -> None:
