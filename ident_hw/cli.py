@@ -120,20 +120,21 @@ def cmd_study(args) -> int:
     config = _load(args.config)
     folder = Path(args.out) if args.out else Path(config.output.dir) / f"study-{Path(args.config).stem}"
     print(f"study folder: {folder}", file=sys.stderr)
-    bar, started, first = None, time.monotonic(), []
+    bar, started, ran_here = None, time.monotonic(), 0
     if _progress_bars(args):
         from tqdm import tqdm
         bar = tqdm(total=args.runs, unit="run", desc="study", file=sys.stderr)
 
     def progress(outcome, done: int, runs: int) -> None:
-        first.append(done)
+        nonlocal ran_here
+        ran_here += 1
         if bar is not None:
             bar.n = done
             bar.refresh()
             return
         if args.quiet:
             return
-        rate = len(first) / (time.monotonic() - started)
+        rate = ran_here / (time.monotonic() - started)
         print(f"run {outcome.index} (seed {outcome.seed}): {outcome.status.split(':')[0]} in "
               f"{outcome.wall_seconds:.0f} s; {done} of {runs} done, about {(runs - done) / rate / 60:.1f} min left",
               file=sys.stderr, flush=True)
