@@ -38,7 +38,7 @@ import can
 from canopen.objectdictionary import ODVariable, datatypes
 
 from drivers.cia import SW_BIT13, SW_FAULT, SYNC_COB_ID, pdo_cob_id
-from drivers.profiles import DriveProfile, ObjectRef
+from drivers.profiles import INSTANTANEOUS, DriveProfile, ObjectRef
 
 #: fields of a sample, in drive units
 FIELDS = ("position", "velocity", "current", "statusword", "target")
@@ -83,16 +83,19 @@ class PdoFrame:
         return self.direction == "rpdo" or 1 <= self.trans_type <= 240
 
 
-def pdo_layout(profile: DriveProfile, with_velocity: bool = True) -> tuple[PdoFrame, ...]:
+def pdo_layout(profile: DriveProfile, with_velocity: bool = True,
+               current: str = INSTANTANEOUS) -> tuple[PdoFrame, ...]:
     """The PDOs the master configures on a drive of ``profile`` for a streaming run.
 
-    Every TPDO is SYNC-triggered: TPDO1 = position + current (+ statusword where it fits: the
+    Every TPDO is SYNC-triggered: TPDO1 = position + current (``current``: the instantaneous or
+    the averaged one, :meth:`DriveProfile.streamed_current`) (+ statusword where it fits: the
     EPOS2's 16-bit current); else the statusword travels in TPDO2 with the velocity (6 bytes), or
     alone without the velocity. No event timer is used: a real EPOS4 has none on its TPDOs.
     """
     frames = []
-    status_in_first = profile.current_actual.bits + profile.position_actual.bits + profile.statusword.bits <= 64
-    first = (("position", profile.position_actual), ("current", profile.current_actual))
+    streamed = profile.streamed_current(current)
+    status_in_first = streamed.bits + profile.position_actual.bits + profile.statusword.bits <= 64
+    first = (("position", profile.position_actual), ("current", streamed))
     if status_in_first:
         first += (("statusword", profile.statusword),)
     frames.append(PdoFrame("tpdo", 1, first, 1))
@@ -116,8 +119,8 @@ class AxisLayout:
 
 def master_layouts(axes: Sequence, with_velocity: bool = True) -> list[AxisLayout]:
     """The PDO layout the master maps on each of ``axes`` (:class:`drivers.axis.AxisConfig`:
-    node-ID and drive profile), in their order: :func:`pdo_layout` of each."""
-    return [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity)) for a in axes]
+    node-ID, drive profile, streamed current), in their order: :func:`pdo_layout` of each."""
+    return [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity, a.current)) for a in axes]
 
 
 #: version of the stored form of a PDO layout (:func:`layout_record`)

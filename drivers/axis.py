@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Sequence
@@ -11,14 +10,8 @@ import numpy as np
 
 from drivers.cia import is_node_id
 from drivers.errors import ConfigError
-from drivers.profiles import DriveProfile, get_profile
+from drivers.profiles import AVERAGED, CURRENTS, INSTANTANEOUS, DriveProfile, get_profile  # noqa: F401
 from drivers.units import AxisScaling
-
-#: which motor current an axis streams: the drive's instantaneous sample (its "current actual
-#: value") or its running average (its "current actual value averaged", a 50 Hz first-order
-#: low-pass: :class:`drivers.profiles.AveragingFilter`)
-INSTANTANEOUS, AVERAGED = "instantaneous", "averaged"
-CURRENTS = (INSTANTANEOUS, AVERAGED)
 
 
 @dataclass(frozen=True)
@@ -69,7 +62,7 @@ class AxisConfig:
         object_dictionary: the drive's EDS or DCF file, whose dictionary the master then uses
             (``None``: the built-in one of ``profile``).
         current: the motor current the master streams, :data:`INSTANTANEOUS` or :data:`AVERAGED`
-            (see :attr:`drive_profile`).
+            (:meth:`drivers.profiles.DriveProfile.streamed_current`).
     """
 
     name: str
@@ -107,14 +100,7 @@ class AxisConfig:
 
     @property
     def drive_profile(self) -> DriveProfile:
-        """The profile the master uses on this axis: its generation's, whose streamed current
-        ``current_actual`` (the one :func:`drivers.acquisition.pdo_layout` maps into TPDO1) is the
-        drive's averaged current ``current_averaged`` when :attr:`current` is :data:`AVERAGED`
-        (same data type on either generation: the PDO layout keeps its size)."""
-        profile = get_profile(self.profile)
-        if self.current == AVERAGED:
-            profile = dataclasses.replace(profile, current_actual=profile.current_averaged)
-        return profile
+        return get_profile(self.profile)
 
     @property
     def label(self) -> str:

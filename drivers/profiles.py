@@ -168,6 +168,13 @@ class AveragingFilter:
         return a_n, b0, 1.0 - a_n - b0
 
 
+#: which motor current an axis streams: the drive's instantaneous sample (its "current actual
+#: value") or its running average (its "current actual value averaged", a 50 Hz first-order
+#: low-pass: :class:`AveragingFilter`)
+INSTANTANEOUS, AVERAGED = "instantaneous", "averaged"
+CURRENTS = (INSTANTANEOUS, AVERAGED)
+
+
 @dataclass(frozen=True)
 class DriveProfile:
     """Which objects a drive generation uses for what (indices, types and units as data).
@@ -176,10 +183,9 @@ class DriveProfile:
     where the code of the drive's present error is read: the CiA 402 error code ``0x603F``, or
     (a drive without it) the newest entry of the pre-defined error field ``0x1003:01``, whose
     bits 0-15 are the code; either counts only while the error register ``0x1001`` is not 0.
-    ``current_actual`` is the motor current the master streams (TPDO1,
-    :func:`drivers.acquisition.pdo_layout`): the drive's instantaneous current in the
-    generation's profile, its averaged one ``current_averaged`` in the profile of an axis set to
-    stream that (:attr:`drivers.axis.AxisConfig.drive_profile`).
+    ``current_actual`` is the drive's instantaneous current, ``current_averaged`` its running
+    average; :meth:`streamed_current` is the one an axis streams (TPDO1,
+    :func:`drivers.acquisition.pdo_layout`).
     """
 
     name: str
@@ -230,6 +236,14 @@ class DriveProfile:
     pdo_event_timer: bool = False
     #: entries of the error history 0x1003
     error_history: int = 5
+
+    def streamed_current(self, which: str) -> ObjectRef:
+        """The current object an axis streams: :data:`INSTANTANEOUS` ``current_actual``, or
+        :data:`AVERAGED` ``current_averaged`` (the same data type on either generation: the PDO
+        layout keeps its size)."""
+        if which not in CURRENTS:
+            raise ValueError(f"current must be one of {CURRENTS}, got {which!r}")
+        return self.current_averaged if which == AVERAGED else self.current_actual
 
 
 def _r(index: int, subindex: int, data_type: str, unit: str = "") -> ObjectRef:

@@ -23,7 +23,7 @@ import canopen
 import numpy as np
 import pytest
 
-from drivers.acquisition import pdo_layout
+from drivers.acquisition import master_layouts
 from drivers.axis import AxisConfig
 from drivers.errors import ConfigError as DriverConfigError
 from drivers.profiles import EPOS4, make_object_dictionary
@@ -154,20 +154,20 @@ def test_bus_current_chooses_the_object_of_tpdo1_and_a_bad_value_names_file_and_
     place and size of the instantaneous one; the default stays the instantaneous sample; a value
     that is neither is refused naming the file, the key and the choices."""
     default = drive_axes(load_config(SIM))
-    assert {pdo_layout(a.drive_profile)[0].entries[1][1].subindex for a in default} == {2}   # 0x30D1:02
+    assert {layout.frames[0].entries[1][1].subindex for layout in master_layouts(default)} == {2}   # 0x30D1:02
     config = tmp_path / "averaged.yaml"
     config.write_text(f"extends: {SIM}\nbus: {{current: averaged}}\n")
     loaded = load_config(config)
     assert loaded.current == "averaged"
     for axis in drive_axes(loaded):
-        first = pdo_layout(axis.drive_profile)[0]
+        first = master_layouts([axis])[0].frames[0]
         assert [(f, r.index, r.subindex) for f, r in first.entries] == [("position", 0x6064, 0), ("current", 0x30D1, 1)]
     epos2 = AxisConfig("zeta1", 4, "epos2", nominal.PRISMATIC, -0.1, 0.1, 0.05, 4.0, 0.002, current="averaged")
-    first = pdo_layout(epos2.drive_profile)[0]
+    first = master_layouts([epos2])[0].frames[0]
     assert [(f, r.index) for f, r in first.entries] == [("position", 0x6064), ("current", 0x2027),
                                                          ("statusword", 0x6041)]
-    assert first.size == pdo_layout(AxisConfig("zeta1", 4, "epos2", nominal.PRISMATIC, -0.1, 0.1, 0.05, 4.0,
-                                               0.002).drive_profile)[0].size == 8
+    assert first.size == master_layouts([AxisConfig("zeta1", 4, "epos2", nominal.PRISMATIC, -0.1, 0.1, 0.05, 4.0,
+                                                    0.002)])[0].frames[0].size == 8
 
     bad = tmp_path / "bad.yaml"
     bad.write_text(f"extends: {SIM}\nbus:\n  current: filtered\n")
