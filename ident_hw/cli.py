@@ -178,7 +178,8 @@ def cmd_run(args) -> int:
         online = CampaignEstimator(config)
     try:
         results = run_campaign(config, folder, show_progress=_progress_bars(args), log=_logger(args), online=online,
-                               planned=planned, host=HostSettings.for_command(config))
+                               planned=planned, host=HostSettings.for_command(config),
+                               report=not args.no_report)
     except BusOpenError:
         if discard_unused(folder):
             print(f"nothing moved, nothing recorded: {folder} removed", file=sys.stderr)
@@ -189,7 +190,7 @@ def cmd_run(args) -> int:
     print("\n".join(summary_lines(folder)))
     if results.online is not None:
         print("\n".join(online_lines(results.online)))
-    print(f"results: {folder}  (report: {folder / 'report.html'})")
+    print(f"results: {folder}" + ("" if args.no_report else f"  (report: {folder / 'report.html'})"))
     return Exit.OK if results.quality is None or results.quality["passed"] else Exit.DEGRADED
 
 
@@ -314,6 +315,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--arm", action="store_true", help="allow motion on a bus that is not the simulated rig's")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--out", metavar="DIR", help="results folder (default: output.dir/run-<time>)")
+    p.add_argument("--no-report", action="store_true", help="no plots and no report.html (`ident-hw report DIR` "
+                   "builds them later)")
 
     p = command("online", cmd_run, "a run with the SVD-DLS estimator fed as the recordings come in: "
                 "its table is printed after each trajectory and its trace saved")
@@ -321,6 +324,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--arm", action="store_true", help="allow motion on a bus that is not the simulated rig's")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--out", metavar="DIR", help="results folder (default: output.dir/online-<time>)")
+    p.add_argument("--no-report", action="store_true", help="no plots and no report.html")
 
     p = command("study", cmd_study, "a Monte-Carlo study: --runs campaigns of a simulated config, each with "
                 "its own noise seed; per parameter the errors against the reported sigma (coverage, bias)")

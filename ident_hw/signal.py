@@ -39,7 +39,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal as sps
 
 
 @dataclass(frozen=True)
@@ -162,6 +161,7 @@ def lowpass(x: np.ndarray, sample_rate: float, cutoff_hz: float, order: int = 4,
     ``ends``: how ``x`` is extended past its first and its last sample (:data:`ODD`, :data:`EVEN`,
     :data:`POLYNOMIAL`); ``(ODD, ODD)`` is ``sosfiltfilt``'s own padding, bit for bit.
     """
+    from scipy import signal as sps  # here, not at the top: a second and more of every command's start
     sos = sps.butter(order, cutoff_hz, btype="low", fs=sample_rate, output="sos")
     x = np.asarray(x, dtype=float)
     if tuple(ends) == (ODD, ODD):
@@ -328,6 +328,7 @@ def running_average(x: np.ndarray, steps: np.ndarray) -> np.ndarray:
     steps = np.asarray(steps, dtype=float)
     if x.ndim < 2 or steps.shape != (x.shape[1], 3):
         raise ValueError(f"expected x (N, a, ...) and steps (a, 3), got {x.shape} and {steps.shape}")
+    from scipy import signal as sps  # here, not at the top (see lowpass)
     out = np.empty_like(x)
     for j, (pole, b0, b1) in enumerate(steps):
         b, a = [b1, b0], [1.0, -pole]

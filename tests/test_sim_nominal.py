@@ -1,5 +1,5 @@
-"""drivers.sim.nominal (the rig of ``python -m drivers.sim`` and of the benchmarks, which run without a
-config) holds the same rig as configs/sim-3prrr.yaml: geometry, true parameters, drive scalings."""
+"""drivers.sim.nominal (the rig of the tests and benchmarks that run without a config) holds the
+same rig as configs/sim-3prrr.yaml: geometry, true parameters, drive scalings."""
 
 from pathlib import Path
 

@@ -10,8 +10,8 @@
 :mod:`drivers.sim.plant` the simulated 3PRRR, :mod:`drivers.sim.drive` one emulated drive, built
 from :mod:`~drivers.sim.objects` (object values), :mod:`~drivers.sim.pdo` (PDOs),
 :mod:`~drivers.sim.state_machine` (CiA 402) and :mod:`~drivers.sim.modes` (the demand);
-:mod:`drivers.sim.nominal` holds the project's nominal rig. Run standalone with
-``python -m drivers.sim --interface socketcan --channel vcan0``.
+:mod:`drivers.sim.nominal` holds the project's nominal rig (for tests and benchmarks that run
+without a config). A config's rig is served on a shared bus by ``ident-hw sim CONFIG``.
 """
 
 from drivers.sim.drive import EmulatedDrive

@@ -20,17 +20,20 @@ import dataclasses
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
 import trajectories
 from ident_hw.model import Delta, ThreePRRR
-from ident_hw.model.described import BODY_PARAMS, DescribedRobot, DescriptionError
 from ident_hw.model.interface import RobotModel
+from ident_hw.model.pseudo_inertia import SPATIAL
 from trajectories import delta_paper, joint_space
 
 from .schema import FieldError, non_negative, positive, spec
+
+if TYPE_CHECKING:  # pinocchio, which described imports, is imported by described robots only
+    from ident_hw.model.described import DescribedRobot
 
 #: the Fourier excitation optimised for the nominal 3PRRR, shipped with ``trajectories``
 NOMINAL_EXCITATION = resources.files(trajectories) / "data" / "fourier-nominal.json"
@@ -59,7 +62,7 @@ class ParameterSetConfig:
                     bodies = sorted({n.split(".")[0] for n in names if "." in n})
                     raise FieldError(f"{key}.{name}", f"unknown parameter of {model.path.name}; expected "
                                      f"<body>.<parameter> with bodies {bodies} and parameters of "
-                                     f"{list(BODY_PARAMS)}")
+                                     f"{list(SPATIAL)}")
         n = len(model.actuator_names)
         for key in ("fv", "fc", "Jm"):
             given = getattr(self, key)
@@ -212,6 +215,7 @@ DELTA = RobotKind(
 # ---- any robot from its description file
 def described_model(robot) -> DescribedRobot:
     """The :class:`DescribedRobot` of a ``described`` robot section."""
+    from ident_hw.model.described import DescribedRobot
     d = robot.described
     return DescribedRobot(d.description, [a.joint or a.name for a in robot.actuators],
                           actuator_names=[a.name for a in robot.actuators], home=d.home,
@@ -222,6 +226,7 @@ def described_model(robot) -> DescribedRobot:
 def _described_validate(robot) -> None:
     if robot.described is None:
         raise FieldError("described", "missing key: a described robot needs its described section (description)")
+    from ident_hw.model.described import DescriptionError
     try:
         model = described_model(robot)
     except DescriptionError as exc:

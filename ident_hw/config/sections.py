@@ -22,7 +22,6 @@ from drivers.cia import NODE_ID_MAX, NODE_ID_MIN
 from drivers.axis import HomingConfig
 from drivers.units import PRISMATIC, REVOLUTE, AxisScaling
 from ident_hw.identification.least_squares import POORLY_IDENTIFIED_PERCENT
-from ident_hw.identification.model_comparison import supports_energy_models
 import numpy as np
 
 from ident_hw.model import Delta, DeltaGeometry, Geometry, InertialParams
@@ -667,6 +666,7 @@ class Config:
             if not any(s.method != "sqp" for s in self.identification.steps):
                 raise FieldError("identification.compare_models", "needs a step that fits base parameters by "
                                  "least squares (method 'wls' or 'ols')")
+            from ident_hw.identification.model_comparison import supports_energy_models
             why = supports_energy_models(model)
             if why:
                 raise FieldError("identification.compare_models", why)

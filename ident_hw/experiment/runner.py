@@ -35,7 +35,6 @@ from drivers.epos import DriveGroup
 from drivers.errors import BusOpenError, ConfigError, DriveError, NodeError
 from drivers.recording import Recording
 from ident_hw.config import Config
-from ident_hw.report import build_report
 from ident_hw.results import Results, final_status, mark_status, save_results
 
 from .offline import identify
@@ -240,6 +239,7 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
         mark_status(folder, final_status(results))    # before the report, which shows it
         save_results(folder, results)
         if report:
+            from ident_hw.report import build_report  # matplotlib: imported when a report is built
             build_report(folder)
     except BusOpenError as exc:
         mark_status(folder, f"failed: {exc}; nothing moved, nothing recorded")

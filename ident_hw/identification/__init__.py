@@ -18,13 +18,33 @@ Every result has ``to_dict()``. Imports :mod:`ident_hw.model` and :mod:`ident_hw
 nothing of the drivers, trajectories, config or runner.
 """
 
-from .base_params import BaseParameters, base_parameters, identify_base
-from .dataset import Dataset, build_dataset
-from .least_squares import LeastSquaresResult, ols, stack, wls
-from .mass_fit import MassFitResult, sqp_fit
-from .metrics import ValidationMetrics, validation_metrics
-from .online import RLS, SVDDLS, DampedRLS, StreamTrace, offline_information, run_stream
-from .power import energy_rows, power_rows
+import importlib
+
+# Each name is imported from its module on first use (PEP 562): ``ident_hw.identification.least_squares``
+# and the config that reads its constants do not pay for SciPy's optimiser and signal modules.
+_MODULE_OF = {
+    "BaseParameters": "base_params",
+    "base_parameters": "base_params",
+    "identify_base": "base_params",
+    "Dataset": "dataset",
+    "build_dataset": "dataset",
+    "LeastSquaresResult": "least_squares",
+    "ols": "least_squares",
+    "stack": "least_squares",
+    "wls": "least_squares",
+    "MassFitResult": "mass_fit",
+    "sqp_fit": "mass_fit",
+    "ValidationMetrics": "metrics",
+    "validation_metrics": "metrics",
+    "RLS": "online",
+    "SVDDLS": "online",
+    "DampedRLS": "online",
+    "StreamTrace": "online",
+    "offline_information": "online",
+    "run_stream": "online",
+    "energy_rows": "power",
+    "power_rows": "power",
+}
 
 __all__ = [
     "RLS",
@@ -49,3 +69,17 @@ __all__ = [
     "validation_metrics",
     "wls",
 ]
+
+
+def __getattr__(name: str):
+    try:
+        module = _MODULE_OF[name]
+    except KeyError:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_MODULE_OF})

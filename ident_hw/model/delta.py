@@ -20,7 +20,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import delta_single
 from .dynamics import smooth_sign
 from .interface import REVOLUTE
 from .pseudo_inertia import SPATIAL, PhysicalBody
@@ -444,6 +443,7 @@ class Delta:
         c = np.ascontiguousarray
         pi = c(params, dtype=float)
         M, bias, p = np.empty((3, 3)), np.empty(3), np.empty(3)
+        from . import delta_single  # compiled code, loaded by the simulated rig only
         outcome = delta_single.one_state(c(Theta, dtype=float), c(Thetad, dtype=float), pi, pi[N_BODY_PARAMS + 6:],
                                          self._single_geo, self._e, self._y, self.g, M, bias, p)
         if outcome != delta_single.OK:

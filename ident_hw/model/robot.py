@@ -5,14 +5,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from . import dynamics
 from .interface import PRISMATIC, REVOLUTE
 from .kinematics import Kinematics, Motion, SingularityMargins, batch
 from .parameters import ACTUATOR_NAMES, Geometry, InertialParams
 from .pseudo_inertia import PhysicalBody
-from .single import SingleState
 
 
 @dataclass
@@ -50,7 +48,7 @@ class ThreePRRR:
         self.geometry = geometry
         self.coulomb_width = coulomb_width
         self.kinematics = Kinematics(geometry)
-        self._single = SingleState(self.kinematics)
+        self._single = None  # the compiled one-state path, made by the plant's first call
         self._plant_params: tuple[np.ndarray, InertialParams] | None = None
 
     # -- kinematics ---------------------------------------------------------------------------
@@ -204,6 +202,9 @@ class ThreePRRR:
             if self._plant_params is None or not np.array_equal(self._plant_params[0], params):
                 self._plant_params = (np.array(params, dtype=float), InertialParams.from_vector(params))
             params = self._plant_params[1]
+        if self._single is None:
+            from .single import SingleState  # compiled code, loaded by the simulated rig only
+            self._single = SingleState(self.kinematics)
         return self._single.reduced_dynamics(Theta, Thetad, params, guess)
 
     def friction_coefficients(self, params: InertialParams):
@@ -244,6 +245,7 @@ class ThreePRRR:
             return np.concatenate([Thetad, Thetadd])
 
         t = np.asarray(t, dtype=float)
+        from scipy.integrate import solve_ivp  # here: the integrator is for tests and studies, not every import
         sol = solve_ivp(rhs, (t[0], t[-1]), np.concatenate([Theta0, Thetad0]), method="DOP853",
                         t_eval=t, rtol=rtol, atol=atol)
         if not sol.success:

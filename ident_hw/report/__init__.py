@@ -21,9 +21,6 @@ import yaml
 
 from ident_hw.results import load_results, metrics
 
-from . import plots
-from .html import render_html
-from .matlab import save_mat
 from .terminal import coverage_text, online_lines, summary_lines
 
 __all__ = ["build_report", "coverage_text", "online_lines", "summary_lines"]
@@ -32,6 +29,9 @@ __all__ = ["build_report", "coverage_text", "online_lines", "summary_lines"]
 def build_report(folder: str | Path) -> Path:
     """(Re)build metrics.yaml, plots, report.html and results.mat from the folder's files;
     returns the page's path."""
+    from . import plots  # matplotlib and Jinja2 here, not at import: the terminal lines need neither
+    from .html import render_html
+    from .matlab import save_mat
     folder = Path(folder)
     results = load_results(folder)
     table = metrics(results)
