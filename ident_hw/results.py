@@ -54,6 +54,14 @@ def _error_percent(estimate: float, truth: float | None) -> float | None:
     return 100.0 * (estimate - truth) / abs(truth) if truth else None
 
 
+def error_sigmas(value: float, truth: float | None, sigma: float | None) -> float | None:
+    """``(value - truth) / sigma``, the error in units of the reported standard deviation; None
+    without a truth or a positive finite sigma."""
+    if truth is None or sigma is None or not math.isfinite(sigma) or sigma <= 0:
+        return None
+    return (value - truth) / sigma
+
+
 @dataclass(frozen=True)
 class ParameterRow:
     """One physical parameter of the results table (SI unit from the robot model).
@@ -79,6 +87,12 @@ class ParameterRow:
     @property
     def fitted(self) -> bool:
         return bool(self.step)
+
+    @property
+    def error_sigmas(self) -> float | None:
+        """(identified - truth) / sigma: how many of its own standard deviations the estimate is
+        off (None without a truth or a sigma)."""
+        return error_sigmas(self.identified, self.truth, self.sigma)
 
     @property
     def poorly_identified(self) -> bool:
@@ -107,6 +121,11 @@ class BaseRow:
     well_identified: bool
     truth: float | None = None
     error_percent: float | None = None
+
+    @property
+    def error_sigmas(self) -> float | None:
+        """(identified - truth) / sigma (None without a truth or a sigma)."""
+        return error_sigmas(self.identified, self.truth, self.sigma)
 
     def to_json(self) -> dict:
         doc = {"base_parameter": self.expression, "initial": self.initial, "identified": self.identified,

@@ -12,6 +12,7 @@ about 1 % that σ does not cover.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import re
@@ -151,14 +152,31 @@ def test_a_torque_constant_5_percent_wrong_fails_the_accuracy_check(main_job, tm
     assert len(failures) >= 10 and any(f.startswith("m_c") for f in failures), failures
 
 
+@pytest.mark.parametrize("axis, factor", [("theta1", 1.05), ("theta2", 0.95), ("theta3", 1.05),
+                                          ("zeta1", 0.95), ("zeta2", 1.05), ("zeta3", 0.95)])
+def test_one_torque_constant_5_percent_wrong_in_the_config_fails_the_verdict_naming_it(main_job, axis, factor):
+    """The run's recordings identified with one actuator's torque constant 5 % off in the config
+    (the rig unchanged): the quality verdict fails and names that actuator, and only it; the
+    main job's own check (verdict passed) fails with it."""
+    config, folder = main_job
+    actuators = tuple(dataclasses.replace(a, torque_constant=a.torque_constant * factor) if a.name == axis else a
+                      for a in config.robot.actuators)
+    wrong = dataclasses.replace(config, robot=dataclasses.replace(config.robot, actuators=actuators))
+    recordings = {path.stem: Recording.load(path) for path in sorted((folder / "data").glob("*.npz"))}
+    quality = identify(wrong, recordings).quality
+    named = {reason.split(":")[0] for reason in quality["reasons"]} & {a.name for a in actuators}
+    assert not quality["passed"] and named == {axis}, quality["reasons"]
+
+
 def test_the_report_shows_the_numbers_of_parameters_json(main_job):
     """Every identified value in ``report.html``'s parameter table equals ``parameters.json``'s to
-    the digits shown."""
+    the digits shown, and so does its error in units of its sigma."""
     _, folder = main_job
     doc = json.loads((folder / "parameters.json").read_text())
     cells = _Cells()
     cells.feed((folder / "report.html").read_text())
     by_name = {r["name"]: r for r in doc["parameters"]}
+    z_column = next(row for row in cells.rows if row and row[0] == "parameter").index("error / σ")
     shown = {}
     for row in cells.rows:           # the first table naming them: the physical parameters
         if row and row[0] in by_name and len(row) > 3:
@@ -172,6 +190,9 @@ def test_the_report_shows_the_numbers_of_parameters_json(main_job):
         value = float(row[3])
         digits = len(row[3].replace("-", "").replace(".", "").lstrip("0")) or 1
         assert value == pytest.approx(r["identified"], rel=10 ** (1 - digits)), (name, row[3], r["identified"])
+        # the error in units of its own sigma, from parameters.json's numbers
+        z = (r["identified"] - r["truth"]) / r["sigma"]
+        assert float(row[z_column]) == pytest.approx(z, abs=0.0051), (name, row[z_column], z)
 
 
 def test_an_epos2_rig_identifies_the_carriages(tmp_path):

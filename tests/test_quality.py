@@ -8,6 +8,7 @@ import json
 
 import numpy as np
 import pytest
+from ident_scenarios import CONFIGS
 from test_cli import SWEEP_ONLY, synthetic_recordings
 
 from drivers.recording import Recording
@@ -146,3 +147,63 @@ def test_a_parameter_its_data_do_not_excite_is_held_and_named(sweep):
     assert rows["fv_zeta3"].step == "" and rows["fc_zeta3"].step == ""          # held
     assert rows["m_c"].step == "carriages" and rows["fv_zeta1"].step == "carriages"
     assert any(r.startswith("step carriages: fv_zeta3, fc_zeta3 not excited") for r in results.quality["reasons"])
+
+
+def _results_of(actuators, fits):
+    from ident_hw.results import ParameterTable, Results
+    table = ParameterTable(names=(), units=(), initial=np.zeros(0), identified=np.zeros(0), sigma=np.zeros(0),
+                           lower=np.zeros(0), upper=np.zeros(0), step=(), method=(), truth=None)
+    return Results(parameters=table, actuators=tuple(a.name for a in actuators),
+                   actuator_kinds=tuple(a.kind for a in actuators), fits=fits)
+
+
+def test_axis_residuals_against_the_same_drives_by_hand():
+    """axis_reasons: per trajectory, each axis's RMS residual in A (force over the config's force per
+    ampere) over the median of its group's others; the worst trajectory counts. Built here from
+    residuals of known RMS, orthogonal to the prediction (no gain), on the 3PRRR's actuators (links
+    and carriages two groups of three)."""
+    from ident_hw.experiment.quality import axis_reasons, same_drive_groups
+    from ident_hw.results import TrajectoryFit
+    config = load_config(CONFIGS / "sim-3prrr.yaml")
+    actuators = config.robot.actuators
+    assert same_drive_groups(actuators) == [(0, 1, 2), (3, 4, 5)]
+    per_amp = np.array([a.scaling().force_per_amp for a in actuators])
+    n = 400
+    signs = np.where(np.arange(n) % 2 == 0, 1.0, -1.0)[:, None]      # RMS of +-r is r, sum 0
+    ma = {"a": np.array([10, 10, 10, 2, 2, 2.0]), "b": np.array([10, 40, 10, 2, 2, 5.0])}
+    fits = []
+    for name, rms_ma in ma.items():
+        tau = np.ones((n, 6))
+        residual = signs * rms_ma * 1e-3 * per_amp
+        fits.append(TrajectoryFit(name=name, role="identification", t=np.arange(n) * 0.01, tau=tau + residual,
+                                  tau_model=tau, Theta=np.zeros((n, 6)), tau_base=tau))
+    spreads, ratios, reasons = axis_reasons(_results_of(actuators, fits), actuators, config.identification.quality)
+    assert spreads == pytest.approx(dict.fromkeys(ratios, 0.0), abs=1e-12)
+    # trajectory b: theta2 40 mA against 10 and 10 -> 4; zeta3 5 mA against 2 and 2 -> 2.5 (under 3)
+    assert ratios == pytest.approx({"theta1": 1.0, "theta2": 4.0, "theta3": 1.0, "zeta1": 1.0, "zeta2": 1.0,
+                                    "zeta3": 2.5})
+    # theta1's worst: b, against theta2 and theta3's median (10 + 40) / 2 -> 10 / 25 = 0.4 < a's 1.0
+    assert len(reasons) == 1 and reasons[0].startswith("theta2: residual 40 mA on b, 4.0 times")
+
+
+def test_axis_gains_against_the_same_drives_by_hand():
+    """axis_reasons: the least-squares gain of measured over predicted forces per axis, over all
+    trajectories, against its group's median. Forces here are (1 + g) times the prediction: links
+    +1, 0, +5 % (median 1: spreads 0, -1, +4), carriages 0, 0, -3 % (spreads 0, 0, -3)."""
+    from ident_hw.experiment.quality import axis_reasons
+    from ident_hw.results import TrajectoryFit
+    config = load_config(CONFIGS / "sim-3prrr.yaml")
+    actuators = config.robot.actuators
+    g = np.array([0.01, 0.0, 0.05, 0.0, 0.0, -0.03])
+    t = np.arange(500) * 0.004
+    fits = []
+    for name, f in (("a", 0.5), ("b", 1.3)):
+        predicted = np.sin(2 * np.pi * f * t)[:, None] * np.array([1, 2, 3, 40, 50, 60.0])
+        fits.append(TrajectoryFit(name=name, role="identification", t=t, tau=predicted * (1 + g),
+                                  tau_model=predicted, Theta=np.zeros_like(predicted), tau_base=predicted))
+    spreads, _, reasons = axis_reasons(_results_of(actuators, fits), actuators, config.identification.quality)
+    assert spreads == pytest.approx({"theta1": 0.0, "theta2": -1.0, "theta3": 4.0, "zeta1": 0.0, "zeta2": 0.0,
+                                     "zeta3": -3.0}, abs=1e-9)
+    gains = [r for r in reasons if "off what the model predicts" in r]
+    assert [r.split(":")[0] for r in gains] == ["theta3", "zeta3"]
+    assert gains[0].startswith("theta3: forces +5.00 % off what the model predicts, against +1.00 %")

@@ -552,6 +552,14 @@ class QualityConfig:
                                 "relative to the measured forces, on the trajectories max_d_tau judges"))
     min_well_identified: int = field(default=1, metadata=spec(
         non_negative, doc="fitted parameters (physical or base) with %sigma <= rel_sigma_threshold"))
+    max_axis_gain_spread: float = field(default=2.0, metadata=spec(
+        positive, unit="%", doc="an axis's forces against the model's prediction (least-squares gain over all "
+                                "fitted trajectories), minus the median of the other axes with the same drive: "
+                                "beyond it, that axis's torque constant, gear or lead is likely off"))
+    max_axis_residual_ratio: float = field(default=3.0, metadata=spec(
+        positive, doc="an axis's force residual (RMS, on any fitted trajectory) over the median of those of "
+                      "the other axes with the same drive: above it the data contradict the model on that "
+                      "axis (its torque constant, gear, lead or friction model)"))
 
 
 @dataclass(frozen=True)

@@ -367,7 +367,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         if progress:
             progress(f"step {base_fit.step}: the physically consistent parameters nearest the CAD values")
         results.consistent = consistent(config, robot, base_fit, base_equivalent, initial, truth, steps)
-    results.quality = verdict(results, ident.quality)
+    results.quality = verdict(results, ident.quality, config.robot.actuators)
     return results
 
 

@@ -10,6 +10,9 @@ thresholds of ``identification.quality`` (:class:`ident_hw.config.QualityConfig`
 * the base parameters: some physically consistent parameter set reproduces them within their
   covariance (:func:`consistency_reasons`);
 * the parameters: how many fitted ones are well identified (%σ at most ``rel_sigma_threshold``);
+* per axis, against the axes with the same drive (:func:`axis_reasons`): the gain between its
+  measured and predicted forces, and its residual. A model the data contradict on one axis (its
+  torque constant, say) shows there, whatever the parameters' sigma say;
 * per validation trajectory (each identification one when there is none): the force prediction
   error d_τ of the step-by-step parameters (and of the base-parameter fit), and how far the
   two predictions are apart. Not on identification trajectories beside a validation one: on
@@ -25,10 +28,12 @@ thresholds and, when it fails, one reason per missed threshold; ``STATUS`` is th
 from __future__ import annotations
 
 import dataclasses
+import math
+from typing import Sequence
 
 import numpy as np
 
-from ident_hw.config import QualityConfig
+from ident_hw.config import ActuatorConfig, QualityConfig
 from ident_hw.identification.metrics import validation_metrics
 from ident_hw.results import Results
 
@@ -55,10 +60,89 @@ def consistency_reasons(results: Results) -> list[str]:
     return out
 
 
-def verdict(results: Results, limits: QualityConfig) -> dict:
-    """The quality verdict of ``results`` (its ``trajectories`` coverage included).
+def same_drive_groups(actuators: Sequence[ActuatorConfig]) -> list[tuple[int, ...]]:
+    """The actuators (indices, two or more each) whose currents the drives measure alike: same
+    joint kind, drive profile and streamed current. The config's torque constants, gears and
+    leads do not group them: one of those mistyped is what :func:`axis_reasons` is to find."""
+    groups: dict[tuple, list[int]] = {}
+    for i, a in enumerate(actuators):
+        groups.setdefault((a.kind, a.profile), []).append(i)
+    return [tuple(g) for g in groups.values() if len(g) > 1]
 
-    Returns ``{"passed", "reasons", "thresholds", "trajectories", "steps", "well_identified"}``.
+
+def axis_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits: QualityConfig
+                 ) -> tuple[dict, dict, list[str]]:
+    """Each axis against the other axes of its group (:func:`same_drive_groups`), by what the fit
+    leaves unexplained: the measured forces against those the base-parameter fit predicts (the
+    step-by-step values' where there is none), on every fitted trajectory.
+
+    * its gain: the least-squares factor ``g`` of ``tau = (1 + g) tau_predicted`` over all the
+      trajectories, %. A torque constant, gear or lead off by x % on one axis makes its forces
+      x % larger or smaller than those of its twins, which share its parameters (the 3PRRR's
+      links, its carriages): the spread of the gains shows it when the residual, spread over
+      the twins by the fit, does not;
+    * its residual, RMS per trajectory, in the drive's current (A, through the config's force per
+      ampere, where one drive's noise and quantisation are those of the next): a model wrong on
+      one axis leaves it a residual several times its twins' (a drive whose parameters the fit
+      cannot bend to it: the Delta's arms share their platform).
+
+    Returns ``({axis: gain - the group's median gain, %}, {axis: worst residual ratio}, reasons)``:
+    the ratio is the axis's residual over the median of the others', at its worst trajectory; a
+    reason names each axis beyond ``limits.max_axis_gain_spread`` or
+    ``limits.max_axis_residual_ratio``. Of two axes alone, the one further off the model is named.
+    """
+    groups = same_drive_groups(actuators)
+    per_amp = np.array([a.scaling().force_per_amp for a in actuators])
+    worst: dict[str, tuple[float, str, float, float]] = {}
+    along, power = np.zeros(len(actuators)), np.zeros(len(actuators))
+    for fit in results.fits:
+        if not len(fit.t):
+            continue
+        predicted = fit.tau_base if fit.tau_base is not None else fit.tau_model
+        along += np.sum((fit.tau - predicted) * predicted, axis=0)
+        power += np.sum(predicted ** 2, axis=0)
+        rms = np.sqrt(np.mean((fit.tau - predicted) ** 2, axis=0)) / per_amp
+        for group in groups:
+            for i in group:
+                others = float(np.median([rms[j] for j in group if j != i]))
+                ratio = float(rms[i] / others) if others > 0 else (math.inf if rms[i] > 0 else 1.0)
+                name = results.actuators[i]
+                if name not in worst or ratio > worst[name][0]:
+                    worst[name] = (ratio, fit.name, float(rms[i]), others)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        gain = 100.0 * along / power
+    spreads, reasons = {}, []
+    for group in groups:
+        names = [results.actuators[i] for i in group]
+        # the group's gain: its median (of two, the one nearer the model's)
+        typical = (float(np.median(gain[list(group)])) if len(group) > 2
+                   else float(min(gain[list(group)], key=abs)))
+        for i, name in zip(group, names):
+            if name not in worst:           # no fitted trajectory
+                continue
+            twins = ", ".join(n for n in names if n != name)
+            spread = float(gain[i] - typical)
+            spreads[name] = spread
+            if abs(spread) > limits.max_axis_gain_spread:
+                reasons.append(
+                    f"{name}: forces {gain[i]:+.2f} % off what the model predicts, against {typical:+.2f} % on the "
+                    f"same drives ({twins}; {spread:+.2f} % apart, > {limits.max_axis_gain_spread:g} %): check "
+                    f"{name}'s torque constant, gear ratio or screw lead (off by about {spread:+.1f} %)")
+            ratio, trajectory, own, twins_rms = worst[name]
+            if ratio > limits.max_axis_residual_ratio:
+                reasons.append(
+                    f"{name}: residual {1e3 * own:.3g} mA on {trajectory}, {ratio:.1f} times that of the same "
+                    f"drives ({twins}: {1e3 * twins_rms:.3g} mA; > {limits.max_axis_residual_ratio:g}): the model "
+                    f"does not fit {name}; check its torque constant, gear ratio or screw lead, and its friction")
+    return spreads, {name: w[0] for name, w in worst.items()}, reasons
+
+
+def verdict(results: Results, limits: QualityConfig, actuators: Sequence[ActuatorConfig] = ()) -> dict:
+    """The quality verdict of ``results`` (its ``trajectories`` coverage included); ``actuators``:
+    the config's, whose drives say which axes :func:`axis_reasons` compares (none: no comparison).
+
+    Returns ``{"passed", "reasons", "thresholds", "trajectories", "steps", "well_identified",
+    "axis_gain_spread_percent", "axis_residual_ratio"}``.
     """
     reasons: list[str] = []
     per_traj: dict[str, dict] = {}
@@ -112,6 +196,8 @@ def verdict(results: Results, limits: QualityConfig) -> dict:
                        f"(%sigma <= {threshold:g}; at least {limits.min_well_identified} needed)")
 
     reasons += consistency_reasons(results)
+    spreads, ratios, axis_problems = axis_reasons(results, actuators, limits)
+    reasons += axis_problems
     judged = [f for f in results.fits if f.role == "validation"] or results.fits
     stepwise = any(r.fitted for r in rows)     # else the step-by-step table holds the CAD values only
     for fit in judged:
@@ -135,4 +221,5 @@ def verdict(results: Results, limits: QualityConfig) -> dict:
                 reasons.append(f"{fit.name}: step-by-step and base-parameter predictions {apart:.1f} % apart "
                                f"(> {limits.max_disagreement:g} %)")
     return {"passed": not reasons, "reasons": reasons, "thresholds": dataclasses.asdict(limits),
-            "trajectories": per_traj, "steps": steps, "well_identified": well}
+            "trajectories": per_traj, "steps": steps, "well_identified": well, "axis_gain_spread_percent": spreads,
+            "axis_residual_ratio": ratios}
