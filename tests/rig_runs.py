@@ -26,22 +26,40 @@ def assert_step_identified(config, rows: dict) -> None:
         assert error <= max(0.02 * abs(truth[name]), 3 * row["sigma"]), (name, row["identified"], truth[name])
 
 
-def assert_same_in_one_process(config, config_path: Path, rows: dict, folder: Path, timeout: float) -> None:
+class RunInOneProcess:
+    """``ident-hw run`` of ``config_path`` with the rig in the master's process (``virtual`` bus)
+    into ``folder``, without its report, started at once in the background (:meth:`rows` waits
+    for it): a test starts it before its own run, which it overlaps (the vcan guest has two CPUs
+    and a lockstep run keeps about one busy)."""
+
+    def __init__(self, config_path: Path, folder: Path):
+        self.folder = folder
+        local = folder.with_suffix(".yaml")
+        local.write_text(f"extends: {config_path}\nbus: {{interface: virtual, channel: in-process}}\n"
+                         "sim: {in_process: true}\n")
+        self.process = subprocess.Popen(["ident-hw", "run", local, "--quiet", "--no-report", "--out", folder],
+                                        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+    def stop(self) -> None:
+        """End it if it still runs (a test's finalizer: the test failed before :meth:`rows`)."""
+        if self.process.poll() is None:
+            self.process.kill()
+            self.process.communicate()
+
+    def rows(self, timeout: float) -> dict:
+        """Its :func:`parameter_rows`, once it has ended (and passed)."""
+        try:
+            _, err = self.process.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            raise
+        assert self.process.returncode == 0, err
+        return parameter_rows(self.folder)
+
+
+def assert_same_in_one_process(config, rows: dict, alone: dict) -> None:
     """The step's values in ``rows`` are those of the same config run with the rig in the master's
-    process (:func:`rows_in_one_process` into ``folder``), exactly: in lockstep the process
-    boundary, the sockets and the host's speed reach no sample."""
-    alone = rows_in_one_process(config_path, folder, timeout)
+    process (``alone``, :class:`RunInOneProcess`), exactly: in lockstep the process boundary, the
+    sockets and the host's speed reach no sample."""
     (step,) = config.identification.steps
     assert {p: rows[p]["identified"] for p in step.parameters} == {p: alone[p]["identified"] for p in step.parameters}
-
-
-def rows_in_one_process(config_path: Path, folder: Path, timeout: float) -> dict:
-    """``ident-hw run`` of ``config_path`` with the rig in the master's process (``virtual`` bus)
-    into ``folder``, without its report; its :func:`parameter_rows`."""
-    local = folder.with_suffix(".yaml")
-    local.write_text(f"extends: {config_path}\nbus: {{interface: virtual, channel: in-process}}\n"
-                     "sim: {in_process: true}\n")
-    alone = subprocess.run(["ident-hw", "run", local, "--quiet", "--no-report", "--out", folder], capture_output=True,
-                           text=True, timeout=timeout)
-    assert alone.returncode == 0, alone.stderr
-    return parameter_rows(folder)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from rig_runs import assert_same_in_one_process, assert_step_identified, parameter_rows
+from rig_runs import RunInOneProcess, assert_same_in_one_process, assert_step_identified, parameter_rows
 
 pytest.importorskip("msgpack", reason="python-can's udp_multicast interface needs msgpack (pip install -e '.[test]')")
 
@@ -57,4 +57,4 @@ def test_run_against_the_rig_in_another_process_over_udp_gives_the_in_process_an
 
     rows = parameter_rows(tmp_path / "udp")
     assert_step_identified(config, rows)
-    assert_same_in_one_process(config, config_path, rows, tmp_path / "alone", RUN_TIMEOUT)
+    assert_same_in_one_process(config, rows, RunInOneProcess(config_path, tmp_path / "alone").rows(RUN_TIMEOUT))

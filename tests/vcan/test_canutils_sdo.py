@@ -1,7 +1,7 @@
 """can-utils against the simulated rig: a raw SDO upload of a drive's identity vendor ID."""
 
 import subprocess
-import sys
+from pathlib import Path
 
 import pytest
 
@@ -9,13 +9,13 @@ from .conftest import VCAN_CHANNEL
 
 pytestmark = pytest.mark.vcan
 
-NODE_ID = 1  # the first of the rig's six drives
+CONFIG = Path(__file__).parents[2] / "configs" / "vcan-3prrr.yaml"
+NODE_ID = 1  # the first of the rig's six drives (theta1, an EPOS4)
 SDO_TIMEOUT = 30.0  # s; the emulated drive answers from a Python thread in a slow guest
 
 
 def test_cansend_sdo_upload_of_vendor_id(start_process, candump):
-    start_process([sys.executable, "-m", "drivers.sim", "--interface", "socketcan", "--channel", VCAN_CHANNEL,
-                   "--profile", "epos4"], ready="simulated rig:")
+    start_process(["ident-hw", "sim", str(CONFIG)], ready="simulated rig:")
     # CiA 301 SDO initiate upload request (ccs=2 -> 0x40) for index 0x1018 (little endian), subindex 1
     subprocess.run(["cansend", VCAN_CHANNEL, f"{0x600 + NODE_ID:03X}#4018100100000000"], check=True, timeout=30)
 

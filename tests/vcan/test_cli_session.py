@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from rig_runs import assert_same_in_one_process, assert_step_identified, parameter_rows
+from rig_runs import RunInOneProcess, assert_same_in_one_process, assert_step_identified, parameter_rows
 
 pytestmark = pytest.mark.vcan
 
@@ -14,7 +14,7 @@ CONFIG = Path(__file__).parents[2] / "configs" / "vcan-3prrr.yaml"
 CLI_TIMEOUT = 600.0  # s; numpy/scipy/matplotlib alone take a minute to import in the emulated guest
 
 
-def test_cli_run_against_rig_process_matches_candump(start_process, candump, tmp_path):
+def test_cli_run_against_rig_process_matches_candump(start_process, candump, tmp_path, request):
     # imported here, not at collection: numpy/scipy cost ~25 s in the guest even when the test is skipped
     import numpy as np
 
@@ -23,6 +23,9 @@ def test_cli_run_against_rig_process_matches_candump(start_process, candump, tmp
 
     config = load_config(CONFIG)
     actuators = config.robot.actuators
+    # the same config with the rig in the master's process, meanwhile (the guest's second CPU)
+    alone = RunInOneProcess(CONFIG, tmp_path / "alone")
+    request.addfinalizer(alone.stop)
     start_process(["ident-hw", "sim", CONFIG], ready="simulated rig:")
 
     scan = subprocess.run(["ident-hw", "scan", CONFIG, "--wait", "3"], capture_output=True, text=True,
@@ -49,7 +52,7 @@ def test_cli_run_against_rig_process_matches_candump(start_process, candump, tmp
     # process (lockstep: the process boundary, the kernel's sockets and the guest's speed reach no sample)
     rows = parameter_rows(out)
     assert_step_identified(config, rows)
-    assert_same_in_one_process(config, CONFIG, rows, tmp_path / "alone", CLI_TIMEOUT)
+    assert_same_in_one_process(config, rows, alone.rows(CLI_TIMEOUT))
 
     # candump saw the same frames on the bus: the project's decoder gives the same samples from candump's log,
     # from where the run's own raw log starts (the master records from the start of the stream; the kernel
