@@ -207,3 +207,30 @@ def test_axis_gains_against_the_same_drives_by_hand():
     gains = [r for r in reasons if "off what the model predicts" in r]
     assert [r.split(":")[0] for r in gains] == ["theta3", "zeta3"]
     assert gains[0].startswith("theta3: forces +5.00 % off what the model predicts, against +1.00 %")
+
+
+def test_force_lags_by_hand():
+    """force_lags: measured forces that are the predicted ones T later (tau(t) = p(t - T)), on
+    trajectories with a gap in their sample times, give back T per axis (to first order in
+    omega T, and the central difference's (omega h)^2 / 6: both below 1e-3 here); a lag beyond
+    max_force_lag fails the verdict, naming the axes."""
+    from ident_hw.experiment.quality import force_lags, verdict
+    from ident_hw.results import TrajectoryFit
+    config = load_config(CONFIGS / "sim-3prrr.yaml")
+    actuators = config.robot.actuators
+    lag = np.array([0.0, 0.2e-3, 0.4e-3, 2.0e-3, 3.0e-3, -1.5e-3])
+    t = np.concatenate([np.arange(0, 5, 0.004), 7 + np.arange(0, 5, 0.004)])      # a 2 s gap
+    fits = []
+    for name, f in (("a", 0.7), ("b", 1.1)):
+        amplitude = np.array([1, 2, 3, 40, 50, 60.0])
+        predicted = np.sin(2 * np.pi * f * t)[:, None] * amplitude
+        measured = np.sin(2 * np.pi * f * (t[:, None] - lag)) * amplitude
+        fits.append(TrajectoryFit(name=name, role="identification", t=t, tau=measured, tau_model=predicted,
+                                  Theta=np.zeros_like(predicted), tau_base=predicted))
+    results = _results_of(actuators, fits)
+    found = force_lags(results)
+    assert list(found) == [a.name for a in actuators]
+    np.testing.assert_allclose(list(found.values()), lag, rtol=1e-3, atol=1e-9)
+    q = verdict(results, config.identification.quality, actuators)
+    (reason,) = [r for r in q["reasons"] if "lag" in r]
+    assert "2.00 ms on zeta1, 3.00 ms on zeta2, -1.50 ms on zeta3 (> 0.5 ms)" in reason and "theta3" not in reason

@@ -552,6 +552,10 @@ class QualityConfig:
                                 "relative to the measured forces, on the trajectories max_d_tau judges"))
     min_well_identified: int = field(default=1, metadata=spec(
         non_negative, doc="fitted parameters (physical or base) with %sigma <= rel_sigma_threshold"))
+    max_force_lag: float = field(default=5e-4, metadata=spec(
+        positive, unit="s", doc="delay of an axis's measured forces behind the model's (least squares over all "
+                                "fitted trajectories): beyond it the data and the model disagree in time (a current "
+                                "averaged by the drive identified as instantaneous: bus.current)"))
     max_axis_gain_spread: float = field(default=2.0, metadata=spec(
         positive, unit="%", doc="an axis's forces against the model's prediction (least-squares gain over all "
                                 "fitted trajectories), minus the median of the other axes with the same drive: "

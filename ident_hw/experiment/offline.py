@@ -287,6 +287,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     truth = config.true_parameters()
     steps = []
     base_fit, base_equivalent, model_comparison = None, None, None
+    fitted: set[str] = set()            # every parameter some step fitted
     for step in ident.steps:
         free_names = step.parameter_names(names)
         if progress:
@@ -303,6 +304,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
             base_fit, base_equivalent, record = fit_base(step, free_names, names, Y, tau, coef, initial, truth,
                                                          ident.rel_sigma_threshold, robot.readable_base())
             steps.append(record)
+            fitted.update(free_names)
             if compared:
                 if progress:
                     progress(f"step {step.name}: the dynamic, power and energy models' base parameters")
@@ -337,6 +339,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         else:
             sigma[idx] = stats.std
             record["cond_W"] = stats.cond
+        fitted.update(excited)
         for i, p in zip(idx, excited):
             lo, hi = bounds.get(p, (0.0, np.inf))
             lower[i], upper[i] = lo, hi
@@ -367,7 +370,12 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         if progress:
             progress(f"step {base_fit.step}: the physically consistent parameters nearest the CAD values")
         results.consistent = consistent(config, robot, base_fit, base_equivalent, initial, truth, steps)
-    results.quality = verdict(results, ident.quality, config.robot.actuators)
+    # the axes whose forces some fitted parameter acts on (a carriage sweep's links, moved by their
+    # held CAD values only, are not): the verdict compares and times those
+    acting = [names.index(p) for p in fitted]
+    judged = tuple(robot.actuator_names[j] for j in range(len(robot.actuator_names))
+                   if acting and any(np.any(prepared[t].Y[:, j, acting] != 0) for t in id_names))
+    results.quality = verdict(results, ident.quality, config.robot.actuators, judged)
     return results
 
 

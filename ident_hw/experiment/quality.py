@@ -12,7 +12,8 @@ thresholds of ``identification.quality`` (:class:`ident_hw.config.QualityConfig`
 * the parameters: how many fitted ones are well identified (%σ at most ``rel_sigma_threshold``);
 * per axis, against the axes with the same drive (:func:`axis_reasons`): the gain between its
   measured and predicted forces, and its residual. A model the data contradict on one axis (its
-  torque constant, say) shows there, whatever the parameters' sigma say;
+  torque constant, say) shows there, whatever the parameters' sigma say; and the delay of its
+  measured forces behind the predicted ones (:func:`force_lags`);
 * per validation trajectory (each identification one when there is none): the force prediction
   error d_τ of the step-by-step parameters (and of the base-parameter fit), and how far the
   two predictions are apart. Not on identification trajectories beside a validation one: on
@@ -70,8 +71,8 @@ def same_drive_groups(actuators: Sequence[ActuatorConfig]) -> list[tuple[int, ..
     return [tuple(g) for g in groups.values() if len(g) > 1]
 
 
-def axis_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits: QualityConfig
-                 ) -> tuple[dict, dict, list[str]]:
+def axis_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits: QualityConfig,
+                 judged: Sequence[str] | None = None) -> tuple[dict, dict, list[str]]:
     """Each axis against the other axes of its group (:func:`same_drive_groups`), by what the fit
     leaves unexplained: the measured forces against those the base-parameter fit predicts (the
     step-by-step values' where there is none), on every fitted trajectory.
@@ -86,12 +87,16 @@ def axis_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits: 
       one axis leaves it a residual several times its twins' (a drive whose parameters the fit
       cannot bend to it: the Delta's arms share their platform).
 
+    Only the axes in ``judged`` (None: all) are compared.
+
     Returns ``({axis: gain - the group's median gain, %}, {axis: worst residual ratio}, reasons)``:
     the ratio is the axis's residual over the median of the others', at its worst trajectory; a
     reason names each axis beyond ``limits.max_axis_gain_spread`` or
     ``limits.max_axis_residual_ratio``. Of two axes alone, the one further off the model is named.
     """
-    groups = same_drive_groups(actuators)
+    judged = results.actuators if judged is None else tuple(judged)
+    groups = [g for g in (tuple(i for i in group if results.actuators[i] in judged)
+                          for group in same_drive_groups(actuators)) if len(g) > 1]
     per_amp = np.array([a.scaling().force_per_amp for a in actuators])
     worst: dict[str, tuple[float, str, float, float]] = {}
     along, power = np.zeros(len(actuators)), np.zeros(len(actuators))
@@ -137,12 +142,38 @@ def axis_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits: 
     return spreads, {name: w[0] for name, w in worst.items()}, reasons
 
 
-def verdict(results: Results, limits: QualityConfig, actuators: Sequence[ActuatorConfig] = ()) -> dict:
+def force_lags(results: Results) -> dict[str, float]:
+    """Per axis, the delay ``T`` (s) of the measured forces behind the predicted ones: the
+    least-squares ``T`` of ``tau - tau_predicted = -T d(tau_predicted)/dt`` over all fitted
+    trajectories (``tau(t) = tau_predicted(t - T)`` to first order), the derivative by central
+    differences within each stretch of regular sample times. A model right in time leaves ~0; a
+    current filtered by the drive (the averaged current, a first-order 50 Hz low-pass: about
+    3.2 ms) and identified as an instantaneous one leaves that filter's delay on every axis."""
+    along, power = np.zeros(len(results.actuators)), np.zeros(len(results.actuators))
+    for fit in results.fits:
+        if len(fit.t) < 3:
+            continue
+        predicted = fit.tau_base if fit.tau_base is not None else fit.tau_model
+        dt = np.diff(fit.t)
+        regular = np.abs(dt - np.median(dt)) <= 0.01 * np.median(dt)
+        inner = np.flatnonzero(regular[:-1] & regular[1:]) + 1      # both neighbours a regular step away
+        rate = (predicted[inner + 1] - predicted[inner - 1]) / (fit.t[inner + 1] - fit.t[inner - 1])[:, None]
+        along += np.sum((fit.tau[inner] - predicted[inner]) * rate, axis=0)
+        power += np.sum(rate ** 2, axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lag = -along / power
+    return {name: float(v) for name, v in zip(results.actuators, lag) if math.isfinite(v)}
+
+
+def verdict(results: Results, limits: QualityConfig, actuators: Sequence[ActuatorConfig] = (),
+            judged_axes: Sequence[str] | None = None) -> dict:
     """The quality verdict of ``results`` (its ``trajectories`` coverage included); ``actuators``:
-    the config's, whose drives say which axes :func:`axis_reasons` compares (none: no comparison).
+    the config's, whose drives say which axes :func:`axis_reasons` compares (none: no comparison);
+    ``judged_axes``: the axes whose forces the fitted parameters act on, which the axis checks and
+    :func:`force_lags` judge (None: every axis).
 
     Returns ``{"passed", "reasons", "thresholds", "trajectories", "steps", "well_identified",
-    "axis_gain_spread_percent", "axis_residual_ratio"}``.
+    "axis_gain_spread_percent", "axis_residual_ratio", "force_lag_s", "axes_judged"}``.
     """
     reasons: list[str] = []
     per_traj: dict[str, dict] = {}
@@ -196,8 +227,16 @@ def verdict(results: Results, limits: QualityConfig, actuators: Sequence[Actuato
                        f"(%sigma <= {threshold:g}; at least {limits.min_well_identified} needed)")
 
     reasons += consistency_reasons(results)
-    spreads, ratios, axis_problems = axis_reasons(results, actuators, limits)
+    axes = results.actuators if judged_axes is None else tuple(judged_axes)
+    spreads, ratios, axis_problems = axis_reasons(results, actuators, limits, axes)
     reasons += axis_problems
+    lags = {name: lag for name, lag in force_lags(results).items() if name in axes}
+    late = {name: lag for name, lag in lags.items() if abs(lag) > limits.max_force_lag}
+    if late:
+        reasons.append("the measured forces lag the model's by " + ", ".join(
+            f"{1e3 * lag:.2f} ms on {name}" for name, lag in late.items())
+            + f" (> {1e3 * limits.max_force_lag:g} ms): currents averaged by the drive but identified as "
+              "instantaneous (bus.current), or sample times off")
     judged = [f for f in results.fits if f.role == "validation"] or results.fits
     stepwise = any(r.fitted for r in rows)     # else the step-by-step table holds the CAD values only
     for fit in judged:
@@ -222,4 +261,5 @@ def verdict(results: Results, limits: QualityConfig, actuators: Sequence[Actuato
                                f"(> {limits.max_disagreement:g} %)")
     return {"passed": not reasons, "reasons": reasons, "thresholds": dataclasses.asdict(limits),
             "trajectories": per_traj, "steps": steps, "well_identified": well, "axis_gain_spread_percent": spreads,
-            "axis_residual_ratio": ratios}
+            "axis_residual_ratio": ratios, "force_lag_s": lags,
+            "axes_judged": list(axes)}
