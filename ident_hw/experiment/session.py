@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from contextlib import AbstractContextManager, contextmanager, nullcontext
 from dataclasses import dataclass
-from typing import Iterator
+from typing import TYPE_CHECKING, Iterator
 
 import can
 import canopen
@@ -23,12 +23,14 @@ from drivers.bus import open_network
 from drivers.epos import DriveGroup
 from drivers.errors import BusOpenError
 from drivers.gc_freeze import frozen_gc
-from drivers.sim import SimulatedRig
 from drivers.sim.lockstep import LockstepSync
 from drivers.sync import PeriodicSync, SyncSource
 from drivers.units import MA_PER_AMP
 from ident_hw.config import Config
 from ident_hw.experiment.plan import drive_axes, robot_model, sync_period
+
+if TYPE_CHECKING:     # the rig (its compiled plant) is imported where one is built
+    from drivers.sim import SimulatedRig
 
 
 def simulated_rig(config: Config) -> SimulatedRig:
@@ -44,6 +46,7 @@ def simulated_rig(config: Config) -> SimulatedRig:
         raise ValueError(f"{config.source}: sim: missing section (the simulated rig's truth and noise)")
     if config.bus is None:
         raise ValueError(f"{config.source}: bus: missing section")
+    from drivers.sim import SimulatedRig
     sim, robot = config.sim, config.robot
     lockstep = config.sync_mode == "lockstep"
     axes = [(a.node_id, a.profile, a.scaling()) for a in robot.actuators]
