@@ -13,9 +13,10 @@ from pathlib import Path
 import can
 import pytest
 
-from processes import START_TIMEOUT, STOP_TIMEOUT
+from processes import START_TIMEOUT, STOP_TIMEOUT, stop_process, wait_for_line
 
 VCAN_CHANNEL = "vcan0"
+VCAN_CONFIG = Path(__file__).parents[2] / "configs" / "vcan-3prrr.yaml"
 PEERS = Path(__file__).with_name("peers.py")
 MARKER_ID = 0x7FF  # frame the candump fixture sends until it sees it, to know candump is listening
 
@@ -81,3 +82,19 @@ def candump(tmp_path):
         yield log
     finally:
         log.stop()
+
+
+@pytest.fixture(scope="module")
+def vcan_rig():
+    """``ident-hw sim configs/vcan-3prrr.yaml``: the simulated rig of the vcan config (lockstep) on
+    vcan0, started once for a module's tests (a start takes minutes in the guest: the plant's
+    imports) and stopped after them (another module's rig has the same node-IDs). Yields the
+    config's path. The tests leave its plant where it was: an SDO
+    upload moves nothing, and one lockstep run steps it."""
+    proc = subprocess.Popen(["ident-hw", "sim", str(VCAN_CONFIG)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        wait_for_line(proc, "simulated rig:", START_TIMEOUT)
+        yield VCAN_CONFIG
+    finally:
+        stop_process(proc)

@@ -1,20 +1,43 @@
-"""The CLI as a user runs it against the rig on SocketCAN: ``ident-hw sim`` in one process,
-``ident-hw scan`` and a short ``ident-hw run`` in others, ``candump -L`` recording the session."""
+"""The rig of the vcan config served by ``ident-hw sim`` in one process (``vcan_rig``, started
+once for this module), ``candump -L`` recording: can-utils' raw SDO upload against it, then the
+CLI as a user runs it, ``ident-hw scan`` and a short ``ident-hw run`` in other processes."""
 
 import subprocess
-from pathlib import Path
 
 import pytest
 
 from rig_runs import RunInOneProcess, assert_same_in_one_process, assert_step_identified, parameter_rows
 
+from .conftest import VCAN_CHANNEL, VCAN_CONFIG as CONFIG
+
 pytestmark = pytest.mark.vcan
 
-CONFIG = Path(__file__).parents[2] / "configs" / "vcan-3prrr.yaml"
+NODE_ID = 1  # the first of the rig's six drives (theta1, an EPOS4)
+SDO_TIMEOUT = 30.0  # s; the emulated drive answers from a Python thread in a slow guest
 CLI_TIMEOUT = 600.0  # s; numpy/scipy/matplotlib alone take a minute to import in the emulated guest
 
 
-def test_cli_run_against_rig_process_matches_candump(start_process, candump, tmp_path, request):
+def test_cansend_sdo_upload_of_vendor_id(vcan_rig, candump):
+    # CiA 301 SDO initiate upload request (ccs=2 -> 0x40) for index 0x1018 (little endian), subindex 1
+    subprocess.run(["cansend", VCAN_CHANNEL, f"{0x600 + NODE_ID:03X}#4018100100000000"], check=True, timeout=30)
+
+    request = candump.wait_for(lambda m: m.arbitration_id == 0x600 + NODE_ID, SDO_TIMEOUT)
+    reply = candump.wait_for(lambda m: m.arbitration_id == 0x580 + NODE_ID, SDO_TIMEOUT)
+    assert request.channel == reply.channel == VCAN_CHANNEL
+    assert not reply.is_extended_id and not reply.is_remote_frame
+    assert reply.timestamp > request.timestamp
+    assert reply.dlc == 8
+    data = bytes(reply.data)
+    # 0x43: scs=2 (initiate upload response), e=1 (expedited), s=1 (size indicated), n=0 (4 bytes)
+    assert data[0] == 0x43
+    assert data[1] == 0x18 and data[2] == 0x10  # index 0x1018, little endian
+    assert data[3] == 0x01  # subindex
+    assert data[4:8] == bytes([0xFB, 0x00, 0x00, 0x00])  # vendor ID 0x000000FB (maxon), little endian
+    # and exactly as can-utils prints it
+    assert any(line.endswith(f" {VCAN_CHANNEL} {0x580 + NODE_ID:03X}#43181001FB000000") for line in candump.lines())
+
+
+def test_cli_run_against_rig_process_matches_candump(vcan_rig, candump, tmp_path, request):
     # imported here, not at collection: numpy/scipy cost ~25 s in the guest even when the test is skipped
     import numpy as np
 
@@ -26,7 +49,6 @@ def test_cli_run_against_rig_process_matches_candump(start_process, candump, tmp
     # the same config with the rig in the master's process, meanwhile (the guest's second CPU)
     alone = RunInOneProcess(CONFIG, tmp_path / "alone")
     request.addfinalizer(alone.stop)
-    start_process(["ident-hw", "sim", CONFIG], ready="simulated rig:")
 
     scan = subprocess.run(["ident-hw", "scan", CONFIG, "--wait", "3"], capture_output=True, text=True,
                           timeout=CLI_TIMEOUT)
