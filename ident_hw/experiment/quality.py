@@ -165,22 +165,14 @@ def force_lags(results: Results) -> dict[str, float]:
     return {name: float(v) for name, v in zip(results.actuators, lag) if math.isfinite(v)}
 
 
-def verdict(results: Results, limits: QualityConfig, actuators: Sequence[ActuatorConfig] = (),
-            judged_axes: Sequence[str] | None = None) -> dict:
-    """The quality verdict of ``results`` (its ``trajectories`` coverage included); ``actuators``:
-    the config's, whose drives say which axes :func:`axis_reasons` compares (none: no comparison);
-    ``judged_axes``: the axes whose forces the fitted parameters act on, which the axis checks and
-    :func:`force_lags` judge (None: every axis).
-
-    Returns ``{"passed", "reasons", "thresholds", "trajectories", "steps", "well_identified",
-    "axis_gain_spread_percent", "axis_residual_ratio", "force_lag_s", "axes_judged"}``.
-    """
+def recording_reasons(results: Results, limits: QualityConfig) -> tuple[dict[str, dict], list[str]]:
+    """Per trajectory: what its recording covered (``results.trajectories``), and why that is not
+    enough (partial or truncated, too few cycles, too few complete, a gap, a frame not placed)."""
     reasons: list[str] = []
     per_traj: dict[str, dict] = {}
     for name, used in (results.trajectories or {}).items():
-        row = {k: used.get(k) for k in ("recording_status", "coverage", "valid_fraction", "longest_gap_s",
-                                        "unplaced_frames")}
-        per_traj[name] = row
+        per_traj[name] = {k: used.get(k) for k in ("recording_status", "coverage", "valid_fraction",
+                                                   "longest_gap_s", "unplaced_frames")}
         status = str(used.get("recording_status", ""))
         if status.startswith(("stopped", "running")):
             reasons.append(f"{name}: partial recording ({status})")
@@ -201,7 +193,13 @@ def verdict(results: Results, limits: QualityConfig, actuators: Sequence[Actuato
                            f"cycle (late by more than the assembler's look-ahead, or sent twice)")
         if used["longest_gap_s"] > limits.max_gap:
             reasons.append(f"{name}: {used['longest_gap_s']:.3g} s without a complete cycle (> {limits.max_gap:g} s)")
+    return per_traj, reasons
 
+
+def step_reasons(results: Results, limits: QualityConfig) -> tuple[dict[str, dict], list[str]]:
+    """Per identification step: its scaled condition number, and why the step falls short (not
+    fitted, parameters its data do not excite, ill-conditioned)."""
+    reasons: list[str] = []
     steps = {}
     for record in results.steps:
         if record.get("skipped"):
@@ -213,33 +211,42 @@ def verdict(results: Results, limits: QualityConfig, actuators: Sequence[Actuato
         steps[record["name"]] = {"cond_scaled": cond}
         if cond is not None and not cond <= limits.max_condition:
             reasons.append(f"step {record['name']}: condition number {cond:.3g} (> {limits.max_condition:g})")
+    return steps, reasons
 
-    rows = results.parameter_rows()
-    threshold = results.rel_sigma_threshold
-    fitted: list = [r for r in rows if r.fitted]
+
+def well_identified_reasons(results: Results, limits: QualityConfig) -> tuple[list[str], list[str]]:
+    """The fitted parameters (physical, then base) with %sigma at most the campaign's threshold,
+    and a reason when fewer than ``limits.min_well_identified`` are."""
+    fitted: list = [r for r in results.parameter_rows() if r.fitted]
     well = [r.name for r in fitted if r.well_identified]
     if results.base_fit is not None:
         base_rows = results.base_fit.rows()
         fitted += base_rows
         well += [r.expression for r in base_rows if r.well_identified]
     if fitted and len(well) < limits.min_well_identified:
-        reasons.append(f"{len(well)} of {len(fitted)} fitted parameters well identified "
-                       f"(%sigma <= {threshold:g}; at least {limits.min_well_identified} needed)")
+        return well, [f"{len(well)} of {len(fitted)} fitted parameters well identified "
+                      f"(%sigma <= {results.rel_sigma_threshold:g}; at least {limits.min_well_identified} needed)"]
+    return well, []
 
-    reasons += consistency_reasons(results)
-    axes = results.actuators if judged_axes is None else tuple(judged_axes)
-    spreads, ratios, axis_problems = axis_reasons(results, actuators, limits, axes)
-    reasons += axis_problems
-    lags = {name: lag for name, lag in force_lags(results).items() if name in axes}
+
+def lag_reasons(lags: dict[str, float], limits: QualityConfig) -> list[str]:
+    """One reason naming the axes whose forces lag (or lead) the model's beyond ``limits.max_force_lag``."""
     late = {name: lag for name, lag in lags.items() if abs(lag) > limits.max_force_lag}
-    if late:
-        reasons.append("the measured forces lag the model's by " + ", ".join(
-            f"{1e3 * lag:.2f} ms on {name}" for name, lag in late.items())
+    if not late:
+        return []
+    return ["the measured forces lag the model's by " + ", ".join(f"{1e3 * lag:.2f} ms on {name}"
+                                                                  for name, lag in late.items())
             + f" (> {1e3 * limits.max_force_lag:g} ms): currents averaged by the drive but identified as "
-              "instantaneous (bus.current), or sample times off")
-    judged = [f for f in results.fits if f.role == "validation"] or results.fits
-    stepwise = any(r.fitted for r in rows)     # else the step-by-step table holds the CAD values only
-    for fit in judged:
+              "instantaneous (bus.current), or sample times off"]
+
+
+def prediction_reasons(results: Results, limits: QualityConfig, per_traj: dict[str, dict]) -> list[str]:
+    """On each validation trajectory (each identification one when there is none): the force
+    prediction error d_tau of the step-by-step and the base-parameter values, and how far the two
+    predictions are apart; the figures go into ``per_traj``."""
+    reasons: list[str] = []
+    stepwise = any(r.fitted for r in results.parameter_rows())   # else the table holds the CAD values only
+    for fit in [f for f in results.fits if f.role == "validation"] or results.fits:
         row = per_traj.setdefault(fit.name, {})
         row["role"] = fit.role
         if not len(fit.t):
@@ -259,7 +266,31 @@ def verdict(results: Results, limits: QualityConfig, actuators: Sequence[Actuato
             if not apart <= limits.max_disagreement:
                 reasons.append(f"{fit.name}: step-by-step and base-parameter predictions {apart:.1f} % apart "
                                f"(> {limits.max_disagreement:g} %)")
+    return reasons
+
+
+def verdict(results: Results, limits: QualityConfig, actuators: Sequence[ActuatorConfig] = (),
+            judged_axes: Sequence[str] | None = None) -> dict:
+    """The quality verdict of ``results`` (its ``trajectories`` coverage included); ``actuators``:
+    the config's, whose drives say which axes :func:`axis_reasons` compares (none: no comparison);
+    ``judged_axes``: the axes whose forces the fitted parameters act on, which the axis checks and
+    :func:`force_lags` judge (None: every axis).
+
+    Returns ``{"passed", "reasons", "thresholds", "trajectories", "steps", "well_identified",
+    "axis_gain_spread_percent", "axis_residual_ratio", "force_lag_s", "axes_judged"}``.
+    """
+    per_traj, reasons = recording_reasons(results, limits)
+    steps, more = step_reasons(results, limits)
+    reasons += more
+    well, more = well_identified_reasons(results, limits)
+    reasons += more
+    reasons += consistency_reasons(results)
+    axes = results.actuators if judged_axes is None else tuple(judged_axes)
+    spreads, ratios, more = axis_reasons(results, actuators, limits, axes)
+    reasons += more
+    lags = {name: lag for name, lag in force_lags(results).items() if name in axes}
+    reasons += lag_reasons(lags, limits)
+    reasons += prediction_reasons(results, limits, per_traj)
     return {"passed": not reasons, "reasons": reasons, "thresholds": dataclasses.asdict(limits),
             "trajectories": per_traj, "steps": steps, "well_identified": well, "axis_gain_spread_percent": spreads,
-            "axis_residual_ratio": ratios, "force_lag_s": lags,
-            "axes_judged": list(axes)}
+            "axis_residual_ratio": ratios, "force_lag_s": lags, "axes_judged": list(axes)}
