@@ -18,7 +18,7 @@ parameters side by side (:mod:`ident_hw.identification.model_comparison`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Mapping
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -253,6 +253,87 @@ def comparison(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.
                           basis=basis, step=step.name, trajectories=step.trajectories, threshold=threshold)
 
 
+@dataclass
+class _Estimates:
+    """The physical parameters as the steps leave them (arrays (n,)): values, sigma (NaN: none),
+    bounds, and which step and method fitted each ("" : held at its initial value)."""
+
+    coef: np.ndarray
+    sigma: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    step_of: list[str]
+    method_of: list[str]
+
+    @classmethod
+    def initial(cls, values: np.ndarray) -> _Estimates:
+        n = len(values)
+        return cls(values.copy(), np.full(n, np.nan), np.full(n, -np.inf), np.full(n, np.inf), [""] * n, [""] * n)
+
+
+def prepare_all(config: Config, robot: RobotModel, recordings: Mapping[str, Recording], needed: Sequence[str],
+                compared: Sequence[str], progress: Callable[[str], None] | None) -> tuple[dict, dict[str, Prepared]]:
+    """Each needed trajectory's coverage (what its recording holds) and its :func:`prepare`."""
+    used = {name: coverage(config, name, recordings[name]) for name in needed}
+    if progress:
+        for name, u in used.items():
+            progress(f"  {name}: {coverage_text(u)}")
+    prepared: dict[str, Prepared] = {}
+    for name in needed:
+        if progress:
+            progress(f"preparing {name}")
+        prepared[name] = prepare(config, robot, name, recordings[name], scalar_models=name in compared)
+        if progress and prepared[name].segments.describe():
+            progress(f"  {name}: {prepared[name].segments.describe()}")
+    return used, prepared
+
+
+def fit_sqp_step(step, free_names: Sequence[str], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
+                 estimates: _Estimates, all_bounds: Mapping[str, tuple[float, float]],
+                 prepared: Mapping[str, Prepared]) -> tuple[dict, list[str]]:
+    """The paper's bounded SQP mass fit of one step's parameters on its data (``Y`` (N, a, n),
+    ``tau`` (N, a)), the others held at their current values; ``estimates`` updated in place.
+    A parameter its rows do not excite at all (a carriage whose every stretch was left out) is
+    held, and the record says so. Returns the step's record and the parameters it fitted."""
+    rows, _ = stack(*check_regression_data(Y, tau))
+    excited = [p for p in free_names if np.any(rows[:, names.index(p)] != 0)]
+    unexcited = [p for p in free_names if p not in excited]
+    if not excited:
+        return {"name": step.name, "trajectories": list(step.trajectories),
+                "skipped": f"none of {', '.join(step.parameters)} excited by its data"}, []
+    bounds = {p: all_bounds[p] for p in excited if p in all_bounds}
+    fit = sqp_fit(Y, tau, names, estimates.coef, free=excited, bounds=bounds)
+    estimates.coef = coef = fit.coef
+    idx = [names.index(p) for p in excited]
+    held = [i for i in range(len(names)) if i not in idx]
+    # sigma of the free parameters: WLS statistics of the same weighted problem
+    record = {"name": step.name, "trajectories": list(step.trajectories), **fit.to_dict(),
+              "rows_left_out": {t: prepared[t].segments.left_out for t in step.trajectories},
+              "cond_scaled": scaled_condition(Y[:, :, idx], tau)}
+    if unexcited:
+        record["unexcited"] = unexcited
+    try:
+        stats = wls(Y[:, :, idx], tau - Y[:, :, held] @ coef[held], excited, output_std=fit.output_std)
+    except ValueError as exc:  # rank deficient: the fit is bounded, but has no covariance
+        record["statistics"] = str(exc)
+    else:
+        estimates.sigma[idx] = stats.std
+        record["cond_W"] = stats.cond
+    for i, p in zip(idx, excited):
+        estimates.lower[i], estimates.upper[i] = bounds.get(p, (0.0, np.inf))
+        estimates.step_of[i], estimates.method_of[i] = step.name, step.method
+    return record, excited
+
+
+def acting_axes(robot: RobotModel, prepared: Mapping[str, Prepared], trajectories: Sequence[str],
+                fitted: set[str]) -> tuple[str, ...]:
+    """The axes whose forces some of the ``fitted`` parameters act on in ``trajectories`` (a non-zero
+    regressor column): a carriage sweep's links, moved by their held CAD values only, are not."""
+    acting = [robot.parameter_names.index(p) for p in fitted]
+    return tuple(name for j, name in enumerate(robot.actuator_names)
+                 if acting and any(np.any(prepared[t].Y[:, j, acting] != 0) for t in trajectories))
+
+
 def identify(config: Config, recordings: Mapping[str, Recording],
              progress: Callable[[str], None] | None = None) -> Results:
     """Run the config's identification steps and validation on ``recordings`` (name → samples)."""
@@ -261,29 +342,15 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         raise ValueError(f"{config.source}: identification: missing section")
     robot = robot_model(config)
     names = robot.parameter_names
-    needed = [n for s in ident.steps for n in s.trajectories] + list(ident.validation)
+    needed = list(dict.fromkeys([n for s in ident.steps for n in s.trajectories] + list(ident.validation)))
     compared: tuple[str, ...] = ()
     if ident.compare_models:            # the config check made sure there is such a step
         compared = next(s for s in ident.steps if s.method != "sqp").trajectories
     require_trajectories(config, recordings)
-    used = {name: coverage(config, name, recordings[name]) for name in dict.fromkeys(needed)}
-    if progress:
-        for name, u in used.items():
-            progress(f"  {name}: {coverage_text(u)}")
-    prepared: dict[str, Prepared] = {}
-    for name in dict.fromkeys(needed):
-        if progress:
-            progress(f"preparing {name}")
-        prepared[name] = prepare(config, robot, name, recordings[name], scalar_models=name in compared)
-        if progress and prepared[name].segments.describe():
-            progress(f"  {name}: {prepared[name].segments.describe()}")
+    used, prepared = prepare_all(config, robot, recordings, needed, compared, progress)
 
-    n = len(names)
     initial = config.robot.initial_parameters()
-    coef = initial.copy()
-    sigma = np.full(n, np.nan)
-    lower, upper = np.full(n, -np.inf), np.full(n, np.inf)
-    step_of, method_of = [""] * n, [""] * n
+    estimates = _Estimates.initial(initial)
     truth = config.true_parameters()
     steps = []
     base_fit, base_equivalent, model_comparison = None, None, None
@@ -300,52 +367,22 @@ def identify(config: Config, recordings: Mapping[str, Recording],
             steps.append({"name": step.name, "trajectories": list(step.trajectories),
                           "skipped": "no stretch of its recordings could be filtered"})
             continue
-        if step.method != "sqp":
-            base_fit, base_equivalent, record = fit_base(step, free_names, names, Y, tau, coef, initial, truth,
-                                                         ident.rel_sigma_threshold, robot.readable_base())
+        if step.method == "sqp":
+            record, excited = fit_sqp_step(step, free_names, names, Y, tau, estimates, ident.bounds, prepared)
             steps.append(record)
-            fitted.update(free_names)
-            if compared:
-                if progress:
-                    progress(f"step {step.name}: the dynamic, power and energy models' base parameters")
-                model_comparison = comparison(step, free_names, names, Y, tau, prepared, coef, truth,
-                                              step.method == "wls", ident.rel_sigma_threshold,
-                                              robot.readable_base())
+            fitted.update(excited)
             continue
-        # a parameter its rows do not excite at all (e.g. a carriage whose every stretch was
-        # left out) is held at its current value, and the verdict says so
-        rows, _ = stack(*check_regression_data(Y, tau))
-        excited = [p for p in free_names if np.any(rows[:, names.index(p)] != 0)]
-        unexcited = [p for p in free_names if p not in excited]
-        if not excited:
-            steps.append({"name": step.name, "trajectories": list(step.trajectories),
-                          "skipped": f"none of {', '.join(step.parameters)} excited by its data"})
-            continue
-        bounds = {p: ident.bounds[p] for p in excited if p in ident.bounds}
-        fit = sqp_fit(Y, tau, names, coef, free=excited, bounds=bounds)
-        coef = fit.coef
-        idx = [names.index(p) for p in excited]
-        held = [i for i in range(n) if i not in idx]
-        # sigma of the free parameters: WLS statistics of the same weighted problem
-        record = {"name": step.name, "trajectories": list(step.trajectories), **fit.to_dict(),
-                  "rows_left_out": {t: prepared[t].segments.left_out for t in step.trajectories},
-                  "cond_scaled": scaled_condition(Y[:, :, idx], tau)}
-        if unexcited:
-            record["unexcited"] = unexcited
-        try:
-            stats = wls(Y[:, :, idx], tau - Y[:, :, held] @ coef[held], excited, output_std=fit.output_std)
-        except ValueError as exc:  # rank deficient: the fit is bounded, but has no covariance
-            record["statistics"] = str(exc)
-        else:
-            sigma[idx] = stats.std
-            record["cond_W"] = stats.cond
-        fitted.update(excited)
-        for i, p in zip(idx, excited):
-            lo, hi = bounds.get(p, (0.0, np.inf))
-            lower[i], upper[i] = lo, hi
-            step_of[i], method_of[i] = step.name, step.method
+        base_fit, base_equivalent, record = fit_base(step, free_names, names, Y, tau, estimates.coef, initial, truth,
+                                                     ident.rel_sigma_threshold, robot.readable_base())
         steps.append(record)
+        fitted.update(free_names)
+        if compared:
+            if progress:
+                progress(f"step {step.name}: the dynamic, power and energy models' base parameters")
+            model_comparison = comparison(step, free_names, names, Y, tau, prepared, estimates.coef, truth,
+                                          step.method == "wls", ident.rel_sigma_threshold, robot.readable_base())
 
+    coef = estimates.coef
     id_names = list(dict.fromkeys(t for s in ident.steps for t in s.trajectories))
     W, _ = stack(*check_regression_data(np.concatenate([prepared[t].Y for t in id_names]),
                                         np.concatenate([prepared[t].tau_fit for t in id_names])))
@@ -357,8 +394,8 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         fits.append(TrajectoryFit(name, role, p.t, p.tau, p.Y @ coef, p.Theta, p.X,
                                   tau_base=None if base_fit is None else p.Y @ base_equivalent))
     table = ParameterTable(names=names, units=tuple(robot.parameter_unit(p) for p in names), initial=initial,
-                           identified=coef, sigma=sigma, lower=lower, upper=upper,
-                           step=tuple(step_of), method=tuple(method_of), truth=truth)
+                           identified=coef, sigma=estimates.sigma, lower=estimates.lower, upper=estimates.upper,
+                           step=tuple(estimates.step_of), method=tuple(estimates.method_of), truth=truth)
     for name, p in prepared.items():
         used[name].update(samples_used=len(p.t), rows_left_out=p.segments.left_out, gaps=p.segments.gaps,
                           stretches=len(p.segments.slices))
@@ -370,12 +407,8 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         if progress:
             progress(f"step {base_fit.step}: the physically consistent parameters nearest the CAD values")
         results.consistent = consistent(config, robot, base_fit, base_equivalent, initial, truth, steps)
-    # the axes whose forces some fitted parameter acts on (a carriage sweep's links, moved by their
-    # held CAD values only, are not): the verdict compares and times those
-    acting = [names.index(p) for p in fitted]
-    judged = tuple(robot.actuator_names[j] for j in range(len(robot.actuator_names))
-                   if acting and any(np.any(prepared[t].Y[:, j, acting] != 0) for t in id_names))
-    results.quality = verdict(results, ident.quality, config.robot.actuators, judged)
+    results.quality = verdict(results, ident.quality, config.robot.actuators,
+                              acting_axes(robot, prepared, id_names, fitted))
     return results
 
 
