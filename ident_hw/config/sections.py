@@ -624,19 +624,47 @@ class Config:
         model = self.robot.to_model()           # once: a described robot's is read from its file
         self._check_parameter_names(model.parameter_names)
         kind = kind_of(self.robot)
-        if self.sim is not None:
-            key = kind.truth_key
-            if getattr(self.sim, key) is None:
-                raise FieldError(f"sim.{key}", f"missing key: the simulated {self.robot.kind}'s true parameters")
-            for other in TRUTH_KEYS:
-                if other != key and getattr(self.sim, other) is not None:
-                    raise FieldError(f"sim.{other}", f"belongs to another robot than robot.kind {self.robot.kind!r} "
-                                     f"(its true parameters are sim.{key})")
-            if self.sim.parameters is not None:
-                try:
-                    self.sim.parameters.check_against(model)
-                except FieldError as exc:
-                    raise FieldError(f"sim.parameters.{exc.key}", exc.message) from None
+        self._check_sim(model, kind)
+        names = self._check_trajectory_names()
+        if self.bus is not None and self.bus.sync == "lockstep" and not self.simulated:
+            raise FieldError("bus.sync", f"lockstep paces the SYNC by the simulated rig's answers; "
+                             f"{self.bus.interface}:{self.bus.channel} may carry real drives, which "
+                             f"need 'periodic'" + ("" if self.sim is not None else " (no sim: section)"))
+        self._check_fault(names)
+        self._check_trajectory_kinds(kind)
+        if self.identification is not None and self.identification.compare_models:
+            if not any(s.method != "sqp" for s in self.identification.steps):
+                raise FieldError("identification.compare_models", "needs a step that fits base parameters by "
+                                 "least squares (method 'wls' or 'ols')")
+            from ident_hw.identification.model_comparison import supports_energy_models
+            why = supports_energy_models(model)
+            if why:
+                raise FieldError("identification.compare_models", why)
+        for i, t in enumerate(self.trajectories):
+            if t.payload is not None and (self.sim is None or not self.sim.in_process):
+                raise FieldError(f"trajectories[{i}].payload", "a payload is put on by the in-process simulated "
+                                 "rig (sim.in_process: true)")
+
+    def _check_sim(self, model: RobotModel, kind) -> None:
+        """The sim section's truth is the robot kind's (``sim.<truth key>``), and its parameters the model's."""
+        if self.sim is None:
+            return
+        key = kind.truth_key
+        if getattr(self.sim, key) is None:
+            raise FieldError(f"sim.{key}", f"missing key: the simulated {self.robot.kind}'s true parameters")
+        for other in TRUTH_KEYS:
+            if other != key and getattr(self.sim, other) is not None:
+                raise FieldError(f"sim.{other}", f"belongs to another robot than robot.kind {self.robot.kind!r} "
+                                 f"(its true parameters are sim.{key})")
+        if self.sim.parameters is not None:
+            try:
+                self.sim.parameters.check_against(model)
+            except FieldError as exc:
+                raise FieldError(f"sim.parameters.{exc.key}", exc.message) from None
+
+    def _check_trajectory_names(self) -> dict[str, int]:
+        """Every trajectory name once, and every one the identification names defined; returns
+        name -> index."""
         names: dict[str, int] = {}
         for i, t in enumerate(self.trajectories):
             if t.name in names:
@@ -652,19 +680,23 @@ class Config:
                 if t not in names:
                     raise FieldError(f"identification.validation[{j}]",
                                      f"no trajectory named {t!r}; defined: {list(names)}")
-        if self.bus is not None and self.bus.sync == "lockstep" and not self.simulated:
-            raise FieldError("bus.sync", f"lockstep paces the SYNC by the simulated rig's answers; "
-                             f"{self.bus.interface}:{self.bus.channel} may carry real drives, which "
-                             f"need 'periodic'" + ("" if self.sim is not None else " (no sim: section)"))
+        return names
+
+    def _check_fault(self, names: dict[str, int]) -> None:
+        """An injected fault names a trajectory and an actuator of this config, on the in-process rig."""
         fault = self.sim.fault if self.sim is not None else None
-        if fault is not None:
-            if fault.trajectory not in names:
-                raise FieldError("sim.fault.trajectory", f"no trajectory named {fault.trajectory!r}; "
-                                 f"defined: {list(names)}")
-            if fault.node_id not in [a.node_id for a in self.robot.actuators]:
-                raise FieldError("sim.fault.node_id", f"no actuator with node id {fault.node_id}")
-            if not self.sim.in_process:
-                raise FieldError("sim.fault", "fault injection needs the in-process rig (sim.in_process: true)")
+        if fault is None:
+            return
+        if fault.trajectory not in names:
+            raise FieldError("sim.fault.trajectory", f"no trajectory named {fault.trajectory!r}; "
+                             f"defined: {list(names)}")
+        if fault.node_id not in [a.node_id for a in self.robot.actuators]:
+            raise FieldError("sim.fault.node_id", f"no actuator with node id {fault.node_id}")
+        if not self.sim.in_process:
+            raise FieldError("sim.fault", "fault injection needs the in-process rig (sim.in_process: true)")
+
+    def _check_trajectory_kinds(self, kind) -> None:
+        """Every trajectory of a kind the robot has, a joint excitation's amplitudes one per actuator."""
         for i, t in enumerate(self.trajectories):
             if t.kind not in kind.trajectory_kinds + COMMON_TRAJECTORY_KINDS:
                 raise FieldError(f"trajectories[{i}].kind", f"a {t.kind!r} trajectory is not one of the "
@@ -674,18 +706,6 @@ class Config:
                     len(t.amplitude) != len(self.robot.actuators):
                 raise FieldError(f"trajectories[{i}].amplitude", f"expected one amplitude per actuator "
                                  f"({len(self.robot.actuators)}), got {len(t.amplitude)}")
-        if self.identification is not None and self.identification.compare_models:
-            if not any(s.method != "sqp" for s in self.identification.steps):
-                raise FieldError("identification.compare_models", "needs a step that fits base parameters by "
-                                 "least squares (method 'wls' or 'ols')")
-            from ident_hw.identification.model_comparison import supports_energy_models
-            why = supports_energy_models(model)
-            if why:
-                raise FieldError("identification.compare_models", why)
-        for i, t in enumerate(self.trajectories):
-            if t.payload is not None and (self.sim is None or not self.sim.in_process):
-                raise FieldError(f"trajectories[{i}].payload", "a payload is put on by the in-process simulated "
-                                 "rig (sim.in_process: true)")
 
     def _check_parameter_names(self, known: tuple[str, ...]) -> None:
         """Parameter names of the identification section: those of the robot's model (``known``)."""
