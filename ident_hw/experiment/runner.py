@@ -176,6 +176,50 @@ def stream(session: Session, group: DriveGroup, planned: PlannedTrajectory, data
                                 quiet=host.quiet)
 
 
+def record_campaign(config: Config, data: Path, planned: list[PlannedTrajectory], recordings: dict[str, Recording],
+                    states: dict, say: Callable[[str], None], show_progress: bool,
+                    online: CampaignEstimator | None, host: HostSettings) -> None:
+    """Bring the drives up (and home the simulated rig), stream every planned trajectory into
+    ``data`` and ``recordings`` (filled as each one ends: a stop keeps those already made), then
+    stop and disable the drives and put their states into ``states`` (and ``data/drives.json``),
+    whether the session ended or stopped."""
+    with host.pinned(), open_session(config) as session:
+        group = session.drive_group()
+        try:
+            say(f"bringing up {len(group.drives)} drives on {config.bus.interface}:{config.bus.channel}")
+            group.bring_up(timeout=config.bus.bring_up_timeout)
+            if config.simulated:
+                say("homing (the simulated rig powers up at the home pose)")
+                group.home()
+            for i, p in enumerate(planned, 1):
+                say(f"[{i}/{len(planned)}] {p.describe()}")
+                rec = stream(session, group, p, data, show_progress, host)
+                recordings[p.config.name] = rec
+                skipped = rec.metadata.get("sync_slots_skipped") or 0
+                say(f"    recorded {rec.metadata['n_cycles']} cycles, {rec.n_invalid} incomplete"
+                    + (f", {skipped} SYNC slots skipped (the host woke the SYNC thread late)" if skipped else ""))
+                if online is not None:
+                    online.update(p.config.name, rec)
+        finally:
+            # quick stop and disable, then the drives stop watching the master's heartbeat before
+            # it ends; a signal arriving meanwhile waits for the states to be written
+            with shielded():
+                group.close()
+                states.update(_drive_states(session, group))
+                (data / "drives.json").write_text(json.dumps(states, indent=2))
+
+
+def stop_reason(exc: BaseException) -> str:
+    """What stopped a campaign, for its STATUS: the signal, a config error, a drive fault, else the exception."""
+    if isinstance(exc, KeyboardInterrupt):
+        return f"interrupted ({signal_name(exc)})"
+    if isinstance(exc, ConfigError):
+        return f"config error: {exc}"
+    if isinstance(exc, DriveError):
+        return f"drive fault: {exc}"
+    return f"{type(exc).__name__}: {exc}"
+
+
 def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = True,
                  log: Callable[[str], None] | None = None,
                  online: CampaignEstimator | None = None,
@@ -199,7 +243,6 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
         CampaignStopped: Ctrl-C or a fault; the folder is marked ``partial: <reason>``.
     """
     folder = Path(folder)
-    data = folder / "data"
     say = log or (lambda _message: None)
     if planned is None:
         planned = plan(config, online=online is not None)
@@ -208,30 +251,7 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
     recordings: dict[str, Recording] = {}
     states: dict = {}
     try:
-        with host.pinned(), open_session(config) as session:
-            group = session.drive_group()
-            try:
-                say(f"bringing up {len(group.drives)} drives on {config.bus.interface}:{config.bus.channel}")
-                group.bring_up(timeout=config.bus.bring_up_timeout)
-                if config.simulated:
-                    say("homing (the simulated rig powers up at the home pose)")
-                    group.home()
-                for i, p in enumerate(planned, 1):
-                    say(f"[{i}/{len(planned)}] {p.describe()}")
-                    rec = stream(session, group, p, data, show_progress, host)
-                    recordings[p.config.name] = rec
-                    skipped = rec.metadata.get("sync_slots_skipped") or 0
-                    say(f"    recorded {rec.metadata['n_cycles']} cycles, {rec.n_invalid} incomplete"
-                        + (f", {skipped} SYNC slots skipped (the host woke the SYNC thread late)" if skipped else ""))
-                    if online is not None:
-                        online.update(p.config.name, rec)
-            finally:
-                # quick stop and disable, then the drives stop watching the master's heartbeat before
-                # it ends; a signal arriving meanwhile waits for the states to be written
-                with shielded():
-                    group.close()
-                    states = _drive_states(session, group)
-                    (data / "drives.json").write_text(json.dumps(states, indent=2))
+        record_campaign(config, folder / "data", planned, recordings, states, say, show_progress, online, host)
         mark_status(folder, "identifying")
         results = identify(config, recordings, progress=say)
         if online is not None:
@@ -245,14 +265,7 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
         mark_status(folder, f"failed: {exc}; nothing moved, nothing recorded")
         raise
     except BaseException as exc:
-        if isinstance(exc, KeyboardInterrupt):
-            reason = f"interrupted ({signal_name(exc)})"
-        elif isinstance(exc, ConfigError):
-            reason = f"config error: {exc}"
-        elif isinstance(exc, DriveError):
-            reason = f"drive fault: {exc}"
-        else:
-            reason = f"{type(exc).__name__}: {exc}"
+        reason = stop_reason(exc)
         master = states.get("master", {})
         mark_status(folder, f"partial: {reason}; complete recordings: {', '.join(recordings) or 'none'}"
                     + (f"; drives after the stop: {drives_after_stop(master)}" if master else ""))
