@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -37,6 +38,10 @@ import numpy as np
 from ident_hw.config import ActuatorConfig, QualityConfig
 from ident_hw.identification.metrics import validation_metrics
 from ident_hw.results import Results
+
+
+#: a lag counts when it exceeds its threshold and this many of its standard errors
+LAG_SIGMAS = 5.0
 
 
 def relative_difference(tau: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -142,14 +147,31 @@ def axis_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits: 
     return spreads, {name: w[0] for name, w in worst.items()}, reasons
 
 
-def force_lags(results: Results) -> dict[str, float]:
+@dataclass(frozen=True)
+class ForceLag:
+    """The delay ``seconds`` of an axis's measured forces behind the predicted ones, and its
+    standard error ``sigma`` (s) from the residual left beside it (the decimated samples taken
+    as independent)."""
+
+    seconds: float
+    sigma: float
+
+    def beyond(self, limit: float, sigmas: float = LAG_SIGMAS) -> bool:
+        """Larger than ``limit`` and than ``sigmas`` standard errors: a delay the data show."""
+        return abs(self.seconds) > limit and abs(self.seconds) > sigmas * self.sigma
+
+
+def force_lags(results: Results) -> dict[str, ForceLag]:
     """Per axis, the delay ``T`` (s) of the measured forces behind the predicted ones: the
     least-squares ``T`` of ``tau - tau_predicted = -T d(tau_predicted)/dt`` over all fitted
     trajectories (``tau(t) = tau_predicted(t - T)`` to first order), the derivative by central
     differences within each stretch of regular sample times. A model right in time leaves ~0; a
     current filtered by the drive (the averaged current, a first-order 50 Hz low-pass: about
-    3.2 ms) and identified as an instantaneous one leaves that filter's delay on every axis."""
-    along, power = np.zeros(len(results.actuators)), np.zeros(len(results.actuators))
+    3.2 ms) and identified as an instantaneous one leaves that filter's delay on every axis.
+    On an axis whose forces are small beside its noise (a link on a carriage-heavy excitation)
+    ``T`` scatters: its ``sigma`` says by how much."""
+    a = len(results.actuators)
+    along, power, square, count = np.zeros(a), np.zeros(a), np.zeros(a), 0
     for fit in results.fits:
         if len(fit.t) < 3:
             continue
@@ -158,11 +180,19 @@ def force_lags(results: Results) -> dict[str, float]:
         regular = np.abs(dt - np.median(dt)) <= 0.01 * np.median(dt)
         inner = np.flatnonzero(regular[:-1] & regular[1:]) + 1      # both neighbours a regular step away
         rate = (predicted[inner + 1] - predicted[inner - 1]) / (fit.t[inner + 1] - fit.t[inner - 1])[:, None]
-        along += np.sum((fit.tau[inner] - predicted[inner]) * rate, axis=0)
+        residual = fit.tau[inner] - predicted[inner]
+        along += np.sum(residual * rate, axis=0)
         power += np.sum(rate ** 2, axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        lag = -along / power
-    return {name: float(v) for name, v in zip(results.actuators, lag) if math.isfinite(v)}
+        square += np.sum(residual ** 2, axis=0)
+        count += len(inner)
+    out = {}
+    for j, name in enumerate(results.actuators):
+        if count < 3 or not power[j] > 0:
+            continue
+        lag = -along[j] / power[j]
+        left = max(square[j] - lag ** 2 * power[j], 0.0) / (count - 1)    # the residual beside the lag
+        out[name] = ForceLag(float(lag), float(math.sqrt(left / power[j])))
+    return out
 
 
 def recording_reasons(results: Results, limits: QualityConfig) -> tuple[dict[str, dict], list[str]]:
@@ -229,13 +259,14 @@ def well_identified_reasons(results: Results, limits: QualityConfig) -> tuple[li
     return well, []
 
 
-def lag_reasons(lags: dict[str, float], limits: QualityConfig) -> list[str]:
-    """One reason naming the axes whose forces lag (or lead) the model's beyond ``limits.max_force_lag``."""
-    late = {name: lag for name, lag in lags.items() if abs(lag) > limits.max_force_lag}
+def lag_reasons(lags: dict[str, ForceLag], limits: QualityConfig) -> list[str]:
+    """One reason naming the axes whose forces lag (or lead) the model's beyond ``limits.max_force_lag``
+    and beyond :data:`LAG_SIGMAS` standard errors."""
+    late = {name: lag for name, lag in lags.items() if lag.beyond(limits.max_force_lag)}
     if not late:
         return []
-    return ["the measured forces lag the model's by " + ", ".join(f"{1e3 * lag:.2f} ms on {name}"
-                                                                  for name, lag in late.items())
+    return ["the measured forces lag the model's by " + ", ".join(
+        f"{1e3 * lag.seconds:.2f} ms (sigma {1e3 * lag.sigma:.2g}) on {name}" for name, lag in late.items())
             + f" (> {1e3 * limits.max_force_lag:g} ms): currents averaged by the drive but identified as "
               "instantaneous (bus.current), or sample times off"]
 
@@ -277,7 +308,7 @@ def verdict(results: Results, limits: QualityConfig, actuators: Sequence[Actuato
     :func:`force_lags` judge (None: every axis).
 
     Returns ``{"passed", "reasons", "thresholds", "trajectories", "steps", "well_identified",
-    "axis_gain_spread_percent", "axis_residual_ratio", "force_lag_s", "axes_judged"}``.
+    "axis_gain_spread_percent", "axis_residual_ratio", "force_lag_s", "force_lag_sigma_s", "axes_judged"}``.
     """
     per_traj, reasons = recording_reasons(results, limits)
     steps, more = step_reasons(results, limits)
@@ -293,4 +324,5 @@ def verdict(results: Results, limits: QualityConfig, actuators: Sequence[Actuato
     reasons += prediction_reasons(results, limits, per_traj)
     return {"passed": not reasons, "reasons": reasons, "thresholds": dataclasses.asdict(limits),
             "trajectories": per_traj, "steps": steps, "well_identified": well, "axis_gain_spread_percent": spreads,
-            "axis_residual_ratio": ratios, "force_lag_s": lags, "axes_judged": list(axes)}
+            "axis_residual_ratio": ratios, "force_lag_s": {name: lag.seconds for name, lag in lags.items()},
+            "force_lag_sigma_s": {name: lag.sigma for name, lag in lags.items()}, "axes_judged": list(axes)}
