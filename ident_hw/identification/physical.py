@@ -219,8 +219,6 @@ def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndar
     Raises:
         ConsistencyError: no consistent set (e.g. a held value unphysical), or the solver failed.
     """
-    import cvxpy as cp
-
     if metric not in METRICS:
         raise ValueError(f"metric must be one of {METRICS}, got {metric!r}")
     names = tuple(names)
@@ -234,7 +232,29 @@ def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndar
     A = whiten @ H * scale                                 # (r, n): whitened base rows in scaled variables
     b = whiten @ (base - H @ prior)
     rho2 = prior_relative ** 2
+    values, drive = _solve_program(A, b, prior, scale, bodies, held, metric, rho2)
+    values[drive] = np.maximum(values[drive], 0.0)          # solver rounding below 0
+    share, sigma, decided = _posterior(A, scale, held, rho2)
+    residual = whiten @ (H @ values - base)
+    margins = tuple(BodyMargin(body.name, float(body.values(values)[0]), _margin(body, values)) for body in bodies)
+    return ConsistentSet(names=names, units=tuple(units), values=values, prior=prior, sigma=sigma, prior_share=share,
+                         decided_by=decided, bodies=margins, chi2=float(residual @ residual),
+                         chi2_limit=float(stats.chi2.ppf(CHI2_QUANTILE, len(base))), base_count=len(base),
+                         metric=metric, prior_relative=float(prior_relative),
+                         truth=None if truth is None else np.asarray(truth, dtype=float))
 
+
+def _solve_program(A: np.ndarray, b: np.ndarray, prior: np.ndarray, scale: np.ndarray,
+                   bodies: Sequence[PhysicalBody], held: dict[int, float], metric: str,
+                   rho2: float) -> tuple[np.ndarray, list[int]]:
+    """States and solves the semidefinite program in the scaled variables ``z`` (n,).
+
+    ``A`` (r, n) and ``b`` (r,) are the whitened base rows and residual at the prior. Returns the
+    solution ``π`` (n, SI units), before drive terms are clipped at 0, and the drive terms' indices.
+    """
+    import cvxpy as cp
+
+    n = len(prior)
     z = cp.Variable(n)
     pi = prior + cp.multiply(scale, z)
     in_body = {i for body in bodies for i in body.indices if i >= 0}
@@ -242,7 +262,35 @@ def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndar
     constraints = [z[i] == (value - prior[i]) / scale[i] for i, value in held.items()]
     if drive:
         constraints.append(pi[drive] >= 0)
-    body_terms, euclidean = [], np.ones(n, dtype=bool)
+    body_constraints, body_terms, euclidean = _body_program(z, pi, prior, scale, bodies, metric, rho2)
+    constraints += body_constraints
+    objective = cp.sum_squares(A @ z - b)
+    if euclidean.any():
+        objective = objective + cp.sum_squares(z[np.flatnonzero(euclidean)]) / rho2
+    if body_terms:
+        objective = objective + cp.sum(cp.hstack(body_terms))
+    problem = cp.Problem(cp.Minimize(objective), constraints)
+    _solve(problem, held)
+    if problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or z.value is None:
+        raise ConsistencyError(f"the consistent-parameter program ended {problem.status}"
+                               + (" (a held value is unphysical?)" if held else ""))
+    return prior + scale * np.asarray(z.value), drive
+
+
+def _body_program(z, pi, prior: np.ndarray, scale: np.ndarray, bodies: Sequence[PhysicalBody], metric: str,
+                  rho2: float) -> tuple[list, list, np.ndarray]:
+    """The bodies' part of the program: each body's pseudo-inertia ``⪰ 0`` (or, for a planar body
+    with its centre of mass at the frame origin, ``m ≥ 0`` and ``I_zz ≥ 0``) and, with the
+    ``entropic`` metric, its log-determinant divergence from the CAD body.
+
+    ``z`` is the cvxpy variable (n,), ``pi`` the expression ``π₀ + s z``. Returns the
+    constraints, the entropic objective terms and a mask (n,) of the parameters that keep the
+    euclidean prior term.
+    """
+    import cvxpy as cp
+
+    n = len(prior)
+    constraints, body_terms, euclidean = [], [], np.ones(n, dtype=bool)
     for body in bodies:
         if body.planar and body.indices[1] < 0 and body.indices[2] < 0:
             # centre of mass at the frame origin: realisable exactly when m ≥ 0 and I_zz ≥ 0
@@ -261,12 +309,14 @@ def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndar
             body_terms.append((2.0 / rho2) * (-cp.log_det(0.5 * (J + J.T)) + inverse.ravel() @ flat - size
                                               + np.linalg.slogdet(reference)[1]))
             euclidean[[i for i in body.indices if i >= 0]] = False
-    objective = cp.sum_squares(A @ z - b)
-    if euclidean.any():
-        objective = objective + cp.sum_squares(z[np.flatnonzero(euclidean)]) / rho2
-    if body_terms:
-        objective = objective + cp.sum(cp.hstack(body_terms))
-    problem = cp.Problem(cp.Minimize(objective), constraints)
+    return constraints, body_terms, euclidean
+
+
+def _solve(problem, held: dict[int, float]) -> None:
+    """Solves with Clarabel at tight gaps (1e-10), falling back to its own defaults (1e-8) on
+    numerical trouble; a second failure is a :class:`ConsistencyError`."""
+    import cvxpy as cp
+
     try:
         problem.solve(solver=cp.CLARABEL, tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10)
     except cp.error.SolverError:
@@ -274,12 +324,17 @@ def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndar
             problem.solve(solver=cp.CLARABEL)
         except cp.error.SolverError as exc:
             raise ConsistencyError(f"the consistent-parameter program failed: {exc}") from exc
-    if problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or z.value is None:
-        raise ConsistencyError(f"the consistent-parameter program ended {problem.status}"
-                               + (" (a held value is unphysical?)" if held else ""))
-    values = prior + scale * np.asarray(z.value)
-    values[drive] = np.maximum(values[drive], 0.0)          # solver rounding below 0
 
+
+def _posterior(A: np.ndarray, scale: np.ndarray, held: dict[int, float],
+               rho2: float) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    """What decided each parameter, from the euclidean problem's posterior (module docstring).
+
+    ``A`` (r, n) whitened base rows in scaled variables. Returns the prior share (n,), the
+    posterior standard deviation σ (n, SI units) and ``decided_by`` per parameter; held
+    parameters have share and σ 0.
+    """
+    n = len(scale)
     free = np.array([i not in held for i in range(n)])
     Af = A[:, free]
     P = np.linalg.inv(Af.T @ Af + np.eye(free.sum()) / rho2)
@@ -291,13 +346,7 @@ def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndar
     narrowed[free] = np.diag(P) / rho2
     decided = tuple("held" if i in held else "data" if share[i] <= DECIDED
                     else "prior" if narrowed[i] >= 1 - DECIDED else "data and prior" for i in range(n))
-    residual = whiten @ (H @ values - base)
-    margins = tuple(BodyMargin(body.name, float(body.values(values)[0]), _margin(body, values)) for body in bodies)
-    return ConsistentSet(names=names, units=tuple(units), values=values, prior=prior, sigma=sigma, prior_share=share,
-                         decided_by=decided, bodies=margins, chi2=float(residual @ residual),
-                         chi2_limit=float(stats.chi2.ppf(CHI2_QUANTILE, len(base))), base_count=len(base),
-                         metric=metric, prior_relative=float(prior_relative),
-                         truth=None if truth is None else np.asarray(truth, dtype=float))
+    return share, sigma, decided
 
 
 def _margin(body: PhysicalBody, values: np.ndarray) -> float:
