@@ -101,6 +101,38 @@ def sqp_fit(
     initial = np.asarray(initial, dtype=float)
     if initial.shape != (len(names),):
         raise ValueError(f"initial must have {len(names)} values, got shape {initial.shape}")
+    free, idx, lo, hi = _free_and_bounds(names, free, bounds)
+    sigma = output_noise_std(Y, tau) if output_std is None else np.asarray(output_std, dtype=float)
+    if sigma.shape != (Y.shape[1],) or np.any(sigma <= 0):
+        raise ValueError(f"output_std must be {Y.shape[1]} positive values, got {sigma}")
+    W, y = stack(Y / sigma[None, :, None], tau / sigma)
+    A, b, scale = _scaled_problem(W, y, initial, idx, free)
+
+    # lsq_linear reference
+    ref = optimize.lsq_linear(A, b, bounds=(lo * scale, hi * scale), method="bvls", tol=1e-14)
+    z_lsq = ref.x
+    z0 = np.clip(initial[idx] * scale, lo * scale, hi * scale)
+    res = _slsqp(A, b, z0, lo * scale, hi * scale, ftol, maxiter)
+    coef = initial.copy()
+    coef[idx] = res.x / scale
+    coef_lsq = initial.copy()
+    coef_lsq[idx] = z_lsq / scale
+    diff = np.abs(coef[idx] - coef_lsq[idx]) / np.maximum(np.abs(coef_lsq[idx]), np.finfo(float).tiny)
+    r = y - W @ coef
+    at_bounds = tuple(f for f, active in zip(free, ref.active_mask) if active != 0)
+    return MassFitResult(
+        names=names, free=free, coef=coef, coef_lsq=coef_lsq, max_rel_difference=float(diff.max()),
+        cost=float(r @ r), residual_rms=residual_rms(Y, tau, coef), output_std=sigma,
+        iterations=int(res.nit), success=bool(res.success), message=str(res.message), at_bounds=at_bounds,
+    )
+
+
+def _free_and_bounds(names: tuple[str, ...], free, bounds: dict | None):
+    """Checks the free parameters and their bounds against ``names``.
+
+    Returns the free names (tuple), their indices (n_free,) into ``names`` and their lower and
+    upper bounds (n_free,) each, in the parameters' units (default ``(0, inf)``, ``None`` = ±inf).
+    """
     free = names if free is None else tuple(free)
     unknown = [f for f in free if f not in names]
     if unknown or not free:
@@ -114,12 +146,18 @@ def sqp_fit(
     hi = np.array([_bound(bounds.get(f, (0.0, None))[1], np.inf) for f in free])
     if np.any(lo > hi):
         raise ValueError(f"lower bound above upper bound for {[f for f, a, b in zip(free, lo, hi) if a > b]}")
+    return free, idx, lo, hi
 
-    sigma = output_noise_std(Y, tau) if output_std is None else np.asarray(output_std, dtype=float)
-    if sigma.shape != (Y.shape[1],) or np.any(sigma <= 0):
-        raise ValueError(f"output_std must be {Y.shape[1]} positive values, got {sigma}")
-    W, y = stack(Y / sigma[None, :, None], tau / sigma)
-    held = np.setdiff1d(np.arange(len(names)), idx)
+
+def _scaled_problem(W: np.ndarray, y: np.ndarray, initial: np.ndarray, idx: np.ndarray,
+                    free: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The weighted problem ``W pi ≈ y`` (W (m, n), y (m,)) reduced to the free columns ``idx``
+    (the held parameters moved to the right-hand side) and scaled (module docstring).
+
+    Returns ``A`` (m, n_free) with unit-norm columns, ``b`` (m,) of unit norm and ``scale``
+    (n_free,) with ``z = scale · pi``.
+    """
+    held = np.setdiff1d(np.arange(W.shape[1]), idx)
     b = y - W[:, held] @ initial[held]
     A = W[:, idx]
     scale = np.linalg.norm(A, axis=0)
@@ -130,16 +168,16 @@ def sqp_fit(
     scale = scale / bnorm
     A = A / (scale * bnorm)
     b = b / bnorm
+    return A, b, scale
 
-    # lsq_linear reference
-    ref = optimize.lsq_linear(A, b, bounds=(lo * scale, hi * scale), method="bvls", tol=1e-14)
-    z_lsq = ref.x
 
-    # SLSQP on the QR-reduced cost ||R z − Qᵀb||² (same minimiser, n_free rows, no squaring of
-    # cond(A)), scaled to 1 at the start so that ftol is relative.
+def _slsqp(A: np.ndarray, b: np.ndarray, z0: np.ndarray, lo: np.ndarray, hi: np.ndarray, ftol: float,
+           maxiter: int) -> optimize.OptimizeResult:
+    """SLSQP on the QR-reduced cost ``||R z − Qᵀb||²`` from ``z0`` within ``lo ≤ z ≤ hi`` (scaled
+    variables, (n_free,) each): the same minimiser as ``||A z − b||²`` with n_free rows and
+    without squaring cond(A), scaled to 1 at the start so that ``ftol`` is relative."""
     Q, R = linalg.qr(A, mode="economic")
     c = Q.T @ b
-    z0 = np.clip(initial[idx] * scale, lo * scale, hi * scale)
     r0 = R @ z0 - c
     c0 = max(float(r0 @ r0), np.finfo(float).tiny)
 
@@ -150,21 +188,9 @@ def sqp_fit(
     def grad(z):
         return 2.0 * (R.T @ (R @ z - c)) / c0
 
-    res = optimize.minimize(
-        cost, z0, jac=grad, method="SLSQP", bounds=list(zip(lo * scale, hi * scale)),
+    return optimize.minimize(
+        cost, z0, jac=grad, method="SLSQP", bounds=list(zip(lo, hi)),
         options={"ftol": ftol, "maxiter": maxiter},
-    )
-    coef = initial.copy()
-    coef[idx] = res.x / scale
-    coef_lsq = initial.copy()
-    coef_lsq[idx] = z_lsq / scale
-    diff = np.abs(coef[idx] - coef_lsq[idx]) / np.maximum(np.abs(coef_lsq[idx]), np.finfo(float).tiny)
-    r = y - W @ coef
-    at_bounds = tuple(f for f, active in zip(free, ref.active_mask) if active != 0)
-    return MassFitResult(
-        names=names, free=free, coef=coef, coef_lsq=coef_lsq, max_rel_difference=float(diff.max()),
-        cost=float(r @ r), residual_rms=residual_rms(Y, tau, coef), output_std=sigma,
-        iterations=int(res.nit), success=bool(res.success), message=str(res.message), at_bounds=at_bounds,
     )
 
 
