@@ -270,7 +270,33 @@ class Delta:
         """Poses, velocities, accelerations and Jacobians of the seven bodies."""
         q, qd, qdd = (np.atleast_2d(np.asarray(x, float)) for x in (q, qd, qdd))
         n = len(q)
-        L2 = self.geometry.L2
+        p, pd, pdd, J, t, d, Bdd = self._platform_motion(q, qd, qdd)
+        b, c, nvec, omega_rod, alpha_rod = self._rod_motion(qd, t, d, pd, pdd, Bdd)
+        beta, gamma = self._rod_rate_rows(J, t, b, c)
+        zeros = np.zeros((n, 3))
+        parts = []                          # per body: origin, Q, v, a, omega, alpha, J
+        for i in range(3):                                              # arms
+            Jk = np.zeros((n, 6, 3))
+            Jk[:, 3:, i] = self._y[i]
+            parts.append((np.broadcast_to(self._A[i], (n, 3)), self._R[i] @ _rot_y(q[:, i]), zeros, zeros,
+                          qd[:, i, None] * self._y[i], qdd[:, i, None] * self._y[i], Jk))
+        for i in range(3):                                              # rods
+            Jk = np.zeros((n, 6, 3))
+            Jk[:, :3] = J
+            Jk[:, 3:] = self._y[i][:, None] * beta[:, i, None, :] + nvec[:, i, :, None] * gamma[:, i, None, :]
+            parts.append((p + self.geometry.r * self._e[i],
+                          self._R[i] @ _rot_y(b[:, i]) @ _rot_z(c[:, i]) @ _rot_x(np.full(n, -math.pi / 2)),
+                          pd, pdd, omega_rod[:, i], alpha_rod[:, i], Jk))
+        Jk = np.zeros((n, 6, 3))                                        # platform
+        Jk[:, :3] = J
+        parts.append((p, np.broadcast_to(np.eye(3), (n, 3, 3)), pd, pdd, zeros, zeros, Jk))
+        return Bodies(*(np.stack(x) for x in zip(*parts)))
+
+    def _platform_motion(self, q, qd, qdd):
+        """The platform's position ``p``, velocity ``pd`` and acceleration ``pdd`` (N, 3) and its
+        Jacobian ``J`` (N, 3, 3), ``pd = J @ qd``, from the batch ``q, qd, qdd`` (N, 3); with the
+        arm tangents ``t``, the elbow-to-platform-joint vectors ``d`` and the elbows' accelerations
+        ``Bdd`` (N, 3 limbs, 3) that the rods' motion needs."""
         p = self.fk(q)
         B = self.elbows(q)
         t = self._arm_tangents(q)
@@ -284,7 +310,15 @@ class Delta:
         ddot = pd[:, None, :] - t * qd[..., None]
         kappa = -(qd**2) * np.sum(d * BA, axis=2) - np.sum(ddot**2, axis=2)
         pdd = np.linalg.solve(D, (dt * qdd + kappa)[..., None])[..., 0]
+        return p, pd, pdd, J, t, d, Bdd
 
+    def _rod_motion(self, qd, t, d, pd, pdd, Bdd):
+        """The rods' U-joint angles ``b``, ``c`` (N, 3 limbs), second U-joint axes ``nvec`` and
+        angular velocities and accelerations (N, 3 limbs, 3), from the platform's and the elbows'
+        motion (:meth:`_platform_motion`). Raises :class:`SingularityError` where a U-joint is at
+        its limit (``cos c = 0``)."""
+        L2 = self.geometry.L2
+        n = len(qd)
         RT = lambda vec: np.einsum("lka,nlk->nla", self._R, vec)       # noqa: E731  world -> limb
         w = RT(-d / L2)
         wd = RT((t * qd[..., None] - pd[:, None, :]) / L2)
@@ -304,49 +338,21 @@ class Delta:
         y = np.broadcast_to(self._y, (n, 3, 3))
         omega_rod = bd[..., None] * y + cd[..., None] * nvec
         alpha_rod = bdd[..., None] * y + cdd[..., None] * nvec + (bd * cd)[..., None] * np.cross(y, nvec)
+        return b, c, nvec, omega_rod, alpha_rod
 
+    def _rod_rate_rows(self, J, t, b, c):
+        """The rows ``beta``, ``gamma`` (N, 3 limbs, 3) with ``bd = beta_i . qd``, ``cd = gamma_i .
+        qd``: the rods' angular-velocity Jacobians, from the platform's Jacobian ``J`` (N, 3, 3),
+        the arm tangents ``t`` and the U-joint angles ``b``, ``c`` (N, 3 limbs)."""
+        cc, cb, sb = np.cos(c), np.cos(b), np.sin(b)
         # W_i = R_iᵀ (t_i eps_iᵀ - J) / L2 and its rows -> bd = beta_i . qd, cd = gamma_i . qd
         M = np.repeat(-J[:, None], 3, axis=1)                            # (N, limb, 3, 3)
         for i in range(3):
             M[:, i, :, i] += t[:, i]
-        W = np.einsum("lka,nlkj->nlaj", self._R, M) / L2
+        W = np.einsum("lka,nlkj->nlaj", self._R, M) / self.geometry.L2
         beta = -(sb[..., None] * W[:, :, 0] + cb[..., None] * W[:, :, 2]) / cc[..., None]
         gamma = W[:, :, 1] / cc[..., None]
-
-        zeros = np.zeros((n, 3))
-        origin, Q, v, a, omega, alpha, Jb = [], [], [], [], [], [], []
-        for i in range(3):                                              # arms
-            Ry = _rot_y(q[:, i])
-            origin.append(np.broadcast_to(self._A[i], (n, 3)))
-            Q.append(self._R[i] @ Ry)
-            v.append(zeros)
-            a.append(zeros)
-            omega.append(qd[:, i, None] * self._y[i])
-            alpha.append(qdd[:, i, None] * self._y[i])
-            Jk = np.zeros((n, 6, 3))
-            Jk[:, 3:, i] = self._y[i]
-            Jb.append(Jk)
-        for i in range(3):                                              # rods
-            origin.append(p + self.geometry.r * self._e[i])
-            Q.append(self._R[i] @ _rot_y(b[:, i]) @ _rot_z(c[:, i]) @ _rot_x(np.full(n, -math.pi / 2)))
-            v.append(pd)
-            a.append(pdd)
-            omega.append(omega_rod[:, i])
-            alpha.append(alpha_rod[:, i])
-            Jk = np.zeros((n, 6, 3))
-            Jk[:, :3] = J
-            Jk[:, 3:] = self._y[i][:, None] * beta[:, i, None, :] + nvec[:, i, :, None] * gamma[:, i, None, :]
-            Jb.append(Jk)
-        origin.append(p)                                                # platform
-        Q.append(np.broadcast_to(np.eye(3), (n, 3, 3)))
-        v.append(pd)
-        a.append(pdd)
-        omega.append(zeros)
-        alpha.append(zeros)
-        Jk = np.zeros((n, 6, 3))
-        Jk[:, :3] = J
-        Jb.append(Jk)
-        return Bodies(*(np.stack(x) for x in (origin, Q, v, a, omega, alpha, Jb)))
+        return beta, gamma
 
     # ------------------------------------------------------------------ dynamics
     def regressor(self, q, qd, qdd) -> np.ndarray:
