@@ -478,6 +478,26 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
     path = Path(path)
     if not path.is_file():
         raise RecordingError(f"raw CAN log {path}: no such file")
+    sidecar, layouts, source = _log_layouts(path, axes, with_velocity)
+    rows: list[Row] = []
+    assembler = CycleAssembler(layouts, rows.append, max_cycles=max_cycles, period=lockstep_period)
+    heard, truncated = _replay(path, assembler)
+    assembler.flush()
+    meta = dict(metadata or {}, axes=axes_metadata(axes), source=str(path), status="decoded",
+                **cycle_books(assembler), format_version=FORMAT_VERSION, log_truncated=truncated,
+                nodes_heard=sorted(heard), pdo_layout=layout_record(layouts), pdo_layout_source=source)
+    chunks = [rows_to_arrays(rows, axes)] if rows else []
+    rec = Recording.from_chunks(chunks, len(axes), meta)
+    if sidecar is not None and sidecar.setpoints is not None:
+        take_sent_setpoints(rec, sidecar.setpoints, axes)
+    return rec
+
+
+def _log_layouts(path: Path, axes: Sequence[AxisConfig],
+                 with_velocity: bool) -> tuple[LogSidecar | None, list[AxisLayout], str]:
+    """The PDO layouts a log decodes with: its sidecar's (checked against the node-IDs of
+    ``axes``), else the ones the master maps today (with a warning). Returns the sidecar (or
+    None), the layouts and where they came from (``pdo_layout_source`` of the metadata)."""
     sidecar = LogSidecar.read(path)
     if sidecar is not None:
         layouts = list(sidecar.layouts)
@@ -494,8 +514,13 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
         source = "assumed: the layout the master maps today (the log has no sidecar)"
         logger.warning("raw CAN log %s: no %s beside it; decoded with the PDO layout the master maps today, "
                        "which may not be the one it was recorded with", path, sidecar_path(path).name)
-    rows: list[Row] = []
-    assembler = CycleAssembler(layouts, rows.append, max_cycles=max_cycles, period=lockstep_period)
+    return sidecar, layouts, source
+
+
+def _replay(path: Path, assembler: CycleAssembler) -> tuple[set[int], bool]:
+    """Feeds the log's frames to ``assembler`` until it is done or the log ends. Returns the
+    node-IDs heard (a TPDO or a heartbeat) and whether the log was cut short (its last line, or
+    a frame the reader cannot parse after the first)."""
     heard: set[int] = set()
     reader, truncated = _log_reader(path)
     frames = 0
@@ -516,15 +541,7 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
             if not msg.is_extended_id and (cob >> 7 in (3, 5, 7, 9, 14)) and cob & 0x7F:   # TPDO1-4, heartbeat
                 heard.add(cob & 0x7F)
             assembler.on_message_received(msg)
-    assembler.flush()
-    meta = dict(metadata or {}, axes=axes_metadata(axes), source=str(path), status="decoded",
-                **cycle_books(assembler), format_version=FORMAT_VERSION, log_truncated=truncated,
-                nodes_heard=sorted(heard), pdo_layout=layout_record(layouts), pdo_layout_source=source)
-    chunks = [rows_to_arrays(rows, axes)] if rows else []
-    rec = Recording.from_chunks(chunks, len(axes), meta)
-    if sidecar is not None and sidecar.setpoints is not None:
-        take_sent_setpoints(rec, sidecar.setpoints, axes)
-    return rec
+    return heard, truncated
 
 
 def _log_reader(path: Path):
