@@ -307,6 +307,16 @@ def build_parser() -> argparse.ArgumentParser:
         p.set_defaults(func=func)
         return p
 
+    _add_campaign_commands(command)
+    _add_offline_commands(command)
+    _add_rig_commands(command)
+    _add_results_commands(command)
+    return parser
+
+
+def _add_campaign_commands(command) -> None:
+    """The commands that check a config or run campaigns (on the rig or simulated): ``check``, ``run``,
+    ``online``, ``study``. ``command(name, func, help)`` adds a subparser and returns it."""
     p = command("check", cmd_check, "validate the config and every trajectory (feasibility); moves nothing")
     p.add_argument("config", help="YAML config, e.g. configs/sim-3prrr.yaml")
 
@@ -337,12 +347,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on the workers of this Dask scheduler instead")
     p.add_argument("--quiet", action="store_true", help="no progress")
 
+
+def _add_offline_commands(command) -> None:
+    """``identify``: identification from recordings, without a bus (``command`` as in
+    :func:`_add_campaign_commands`)."""
     p = command("identify", cmd_identify, "identify offline from recordings (decoded .npz or raw .log/.asc/.blf)")
     p.add_argument("config", help="YAML config of the recorded run")
     p.add_argument("data", nargs="+", help="recording files; the file stem names the trajectory")
     p.add_argument("--out", metavar="DIR", help="results folder (default: output.dir/identify-<time>)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
 
+
+def _add_rig_commands(command) -> None:
+    """The commands that serve or talk to a bus: ``sim``, ``scan``, ``monitor``, ``home``
+    (``command`` as in :func:`_add_campaign_commands`)."""
     p = command("sim", cmd_sim, "serve the config's simulated rig on its bus (e.g. vcan0) until Ctrl-C")
     p.add_argument("config", help="YAML config with a sim section")
 
@@ -362,6 +380,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("config", help="YAML config")
     p.add_argument("--arm", action="store_true", help="allow motion on a bus that is not the simulated rig's")
 
+
+def _add_results_commands(command) -> None:
+    """The commands on a results folder: ``report``, ``export`` (``command`` as in
+    :func:`_add_campaign_commands`)."""
     p = command("report", cmd_report, "rebuild the report of a results folder")
     p.add_argument("results", help="results folder")
 
@@ -371,7 +393,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--to", required=True, metavar="FILE", help="the file to write (.xml/.mjcf or .urdf)")
     p.add_argument("--for-mujoco", action="store_true", help="refuse bodies MuJoCo would refuse (massless moving "
                    "bodies, point masses, zero principal moments) instead of writing them for pinocchio")
-    return parser
 
 
 def exit_code(exc: BaseException) -> int:
