@@ -432,7 +432,31 @@ def _add_drive_objects(od: ObjectDictionary, prof: DriveProfile) -> None:
     variable unless it is part of a record added below) and the generation's own records.
     "rww": written by SDO or by an RPDO (maxon's files say so of every PDO-mappable setting)."""
     mode_bits = sum(1 << _MODE_BITS[mode] for mode in prof.supported_modes)
-    plain = [
+    for name, ref, access, default, mappable in _plain_objects(prof):
+        if ref is not None and ref.subindex == 0 and ref.index not in od:
+            od.add_object(_var(name, ref.index, ref.subindex, ref.data_type, access, default, mappable, ref.unit))
+    od.add_object(_var("Motion profile type", 0x6086, 0, "INTEGER16", "rww", 0, True))
+    od.add_object(_var("Supported drive modes", 0x6502, 0, "UNSIGNED32", "ro", mode_bits))
+    lo, hi = prof.software_position_limit
+    _record(od, "Software position limit", lo.index, [
+        (lo.subindex, "Min position limit", lo.data_type, "rw", -2147483648, False, lo.unit),
+        (hi.subindex, "Max position limit", hi.data_type, "rw", 2147483647, False, hi.unit),
+    ], array=True, sub0_access="const")
+    search, zero = prof.homing_speeds
+    _record(od, "Homing speeds", search.index, [
+        (search.subindex, "Speed for switch search", search.data_type, "rww", 100, True, search.unit),
+        (zero.subindex, "Speed for zero search", zero.data_type, "rww", 10, True, zero.unit),
+    ], array=True, sub0_access="const")
+    if prof.name == "EPOS2":
+        _add_epos2_objects(od, prof)
+    else:
+        _add_epos4_objects(od, prof)
+
+
+def _plain_objects(prof: DriveProfile) -> list[tuple]:
+    """The profile's objects added as plain variables (each where the profile places it), in the
+    order they are added."""
+    return [
         # (name, ref, access, default, pdo-mappable); None: the generation has no such object
         ("Error code", prof.error_code, "ro", 0, True),
         ("Controlword", prof.controlword, "rww", 0, True),
@@ -457,54 +481,47 @@ def _add_drive_objects(od: ObjectDictionary, prof: DriveProfile) -> None:
         ("Current actual value averaged", prof.current_averaged, "ro", 0, True),
         ("Position mode setting value", prof.cyclic_target, "rww", 0, True),
     ]
-    for name, ref, access, default, mappable in plain:
-        if ref is not None and ref.subindex == 0 and ref.index not in od:
-            od.add_object(_var(name, ref.index, ref.subindex, ref.data_type, access, default, mappable, ref.unit))
-    od.add_object(_var("Motion profile type", 0x6086, 0, "INTEGER16", "rww", 0, True))
-    od.add_object(_var("Supported drive modes", 0x6502, 0, "UNSIGNED32", "ro", mode_bits))
-    lo, hi = prof.software_position_limit
-    _record(od, "Software position limit", lo.index, [
-        (lo.subindex, "Min position limit", lo.data_type, "rw", -2147483648, False, lo.unit),
-        (hi.subindex, "Max position limit", hi.data_type, "rw", 2147483647, False, hi.unit),
-    ], array=True, sub0_access="const")
-    search, zero = prof.homing_speeds
-    _record(od, "Homing speeds", search.index, [
-        (search.subindex, "Speed for switch search", search.data_type, "rww", 100, True, search.unit),
-        (zero.subindex, "Speed for zero search", zero.data_type, "rww", 10, True, zero.unit),
-    ], array=True, sub0_access="const")
-    if prof.name == "EPOS2":
-        # maxon's EDS of the EPOS2 70/10 (firmware 0x2126): its power-up values
-        _record(od, "Motor data", 0x6410, [
-            (1, "Continuous current limit", "UNSIGNED16", "rww", 10000, True, "mA"),
-            (2, "Output current limit", "UNSIGNED16", "rww", 25000, True, "mA"),
-            (3, "Pole pair number", "UNSIGNED8", "rw", 1),
-            (4, "Maximal motor speed", "UNSIGNED32", "rww", 25000, True, "rpm"),
-            (5, "Thermal time constant winding", "UNSIGNED16", "rw", 40, False, "0.1s"),
-        ], sub0_access="const")
-        od.add_object(_var("Home offset", prof.home_offset.index, 0, "INTEGER32", "rww", 0, True, "qc"))
-        od.add_object(_var("Max profile velocity", prof.max_profile_velocity.index, 0, "UNSIGNED32", "rw", 25000,
-                           False, "rpm"))
-    else:
-        _record(od, "Motor data", 0x3001, [
-            (1, "Nominal current", "UNSIGNED32", "rw", 5000, False, "mA"),
-            (2, "Output current limit", "UNSIGNED32", "rw", 10000, False, "mA"),
-            (3, "Number of pole pairs", "UNSIGNED8", "rw", 1),
-            (4, "Thermal time constant winding", "UNSIGNED16", "rw", 40, False, "0.1s"),
-            (5, "Torque constant", "UNSIGNED32", "rw", 30200, False, "uNm/A"),
-        ])
-        _record(od, "Current actual values", 0x30D1, [
-            (1, "Current actual value averaged", "INTEGER32", "ro", 0, True, "mA"),
-            (2, "Current actual value", "INTEGER32", "ro", 0, True, "mA"),
-        ])
-        _record(od, "Interpolation time period", 0x60C2, [
-            (1, "Interpolation time period value", "UNSIGNED8", "rw", 1, False, "ms"),
-            (2, "Interpolation time index", "INTEGER8", "rw", -3),
-        ])
-        od.add_object(_var("Max motor speed", 0x6080, 0, "UNSIGNED32", "rw", 25000, False, "rpm"))
-        od.add_object(_var("Home offset move distance", prof.home_offset.index, 0, "INTEGER32", "rw", 0, False,
-                           "qc"))
-        od.add_object(_var("Max profile velocity", prof.max_profile_velocity.index, 0, "UNSIGNED32", "rw", 10000,
-                           False, "rpm"))
+
+
+def _add_epos2_objects(od: ObjectDictionary, prof: DriveProfile) -> None:
+    """The EPOS2's own objects: motor data, home offset, max profile velocity."""
+    # maxon's EDS of the EPOS2 70/10 (firmware 0x2126): its power-up values
+    _record(od, "Motor data", 0x6410, [
+        (1, "Continuous current limit", "UNSIGNED16", "rww", 10000, True, "mA"),
+        (2, "Output current limit", "UNSIGNED16", "rww", 25000, True, "mA"),
+        (3, "Pole pair number", "UNSIGNED8", "rw", 1),
+        (4, "Maximal motor speed", "UNSIGNED32", "rww", 25000, True, "rpm"),
+        (5, "Thermal time constant winding", "UNSIGNED16", "rw", 40, False, "0.1s"),
+    ], sub0_access="const")
+    od.add_object(_var("Home offset", prof.home_offset.index, 0, "INTEGER32", "rww", 0, True, "qc"))
+    od.add_object(_var("Max profile velocity", prof.max_profile_velocity.index, 0, "UNSIGNED32", "rw", 25000,
+                       False, "rpm"))
+
+
+def _add_epos4_objects(od: ObjectDictionary, prof: DriveProfile) -> None:
+    """The objects of every other generation (the EPOS4's): motor data, averaged and
+    instantaneous current, interpolation period, max motor speed, home offset move distance,
+    max profile velocity."""
+    _record(od, "Motor data", 0x3001, [
+        (1, "Nominal current", "UNSIGNED32", "rw", 5000, False, "mA"),
+        (2, "Output current limit", "UNSIGNED32", "rw", 10000, False, "mA"),
+        (3, "Number of pole pairs", "UNSIGNED8", "rw", 1),
+        (4, "Thermal time constant winding", "UNSIGNED16", "rw", 40, False, "0.1s"),
+        (5, "Torque constant", "UNSIGNED32", "rw", 30200, False, "uNm/A"),
+    ])
+    _record(od, "Current actual values", 0x30D1, [
+        (1, "Current actual value averaged", "INTEGER32", "ro", 0, True, "mA"),
+        (2, "Current actual value", "INTEGER32", "ro", 0, True, "mA"),
+    ])
+    _record(od, "Interpolation time period", 0x60C2, [
+        (1, "Interpolation time period value", "UNSIGNED8", "rw", 1, False, "ms"),
+        (2, "Interpolation time index", "INTEGER8", "rw", -3),
+    ])
+    od.add_object(_var("Max motor speed", 0x6080, 0, "UNSIGNED32", "rw", 25000, False, "rpm"))
+    od.add_object(_var("Home offset move distance", prof.home_offset.index, 0, "INTEGER32", "rw", 0, False,
+                       "qc"))
+    od.add_object(_var("Max profile velocity", prof.max_profile_velocity.index, 0, "UNSIGNED32", "rw", 10000,
+                       False, "rpm"))
 
 
 def find_variable(od: ObjectDictionary, index: int, subindex: int = 0) -> Optional[ODVariable]:
