@@ -28,6 +28,7 @@ from drivers.profiles import AveragingFilter, get_profile
 from drivers.recording import Recording
 from ident_hw.config import Config
 from ident_hw.config.schema import FieldError
+from ident_hw.config.sections import IdentificationConfig
 from ident_hw.identification.base_params import (base_parameters, column_scale, identify_base, on_kept,
                                                   scaled_condition)
 from ident_hw.identification.least_squares import check_regression_data, stack, wls
@@ -352,35 +353,8 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     initial = config.robot.initial_parameters()
     estimates = _Estimates.initial(initial)
     truth = config.true_parameters()
-    steps = []
-    base_fit, base_equivalent, model_comparison = None, None, None
-    fitted: set[str] = set()            # every parameter some step fitted
-    for step in ident.steps:
-        free_names = step.parameter_names(names)
-        if progress:
-            progress(f"step {step.name}: fitting "
-                     + ("all parameters" if step.parameters == ("all",) else ", ".join(free_names))
-                     + (f" (base parameters, {step.method.upper()})" if step.method != "sqp" else ""))
-        Y = np.concatenate([prepared[t].Y for t in step.trajectories])
-        tau = np.concatenate([prepared[t].tau_fit for t in step.trajectories])
-        if not len(Y):
-            steps.append({"name": step.name, "trajectories": list(step.trajectories),
-                          "skipped": "no stretch of its recordings could be filtered"})
-            continue
-        if step.method == "sqp":
-            record, excited = fit_sqp_step(step, free_names, names, Y, tau, estimates, ident.bounds, prepared)
-            steps.append(record)
-            fitted.update(excited)
-            continue
-        base_fit, base_equivalent, record = fit_base(step, free_names, names, Y, tau, estimates.coef, initial, truth,
-                                                     ident.rel_sigma_threshold, robot.readable_base())
-        steps.append(record)
-        fitted.update(free_names)
-        if compared:
-            if progress:
-                progress(f"step {step.name}: the dynamic, power and energy models' base parameters")
-            model_comparison = comparison(step, free_names, names, Y, tau, prepared, estimates.coef, truth,
-                                          step.method == "wls", ident.rel_sigma_threshold, robot.readable_base())
+    steps, base_fit, base_equivalent, model_comparison, fitted = _run_steps(
+        ident, robot, prepared, compared, estimates, initial, truth, progress)
 
     coef = estimates.coef
     id_names = list(dict.fromkeys(t for s in ident.steps for t in s.trajectories))
@@ -410,6 +384,50 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     results.quality = verdict(results, ident.quality, config.robot.actuators,
                               acting_axes(robot, prepared, id_names, fitted))
     return results
+
+
+def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping[str, Prepared],
+               compared: tuple[str, ...], estimates: _Estimates, initial: np.ndarray, truth: np.ndarray | None,
+               progress: Callable[[str], None] | None):
+    """Runs the identification steps in their order, each on the parameters the ones before left
+    in ``estimates`` (updated in place), and the model comparison on the base step's data when
+    ``compared`` names its trajectories.
+
+    Returns the steps' records, the last base step's :class:`BaseFit` and its equivalent physical
+    parameters (n,) (None, None without a base step), the model comparison (or None) and the set
+    of the parameters some step fitted.
+    """
+    names = robot.parameter_names
+    steps = []
+    base_fit, base_equivalent, model_comparison = None, None, None
+    fitted: set[str] = set()            # every parameter some step fitted
+    for step in ident.steps:
+        free_names = step.parameter_names(names)
+        if progress:
+            progress(f"step {step.name}: fitting "
+                     + ("all parameters" if step.parameters == ("all",) else ", ".join(free_names))
+                     + (f" (base parameters, {step.method.upper()})" if step.method != "sqp" else ""))
+        Y = np.concatenate([prepared[t].Y for t in step.trajectories])
+        tau = np.concatenate([prepared[t].tau_fit for t in step.trajectories])
+        if not len(Y):
+            steps.append({"name": step.name, "trajectories": list(step.trajectories),
+                          "skipped": "no stretch of its recordings could be filtered"})
+            continue
+        if step.method == "sqp":
+            record, excited = fit_sqp_step(step, free_names, names, Y, tau, estimates, ident.bounds, prepared)
+            steps.append(record)
+            fitted.update(excited)
+            continue
+        base_fit, base_equivalent, record = fit_base(step, free_names, names, Y, tau, estimates.coef, initial, truth,
+                                                     ident.rel_sigma_threshold, robot.readable_base())
+        steps.append(record)
+        fitted.update(free_names)
+        if compared:
+            if progress:
+                progress(f"step {step.name}: the dynamic, power and energy models' base parameters")
+            model_comparison = comparison(step, free_names, names, Y, tau, prepared, estimates.coef, truth,
+                                          step.method == "wls", ident.rel_sigma_threshold, robot.readable_base())
+    return steps, base_fit, base_equivalent, model_comparison, fitted
 
 
 def consistent(config: Config, robot: RobotModel, base_fit: BaseFit, equivalent: np.ndarray, initial: np.ndarray,
