@@ -102,6 +102,27 @@ def axis_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits: 
     judged = results.actuators if judged is None else tuple(judged)
     groups = [g for g in (tuple(i for i in group if results.actuators[i] in judged)
                           for group in same_drive_groups(actuators)) if len(g) > 1]
+    gain, worst = _gains_and_residuals(results, actuators, groups)
+    spreads, reasons = {}, []
+    for group in groups:
+        names = [results.actuators[i] for i in group]
+        # the group's gain: its median (of two, the one nearer the model's)
+        typical = (float(np.median(gain[list(group)])) if len(group) > 2
+                   else float(min(gain[list(group)], key=abs)))
+        for i, name in zip(group, names):
+            if name not in worst:           # no fitted trajectory
+                continue
+            spread = float(gain[i] - typical)
+            spreads[name] = spread
+            reasons += _axis_texts(name, names, gain[i], typical, spread, worst[name], limits)
+    return spreads, {name: w[0] for name, w in worst.items()}, reasons
+
+
+def _gains_and_residuals(results: Results, actuators: Sequence[ActuatorConfig], groups: list[tuple[int, ...]]
+                         ) -> tuple[np.ndarray, dict[str, tuple[float, str, float, float]]]:
+    """The figures :func:`axis_reasons` judges, over the fitted trajectories: each axis's gain
+    (n_axes,), %, and, per axis of ``groups``, its worst residual against its twins as ``(ratio,
+    trajectory, its RMS residual in A, the median of the twins' in A)``."""
     per_amp = np.array([a.scaling().force_per_amp for a in actuators])
     worst: dict[str, tuple[float, str, float, float]] = {}
     along, power = np.zeros(len(actuators)), np.zeros(len(actuators))
@@ -121,30 +142,28 @@ def axis_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits: 
                     worst[name] = (ratio, fit.name, float(rms[i]), others)
     with np.errstate(invalid="ignore", divide="ignore"):
         gain = 100.0 * along / power
-    spreads, reasons = {}, []
-    for group in groups:
-        names = [results.actuators[i] for i in group]
-        # the group's gain: its median (of two, the one nearer the model's)
-        typical = (float(np.median(gain[list(group)])) if len(group) > 2
-                   else float(min(gain[list(group)], key=abs)))
-        for i, name in zip(group, names):
-            if name not in worst:           # no fitted trajectory
-                continue
-            twins = ", ".join(n for n in names if n != name)
-            spread = float(gain[i] - typical)
-            spreads[name] = spread
-            if abs(spread) > limits.max_axis_gain_spread:
-                reasons.append(
-                    f"{name}: forces {gain[i]:+.2f} % off what the model predicts, against {typical:+.2f} % on the "
-                    f"same drives ({twins}; {spread:+.2f} % apart, > {limits.max_axis_gain_spread:g} %): check "
-                    f"{name}'s torque constant, gear ratio or screw lead (off by about {spread:+.1f} %)")
-            ratio, trajectory, own, twins_rms = worst[name]
-            if ratio > limits.max_axis_residual_ratio:
-                reasons.append(
-                    f"{name}: residual {1e3 * own:.3g} mA on {trajectory}, {ratio:.1f} times that of the same "
-                    f"drives ({twins}: {1e3 * twins_rms:.3g} mA; > {limits.max_axis_residual_ratio:g}): the model "
-                    f"does not fit {name}; check its torque constant, gear ratio or screw lead, and its friction")
-    return spreads, {name: w[0] for name, w in worst.items()}, reasons
+    return gain, worst
+
+
+def _axis_texts(name: str, names: list[str], gain: float, typical: float, spread: float,
+                worst: tuple[float, str, float, float], limits: QualityConfig) -> list[str]:
+    """The reasons against one axis of a group ``names``: its gain (%) ``spread`` from the
+    group's ``typical`` one beyond ``limits.max_axis_gain_spread``, its ``worst`` residual ratio
+    (as in :func:`_gains_and_residuals`) beyond ``limits.max_axis_residual_ratio``."""
+    reasons = []
+    twins = ", ".join(n for n in names if n != name)
+    if abs(spread) > limits.max_axis_gain_spread:
+        reasons.append(
+            f"{name}: forces {gain:+.2f} % off what the model predicts, against {typical:+.2f} % on the "
+            f"same drives ({twins}; {spread:+.2f} % apart, > {limits.max_axis_gain_spread:g} %): check "
+            f"{name}'s torque constant, gear ratio or screw lead (off by about {spread:+.1f} %)")
+    ratio, trajectory, own, twins_rms = worst
+    if ratio > limits.max_axis_residual_ratio:
+        reasons.append(
+            f"{name}: residual {1e3 * own:.3g} mA on {trajectory}, {ratio:.1f} times that of the same "
+            f"drives ({twins}: {1e3 * twins_rms:.3g} mA; > {limits.max_axis_residual_ratio:g}): the model "
+            f"does not fit {name}; check its torque constant, gear ratio or screw lead, and its friction")
+    return reasons
 
 
 @dataclass(frozen=True)
