@@ -108,6 +108,20 @@ def _joint_kind(joint: pin.JointModel) -> str | None:
     return None
 
 
+def _joint_kinds(model: pin.Model, where: str) -> dict[str, str]:
+    """Joint name → :data:`REVOLUTE` or :data:`PRISMATIC` for every joint of the tree; raises
+    :class:`DescriptionError` at the first joint that is not one-degree-of-freedom."""
+    kinds = {}
+    for j in range(1, model.njoints):
+        kind = _joint_kind(model.joints[j])
+        if kind is None:
+            raise DescriptionError(f"{where}: joint {model.names[j]!r} is a {model.joints[j].shortname()} "
+                                   f"(nq {model.joints[j].nq}, nv {model.joints[j].nv}); only one-degree-of-"
+                                   "freedom joints are supported (hinge, slide; a ball joint as three hinges)")
+        kinds[model.names[j]] = kind
+    return kinds
+
+
 class DescribedRobot:
     """A robot from its description file (see the module docstring): implements
     :class:`~ident_hw.model.interface.RobotModel`.
@@ -140,18 +154,38 @@ class DescribedRobot:
         model, points, frames = load_description(self.path)
         self.model = model
         where = str(self.path)
-        kinds = {}
-        for j in range(1, model.njoints):
-            kind = _joint_kind(model.joints[j])
-            if kind is None:
-                raise DescriptionError(f"{where}: joint {model.names[j]!r} is a {model.joints[j].shortname()} "
-                                       f"(nq {model.joints[j].nq}, nv {model.joints[j].nv}); only one-degree-of-"
-                                       "freedom joints are supported (hinge, slide; a ball joint as three hinges)")
-            kinds[model.names[j]] = kind
+        kinds = _joint_kinds(model, where)
         self.joint_names = tuple(model.names[j] for j in range(1, model.njoints))
         self.body_names = tuple(self._body_of(j) for j in range(1, model.njoints))
-
         actuated = tuple(actuated)
+        self._set_actuated(actuated, actuator_names, kinds, where)
+
+        self.closures = tuple(self._closures(points, frames))
+        self._rows = sum(c.rows for c in self.closures)
+        self._set_dynamics_models()
+        n = len(actuated)
+        self.pose_size = model.nq
+        self.parameter_names = tuple(f"{b}.{p}" for b in self.body_names for p in BODY_PARAMS) + tuple(
+            f"{d}_{a}" for d in DRIVE_PARAMS for a in self.actuator_names)
+        self._n_body = 10 * (model.njoints - 1)
+
+        self._set_home(home, home_actuated, kinds, where, n)
+        self.end_effector = end_effector
+        if end_effector is not None and not model.existFrame(end_effector):
+            raise DescriptionError(f"{where}: no body or site {end_effector!r} to carry a payload")
+        self._pi_cache: np.ndarray | None = None
+        self._last_jacobian: tuple[np.ndarray, np.ndarray] = (np.full(model.nq, np.nan), np.zeros((0, model.nv)))
+        self._last_motion = (np.full(len(actuated), np.nan), np.full(model.nq, np.nan), np.zeros((model.nv, len(actuated))))
+        bodies = [model.inertias[j].toDynamicParameters() for j in range(1, model.njoints)]
+        self._nominal = np.concatenate([*bodies, self.drive_parameters()])
+        self._mobility_check()
+
+    def _set_actuated(self, actuated: tuple[str, ...], actuator_names: Sequence[str] | None,
+                      kinds: Mapping[str, str], where: str) -> None:
+        """Checks the actuated joints against the tree's (``kinds``: joint name → kind) and sets
+        their names and kinds, the actuators' names, and the indices of the actuated coordinates
+        in ``q`` and ``v`` (n,) and of the passive ones (nv − n,)."""
+        model = self.model
         for name in actuated:
             if name not in kinds:
                 raise DescriptionError(f"{where}: no joint {name!r} to actuate; joints: {list(self.joint_names)}")
@@ -169,21 +203,22 @@ class DescribedRobot:
         self._pas_q = np.array([model.joints[j].idx_q for j in range(1, model.njoints)
                                 if model.joints[j].idx_v in set(self._pas_v.tolist())])
 
-        self.closures = tuple(self._closures(points, frames))
-        self._rows = sum(c.rows for c in self.closures)
-        self.data = model.createData()
+    def _set_dynamics_models(self) -> None:
+        """pinocchio's data of the description's model (its closure frames added) and the plant's
+        own copy of the model, without the file's joint armature."""
+        self.data = self.model.createData()
         # the plant's own copy, whose body inertias it sets: ``model`` keeps the description's
-        self._dynamics_model = pin.Model(model)
+        self._dynamics_model = pin.Model(self.model)
         # pinocchio's crba and rnea add the file's joint armature; the rotor inertias are the
         # parameter vector's Jm (plant_dynamics adds them), so the plant's model has none
         self._dynamics_model.armature[:] = 0.0
         self._dynamics_data = self._dynamics_model.createData()
-        n = len(actuated)
-        self.pose_size = model.nq
-        self.parameter_names = tuple(f"{b}.{p}" for b in self.body_names for p in BODY_PARAMS) + tuple(
-            f"{d}_{a}" for d in DRIVE_PARAMS for a in self.actuator_names)
-        self._n_body = 10 * (model.njoints - 1)
 
+    def _set_home(self, home: Mapping[str, float] | None, home_actuated: Sequence[float] | None,
+                  kinds: Mapping[str, str], where: str, n: int) -> None:
+        """The home guess: the tree configuration ``_home_q`` (nq,) from the joint values ``home``
+        (rad, m; 0 for the joints not named) and its actuated coordinates ``_home_actuated`` (n,)."""
+        model = self.model
         self._home_q = pin.neutral(model)
         for name, value in (home or {}).items():
             if name not in kinds:
@@ -193,15 +228,6 @@ class DescribedRobot:
                                else np.asarray(home_actuated, dtype=float))
         if self._home_actuated.shape != (n,):
             raise DescriptionError(f"{where}: home_actuated needs {n} values, got {self._home_actuated.shape}")
-        self.end_effector = end_effector
-        if end_effector is not None and not model.existFrame(end_effector):
-            raise DescriptionError(f"{where}: no body or site {end_effector!r} to carry a payload")
-        self._pi_cache: np.ndarray | None = None
-        self._last_jacobian: tuple[np.ndarray, np.ndarray] = (np.full(model.nq, np.nan), np.zeros((0, model.nv)))
-        self._last_motion = (np.full(len(actuated), np.nan), np.full(model.nq, np.nan), np.zeros((model.nv, len(actuated))))
-        bodies = [model.inertias[j].toDynamicParameters() for j in range(1, model.njoints)]
-        self._nominal = np.concatenate([*bodies, self.drive_parameters()])
-        self._mobility_check()
 
     # ------------------------------------------------------------------ description
     @property
