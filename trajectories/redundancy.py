@@ -5,7 +5,7 @@ free. :func:`carriage_schedule` chooses them for a waypoint path (straight pose 
 :mod:`trajectories.timing`): the carriage positions at the interior waypoints and, per segment and
 chain, ``harmonics`` sine bends ``c_k sin(k pi s)`` (zero at both ends, so the vertices are
 unchanged). It maximises the smallest singularity margin along the path, measured against the
-rig's limits,
+rig's limits::
 
     margin(s) = min( min_i |sin(beta_i - theta_i)| / min_serial_margin,  max_cond_A / cond(A) )
 

@@ -1,5 +1,7 @@
 """Simulated EPOS rig: six emulated EPOS2/EPOS4 drives on CANopen in front of a simulated 3PRRR.
 
+::
+
     from drivers.sim import SimulatedRig
     rig = SimulatedRig.build(robot, true_params, axes,    # robot: a model, axes: (node_id, "epos4", AxisScaling) each
                              interface="virtual", channel="rig", ignore_config=True)

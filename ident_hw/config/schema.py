@@ -1,7 +1,7 @@
 """A small generic schema layer: YAML node trees → frozen dataclasses, with strict validation.
 
 A config section is a frozen dataclass. Its annotated fields say the expected types; a field's
-``metadata`` (built with :func:`spec`) may add a validator, a unit note and a degree alias:
+``metadata`` (built with :func:`spec`) may add a validator, a unit note and a degree alias::
 
     @dataclass(frozen=True)
     class Geometry:

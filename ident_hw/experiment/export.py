@@ -24,7 +24,7 @@ def export_description(results_folder: str | Path, to: str | Path, for_mujoco: b
 
     Raises:
         RecordingError: the folder holds no consistent parameters, or ones of another robot.
-        ConfigError: the folder's robot is not described by a file (a hand-written model).
+        drivers.errors.ConfigError: the folder's robot is not described by a file (a hand-written model).
     """
     folder = Path(results_folder)
     results = load_results(folder)

@@ -145,7 +145,7 @@ class ParameterSummary:
 
     @property
     def honest(self) -> bool:
-        """Its σ tells the truth: coverage at least :data:`COVERAGE_TARGET`, |mean error| at most
+        """Its σ tells the truth: coverage at least :data:`COVERAGE_TARGET`, ``|mean error|`` at most
         :data:`BIAS_TARGET` mean σ."""
         return self.coverage >= COVERAGE_TARGET and abs(self.bias_sigmas) <= BIAS_TARGET
 

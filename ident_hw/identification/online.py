@@ -1,6 +1,6 @@
 """Online (streaming) estimators: SVD-DLS (the SVD-DLS paper, eqs. 61–83) and two RLS baselines.
 
-Interface (scikit-learn style, one convention for all three):
+Interface (scikit-learn style, one convention for all three)::
 
     est = SVDDLS(n_params=18, forgetting=0.998, threshold=100, scale=cad, output_std=sigma)
     est.warm_start(coef, information)      # optional: from an offline fit

@@ -103,7 +103,7 @@ class ConsistentSet:
 
     @property
     def rel_sigma_percent(self) -> np.ndarray:
-        """(n,) 100 σ / |value| (NaN at a value of 0)."""
+        """(n,) ``100 σ / |value|`` (NaN at a value of 0)."""
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(self.values != 0, 100.0 * self.sigma / np.abs(self.values), np.nan)
 
@@ -118,7 +118,7 @@ class ConsistentSet:
         return all(b.margin >= 0.0 for b in self.bodies)
 
     def error_percent(self) -> np.ndarray | None:
-        """(n,) 100 (value − truth) / |truth| (NaN where the truth is 0); None outside simulation."""
+        """(n,) ``100 (value − truth) / |truth|`` (NaN where the truth is 0); None outside simulation."""
         if self.truth is None:
             return None
         with np.errstate(divide="ignore", invalid="ignore"):

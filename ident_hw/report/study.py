@@ -1,6 +1,6 @@
 """A Monte-Carlo study's report: the per-parameter table in the terminal and in ``study.html``,
 and two plots: each claimed parameter's z-score histogram ((estimate - truth) / σ over the runs,
-against the standard normal an honest σ gives) and every run's |error| against its %σ.
+against the standard normal an honest σ gives) and every run's ``|error|`` against its %σ.
 
 The table's marks: ``claimed`` parameters are those the campaigns call well identified; among
 them ``!`` marks one whose σ does not tell the truth (coverage of the ±1.96σ interval below
@@ -90,7 +90,7 @@ def plot_z_histograms(study: Study, path: Path) -> Path | None:
 
 
 def plot_error_vs_sigma(study: Study, path: Path) -> Path | None:
-    """Every run's |error| (%) against its %σ, on log axes, with the ±1.96σ line."""
+    """Every run's ``|error|`` (%) against its %σ, on log axes, with the ±1.96σ line."""
     points = [(100 * e.sigma / abs(e.value), 100 * abs(e.value - e.truth) / abs(e.truth))
               for o in study.outcomes for e in o.estimates if e.sigma and e.value and e.truth]
     if not points:
