@@ -4,6 +4,7 @@ import itertools
 import time
 
 import canopen
+import numpy as np
 import pytest
 from canopen.profiles.p402 import BaseNode402
 from canopen.sdo import SdoAbortedError
@@ -161,5 +162,35 @@ def test_pdo_mapping_cia402_and_cyclic_following(profile):
         node.state = "OPERATION ENABLED"        # canopen: fault reset (0x80 edge) then enable
         assert b.rig.drive(4).state == "OPERATION ENABLED"
         assert node.sdo[0x1001].raw == 0
+    finally:
+        b.close()
+
+
+def test_encoder_edges_set_where_an_axis_counts():
+    """An axis reads ``rint(position * counts_per_unit + edge)`` counts, less that reading at
+    power-up; a fraction of a count of edge changes the reading of some positions by one."""
+    edges = np.array([0.0, 0.3, -0.4, 0.25, 0.0, -0.1])
+    b = Bench(encoder_edges=edges)
+    try:
+        rig = b.rig
+        counts_per_unit = np.array([(REV if j < 3 else PRI).counts_per_unit for j in range(6)])
+        x0 = rig.plant.Theta * counts_per_unit
+        # per axis a move of 10 to 11 counts whose reading depends on the edge (where one can)
+        move = np.full(6, 10.5)
+        for j in range(6):
+            for d in np.linspace(0.0, 0.95, 20):
+                with_edge = np.rint(x0[j] + edges[j] + 10 + d) - np.rint(x0[j] + edges[j])
+                if with_edge != np.rint(x0[j] + 10 + d) - np.rint(x0[j]):
+                    move[j] = 10 + d
+                    break
+        expected = np.rint(x0 + edges + move) - np.rint(x0 + edges)
+        differs = expected != np.rint(x0 + move) - np.rint(x0)
+        assert differs[edges != 0].all()
+        rig.start()
+        with rig._lock:          # the axes unpowered, at rest: the plant stays where it is put
+            rig.plant.Theta = rig.plant.Theta + move / counts_per_unit
+        time.sleep(0.3)          # the rig's clock moves an idle plant (and samples it) every few ms
+        read = [node.sdo[0x6064].raw for node in b.nodes]
+        assert read == expected.astype(int).tolist()
     finally:
         b.close()

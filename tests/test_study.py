@@ -15,7 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ident_hw.experiment.study import (Estimate, RunOutcome, StudyError, run_file, run_study, summarize)
+from ident_hw.config import load_config
+from ident_hw.experiment.study import (Estimate, RunOutcome, RunTask, StudyError, run_file, run_study, run_yaml,
+                                        summarize)
 from ident_hw.report.study import study_lines, write_study_report
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -124,3 +126,16 @@ def test_the_summary_against_statistics_computed_by_hand():
     # b: claimed by one run only; the 0.5 error (25 sigma) is outside
     assert not summary["b"].claimed and summary["b"].coverage == 0.8
     assert np.isclose(summary["b"].bias_sigmas, np.mean(errors["b"]) / 0.02)
+
+
+def test_every_run_but_the_first_draws_where_its_encoders_count(tmp_path):
+    """Run 0 is the config's own campaign; the others draw their count edges from their seed (what
+    differs between two homings of a rig), else every run would read the same rounded positions."""
+    (tmp_path / "config.yaml").write_text(f"extends: {ROOT / 'configs' / 'sim-3prrr.yaml'}\n")
+    edges = []
+    for index in range(3):
+        path = tmp_path / f"run{index}.yaml"
+        path.write_text(run_yaml(RunTask(index, 1 + index, "")))
+        edges.append(load_config(path).sim.encoder_edge_counts(6))
+    assert load_config(tmp_path / "run0.yaml").sim.seed == 1 and not edges[0].any()
+    assert edges[1].all() and edges[2].all() and not (edges[1] == edges[2]).any()

@@ -141,10 +141,14 @@ class SimulatedRig:
         brakes: every axis has a holding brake that holds it where it stands while its drive's
             power stage is off (a robot whose arms carry their weight, such as a Delta, does not
             fall when the run ends and the drives are disabled).
+        encoder_edges: (n,) where each axis's encoder counts, in counts: an axis reads
+            ``rint(position * counts_per_unit + encoder_edges[j])`` (each in [-0.5, 0.5]; default 0,
+            count edges halfway between whole multiples of a count).
     """
 
     def __init__(self, nodes, plant: Plant, *, bus=None, sync_period=None, current_noise_ma: float = 0.0,
-                 seed=None, initial_states=None, lockstep: bool = False, brakes: bool = False, **bus_kwargs):
+                 seed=None, initial_states=None, lockstep: bool = False, brakes: bool = False,
+                 encoder_edges=None, **bus_kwargs):
         nodes = [(n.node_id, n.profile, n.scaling) if isinstance(n, AxisConfig) else tuple(n) for n in nodes]
         names = plant.robot.actuator_names
         if len(nodes) != len(names):
@@ -180,6 +184,10 @@ class SimulatedRig:
                        for node_id, profile, scaling in nodes]
         self._by_id = {d.id: d for d in self.drives}
         self._units = AxesScaling([n[2] for n in nodes])
+        edges = np.zeros(len(nodes)) if encoder_edges is None else np.asarray(encoder_edges, dtype=float)
+        if edges.shape != (len(nodes),) or np.any(np.abs(edges) > 0.5):
+            raise ValueError(f"encoder_edges: one value in [-0.5, 0.5] counts per drive, got {encoder_edges}")
+        self._edge_shift = edges / np.array([n[2].counts_per_unit for n in nodes])   # SI: rad, m
         self.sync_count = 0             # SYNC frames received
         self.syncs_done = 0             # SYNC cycles finished (the TPDOs sent, the plant stepped)
         self.sync_time = 0.0            # s, simulated time of the SYNC cycles finished
@@ -229,7 +237,7 @@ class SimulatedRig:
             self.network.bus = open_bus(BusConfig.from_mapping(settings, "simulated rig bus"))
         self.network.connect()
         self._serving.enter_context(frozen_gc())
-        counts = self._units.counts_from_position(self.plant.Theta)
+        counts = self._units.counts_from_position(self.plant.Theta + self._edge_shift)
         with self._lock:
             for drive, c in zip(self.drives, counts):
                 drive.offset = int(c)   # incremental encoders read 0 at power-up
@@ -360,7 +368,7 @@ class SimulatedRig:
         milliamps = self._units.current_from_force(force) * MA_PER_AMP     # before noise and rounding
         if self.current_noise_ma:
             milliamps += self._rng.normal(0.0, self.current_noise_ma, len(self.drives))
-        counts = self._units.counts_from_position(plant.Theta) - offsets.astype(np.int64)
+        counts = self._units.counts_from_position(plant.Theta + self._edge_shift) - offsets.astype(np.int64)
         rpm = self._units.rpm_from_velocity(plant.Thetad)
         for j, drive in enumerate(self.drives):     # each drive rounds to whole mA (and averages)
             drive.update(int(counts[j]), int(rpm[j]), float(milliamps[j]), period)

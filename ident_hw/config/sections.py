@@ -363,7 +363,17 @@ class SimConfig:
             "its weight, such as the Delta, does not fall when the drives are disabled)"))
     in_process: bool = True
     seed: int = 0
+    encoder_edges: Literal["fixed", "random"] = field(default="fixed", metadata=spec(
+        doc="where the encoders count: 'fixed' halfway between whole multiples of a count, 'random' moved by a "
+            "fraction of a count per axis drawn from the seed (what differs between two rigs, or two homings of "
+            "one; a study draws them per run)"))
     fault: SimFaultConfig | None = None
+
+    def encoder_edge_counts(self, axes: int) -> np.ndarray:
+        """(axes,) counts: each axis's count-edge shift (:attr:`encoder_edges`)."""
+        if self.encoder_edges == "fixed":
+            return np.zeros(axes)
+        return np.random.default_rng([self.seed, 2]).uniform(-0.5, 0.5, axes)
 
 
 @dataclass(frozen=True)
@@ -579,6 +589,11 @@ class IdentificationConfig:
     min_speed: float = field(default=0.02, metadata=spec(
         in_range(0.0, 0.5), doc="an axis moving slower than this fraction of its velocity limit gives no row to the "
                                 "fits: the Coulomb term sign(qdot) does not describe friction near rest"))
+    encoder_draws: int = field(default=8, metadata=spec(
+        in_range(0, 1000), doc="draws of the recordings read again by encoders whose count edges are moved by a "
+                               "random fraction of a count; the spread of their estimates joins every sigma "
+                               "(the encoders' resolution, whose errors repeat where the motion repeats); 0: "
+                               "the least-squares statistics alone"))
     bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
     filter: FilterConfig = FilterConfig()
     online: OnlineConfig = OnlineConfig()

@@ -31,7 +31,7 @@ from ident_hw.config.schema import FieldError
 from ident_hw.config.sections import IdentificationConfig
 from ident_hw.identification.base_params import (base_parameters, column_scale, identify_base, on_kept,
                                                   scaled_condition)
-from ident_hw.identification.least_squares import check_regression_data, stack, wls
+from ident_hw.identification.least_squares import check_regression_data, ols, stack, wls
 from ident_hw.identification.mass_fit import sqp_fit
 from ident_hw.identification.physical import ConsistencyError, ConsistentSet, consistent_parameters
 from ident_hw.identification.model_comparison import (ModelComparison, ModelRows, compare_models,
@@ -42,6 +42,7 @@ from ident_hw.results import BaseFit, ParameterTable, Results, TrajectoryFit
 from ident_hw.segments import Segments, slot_indices, split, uniform
 from ident_hw.signal import kept_samples, near_rest, parallel_decimate, prepare_actuated, running_average
 
+from .encoder import count_shifts, reread, spread_covariance
 from .plan import motion_bandwidth, robot_model
 from .quality import verdict
 from .recordings import identification_valid, planned_cycles, require_trajectories
@@ -206,11 +207,14 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
 
 def fit_base(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
              coef: np.ndarray, initial: np.ndarray, truth: np.ndarray | None, threshold: float,
-             basis: tuple | None = None) -> tuple[BaseFit, np.ndarray, dict]:
+             basis: tuple | None = None, draws: Sequence[tuple[np.ndarray, np.ndarray]] = ()
+             ) -> tuple[BaseFit, np.ndarray, dict]:
     """Least squares (``step.method`` ``wls``/``ols``) of the base parameters of ``free_names``
     on ``Y`` (N, a, n), ``tau`` (N, a), the other parameters (``names``, n) held at ``coef``;
     ``basis``: the model's readable base parameters (``RobotModel.readable_base``), used when
-    every parameter is free and the data identifies them all.
+    every parameter is free and the data identifies them all. ``draws``: the same data with the
+    encoders read again (:mod:`ident_hw.experiment.encoder`), each fitted on the same columns
+    with the same weights; the covariance of their estimates joins the least-squares one.
 
     Returns the :class:`BaseFit`, the physical vector (n,) that predicts the same forces (each
     kept parameter carries its base value, the eliminated ones 0, the held ones ``coef``) and the
@@ -225,16 +229,35 @@ def fit_base(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.nd
     H[:, free] = np.where(np.abs(base.H) > 1e-10, base.H, 0.0)   # rounding of N1 N2^-1, not a coefficient
     equivalent = coef.copy()
     equivalent[free] = on_kept(free_names, base.kept, fit.coef)
+    kept = [free[list(free_names).index(k)] for k in base.kept]
+    encoder = spread_covariance([_refit(fit, Yk[:, :, kept], tauk - Yk[:, :, held] @ coef[held])
+                                 for Yk, tauk in draws], len(kept))
+    covariance = fit.covariance + encoder
     result = BaseFit(step=step.name, method=fit.method, trajectories=tuple(step.trajectories),
-                     expressions=base.expressions, H=H, coef=fit.coef, sigma=fit.std,
+                     expressions=base.expressions, H=H, coef=fit.coef, sigma=np.sqrt(np.diag(covariance)),
                      initial=H @ initial, truth=None if truth is None else H @ truth,
                      held=tuple(names[i] for i in held), unexcited=base.unexcited, threshold=threshold,
-                     covariance=fit.covariance)
+                     covariance=covariance)
     record = {"name": step.name, "trajectories": list(step.trajectories), "free": list(free_names),
               "method": f"{fit.method} of the base parameters ({base.rank} of {len(free)})",
               "eliminated": list(base.eliminated), **{k: v for k, v in fit.to_dict().items() if k != "parameters"},
-              "cond_scaled": scaled_condition(Yf[:, :, [list(free_names).index(k) for k in base.kept]], tau)}
+              "cond_scaled": scaled_condition(Y[:, :, kept], tau), **_encoder_record(draws, encoder)}
     return result, equivalent, record
+
+
+def _refit(fit, Y: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """The estimate of ``fit``'s method on ``Y`` (N, a, m), ``tau`` (N, a): WLS with ``fit``'s
+    output weights, else OLS."""
+    if fit.output_std is not None:
+        return wls(Y, tau, fit.names, output_std=fit.output_std).coef
+    return ols(Y, tau, fit.names).coef
+
+
+def _encoder_record(draws: Sequence, covariance: np.ndarray) -> dict:
+    """The step record's account of the encoder draws: how many, each estimate's sigma from them."""
+    if not len(draws):
+        return {}
+    return {"encoder_draws": len(draws), "encoder_sigma": np.sqrt(np.diag(covariance)).tolist()}
 
 
 def comparison(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
@@ -272,6 +295,25 @@ class _Estimates:
         return cls(values.copy(), np.full(n, np.nan), np.full(n, -np.inf), np.full(n, np.inf), [""] * n, [""] * n)
 
 
+def reread_draws(config: Config, robot: RobotModel, recordings: Mapping[str, Recording], names: Sequence[str],
+                 draws: int) -> list[dict[str, Prepared]]:
+    """``draws`` versions of the recordings ``names`` read again by encoders whose count edges are
+    moved (:mod:`ident_hw.experiment.encoder`), each prepared as the recording was: one dict
+    (trajectory name -> :class:`Prepared`) per draw."""
+    counts_per_unit = np.array([a.scaling().counts_per_unit for a in config.robot.actuators])
+    out = []
+    for shift in count_shifts(draws, len(counts_per_unit)):
+        prepared = {}
+        for name in names:
+            rec = recordings[name]
+            settings = config.identification.filter.settings(1.0 / recording_period(rec),
+                                                            motion_bandwidth(config, name))
+            prepared[name] = prepare(config, robot, name,
+                                     reread(rec, counts_per_unit, settings.cutoff_hz, settings.order, shift))
+        out.append(prepared)
+    return out
+
+
 def prepare_all(config: Config, robot: RobotModel, recordings: Mapping[str, Recording], needed: Sequence[str],
                 compared: Sequence[str], progress: Callable[[str], None] | None) -> tuple[dict, dict[str, Prepared]]:
     """Each needed trajectory's coverage (what its recording holds) and its :func:`prepare`."""
@@ -291,10 +333,12 @@ def prepare_all(config: Config, robot: RobotModel, recordings: Mapping[str, Reco
 
 def fit_sqp_step(step, free_names: Sequence[str], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
                  estimates: _Estimates, all_bounds: Mapping[str, tuple[float, float]],
-                 prepared: Mapping[str, Prepared]) -> tuple[dict, list[str]]:
+                 prepared: Mapping[str, Prepared], draws: Sequence[tuple[np.ndarray, np.ndarray]] = ()
+                 ) -> tuple[dict, list[str]]:
     """The paper's bounded SQP mass fit of one step's parameters on its data (``Y`` (N, a, n),
     ``tau`` (N, a)), the others held at their current values; ``estimates`` updated in place.
-    A parameter its rows do not excite at all (a carriage whose every stretch was left out) is
+    ``draws``: the step's data with the encoders read again (:func:`fit_base`); the spread of
+    their estimates joins each sigma. A parameter its rows do not excite at all (a carriage whose every stretch was left out) is
     held, and the record says so. Returns the step's record and the parameters it fitted."""
     rows, _ = stack(*check_regression_data(Y, tau))
     excited = [p for p in free_names if np.any(rows[:, names.index(p)] != 0)]
@@ -318,7 +362,10 @@ def fit_sqp_step(step, free_names: Sequence[str], names: tuple[str, ...], Y: np.
     except ValueError as exc:  # rank deficient: the fit is bounded, but has no covariance
         record["statistics"] = str(exc)
     else:
-        estimates.sigma[idx] = stats.std
+        encoder = spread_covariance([_refit(stats, Yk[:, :, idx], tauk - Yk[:, :, held] @ coef[held])
+                                     for Yk, tauk in draws], len(idx))
+        estimates.sigma[idx] = np.sqrt(stats.std ** 2 + np.diag(encoder))
+        record.update(_encoder_record(draws, encoder))
         record["cond_W"] = stats.cond
     for i, p in zip(idx, excited):
         estimates.lower[i], estimates.upper[i] = bounds.get(p, (0.0, np.inf))
@@ -349,15 +396,18 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         compared = next(s for s in ident.steps if s.method != "sqp").trajectories
     require_trajectories(config, recordings)
     used, prepared = prepare_all(config, robot, recordings, needed, compared, progress)
+    id_names = list(dict.fromkeys(t for s in ident.steps for t in s.trajectories))
+    if progress and ident.encoder_draws:
+        progress(f"the encoders read again, count edges moved: {ident.encoder_draws} draws")
+    draws = reread_draws(config, robot, recordings, id_names, ident.encoder_draws)
 
     initial = config.robot.initial_parameters()
     estimates = _Estimates.initial(initial)
     truth = config.true_parameters()
     steps, base_fit, base_equivalent, model_comparison, fitted = _run_steps(
-        ident, robot, prepared, compared, estimates, initial, truth, progress)
+        ident, robot, prepared, compared, estimates, initial, truth, progress, draws)
 
     coef = estimates.coef
-    id_names = list(dict.fromkeys(t for s in ident.steps for t in s.trajectories))
     W, _ = stack(*check_regression_data(np.concatenate([prepared[t].Y for t in id_names]),
                                         np.concatenate([prepared[t].tau_fit for t in id_names])))
     base = base_parameters(W, names, scale=np.maximum(np.abs(initial), 1e-3)).to_dict()
@@ -388,10 +438,11 @@ def identify(config: Config, recordings: Mapping[str, Recording],
 
 def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping[str, Prepared],
                compared: tuple[str, ...], estimates: _Estimates, initial: np.ndarray, truth: np.ndarray | None,
-               progress: Callable[[str], None] | None):
+               progress: Callable[[str], None] | None, draws: Sequence[Mapping[str, Prepared]] = ()):
     """Runs the identification steps in their order, each on the parameters the ones before left
     in ``estimates`` (updated in place), and the model comparison on the base step's data when
-    ``compared`` names its trajectories.
+    ``compared`` names its trajectories; ``draws``: the recordings with the encoders read again
+    (:func:`reread_draws`), whose spread joins each step's sigma.
 
     Returns the steps' records, the last base step's :class:`BaseFit` and its equivalent physical
     parameters (n,) (None, None without a base step), the model comparison (or None) and the set
@@ -413,13 +464,16 @@ def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping
             steps.append({"name": step.name, "trajectories": list(step.trajectories),
                           "skipped": "no stretch of its recordings could be filtered"})
             continue
+        step_draws = [(np.concatenate([d[t].Y for t in step.trajectories]),
+                       np.concatenate([d[t].tau_fit for t in step.trajectories])) for d in draws]
         if step.method == "sqp":
-            record, excited = fit_sqp_step(step, free_names, names, Y, tau, estimates, ident.bounds, prepared)
+            record, excited = fit_sqp_step(step, free_names, names, Y, tau, estimates, ident.bounds, prepared,
+                                           step_draws)
             steps.append(record)
             fitted.update(excited)
             continue
         base_fit, base_equivalent, record = fit_base(step, free_names, names, Y, tau, estimates.coef, initial, truth,
-                                                     ident.rel_sigma_threshold, robot.readable_base())
+                                                     ident.rel_sigma_threshold, robot.readable_base(), step_draws)
         steps.append(record)
         fitted.update(free_names)
         if compared:

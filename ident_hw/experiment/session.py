@@ -55,6 +55,7 @@ def simulated_rig(config: Config) -> SimulatedRig:
                               **({"max_substep": sim.max_substep} if sim.max_substep else {}),
                               sync_period=sync_period(config) if lockstep else None,
                               current_noise_ma=sim.current_noise * MA_PER_AMP, seed=sim.seed, lockstep=lockstep, brakes=sim.brakes,
+                              encoder_edges=sim.encoder_edge_counts(len(axes)),
                               interface=config.bus.interface, channel=config.bus.channel, ignore_config=True)
 
 

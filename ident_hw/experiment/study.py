@@ -2,6 +2,11 @@
 each identified as ``ident-hw run`` does; then, per parameter, how its errors compare with the
 standard deviation the campaign reported. One run cannot tell noise from bias; many runs can.
 
+What a run draws is what differs between two campaigns on a real rig: the current noise, and
+where the encoders count (``sim.encoder_edges: random``, a fraction of a count per axis; run 0
+keeps the config's own). With the count edges fixed, every run would read the same rounded
+positions along the same motion, and their errors, the same in every run, would show as a bias.
+
     study = run_study("configs/sim-3prrr.yaml", "results/study-sim-3prrr", runs=40)
     study.summary      # one ParameterSummary per parameter
 
@@ -9,7 +14,7 @@ A run is a pure function of its config and its seed (the simulated rig in lockst
 takes the config as text (and the files it names) and returns a small :class:`RunOutcome`, so it
 gives the same answer in this process, in a worker process of this machine or on another machine
 of a Dask cluster (:func:`run_study`'s ``scheduler``). Run ``i`` has the seed ``sim.seed + i``:
-run 0 is the config's own campaign.
+run 0 is the config's own campaign (:func:`run_yaml`).
 
 The study folder::
 
@@ -181,6 +186,13 @@ def estimates_of(results: Results) -> tuple[Estimate, ...]:
     return tuple(out)
 
 
+def run_yaml(task: RunTask) -> str:
+    """The config of one run, over the study's ``config.yaml``: its seed and, but for run 0 (the
+    config's own campaign, ``ident-hw run`` of the config), count edges of its own."""
+    edges = ", encoder_edges: random" if task.index else ""
+    return f"extends: config.yaml\nsim: {{seed: {task.seed}{edges}}}\n"
+
+
 def run_one(task: RunTask) -> RunOutcome:
     """One campaign of the study, identified as ``ident-hw run`` does (without its report), in a
     temporary folder of the machine it runs on; a pure function of ``task``. The linear algebra
@@ -198,7 +210,7 @@ def run_one(task: RunTask) -> RunOutcome:
             (tmp / relative).parent.mkdir(parents=True, exist_ok=True)
             (tmp / relative).write_bytes(data)
         (tmp / "config.yaml").write_text(task.config_yaml)
-        (tmp / "run.yaml").write_text(f"extends: config.yaml\nsim: {{seed: {task.seed}}}\n")
+        (tmp / "run.yaml").write_text(run_yaml(task))
         try:
             config = load_config(tmp / "run.yaml")
             folder = new_results_folder(config, tmp / "results", "study")

@@ -1,0 +1,114 @@
+"""The encoders' resolution in every sigma (issue 30): the recordings read again with the count
+edges moved (ident_hw.experiment.encoder), the spread of those draws' estimates joining the
+least-squares covariance (offline.fit_base, fit_sqp_step), and where the simulated rig's and the
+study's encoders count (sim.encoder_edges)."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from drivers.recording import Recording
+from ident_hw.config import load_config
+from ident_hw.config.schema import ConfigError
+from ident_hw.experiment.encoder import count_shifts, reread, spread_covariance
+from ident_hw.experiment.offline import fit_base
+
+from ident_scenarios import CONFIGS
+
+RATE = 250.0
+
+
+def smooth_recording(counts_per_unit: np.ndarray, seconds: float = 4.0) -> tuple[Recording, np.ndarray]:
+    """Two axes on slow sines, read in whole counts; axis 0 loses its position for 11 rows."""
+    t = np.arange(int(seconds * RATE)) / RATE
+    truth = np.column_stack([0.3 * np.sin(2 * np.pi * 0.5 * t) + 0.1, 0.02 * np.sin(2 * np.pi * 0.8 * t + 1.0)])
+    position = np.rint(truth * counts_per_unit) / counts_per_unit
+    n = len(t)
+    valid = np.ones((n, 2), bool)
+    position_valid = valid.copy()
+    position_valid[400:411, 0] = False
+    position[400:411, 0] = np.nan
+    rec = Recording(t=t, cycle=np.arange(n), position=position, velocity=np.zeros((n, 2)), current=np.zeros((n, 2)),
+                    statusword=np.zeros((n, 2), np.int32), target=truth.copy(), valid=valid,
+                    position_valid=position_valid, metadata={"sync_period": 1 / RATE})
+    return rec, truth
+
+
+def test_reread_reads_the_motion_on_the_moved_count_grid():
+    counts_per_unit = np.array([2.0e4, 4.0e5])
+    rec, truth = smooth_recording(counts_per_unit)
+    shift = np.array([0.3, -0.45])
+    again = reread(rec, counts_per_unit, cutoff_hz=10.0, order=4, shift=shift)
+    ok = rec.position_valid
+    counts = again.position * counts_per_unit + shift
+    # every valid position lies on the moved grid: a whole number of counts past the shift
+    assert np.abs(counts[ok] - np.rint(counts[ok])).max() < 1e-6
+    # away from the gap (bridged linearly, then smoothed), the motion read in whole counts: within
+    # half a count plus what the smoothing of the recording's own counts left (a fraction of one),
+    # with the RMS of a rounding, 1/sqrt(12) count
+    off = ((again.position - truth) * counts_per_unit)[np.r_[:340, 470:len(truth)]]
+    assert np.abs(off).max() <= 0.8
+    np.testing.assert_allclose(np.sqrt(np.mean(off ** 2, axis=0)), 12 ** -0.5, rtol=0.15)
+    # and not the recording's own reading: the shift moves some readings by a count
+    moved = np.rint(again.position * counts_per_unit) != np.rint(rec.position * counts_per_unit)
+    assert moved[ok].mean() > 0.2
+    # rows without a valid position keep what they held
+    assert np.all(np.isnan(again.position[~ok]))
+    assert np.array_equal(again.current, rec.current) and np.array_equal(again.t, rec.t)
+
+
+def test_count_shifts_are_seeded_and_within_half_a_count():
+    a, b = count_shifts(8, 6), count_shifts(8, 6)
+    assert np.array_equal(a, b) and a.shape == (8, 6)
+    assert np.all(np.abs(a) <= 0.5) and len(np.unique(a)) == a.size
+
+
+def _weighted_lstsq(Y: np.ndarray, tau: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """Independent WLS: outputs divided by their std, stacked, numpy's lstsq."""
+    W = (Y / std[None, :, None]).reshape(-1, Y.shape[2])
+    return np.linalg.lstsq(W, (tau / std).reshape(-1), rcond=None)[0]
+
+
+def test_fit_base_adds_the_covariance_of_the_draws_estimates():
+    rng = np.random.default_rng(7)
+    names = ("a", "b", "c")
+    N = 400
+    Y = rng.normal(size=(N, 2, 3))
+    theta = np.array([1.0, -2.0, 0.5])
+    tau = Y @ theta + rng.normal(0, [0.01, 0.05], (N, 2))
+    draws = [(Y + rng.normal(0, 0.02, Y.shape), tau) for _ in range(6)]
+    step = SimpleNamespace(name="base", method="wls", trajectories=("t",))
+    coef0 = np.zeros(3)
+    alone, _, record_alone = fit_base(step, names, names, Y, tau, coef0, coef0, None, 10.0)
+    fit, _, record = fit_base(step, names, names, Y, tau, coef0, coef0, None, 10.0, draws=draws)
+    assert np.array_equal(fit.coef, alone.coef)                    # the estimate is the data's own
+    std = np.array(record_alone["output_std"])
+    estimates = np.array([_weighted_lstsq(Yk, tk, std) for Yk, tk in draws])
+    spread = np.cov(estimates, rowvar=False)
+    np.testing.assert_allclose(fit.covariance, alone.covariance + spread, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(fit.sigma, np.sqrt(np.diag(alone.covariance) + np.diag(spread)), rtol=1e-9)
+    np.testing.assert_allclose(record["encoder_sigma"], np.sqrt(np.diag(spread)), rtol=1e-9)
+    assert record["encoder_draws"] == 6 and "encoder_draws" not in record_alone
+
+
+def test_spread_covariance_of_fewer_than_two_draws_is_zero():
+    assert np.array_equal(spread_covariance([np.ones(3)], 3), np.zeros((3, 3)))
+    assert np.array_equal(spread_covariance([], 2), np.zeros((2, 2)))
+
+
+def _sim_config(tmp_path, extra: str):
+    path = tmp_path / "sim.yaml"
+    path.write_text(f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n{extra}\n")
+    return load_config(path)
+
+
+def test_sim_encoder_edges_fixed_by_default_random_from_the_seed(tmp_path):
+    assert np.array_equal(_sim_config(tmp_path, "").sim.encoder_edge_counts(6), np.zeros(6))
+    five = _sim_config(tmp_path, "sim: {seed: 5, encoder_edges: random}").sim
+    six = _sim_config(tmp_path, "sim: {seed: 6, encoder_edges: random}").sim
+    edges = five.encoder_edge_counts(6)
+    assert np.array_equal(edges, five.encoder_edge_counts(6))
+    assert np.all(np.abs(edges) <= 0.5) and not np.array_equal(edges, six.encoder_edge_counts(6))
+    with pytest.raises(ConfigError, match="encoder_edges"):
+        _sim_config(tmp_path, "sim: {encoder_edges: sometimes}")
