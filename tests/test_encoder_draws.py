@@ -11,7 +11,7 @@ import pytest
 from drivers.recording import Recording
 from ident_hw.config import load_config
 from ident_hw.config.schema import ConfigError
-from ident_hw.experiment.encoder import count_shifts, reread, spread_covariance
+from ident_hw.experiment.encoder import count_shifts, reread, smoothed_positions, spread_covariance
 from ident_hw.experiment.offline import fit_base
 
 from ident_scenarios import CONFIGS
@@ -39,7 +39,7 @@ def test_reread_reads_the_motion_on_the_moved_count_grid():
     counts_per_unit = np.array([2.0e4, 4.0e5])
     rec, truth = smooth_recording(counts_per_unit)
     shift = np.array([0.3, -0.45])
-    again = reread(rec, counts_per_unit, cutoff_hz=10.0, order=4, shift=shift)
+    again = reread(rec, smoothed_positions(rec, cutoff_hz=10.0, order=4), counts_per_unit, shift)
     ok = rec.position_valid
     counts = again.position * counts_per_unit + shift
     # every valid position lies on the moved grid: a whole number of counts past the shift

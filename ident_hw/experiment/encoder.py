@@ -37,11 +37,10 @@ def count_shifts(draws: int, axes: int, seed: int = SEED) -> np.ndarray:
     return np.random.default_rng(seed).uniform(-0.5, 0.5, (draws, axes))
 
 
-def reread(rec: Recording, counts_per_unit: np.ndarray, cutoff_hz: float, order: int, shift: np.ndarray) -> Recording:
-    """``rec`` with its positions read again by encoders of ``counts_per_unit`` (a,) whose count
-    edges are moved by ``shift`` (a,) counts: the recorded positions low-passed at ``cutoff_hz``
-    (the identification's own filter, each end extended by its polynomial; rows without a valid
-    position bridged linearly), rounded to the shifted grid. Rows without a valid position keep their value."""
+def smoothed_positions(rec: Recording, cutoff_hz: float, order: int) -> np.ndarray:
+    """(N, a) the recorded positions low-passed at ``cutoff_hz`` (the identification's own filter,
+    each end extended by its polynomial; rows without a valid position bridged linearly): the
+    motion the draws of :func:`reread` read again, the same for every draw."""
     valid = identification_valid(rec)
     smooth = np.array(rec.position, dtype=float)
     for j in range(smooth.shape[1]):
@@ -51,8 +50,16 @@ def reread(rec: Recording, counts_per_unit: np.ndarray, cutoff_hz: float, order:
     period = float(np.median(np.diff(rec.t))) if len(rec.t) > 1 else 1.0
     if len(rec.t) > 30 and cutoff_hz < 0.5 / period:
         smooth = lowpass(smooth, 1.0 / period, cutoff_hz, order, (POLYNOMIAL, POLYNOMIAL))
+    return smooth
+
+
+def reread(rec: Recording, smooth: np.ndarray, counts_per_unit: np.ndarray, shift: np.ndarray) -> Recording:
+    """``rec`` with its positions read again by encoders of ``counts_per_unit`` (a,) whose count
+    edges are moved by ``shift`` (a,) counts: ``smooth`` (N, a, :func:`smoothed_positions`)
+    rounded to the shifted grid. Rows without a valid position keep their value."""
     counts = np.round(smooth * counts_per_unit + shift) - shift
-    return dataclasses.replace(rec, position=np.where(valid, counts / counts_per_unit, rec.position))
+    return dataclasses.replace(rec, position=np.where(identification_valid(rec), counts / counts_per_unit,
+                                                      rec.position))
 
 
 def spread_covariance(estimates: Sequence[np.ndarray], m: int) -> np.ndarray:

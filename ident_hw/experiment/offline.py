@@ -42,7 +42,7 @@ from ident_hw.results import BaseFit, ParameterTable, Results, TrajectoryFit
 from ident_hw.segments import Segments, slot_indices, split, uniform
 from ident_hw.signal import kept_samples, near_rest, parallel_decimate, prepare_actuated, running_average
 
-from .encoder import count_shifts, reread, spread_covariance
+from .encoder import count_shifts, reread, smoothed_positions, spread_covariance
 from .plan import motion_bandwidth, robot_model
 from .quality import verdict
 from .recordings import identification_valid, planned_cycles, require_trajectories
@@ -301,17 +301,14 @@ def reread_draws(config: Config, robot: RobotModel, recordings: Mapping[str, Rec
     moved (:mod:`ident_hw.experiment.encoder`), each prepared as the recording was: one dict
     (trajectory name -> :class:`Prepared`) per draw."""
     counts_per_unit = np.array([a.scaling().counts_per_unit for a in config.robot.actuators])
-    out = []
-    for shift in count_shifts(draws, len(counts_per_unit)):
-        prepared = {}
-        for name in names:
-            rec = recordings[name]
-            settings = config.identification.filter.settings(1.0 / recording_period(rec),
-                                                            motion_bandwidth(config, name))
-            prepared[name] = prepare(config, robot, name,
-                                     reread(rec, counts_per_unit, settings.cutoff_hz, settings.order, shift))
-        out.append(prepared)
-    return out
+    smooth = {}
+    for name in names if draws else ():      # the motion the draws read again, once per recording
+        settings = config.identification.filter.settings(1.0 / recording_period(recordings[name]),
+                                                        motion_bandwidth(config, name))
+        smooth[name] = smoothed_positions(recordings[name], settings.cutoff_hz, settings.order)
+    return [{name: prepare(config, robot, name, reread(recordings[name], smooth[name], counts_per_unit, shift))
+             for name in names}
+            for shift in count_shifts(draws, len(counts_per_unit))]
 
 
 def prepare_all(config: Config, robot: RobotModel, recordings: Mapping[str, Recording], needed: Sequence[str],
