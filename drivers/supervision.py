@@ -19,6 +19,13 @@ from drivers.errors import BusError, DriveFault, HeartbeatTimeout
 
 logger = logging.getLogger(__name__)
 
+#: s: the most a gap between two heartbeat checks of the controlling thread counts as silence. The
+#: wait loops check every few ms to 50 ms; a longer gap means the master's own process did not run
+#: (a loaded host, a thread holding the GIL for seconds, as a compilation does), when the drives'
+#: heartbeats cannot be received either: that is not a silent node. A node silent while the master
+#: runs still times out after its consumer timeout of checked time.
+MAX_UNWATCHED = 0.1
+
 
 class Supervisor:
     """Thread-safe collector of the first fault, and the heartbeat consumer of the master."""
@@ -27,8 +34,10 @@ class Supervisor:
         self._lock = threading.Lock()
         self._fault: DriveFault | None = None
         self.fault_event = threading.Event()
-        self._heartbeats: dict[str, list] = {}  # label -> [timeout s, last reception (monotonic) or None]
+        self._heartbeats: dict[str, list] = {}  # label -> [timeout s, last reception (watch time) or None]
         self.heartbeat_active = False
+        self._watched = 0.0                     # s of watch time: checked time, gaps capped (MAX_UNWATCHED)
+        self._last_check = time.monotonic()
 
     # -- reporting (any thread) ---------------------------------------------------------------
     def report(self, fault: DriveFault) -> None:
@@ -65,15 +74,26 @@ class Supervisor:
         entry = self._heartbeats[label] = [timeout, None]
 
         def on_heartbeat(state: int) -> None:
-            entry[1] = time.monotonic()
+            entry[1] = self._watch_time()
             if self.heartbeat_active and state != 5:
                 self.report(DriveFault(label, None, "heartbeat reports NMT state "
                                        f"{NMT_STATES.get(state, state)} instead of OPERATIONAL"))
         nmt.add_heartbeat_callback(on_heartbeat)
 
+    def _watch_time(self) -> float:
+        """The watch clock now (s): the checked time so far plus the time since the last check,
+        capped at :data:`MAX_UNWATCHED` (read from any thread; only a check advances it)."""
+        return self._watched + min(time.monotonic() - self._last_check, MAX_UNWATCHED)
+
+    def _advance_watch(self) -> float:
+        now = time.monotonic()
+        self._watched += min(now - self._last_check, MAX_UNWATCHED)
+        self._last_check = now
+        return self._watched
+
     def start_heartbeat_monitoring(self) -> None:
         """Start counting the consumer timeouts from now."""
-        now = time.monotonic()
+        now = self._advance_watch()
         for entry in self._heartbeats.values():
             entry[1] = now if entry[1] is None else max(entry[1], now)
         self.heartbeat_active = True
@@ -82,10 +102,11 @@ class Supervisor:
         self.heartbeat_active = False
 
     def check_heartbeats(self) -> None:
-        """Report a :class:`HeartbeatTimeout` for the first node whose heartbeat is overdue."""
+        """Report a :class:`HeartbeatTimeout` for the first node whose heartbeat is overdue on the
+        watch clock (the time the master was running and checking, :data:`MAX_UNWATCHED`)."""
         if not self.heartbeat_active:
             return
-        now = time.monotonic()
+        now = self._advance_watch()
         for label, (timeout, last) in self._heartbeats.items():
             if last is not None and now - last > timeout:
                 self.report(HeartbeatTimeout(label, 0x8130, f"no heartbeat for {now - last:.3f} s "
