@@ -3,19 +3,58 @@
 ``@pytest.mark.vcan`` tests need the Linux SocketCAN interface ``vcan0``; where it does not exist
 they are skipped with the reason. ``tools/vcan-vm`` runs them in a guest that has it (``.ci/run``
 does so after the host suite).
+
+On both cores (``pytest -n 2 --dist loadgroup --no-loadscope-reorder``, the README's test
+command): each worker is pinned to a CPU of its own (:func:`cpus.pin_worker`); the tests of a file
+with a module-scoped fixture form one group that runs on one worker (the fixture is built once);
+the ``slow`` tests and groups are handed out first, so that the longest do not start last and
+leave one worker idle at the end.
 """
 
+import os
 import subprocess
 from pathlib import Path
 
 import pytest
 
+from cpus import pin_worker
 from processes import START_TIMEOUT, stop_process, wait_for_line
 
 VCAN_CHANNEL = "vcan0"
 
 
+def pytest_configure(config):
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    if worker:
+        pin_worker(worker)
+
+
+def _shares_a_module_fixture(item) -> bool:
+    """Whether ``item`` uses a module-scoped fixture of the project (not pytest's own)."""
+    info = getattr(item, "_fixtureinfo", None)
+    return info is not None and any(d.scope == "module" and d.baseid
+                                    for defs in info.name2fixturedefs.values() for d in defs)
+
+
 def pytest_collection_modifyitems(config, items):
+    """Group the tests that share a module fixture (``xdist_group``, one worker builds it) and
+    hand out the slow work first (a unit's weight: its slow tests; a group without any ahead of
+    single quick tests); skip the vcan tests where there is no vcan0."""
+    unit = {}
+    for item in items:
+        if _shares_a_module_fixture(item):
+            unit[id(item)] = str(item.path)
+            item.add_marker(pytest.mark.xdist_group(unit[id(item)]))
+        else:
+            unit[id(item)] = item.nodeid
+    weight: dict[str, float] = {}
+    for item in items:
+        key = unit[id(item)]
+        weight[key] = weight.get(key, 0.5 if key != item.nodeid else 0.0) + bool(item.get_closest_marker("slow"))
+    first = {}
+    for k, item in enumerate(items):
+        first.setdefault(unit[id(item)], k)
+    items.sort(key=lambda item: (-weight[unit[id(item)]], first[unit[id(item)]]))
     if Path("/sys/class/net", VCAN_CHANNEL).exists():
         return
     skip = pytest.mark.skip(

@@ -42,14 +42,14 @@ def test_scan_sees_boot_ups_sdo_answers_and_a_stopped_node(tmp_path):
         # 1. the drives power up during the scan: found by their boot-up messages, which give the state
         boot = threading.Timer(0.2, rig.start)
         boot.start()
-        heard = scan(network, wait=1.0)
+        heard = scan(network, wait=3.0)     # long enough for a loaded host (two test workers)
         boot.join()
         assert heard == {i: 0 for i in range(1, 7)}
         info = read_node(network, 4, heard[4], sdo_timeout=1.0)
         assert info.nmt_state == "PRE-OPERATIONAL (boot-up seen)" and info.vendor_id == 0xFB
 
         # 2. later (no boot-up seen, heartbeats off as after power-up): SDO answers say PRE-OP or OP
-        heard = scan(network, wait=0.3)
+        heard = scan(network, wait=1.0)
         assert set(heard) == {1, 2, 3, 4, 5, 6} and set(heard.values()) == {None}
         info = read_node(network, 2, heard[2], sdo_timeout=1.0)
         assert info.nmt_state.startswith("PRE-OPERATIONAL or OPERATIONAL (answers SDO; heartbeat off")
@@ -61,7 +61,7 @@ def test_scan_sees_boot_ups_sdo_answers_and_a_stopped_node(tmp_path):
         node.sdo.download(0x1017, 0, (50).to_bytes(2, "little"))
         node.nmt.send_command(0x02)
         time.sleep(0.2)
-        heard = scan(network, wait=0.3)
+        heard = scan(network, wait=1.0)
         assert heard[5] == 4 and heard[1] is None
         info = read_node(network, 5, heard[5], sdo_timeout=0.2)
         assert info.nmt_state == "STOPPED" and info.device_name is None

@@ -11,14 +11,24 @@ from pathlib import Path
 
 import pytest
 
+from cpus import ALL_CPUS, all_cpus
 from drivers.affinity import _current_cpu, one_cpu
 from ident_hw.config import load_config
 from ident_hw.experiment.session import HostSettings, open_session
 
 SIM = Path(__file__).resolve().parents[1] / "configs" / "sim-3prrr.yaml"
 
-needs_two_cpus = pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
-                                    reason="needs Linux and at least two CPUs this process may use")
+needs_two_cpus = pytest.mark.skipif(len(ALL_CPUS) < 2, reason="needs Linux and at least two CPUs this process may use")
+
+
+@pytest.fixture(autouse=True)
+def every_cpu():
+    """A pytest-xdist worker is pinned to one CPU (tests/conftest.py): these tests run on all."""
+    if len(ALL_CPUS) < 2:
+        yield
+        return
+    with all_cpus():
+        yield
 
 
 def cpus_of(thread: threading.Thread) -> set[int]:
