@@ -89,7 +89,7 @@ def cmd_identify(args) -> int:
         raise
     print("\n".join(summary_lines(folder)))
     print(f"results: {folder}  (report: {page})")
-    return Exit.OK if results.quality is None or results.quality["passed"] else Exit.DEGRADED
+    return Exit.OK if results.passed else Exit.DEGRADED
 
 
 def cmd_report(args) -> int:
@@ -191,7 +191,7 @@ def cmd_run(args) -> int:
     if results.online is not None:
         print("\n".join(online_lines(results.online)))
     print(f"results: {folder}" + ("" if args.no_report else f"  (report: {folder / 'report.html'})"))
-    return Exit.OK if results.quality is None or results.quality["passed"] else Exit.DEGRADED
+    return Exit.OK if results.passed else Exit.DEGRADED
 
 
 def _needs_arm(config, args, what: str) -> bool:

@@ -164,8 +164,8 @@ def test_one_torque_constant_5_percent_wrong_in_the_config_fails_the_verdict_nam
     wrong = dataclasses.replace(config, robot=dataclasses.replace(config.robot, actuators=actuators))
     recordings = {path.stem: Recording.load(path) for path in sorted((folder / "data").glob("*.npz"))}
     quality = identify(wrong, recordings).quality
-    named = {reason.split(":")[0] for reason in quality["reasons"]} & {a.name for a in actuators}
-    assert not quality["passed"] and named == {axis}, quality["reasons"]
+    named = {reason.split(":")[0] for reason in quality.reasons} & {a.name for a in actuators}
+    assert not quality.passed and named == {axis}, quality.reasons
 
 
 def test_the_report_shows_the_numbers_of_parameters_json(main_job):
@@ -374,9 +374,9 @@ def test_a_run_with_one_percent_of_cycles_incomplete_keeps_its_rows_and_its_accu
 
     results = identify(base_only, {name: rec})
     used = results.trajectories["excitation"]
-    assert used["rows_left_out"]["incomplete"] == len(dropped.measured)
-    kept = used["cycles"] - sum(used["rows_left_out"].values())
-    assert kept >= 0.8 * used["cycles"], used
+    assert used.rows_left_out["incomplete"] == len(dropped.measured)
+    kept = used.cycles - sum(used.rows_left_out.values())
+    assert kept >= 0.8 * used.cycles, used
     truth = dict(zip(config.sim.truth.to_model().NAMES, config.sim.truth.to_model().as_vector()))
     fit = results.base_fit
     assert len(fit.expressions) == 18

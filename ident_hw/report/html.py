@@ -37,14 +37,14 @@ def render_html(folder: Path, results: Results, table: dict, images: list[tuple[
     energy models' base parameters when the results hold them), the online comparison,
     the force-prediction metrics per trajectory and the plots (``images``: title, PNG path)."""
     rows = results.parameter_rows()
-    base = results.base_parameters or {}
+    analysis = results.base_analysis
     return _ENV.get_template("report.html").render(
         status=read_status(folder), results=results, rows=rows,
         poor=[r.name for r in rows if r.poorly_identified],
         has_truth=results.parameters.truth is not None,
         accuracy=accuracy_line(rows, results.base_fit) if results.parameters.truth is not None else None,
         coverage={name: coverage_text(u) for name, u in results.trajectories.items()},
-        base_list=base if base.get("base_parameters") and results.base_fit is None else None,
+        base_list=analysis if analysis is not None and analysis.expressions and results.base_fit is None else None,
         online=results.online, comparison=results.online.comparison() if results.online is not None else [],
         settled_percent=100 * SETTLED, metrics=table, actuators=results.actuators,
         equations=EQUATIONS, output_units=OUTPUT_UNITS,
