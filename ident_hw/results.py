@@ -8,8 +8,11 @@ A results folder holds::
     config.yaml          the config used, with every ``extends:`` merged in
     parameters.json/.yaml  Table-1-like rows: initial, identified, truth, sigma, %sigma, bounds, step;
                          the base-parameter least-squares fit (``base_fit``) when a step made one;
+                         ``steps``: what each step did; ``base_parameters``: the rank and base
+                         parameters of all the identification data (an analysis, not a fit);
                          ``trajectories``: what each recording covered and how much of it the fit
-                         used; ``quality``: the verdict, its figures, thresholds and reasons;
+                         used; ``quality``: the verdict, its figures, thresholds and reasons
+                         (these four: the records of :mod:`ident_hw.records`);
                          ``model_comparison`` (only with ``identification.compare_models``): the
                          base parameters of the dynamic, power and energy models
     fits/<name>.npz      measured and model forces along each trajectory (t, tau, tau_model, Theta, X,
