@@ -3,10 +3,11 @@
 * :class:`RecordingCoverage`: what the recording of one trajectory covered and what the fit used;
 * :class:`StepRecord`: what one identification step did (fitted, skipped, its figures);
 * :class:`BaseAnalysis`: what all the identification data determine (rank, base parameters);
-* :class:`Verdict` with a :class:`TrajectoryVerdict` per trajectory: the quality verdict.
+* :class:`Verdict` with a :class:`TrajectoryVerdict` per trajectory: the quality verdict;
+* :class:`TrajectoryMetrics`: the force prediction on one trajectory (the report's ``metrics.yaml``).
 
 Each is a frozen dataclass whose ``to_json()`` and ``from_json()`` are the one place its keys in
-``parameters.json`` are spelt; ``from_json`` also reads folders written before a key existed
+``parameters.json`` (``metrics.yaml``) are spelt; ``from_json`` also reads folders written before a key existed
 (an absent key reads as None or empty). Quantities are SI (s); ratios are fractions (0..1)
 unless the name ends in ``_percent``.
 """
@@ -296,3 +297,40 @@ class Verdict:
                    axis_residual_ratio=doc.get("axis_residual_ratio") or {},
                    force_lag_s=doc.get("force_lag_s") or {}, force_lag_sigma_s=doc.get("force_lag_sigma_s") or {},
                    axes_judged=tuple(doc.get("axes_judged") or ()))
+
+
+@dataclass(frozen=True)
+class PredictionMetrics:
+    """How well one parameter set predicts the measured forces of one trajectory
+    (:func:`ident_hw.identification.metrics.validation_metrics`): per actuator the RMS error
+    ``rms`` (its force unit, N·m or N) and ``nrms_percent`` (% of the RMS force); ``d_tau_percent``
+    (%, mean relative error of the force vector) and ``j_rmse`` (mixed units). NaN when nothing of
+    the trajectory could be fitted."""
+
+    rms: Mapping[str, float]
+    nrms_percent: Mapping[str, float]
+    d_tau_percent: float
+    j_rmse: float
+
+    def to_json(self) -> dict:
+        return {"rms": dict(self.rms), "nrms_percent": dict(self.nrms_percent), "d_tau_percent": self.d_tau_percent,
+                "j_rmse": self.j_rmse}
+
+
+@dataclass(frozen=True)
+class TrajectoryMetrics:
+    """The force prediction on one trajectory: its ``role`` (``identification`` or
+    ``validation``), the ``samples`` fitted, the prediction of the step-by-step parameters
+    (``stepwise``, whose keys the JSON holds at the top level) and of the base-parameter fit
+    (``base_fit``; None without one)."""
+
+    role: str
+    samples: int
+    stepwise: PredictionMetrics
+    base_fit: PredictionMetrics | None = None
+
+    def to_json(self) -> dict:
+        doc = {"role": self.role, "samples": self.samples, **self.stepwise.to_json()}
+        if self.base_fit is not None:
+            doc["base_fit"] = self.base_fit.to_json()
+        return doc

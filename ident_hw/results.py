@@ -41,7 +41,8 @@ from ident_hw.identification.model_comparison import ModelComparison
 from ident_hw.identification.physical import ConsistentSet
 from ident_hw.model import ThreePRRR
 from ident_hw.model.interface import FORCE_UNITS, POSITION_UNITS
-from ident_hw.records import BaseAnalysis, RecordingCoverage, StepRecord, Verdict
+from ident_hw.records import (BaseAnalysis, PredictionMetrics, RecordingCoverage, StepRecord, TrajectoryMetrics,
+                              Verdict)
 
 STATUS_FILE = "STATUS"
 #: an online estimate has settled when it stays within this fraction of the true value
@@ -527,26 +528,23 @@ def load_results(folder: str | Path) -> Results:
 
 
 # ----------------------------------------------------------------------------- figures
-def metrics(results: Results) -> dict:
-    """Per trajectory: role and the validation metrics per actuator (``identification.metrics``)
-    of the physical parameters, and under ``base_fit`` those of the base-parameter fit."""
-    out = {}
-    for fit in results.fits:
-        out[fit.name] = {"role": fit.role, "samples": int(len(fit.t)),
-                         **_metrics(results.actuators, fit.tau, fit.tau_model)}
-        if fit.tau_base is not None:
-            out[fit.name]["base_fit"] = _metrics(results.actuators, fit.tau, fit.tau_base)
-    return out
+def metrics(results: Results) -> dict[str, TrajectoryMetrics]:
+    """Per trajectory: the force prediction of the step-by-step parameters and of the
+    base-parameter fit."""
+    return {fit.name: TrajectoryMetrics(
+        role=fit.role, samples=int(len(fit.t)), stepwise=_metrics(results.actuators, fit.tau, fit.tau_model),
+        base_fit=None if fit.tau_base is None else _metrics(results.actuators, fit.tau, fit.tau_base))
+        for fit in results.fits}
 
 
-def _metrics(actuators: tuple[str, ...], tau: np.ndarray, tau_model: np.ndarray) -> dict:
+def _metrics(actuators: tuple[str, ...], tau: np.ndarray, tau_model: np.ndarray) -> PredictionMetrics:
     if not len(tau):                # nothing of the trajectory could be fitted (the verdict says why)
         nan = dict.fromkeys(actuators, float("nan"))
-        return {"rms": nan, "nrms_percent": dict(nan), "d_tau_percent": float("nan"), "j_rmse": float("nan")}
+        return PredictionMetrics(rms=nan, nrms_percent=dict(nan), d_tau_percent=float("nan"), j_rmse=float("nan"))
     m = validation_metrics(tau, tau_model)
-    return {"rms": dict(zip(actuators, m.rms.tolist())),
-            "nrms_percent": dict(zip(actuators, m.nrms_percent.tolist())),
-            "d_tau_percent": m.d_tau_percent, "j_rmse": m.j_rmse}
+    return PredictionMetrics(rms=dict(zip(actuators, m.rms.tolist())),
+                             nrms_percent=dict(zip(actuators, m.nrms_percent.tolist())),
+                             d_tau_percent=m.d_tau_percent, j_rmse=m.j_rmse)
 
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 import jinja2
 
 from ident_hw.identification.model_comparison import EQUATIONS, OUTPUT_UNITS
+from ident_hw.records import TrajectoryMetrics
 from ident_hw.results import SETTLED, Results, read_status
 
 from .terminal import accuracy_line, coverage_text
@@ -32,7 +33,7 @@ def fmt_rel(value) -> str:
 _ENV.filters.update(fmt=fmt, fmt_rel=fmt_rel)
 
 
-def render_html(folder: Path, results: Results, table: dict, images: list[tuple[str, Path]]) -> str:
+def render_html(folder: Path, results: Results, table: dict[str, TrajectoryMetrics], images: list[tuple[str, Path]]) -> str:
     """The page: summary and verdict first, then the parameter tables (with the dynamic, power and
     energy models' base parameters when the results hold them), the online comparison,
     the force-prediction metrics per trajectory and the plots (``images``: title, PNG path)."""

@@ -51,9 +51,9 @@ def summary_lines(folder: str | Path) -> list[str]:
     if truth:
         lines.append(accuracy_line(rows, results.base_fit))
     for name, m in metrics(results).items():
-        text = f"  {m['role']:>14} {name}: d_tau = {m['d_tau_percent']:.2f} %, J_RMSE = {m['j_rmse']:.4g}"
-        if "base_fit" in m:
-            text += f"; base fit: d_tau = {m['base_fit']['d_tau_percent']:.2f} %"
+        text = f"  {m.role:>14} {name}: d_tau = {m.stepwise.d_tau_percent:.2f} %, J_RMSE = {m.stepwise.j_rmse:.4g}"
+        if m.base_fit is not None:
+            text += f"; base fit: d_tau = {m.base_fit.d_tau_percent:.2f} %"
         lines.append(text)
     if results.quality is not None:
         lines += _verdict_lines(results.quality)
