@@ -22,7 +22,7 @@ from drivers.sim import nominal
 from ident_hw.identification.dataset import build_dataset
 from ident_hw.identification.least_squares import ols
 from ident_hw.model import ThreePRRR
-from ident_hw.signal import central_derivatives, lowpass
+from ident_hw.filtering import central_derivatives, lowpass
 from trajectories.feasibility import Limits
 from trajectories.paper import carriage_sweep
 

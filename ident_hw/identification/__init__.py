@@ -14,7 +14,7 @@ Public API::
 - :func:`power_rows`, :func:`energy_rows`: power and energy models (no accelerations).
 - :func:`validation_metrics`: RMS, NRMS, d_tau and J_RMSE on held-out data.
 
-Every result has ``to_dict()``. Imports :mod:`ident_hw.model` and :mod:`ident_hw.signal`,
+Every result has ``to_dict()``. Imports :mod:`ident_hw.model` and :mod:`ident_hw.filtering`,
 nothing of the drivers, trajectories, config or runner.
 """
 

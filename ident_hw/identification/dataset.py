@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ident_hw.signal import FilterSettings, kept_samples, parallel_decimate, prepare_actuated
+from ident_hw.filtering import FilterSettings, kept_samples, parallel_decimate, prepare_actuated
 
 
 @dataclass(frozen=True)
