@@ -1,7 +1,7 @@
 """``ident-hw``: identify the dynamic parameters of the 3PRRR from one YAML config.
 
 A thin layer over :mod:`ident_hw.config`, :mod:`ident_hw.experiment` and :mod:`ident_hw.report`;
-nothing imports it. Every command runs under :func:`ident_hw.experiment.signals.stop_on_signals`
+nothing imports it. Every command runs under :func:`ident_hw.experiment.interrupts.stop_on_signals`
 (SIGTERM and SIGHUP are Ctrl-C) and ends with one exit code per class of outcome,
 :class:`Exit` (documented in the README): no traceback reaches the user.
 """
@@ -64,7 +64,7 @@ def cmd_identify(args) -> int:
     from ident_hw.experiment.offline import identify
     from ident_hw.experiment.recordings import load_recording, require_trajectories
     from ident_hw.experiment.folders import new_results_folder
-    from ident_hw.experiment.signals import signal_name
+    from ident_hw.experiment.interrupts import signal_name
     from ident_hw.report import build_report, summary_lines
     from ident_hw.results import final_status, mark_status, save_results
     config = _load(args.config)
@@ -418,7 +418,7 @@ _LABELS = {Exit.CONFIG: "config error", Exit.BUS: "bus error", Exit.DRIVE_FAULT:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ident_hw.experiment.signals import signal_name, stop_on_signals
+    from ident_hw.experiment.interrupts import signal_name, stop_on_signals
     args = build_parser().parse_args(argv)
     with stop_on_signals():
         try:

@@ -12,7 +12,7 @@ identifies and validates (:func:`ident_hw.experiment.offline.identify`) and writ
 (:func:`ident_hw.results.save_results`, then :func:`ident_hw.report.build_report`). On Ctrl-C or a
 drive fault the drives are stopped and disabled by the driver, the recordings so far stay on disk, STATUS says ``partial: <why>`` and
 :class:`CampaignStopped` is raised (SIGTERM and SIGHUP are Ctrl-C too under
-:func:`ident_hw.experiment.signals.stop_on_signals`). ``data/drives.json`` holds the CiA 402
+:func:`ident_hw.experiment.interrupts.stop_on_signals`). ``data/drives.json`` holds the CiA 402
 state of every drive after the run, as the master read it (and as the in-process rig holds it).
 A run that ends normally is ``complete`` or ``degraded: <reasons>`` by the quality verdict.
 """
@@ -37,11 +37,11 @@ from drivers.recording import Recording
 from ident_hw.config import Config
 from ident_hw.results import Results, final_status, mark_status, save_results
 
+from .interrupts import shielded, signal_name
 from .offline import identify
 from .online import CampaignEstimator
 from .plan import PlannedTrajectory, plan, setpoints, sync_period
 from .session import HostSettings, Session, open_session
-from .signals import shielded, signal_name
 
 #: profile-position moves to a trajectory's start run at this fraction of each axis' speed limit
 APPROACH_SPEED = 0.2
