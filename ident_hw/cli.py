@@ -230,7 +230,7 @@ def cmd_sim(args) -> int:
 
 def cmd_scan(args) -> int:
     """List the nodes on the bus and compare them with the config."""
-    from ident_hw.experiment.inspect import compare, read_node, scan
+    from ident_hw.experiment.inspection import compare, read_node, scan
     from ident_hw.experiment.session import open_session
     config = _load(args.config)
     with open_session(config) as session:
@@ -249,7 +249,7 @@ def cmd_monitor(args) -> int:
     """Live read-only table of every configured drive."""
     import time
 
-    from ident_hw.experiment.inspect import format_snapshot, snapshot
+    from ident_hw.experiment.inspection import format_snapshot, snapshot
     from ident_hw.experiment.session import open_session
     config = _load(args.config)
     with open_session(config) as session:

@@ -7,7 +7,7 @@ simulated rig), the trajectories, the recordings and the identification together
 - :mod:`.offline`: ``identify`` of recordings (the steps of ``identification:``);
 - :mod:`.online`: the online estimators along a campaign;
 - :mod:`.quality`: the verdict that decides ``complete`` or ``degraded``;
-- :mod:`.recordings`, :mod:`.folders`, :mod:`.inspect`, :mod:`.interrupts`: recordings checked against
+- :mod:`.recordings`, :mod:`.folders`, :mod:`.inspection`, :mod:`.interrupts`: recordings checked against
   the config, the results folder, read-only looks at the bus (scan, monitor), Ctrl-C/SIGTERM handling.
 
 May import everything below it (model, identification, config, results, report, drivers,
