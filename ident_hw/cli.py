@@ -164,7 +164,7 @@ def cmd_run(args) -> int:
         return Exit.CONFIG
     if _needs_arm(config, args, "checks passed; motion"):
         return Exit.CONFIG
-    from ident_hw.experiment.online import CampaignEstimator
+    from ident_hw.experiment.campaign_estimator import CampaignEstimator
     from ident_hw.experiment.folders import discard_unused, new_results_folder
     from ident_hw.experiment.runner import CampaignStopped, run_campaign
     from ident_hw.experiment.session import HostSettings

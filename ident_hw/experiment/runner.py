@@ -37,9 +37,9 @@ from drivers.recording import Recording
 from ident_hw.config import Config
 from ident_hw.results import Results, final_status, mark_status, save_results
 
+from .campaign_estimator import CampaignEstimator
 from .interrupts import shielded, signal_name
 from .offline import identify
-from .online import CampaignEstimator
 from .plan import PlannedTrajectory, plan, setpoints, sync_period
 from .session import HostSettings, Session, open_session
 
