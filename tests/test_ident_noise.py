@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from ident_hw.identification.base_params import base_parameters
-from ident_hw.identification.dataset import build_dataset
+from measured_dataset import build_dataset
 from ident_hw.identification.least_squares import ols, wls
 from ident_hw.filtering import FilterSettings
 from ident_scenarios import CAD, FORCE_PER_AMP, NAMES, RICH, ROBOT, TRUE, make_motion, measure

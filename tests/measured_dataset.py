@@ -1,4 +1,10 @@
-"""From measured positions and currents to an identification data set (regressor + forces)."""
+"""One gap-free measured 3PRRR run (positions and currents) to an identification data set
+(filtered, decimated regressor and forces), for the tests and benchmarks that start from arrays.
+
+It is :mod:`ident_hw.filtering`'s chain applied to a whole run at once: the production path,
+which cuts recordings at gaps and serves every robot, is
+:func:`ident_hw.experiment.offline.prepare`.
+"""
 
 from __future__ import annotations
 
