@@ -61,12 +61,10 @@ def cmd_identify(args) -> int:
     folder's STATUS ends ``complete``, ``degraded: <reasons>`` or ``failed: <why>``."""
     from drivers.errors import RecordingError
     from ident_hw.config import ConfigError
-    from ident_hw.experiment.offline import identify
-    from ident_hw.experiment.recordings import load_recording, require_trajectories
     from ident_hw.experiment.folders import new_results_folder
-    from ident_hw.experiment.interrupts import signal_name
-    from ident_hw.report import build_report, summary_lines
-    from ident_hw.results import final_status, mark_status, save_results
+    from ident_hw.experiment.recordings import load_recording, require_trajectories
+    from ident_hw.experiment.runner import identify_recordings
+    from ident_hw.report import summary_lines
     config = _load(args.config)
     if config.identification is None:
         raise ConfigError("identification: missing section (the steps to run on the recordings)",
@@ -79,17 +77,17 @@ def cmd_identify(args) -> int:
         recordings[name], files[name] = rec, path
     require_trajectories(config, recordings)
     folder = new_results_folder(config, args.out, "identify")
-    try:
-        results = identify(config, recordings, progress=_logger(args))
-        mark_status(folder, final_status(results))
-        page = build_report(save_results(folder, results))
-    except BaseException as exc:
-        why = f"interrupted ({signal_name(exc)})" if isinstance(exc, KeyboardInterrupt) else str(exc)
-        mark_status(folder, f"failed: {why}")
-        raise
+    results = identify_recordings(config, recordings, folder, log=_logger(args))
     print("\n".join(summary_lines(folder)))
-    print(f"results: {folder}  (report: {page})")
-    return Exit.OK if results.quality is None or results.quality["passed"] else Exit.DEGRADED
+    print(f"results: {folder}  (report: {folder / 'report.html'})")
+    return _verdict_exit(results)
+
+
+def _verdict_exit(results) -> int:
+    """OK when the folder's STATUS is ``complete``, DEGRADED when the quality verdict failed: the
+    runner's :func:`ident_hw.results.final_status` decides, the command only maps it."""
+    from ident_hw.results import final_status
+    return Exit.OK if final_status(results) == "complete" else Exit.DEGRADED
 
 
 def cmd_report(args) -> int:
@@ -191,7 +189,7 @@ def cmd_run(args) -> int:
     if results.online is not None:
         print("\n".join(online_lines(results.online)))
     print(f"results: {folder}" + ("" if args.no_report else f"  (report: {folder / 'report.html'})"))
-    return Exit.OK if results.quality is None or results.quality["passed"] else Exit.DEGRADED
+    return _verdict_exit(results)
 
 
 def _needs_arm(config, args, what: str) -> bool:
