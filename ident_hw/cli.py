@@ -266,6 +266,7 @@ def cmd_monitor(args) -> int:
 def cmd_home(args) -> int:
     """Bring the drives up and home them (CiA 402 homing, methods from the config)."""
     from ident_hw.experiment.session import HostSettings, open_session
+    from ident_hw.model.interface import POSITION_UNITS
     config = _load(args.config)
     if config.bus is None:
         print(f"config error: {config.source}: bus: missing section", file=sys.stderr)
@@ -278,7 +279,7 @@ def cmd_home(args) -> int:
             group.home()
             positions = group.positions()
     for act, q in zip(config.robot.actuators, positions):
-        print(f"  {act.name}: homed at {q:.6f} {'rad' if act.kind == 'revolute' else 'm'}")
+        print(f"  {act.name}: homed at {q:.6f} {POSITION_UNITS[act.kind]}")
     print("homed; drives disabled")
     return Exit.OK
 
