@@ -307,7 +307,7 @@ class TrajectoryFit:
 
 @dataclass
 class OnlineTrace:
-    """Estimates of an online run (:mod:`ident_hw.experiment.online`).
+    """Estimates of an online run (:mod:`ident_hw.experiment.campaign_estimator`).
 
     Attributes:
         names: (n,) parameter names. t: (M,) campaign time of each sample, s.

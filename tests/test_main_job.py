@@ -24,8 +24,8 @@ import pytest
 from drivers.recording import Recording
 from ident_hw.config import load_config
 from ident_hw.experiment import runner
+from ident_hw.experiment.campaign_estimator import CampaignEstimator
 from ident_hw.experiment.offline import identify
-from ident_hw.experiment.online import CampaignEstimator
 from ident_hw.experiment.session import HostSettings
 from ident_hw.experiment.folders import new_results_folder
 from ident_hw.model.parameters import FRICTION_NAMES, INERTIAL_NAMES

@@ -1,7 +1,7 @@
 """Identification from recorded samples: the config's steps, then validation (no bus involved).
 
 Each recording (positions and motor currents of the six axes at the SYNC rate, SI) goes through
-the same preparation (:func:`ident_hw.signal.prepare_actuated`, then the parallel filter and
+the same preparation (:func:`ident_hw.filtering.prepare_actuated`, then the parallel filter and
 decimation of forces and regressor). The steps of ``identification.steps`` run in order, each
 an SQP fit of its parameters with the others held at their current values (CAD at the start),
 so the sweep's ``m_c`` is used by the squares' step. A ``wls``/``ols`` step instead fits the
@@ -41,7 +41,7 @@ from ident_hw.records import BaseAnalysis, RecordingCoverage, StepRecord
 from ident_hw.report import coverage_text
 from ident_hw.results import BaseFit, ParameterTable, Results, TrajectoryFit
 from ident_hw.segments import Segments, slot_indices, split, uniform
-from ident_hw.signal import kept_samples, near_rest, parallel_decimate, prepare_actuated, running_average
+from ident_hw.filtering import kept_samples, near_rest, parallel_decimate, prepare_actuated, running_average
 
 from .encoder import count_shifts, reread, smoothed_positions, spread_covariance
 from .plan import motion_bandwidth, robot_model
@@ -153,7 +153,7 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
     """Recording → filtered motion, regressor and forces, decimated in parallel, stretch by
     stretch (:func:`segments_of`: cut at gaps and at rows left out, each stretch filtered on
     its own and trimmed at both ends: ``trim`` rows at the recording's own ends, ``cut_trim``
-    at a cut, :class:`ident_hw.signal.Ends`); from averaged currents (:func:`current_averaging`), the
+    at a cut, :class:`ident_hw.filtering.Ends`); from averaged currents (:func:`current_averaging`), the
     regressor goes through the drives' running average too. ``scalar_models``: also the power
     and energy models' rows of every stretch, from the same filtered motion and forces
     (:func:`ident_hw.identification.model_comparison.power_energy_rows`; not matched to averaged
