@@ -18,12 +18,13 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ident_hw.identification import base_parameters, build_dataset, validation_metrics, wls
-from ident_hw.signal import FilterSettings
+from ident_hw.identification import base_parameters, validation_metrics, wls
+from ident_hw.filtering import FilterSettings
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from ident_scenarios import (CAD, FORCE_PER_AMP, HELD_KNOWN, NAMES, PAPER_STEPS, ROBOT, TRUE,  # noqa: E402
                              exact_regressor, identify_paper_steps, measure, paper_campaign)
+from measured_dataset import build_dataset  # noqa: E402
 
 RATE = 1000.0
 truth = TRUE.as_vector()

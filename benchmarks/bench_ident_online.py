@@ -28,11 +28,11 @@ for est in (RLS(N), DampedRLS(N), SVDDLS(N, threshold=1e-6)):
     per_sample = (time.perf_counter() - start) / SAMPLES
     print(f"  {type(est).__name__:10s} {per_sample * 1e6:7.1f} us/sample  ({1e-3 / per_sample:5.1f} x real time at 1 kHz)")
 
-from ident_hw.model.delta import PARAM_NAMES, Delta, base_parameters, nominal_parameters  # noqa: E402
+from ident_hw.model.delta import PARAM_NAMES, Delta, closed_form_base, nominal_parameters  # noqa: E402
 from trajectories.delta_paper import training_path  # noqa: E402
 
 delta = Delta()
-base = base_parameters(delta.geometry)
+base = closed_form_base(delta.geometry)
 q, qd, qdd = training_path(np.arange(6000) / 100.0)
 Yd = delta.regressor(q, qd, qdd)[:, :, [PARAM_NAMES.index(k) for k in base.kept]]
 taud = Yd @ (base.H @ nominal_parameters()) + rng.normal(0, 0.01, size=(len(Yd), 3))   # N·m

@@ -44,13 +44,13 @@ def main(folder: Path, shares: list[float], seeds: list[int]) -> None:
                 _, rec = load_recording(log, config)
                 results = identify(config, {"excitation": rec})
                 used = results.trajectories["excitation"]
-                kept = used["cycles"] - sum(used["rows_left_out"].values())
+                kept = used.cycles - sum(used.rows_left_out.values())
                 fit = results.base_fit
                 rows = [(abs(c - t) / (3 * s + BIAS_BUDGET * abs(t)), abs(c / t - 1), s / abs(t))
                         for c, s, t in zip(fit.coef, fit.sigma, (evaluate(e, truth) for e in fit.expressions))]
                 well = sum(r[2] * 100 <= results.rel_sigma_threshold for r in rows)
                 print(f"{100 * share:5.1f} % seed {seed}: {len(dropped.measured):4d} position/current and "
-                      f"{len(dropped.others):4d} velocity frames lost; rows used {kept / used['cycles']:.1%}; "
+                      f"{len(dropped.others):4d} velocity frames lost; rows used {kept / used.cycles:.1%}; "
                       f"{well} of {len(rows)} well identified, bound {max(r[0] for r in rows):.2f}, "
                       f"largest error {max(r[1] for r in rows):.2%}, largest σ {max(r[2] for r in rows):.2%}",
                       flush=True)

@@ -142,7 +142,7 @@ class AveragingFilter:
     :meth:`over_period` is the same filter seen at the SYNC rate: the exact result of the
     ``N = period * rate`` loop samples of a SYNC period over which the current runs linearly
     between its samples at the period's two ends. The emulated drives run it; the
-    identification filters the regressor by it (:func:`ident_hw.signal.running_average`).
+    identification filters the regressor by it (:func:`ident_hw.filtering.running_average`).
     """
 
     cutoff: float

@@ -15,6 +15,9 @@ from typing import Sequence
 
 import numpy as np
 
+#: the kinds of axis; the robot model names its actuated joints with the same two words
+#: (``ident_hw.model.interface``), which the drivers may not import: tests/test_layers.py checks
+#: that the two pairs agree
 REVOLUTE = "revolute"
 PRISMATIC = "prismatic"
 #: drive current unit per A

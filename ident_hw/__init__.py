@@ -3,7 +3,7 @@
 Packages, bottom up (``tests/test_layers.py`` checks the imports):
 
 - :mod:`ident_hw.model`: kinematics, dynamics and regressor (pure math, imports nothing of the project);
-- :mod:`ident_hw.signal`, :mod:`ident_hw.segments`: filtering, differentiation, cutting recordings at gaps;
+- :mod:`ident_hw.filtering`, :mod:`ident_hw.segments`: filtering, differentiation, cutting recordings at gaps;
 - :mod:`ident_hw.identification`: least squares, base parameters, the SQP mass fit, online estimators;
 - :mod:`ident_hw.config`: YAML configs as typed sections;
 - :mod:`ident_hw.results`: the typed results of a campaign and the results folder;

@@ -1,7 +1,7 @@
 """``ident-hw``: identify the dynamic parameters of the 3PRRR from one YAML config.
 
 A thin layer over :mod:`ident_hw.config`, :mod:`ident_hw.experiment` and :mod:`ident_hw.report`;
-nothing imports it. Every command runs under :func:`ident_hw.experiment.signals.stop_on_signals`
+nothing imports it. Every command runs under :func:`ident_hw.experiment.interrupts.stop_on_signals`
 (SIGTERM and SIGHUP are Ctrl-C) and ends with one exit code per class of outcome,
 :class:`Exit` (documented in the README): no traceback reaches the user.
 """
@@ -61,12 +61,10 @@ def cmd_identify(args) -> int:
     folder's STATUS ends ``complete``, ``degraded: <reasons>`` or ``failed: <why>``."""
     from drivers.errors import RecordingError
     from ident_hw.config import ConfigError
-    from ident_hw.experiment.offline import identify
-    from ident_hw.experiment.recordings import load_recording, require_trajectories
     from ident_hw.experiment.folders import new_results_folder
-    from ident_hw.experiment.signals import signal_name
-    from ident_hw.report import build_report, summary_lines
-    from ident_hw.results import final_status, mark_status, save_results
+    from ident_hw.experiment.recordings import load_recording, require_trajectories
+    from ident_hw.experiment.runner import identify_recordings
+    from ident_hw.report import summary_lines
     config = _load(args.config)
     if config.identification is None:
         raise ConfigError("identification: missing section (the steps to run on the recordings)",
@@ -79,17 +77,10 @@ def cmd_identify(args) -> int:
         recordings[name], files[name] = rec, path
     require_trajectories(config, recordings)
     folder = new_results_folder(config, args.out, "identify")
-    try:
-        results = identify(config, recordings, progress=_logger(args))
-        mark_status(folder, final_status(results))
-        page = build_report(save_results(folder, results))
-    except BaseException as exc:
-        why = f"interrupted ({signal_name(exc)})" if isinstance(exc, KeyboardInterrupt) else str(exc)
-        mark_status(folder, f"failed: {why}")
-        raise
+    results = identify_recordings(config, recordings, folder, log=_logger(args))
     print("\n".join(summary_lines(folder)))
-    print(f"results: {folder}  (report: {page})")
-    return Exit.OK if results.quality is None or results.quality["passed"] else Exit.DEGRADED
+    print(f"results: {folder}  (report: {folder / 'report.html'})")
+    return Exit.OK if results.passed else Exit.DEGRADED
 
 
 def cmd_report(args) -> int:
@@ -164,7 +155,7 @@ def cmd_run(args) -> int:
         return Exit.CONFIG
     if _needs_arm(config, args, "checks passed; motion"):
         return Exit.CONFIG
-    from ident_hw.experiment.online import CampaignEstimator
+    from ident_hw.experiment.campaign_estimator import CampaignEstimator
     from ident_hw.experiment.folders import discard_unused, new_results_folder
     from ident_hw.experiment.runner import CampaignStopped, run_campaign
     from ident_hw.experiment.session import HostSettings
@@ -191,7 +182,7 @@ def cmd_run(args) -> int:
     if results.online is not None:
         print("\n".join(online_lines(results.online)))
     print(f"results: {folder}" + ("" if args.no_report else f"  (report: {folder / 'report.html'})"))
-    return Exit.OK if results.quality is None or results.quality["passed"] else Exit.DEGRADED
+    return Exit.OK if results.passed else Exit.DEGRADED
 
 
 def _needs_arm(config, args, what: str) -> bool:
@@ -230,7 +221,7 @@ def cmd_sim(args) -> int:
 
 def cmd_scan(args) -> int:
     """List the nodes on the bus and compare them with the config."""
-    from ident_hw.experiment.inspect import compare, read_node, scan
+    from ident_hw.experiment.inspection import compare, read_node, scan
     from ident_hw.experiment.session import open_session
     config = _load(args.config)
     with open_session(config) as session:
@@ -249,7 +240,7 @@ def cmd_monitor(args) -> int:
     """Live read-only table of every configured drive."""
     import time
 
-    from ident_hw.experiment.inspect import format_snapshot, snapshot
+    from ident_hw.experiment.inspection import format_snapshot, snapshot
     from ident_hw.experiment.session import open_session
     config = _load(args.config)
     with open_session(config) as session:
@@ -268,6 +259,7 @@ def cmd_monitor(args) -> int:
 def cmd_home(args) -> int:
     """Bring the drives up and home them (CiA 402 homing, methods from the config)."""
     from ident_hw.experiment.session import HostSettings, open_session
+    from ident_hw.model.interface import POSITION_UNITS
     config = _load(args.config)
     if config.bus is None:
         print(f"config error: {config.source}: bus: missing section", file=sys.stderr)
@@ -280,7 +272,7 @@ def cmd_home(args) -> int:
             group.home()
             positions = group.positions()
     for act, q in zip(config.robot.actuators, positions):
-        print(f"  {act.name}: homed at {q:.6f} {'rad' if act.kind == 'revolute' else 'm'}")
+        print(f"  {act.name}: homed at {q:.6f} {POSITION_UNITS[act.kind]}")
     print("homed; drives disabled")
     return Exit.OK
 
@@ -418,7 +410,7 @@ _LABELS = {Exit.CONFIG: "config error", Exit.BUS: "bus error", Exit.DRIVE_FAULT:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ident_hw.experiment.signals import signal_name, stop_on_signals
+    from ident_hw.experiment.interrupts import signal_name, stop_on_signals
     args = build_parser().parse_args(argv)
     with stop_on_signals():
         try:

@@ -8,8 +8,11 @@ A results folder holds::
     config.yaml          the config used, with every ``extends:`` merged in
     parameters.json/.yaml  Table-1-like rows: initial, identified, truth, sigma, %sigma, bounds, step;
                          the base-parameter least-squares fit (``base_fit``) when a step made one;
+                         ``steps``: what each step did; ``base_parameters``: the rank and base
+                         parameters of all the identification data (an analysis, not a fit);
                          ``trajectories``: what each recording covered and how much of it the fit
-                         used; ``quality``: the verdict, its figures, thresholds and reasons;
+                         used; ``quality``: the verdict, its figures, thresholds and reasons
+                         (these four: the records of :mod:`ident_hw.records`);
                          ``model_comparison`` (only with ``identification.compare_models``): the
                          base parameters of the dynamic, power and energy models
     fits/<name>.npz      measured and model forces along each trajectory (t, tau, tau_model, Theta, X,
@@ -38,6 +41,8 @@ from ident_hw.identification.model_comparison import ModelComparison
 from ident_hw.identification.physical import ConsistentSet
 from ident_hw.model import ThreePRRR
 from ident_hw.model.interface import FORCE_UNITS, POSITION_UNITS
+from ident_hw.records import (BaseAnalysis, PredictionMetrics, RecordingCoverage, StepRecord, TrajectoryMetrics,
+                              Verdict)
 
 STATUS_FILE = "STATUS"
 #: an online estimate has settled when it stays within this fraction of the true value
@@ -207,7 +212,7 @@ class BaseFit:
     ``initial``, ``truth`` (r,) the same combinations of the CAD and true values (truth None
     outside simulation). ``held``: physical parameters held at known values during the fit;
     ``unexcited``: free ones the data says nothing of. A base parameter whose %σ exceeds
-    ``threshold`` is poorly identified on its data.
+    ``threshold`` is poorly identified on its data (:attr:`well_identified_mask`).
     """
 
     step: str
@@ -232,8 +237,8 @@ class BaseFit:
             return 100.0 * self.sigma / np.abs(self.coef)
 
     @property
-    def identified(self) -> np.ndarray:
-        """(r,) bool: %σ at most ``threshold``."""
+    def well_identified_mask(self) -> np.ndarray:
+        """(r,) bool: %σ at most ``threshold`` (the estimates themselves are :attr:`coef`)."""
         return self.rel_sigma_percent <= self.threshold
 
     def rows(self) -> list[BaseRow]:
@@ -244,7 +249,7 @@ class BaseFit:
             out.append(BaseRow(
                 expression=expr, initial=float(self.initial[i]), identified=float(self.coef[i]),
                 sigma=float(self.sigma[i]), rel_sigma_percent=rel if math.isfinite(rel) else None,
-                well_identified=bool(self.identified[i]), truth=truth,
+                well_identified=bool(self.well_identified_mask[i]), truth=truth,
                 error_percent=None if truth is None else _error_percent(float(self.coef[i]), truth)))
         return out
 
@@ -302,7 +307,7 @@ class TrajectoryFit:
 
 @dataclass
 class OnlineTrace:
-    """Estimates of an online run (:mod:`ident_hw.experiment.online`).
+    """Estimates of an online run (:mod:`ident_hw.experiment.campaign_estimator`).
 
     Attributes:
         names: (n,) parameter names. t: (M,) campaign time of each sample, s.
@@ -400,15 +405,19 @@ class Results:
     actuators: tuple[str, ...]
     actuator_kinds: tuple[str, ...]
     fits: list[TrajectoryFit] = field(default_factory=list)
-    steps: list[dict] = field(default_factory=list)
-    base_parameters: dict | None = None
+    #: what each identification step did, in their order
+    steps: list[StepRecord] = field(default_factory=list)
+    #: what all the identification data determine (rank, readable base parameters), stored under
+    #: ``base_parameters``; None: not analysed. Not an estimate: that is ``base_fit``
+    base_analysis: BaseAnalysis | None = None
     online: OnlineTrace | None = None
+    #: the estimates of the base parameters of the least-squares step; None: no such step
     base_fit: BaseFit | None = None
     rel_sigma_threshold: float = POORLY_IDENTIFIED_PERCENT
     #: per trajectory: what its recording covered and what the fit used (``offline.coverage``)
-    trajectories: dict = field(default_factory=dict)
+    trajectories: dict[str, RecordingCoverage] = field(default_factory=dict)
     #: the quality verdict (``ident_hw.experiment.quality.verdict``); None: not judged
-    quality: dict | None = None
+    quality: Verdict | None = None
     #: the dynamic, power and energy models side by side (``identification.compare_models``); None: not asked
     model_comparison: ModelComparison | None = None
     #: the physically consistent parameters of the base fit (``identification.physical``); None: none made
@@ -423,6 +432,11 @@ class Results:
     def position_units(self) -> tuple[str, ...]:
         """SI unit of each actuator's position (rad, m)."""
         return tuple(POSITION_UNITS[k] for k in self.actuator_kinds)
+
+    @property
+    def passed(self) -> bool:
+        """The quality verdict passed, or there is none."""
+        return self.quality is None or self.quality.passed
 
     def parameter_rows(self) -> list[ParameterRow]:
         """The physical parameters, judged by this campaign's %σ threshold."""
@@ -446,9 +460,9 @@ def mark_status(folder: str | Path, status: str) -> None:
 
 def final_status(results: Results) -> str:
     """``complete`` when the quality verdict passed (or there is none), else ``degraded: <reasons>``."""
-    if results.quality is None or results.quality["passed"]:
+    if results.passed:
         return "complete"
-    return "degraded: " + "; ".join(results.quality["reasons"])
+    return "degraded: " + "; ".join(results.quality.reasons)
 
 
 def read_status(folder: str | Path) -> str:
@@ -464,8 +478,10 @@ def save_results(folder: str | Path, results: Results) -> Path:
     (folder / "fits").mkdir(parents=True, exist_ok=True)
     doc = {"parameters": [r.to_json() for r in results.parameter_rows()], "rel_sigma_threshold_percent": results.rel_sigma_threshold,
            "base_fit": None if results.base_fit is None else results.base_fit.to_dict(),
-           "steps": results.steps, "base_parameters": results.base_parameters,
-           "trajectories": results.trajectories, "quality": results.quality,
+           "steps": [s.to_json() for s in results.steps],
+           "base_parameters": None if results.base_analysis is None else results.base_analysis.to_json(),
+           "trajectories": {name: c.to_json() for name, c in results.trajectories.items()},
+           "quality": None if results.quality is None else results.quality.to_json(),
            "actuators": [{"name": n, "kind": k} for n, k in zip(results.actuators, results.actuator_kinds)]}
     if results.model_comparison is not None:      # absent otherwise: files without it stay as they were
         doc["model_comparison"] = results.model_comparison.to_dict()
@@ -499,35 +515,36 @@ def load_results(folder: str | Path) -> Results:
                                          for n, k in zip(ThreePRRR.actuator_names, ThreePRRR.actuator_kinds)]
     return Results(actuators=tuple(a["name"] for a in actuators), actuator_kinds=tuple(a["kind"] for a in actuators),
                    parameters=ParameterTable.from_rows(doc["parameters"]), fits=fits,
-                   steps=doc.get("steps") or [], base_parameters=doc.get("base_parameters"), online=online,
-                   base_fit=base_fit, rel_sigma_threshold=doc.get("rel_sigma_threshold_percent", POORLY_IDENTIFIED_PERCENT),
-                   trajectories=doc.get("trajectories") or {}, quality=doc.get("quality"),
+                   steps=[StepRecord.from_json(s) for s in doc.get("steps") or []],
+                   base_analysis=BaseAnalysis.from_json(doc["base_parameters"]) if doc.get("base_parameters") else None,
+                   online=online, base_fit=base_fit,
+                   rel_sigma_threshold=doc.get("rel_sigma_threshold_percent", POORLY_IDENTIFIED_PERCENT),
+                   trajectories={name: RecordingCoverage.from_json(c)
+                                 for name, c in (doc.get("trajectories") or {}).items()},
+                   quality=Verdict.from_json(doc["quality"]) if doc.get("quality") else None,
                    model_comparison=ModelComparison.from_dict(doc["model_comparison"]) if doc.get("model_comparison")
                    else None,
                    consistent=ConsistentSet.from_dict(doc["consistent"]) if doc.get("consistent") else None)
 
 
 # ----------------------------------------------------------------------------- figures
-def metrics(results: Results) -> dict:
-    """Per trajectory: role and the validation metrics per actuator (``identification.metrics``)
-    of the physical parameters, and under ``base_fit`` those of the base-parameter fit."""
-    out = {}
-    for fit in results.fits:
-        out[fit.name] = {"role": fit.role, "samples": int(len(fit.t)),
-                         **_metrics(results.actuators, fit.tau, fit.tau_model)}
-        if fit.tau_base is not None:
-            out[fit.name]["base_fit"] = _metrics(results.actuators, fit.tau, fit.tau_base)
-    return out
+def metrics(results: Results) -> dict[str, TrajectoryMetrics]:
+    """Per trajectory: the force prediction of the step-by-step parameters and of the
+    base-parameter fit."""
+    return {fit.name: TrajectoryMetrics(
+        role=fit.role, samples=int(len(fit.t)), stepwise=_metrics(results.actuators, fit.tau, fit.tau_model),
+        base_fit=None if fit.tau_base is None else _metrics(results.actuators, fit.tau, fit.tau_base))
+        for fit in results.fits}
 
 
-def _metrics(actuators: tuple[str, ...], tau: np.ndarray, tau_model: np.ndarray) -> dict:
+def _metrics(actuators: tuple[str, ...], tau: np.ndarray, tau_model: np.ndarray) -> PredictionMetrics:
     if not len(tau):                # nothing of the trajectory could be fitted (the verdict says why)
         nan = dict.fromkeys(actuators, float("nan"))
-        return {"rms": nan, "nrms_percent": dict(nan), "d_tau_percent": float("nan"), "j_rmse": float("nan")}
+        return PredictionMetrics(rms=nan, nrms_percent=dict(nan), d_tau_percent=float("nan"), j_rmse=float("nan"))
     m = validation_metrics(tau, tau_model)
-    return {"rms": dict(zip(actuators, m.rms.tolist())),
-            "nrms_percent": dict(zip(actuators, m.nrms_percent.tolist())),
-            "d_tau_percent": m.d_tau_percent, "j_rmse": m.j_rmse}
+    return PredictionMetrics(rms=dict(zip(actuators, m.rms.tolist())),
+                             nrms_percent=dict(zip(actuators, m.nrms_percent.tolist())),
+                             d_tau_percent=m.d_tau_percent, j_rmse=m.j_rmse)
 
 
 

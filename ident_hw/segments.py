@@ -17,12 +17,12 @@ Rows the model cannot explain are left out, each by one rule, counted in
   axis' limit (it was not delivered on time: the drive held the old one, then jumped);
 * ``edges``: the filters' support at both ends of every stretch: ``trim`` rows at the
   recording's own first and last row, ``cut_trim`` rows at a cut inside it
-  (:class:`ident_hw.signal.Ends`, :attr:`ident_hw.signal.FilterSettings.cut_trim`);
+  (:class:`ident_hw.filtering.Ends`, :attr:`ident_hw.filtering.FilterSettings.cut_trim`);
 * ``short``: stretches too short to filter at all.
 
 The recording is cut at every gap and every left-out row into :attr:`Segments.stretches` of
 consecutive good rows; each is filtered and differentiated on its own
-(:func:`ident_hw.signal.prepare_actuated`), so no filter or derivative stencil reaches across a
+(:func:`ident_hw.filtering.prepare_actuated`), so no filter or derivative stencil reaches across a
 gap or a row without data, and nothing is interpolated across one.
 """
 
@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from ident_hw.signal import Ends
+from ident_hw.filtering import Ends
 
 #: two SYNCs further apart than this many periods: the producer skipped a slot
 SKIPPED_SLOT = 1.5

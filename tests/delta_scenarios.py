@@ -15,11 +15,11 @@ import numpy as np
 
 from ident_hw.identification import DampedRLS, RLS, SVDDLS, wls
 from ident_hw.identification.online import StreamTrace, offline_information, run_stream
-from ident_hw.model.delta import PARAM_NAMES, Delta, base_parameters, nominal_parameters
+from ident_hw.model.delta import PARAM_NAMES, Delta, closed_form_base, nominal_parameters
 from trajectories.delta_paper import training_path
 
 ROBOT = Delta()
-BASE = base_parameters(ROBOT.geometry)
+BASE = closed_form_base(ROBOT.geometry)
 KEPT = [PARAM_NAMES.index(k) for k in BASE.kept]
 RATE = 100.0                     # Hz
 NOISE = 0.25                     # N·m, half-width of the uniform torque noise

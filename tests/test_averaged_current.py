@@ -32,7 +32,7 @@ from drivers.sim import nominal
 from drivers.sim.drive import EmulatedDrive
 from ident_hw.config import ConfigError, load_config
 from ident_hw.experiment.plan import drive_axes
-from ident_hw.signal import running_average
+from ident_hw.filtering import running_average
 
 ROOT = Path(__file__).resolve().parent.parent
 SIM = ROOT / "configs" / "sim-3prrr.yaml"
@@ -182,7 +182,7 @@ def test_bus_current_chooses_the_object_of_tpdo1_and_a_bad_value_names_file_and_
 def test_filtering_the_regressor_keeps_the_model_exact_for_averaged_forces():
     """Forces of the 3PRRR model along a smooth motion, averaged as a drive averages its current
     (by hand: the 25 kHz recursion on the forces interpolated linearly between the 4 ms samples),
-    are the regressor put through :func:`ident_hw.signal.running_average` times the parameters,
+    are the regressor put through :func:`ident_hw.filtering.running_average` times the parameters,
     to rounding: ``avg(Y pi) = avg(Y) pi``."""
     robot, truth = nominal.ROBOT, nominal.TRUE_PARAMS.as_vector()
     period, rate, n = 0.004, 25_000.0, 300

@@ -13,7 +13,7 @@ import canopen
 
 from drivers.bus import open_network
 from ident_hw.config import load_config
-from ident_hw.experiment.inspect import nmt_state, read_node, scan
+from ident_hw.experiment.inspection import nmt_state, read_node, scan
 from ident_hw.experiment.session import simulated_rig
 
 SIM = Path(__file__).resolve().parent.parent / "configs" / "sim-3prrr.yaml"

@@ -17,8 +17,7 @@ import pytest
 import yaml
 
 from ident_hw.config import load_config
-from ident_hw.identification.base_params import format_combination
-from ident_hw.model.delta import PARAM_NAMES, base_parameters
+from ident_hw.model.delta import PARAM_NAMES, closed_form_base
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "sim-delta.yaml"
 #: the accuracy claimed where the estimate's own statistics support it (%sigma at most 1 %)
@@ -43,9 +42,9 @@ def test_the_delta_job_identifies_the_specs_base_parameters(tmp_path):
     doc = json.loads((out / "parameters.json").read_text())
     assert [a["name"] for a in doc["actuators"]] == ["q1", "q2", "q3"]
     # the spec's 40 readable base parameters, in its basis
-    spec = base_parameters(load_config(CONFIG).robot.delta.geometry.to_model(), drive_terms=True)
+    spec = closed_form_base(load_config(CONFIG).robot.delta.geometry.to_model(), drive_terms=True)
     rows = doc["base_fit"]["rows"]
-    assert [r["base_parameter"] for r in rows] == [format_combination(h, PARAM_NAMES) for h in spec.H]
+    assert [r["base_parameter"] for r in rows] == list(spec.expressions)
     # against the config's truth through the spec's H
     truth = spec.H @ load_config(CONFIG).true_parameters()
     accurate = 0
@@ -104,7 +103,7 @@ trajectories:
     trace = OnlineTrace.load(out / "online.npz")
     assert set(trace.estimates) == {"SVD-DLS", "RLS", "damped RLS"} and not trace.diverged
     loaded = load_config(config)
-    spec = base_parameters(loaded.robot.delta.geometry.to_model(), drive_terms=True)
+    spec = closed_form_base(loaded.robot.delta.geometry.to_model(), drive_terms=True)
     common = 0                                      # the common mass: plat.m and the rods
     pi = loaded.true_parameters()
     pi[PARAM_NAMES.index("plat.m")] += 0.5

@@ -6,7 +6,7 @@ lost when arm 3 is held."""
 import numpy as np
 import pytest
 
-from ident_hw.model.delta import PARAM_NAMES, Delta, base_parameters
+from ident_hw.model.delta import PARAM_NAMES, Delta, closed_form_base
 from trajectories.delta_paper import delta_trajectory, held_arm_path, training_path, verification_path
 
 ROBOT = Delta()
@@ -39,7 +39,7 @@ def test_path_ranges(path, seconds, samples, q_deg, c_deg, serial, cond_D, tau_m
     (verification_path, 10.0, 101, 9.421e2),
 ])
 def test_condition_of_the_column_normalised_base_regressor(path, seconds, samples, cond):
-    base = base_parameters(ROBOT.geometry, drive_terms=False)
+    base = closed_form_base(ROBOT.geometry, drive_terms=False)
     q, qd, qdd = path(np.linspace(0.0, seconds, samples))
     W = ROBOT.regressor(q, qd, qdd).reshape(-1, len(PARAM_NAMES))[:, [PARAM_NAMES.index(k) for k in base.kept]]
     assert np.linalg.matrix_rank(W) == 34
@@ -48,7 +48,7 @@ def test_condition_of_the_column_normalised_base_regressor(path, seconds, sample
 
 def test_base_regressor_predicts_every_parameter_vector():
     """``Y pi = Y[:, :, kept] (H pi)`` for any pi: the eliminated columns are the combinations H says."""
-    base = base_parameters(ROBOT.geometry)
+    base = closed_form_base(ROBOT.geometry)
     q, qd, qdd = training_path(np.linspace(0.0, 30.0, 301))
     Y = ROBOT.regressor(q, qd, qdd)
     kept = [PARAM_NAMES.index(k) for k in base.kept]

@@ -521,12 +521,12 @@ def test_delta_numerical_base_agrees_with_the_spec_s_readable_base(delta, descri
     """On the hand Delta's parameters, the generic model's numerical base parameters are
     functions of the spec's 40 readable ones and determine them: the rows of ``H_gen T`` span
     exactly the rows of ``H_spec`` (``T``: hand parameters to described ones)."""
-    from ident_hw.model.delta import base_parameters
+    from ident_hw.model.delta import closed_form_base
 
     kept, H_gen = described_delta.readable_base()
     assert H_gen.shape[1] == len(described_delta.parameter_names)
     T = dh.linear_map(lambda v: dh.delta_map(v, delta.geometry, described_delta.parameter_names), 79)
-    H_spec = base_parameters(delta.geometry, drive_terms=True).H
+    H_spec = closed_form_base(delta.geometry, drive_terms=True).H
     assert row_space_rank(H_spec) == 40
     assert row_space_rank(H_gen @ T) == 40
     assert row_space_rank(H_spec, H_gen @ T) == 40

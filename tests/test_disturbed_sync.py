@@ -78,8 +78,8 @@ def test_a_disturbed_sync_ends_within_5_percent_or_degraded(tmp_path, monkeypatc
         assert (folder / "data" / "sweep.npz").is_file()
         return
     used = results.trajectories["sweep"]
-    slots = used["cycles"] + used["skipped_slots"]
-    skipped = used["skipped_slots"] / slots
+    slots = used.cycles + used.skipped_slots
+    skipped = used.skipped_slots / slots
     assert skipped > 10 * STALL_PROBABILITY ** 2, used     # the disturbance happened
     status = (folder / "STATUS").read_text()
     well = [r for r in results.parameter_rows()
@@ -87,10 +87,10 @@ def test_a_disturbed_sync_ends_within_5_percent_or_degraded(tmp_path, monkeypatc
     errors = {r.name: r.error_percent for r in well}
     log.warning("attempt %d: %.1f %% of the SYNC slots skipped, %.1f %% of the rows complete, %s; "
                 "status %s; errors of the well identified (%%): %s", attempt, 100 * skipped,
-                100 * used["valid_fraction"], used.get("rows_left_out"), status.splitlines()[0][:80],
+                100 * used.valid_fraction, used.rows_left_out, status.splitlines()[0][:80],
                 {k: round(v, 2) for k, v in errors.items()})
-    if results.quality["passed"]:
+    if results.quality.passed:
         assert status.startswith("complete")
         assert well and all(abs(e) <= 5.0 for e in errors.values()), errors
     else:
-        assert status.startswith("degraded") and results.quality["reasons"]
+        assert status.startswith("degraded") and results.quality.reasons

@@ -391,7 +391,7 @@ def test_dropped_pdo_frames_end_the_run_degraded_not_complete(tmp_path, monkeypa
     complete = float(rec.valid.all(axis=1).sum()) / slots
     assert complete < 0.9          # 1 - 0.95^(6 drives x 2-3 PDOs) of the cycles lose a frame
     status = (folder / "STATUS").read_text()
-    assert results.quality["passed"] is False
+    assert results.quality.passed is False
     doc = json.loads((folder / "parameters.json").read_text())
     reported = doc["quality"]["trajectories"]["square"]["valid_fraction"]
     assert status.startswith("degraded") and f"square: {100 * reported:.1f} % of the cycles complete" in status

@@ -3,7 +3,7 @@
 Measurements (``ident_scenarios.measure``): positions in whole encoder counts (2048 counts per
 motor turn: 1 µm on the carriages, 0.12 mrad on the links) and currents with Gaussian noise of
 3 % of each axis' RMS current, rounded to 1 mA, at 1 kHz for 10 s of the rich motion. The data
-preparation follows the method of :mod:`ident_hw.signal`: position cut-off ten times the
+preparation follows the method of :mod:`ident_hw.filtering`: position cut-off ten times the
 excitation bandwidth (the motion's highest frequency, 1.3 Hz), parallel filter and
 decimation to 33 Hz. Sixteen noise draws (seeds 0..15, all of them used), base parameters
 of the symmetric rig, OLS and WLS with the default HAC covariance.
@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 from ident_hw.identification.base_params import base_parameters
-from ident_hw.identification.dataset import build_dataset
+from measured_dataset import build_dataset
 from ident_hw.identification.least_squares import ols, wls
-from ident_hw.signal import FilterSettings
+from ident_hw.filtering import FilterSettings
 from ident_scenarios import CAD, FORCE_PER_AMP, NAMES, RICH, ROBOT, TRUE, make_motion, measure
 
 SEEDS = range(16)

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ident_hw.identification.base_params import base_parameters, format_combination, identify_base
+from ident_hw.identification.base_params import base_parameters, identify_base
+from ident_hw.model.combinations import format_combination
 from ident_hw.identification.least_squares import ols, wls
 from ident_hw.identification.mass_fit import sqp_fit
 from ident_scenarios import CAD, GEOMETRY, NAMES, RICH, TRUE, make_motion

@@ -12,7 +12,7 @@ from ident_hw.experiment.offline import identify, prepare
 from ident_hw.segments import split, uniform
 from ident_hw.experiment.plan import excitation_of, motion_bandwidth, plan, robot_model
 from ident_hw.identification.least_squares import ols, output_noise_std, wls
-from ident_hw.signal import (EVEN, ODD, POLYNOMIAL, Ends, FilterSettings, central_derivatives, lowpass, main_lobe,
+from ident_hw.filtering import (EVEN, ODD, POLYNOMIAL, Ends, FilterSettings, central_derivatives, lowpass, main_lobe,
                              near, near_rest, runs_at_least)
 
 from ident_scenarios import CONFIGS, NAMES, exact_recording

@@ -141,3 +141,11 @@ def test_the_check_finds_a_robot_kind_comparison(tmp_path):
     source.write_text("def f(config):\n    if config.robot.kind == 'delta':\n        return 1\n"
                       "    return self.robot.kind in ('3prrr',)\n")
     assert _robot_kind_compares(source) == [2, 4]
+
+
+def test_the_model_and_the_drivers_name_joint_kinds_alike():
+    """The layers keep the model's and the drivers' joint kinds apart (neither may import the
+    other); the config compares an axis' kind with its joint's, so the two pairs must agree."""
+    from drivers import units
+    from ident_hw.model import interface
+    assert (units.REVOLUTE, units.PRISMATIC) == (interface.REVOLUTE, interface.PRISMATIC)

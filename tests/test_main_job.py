@@ -24,8 +24,8 @@ import pytest
 from drivers.recording import Recording
 from ident_hw.config import load_config
 from ident_hw.experiment import runner
+from ident_hw.experiment.campaign_estimator import CampaignEstimator
 from ident_hw.experiment.offline import identify
-from ident_hw.experiment.online import CampaignEstimator
 from ident_hw.experiment.session import HostSettings
 from ident_hw.experiment.folders import new_results_folder
 from ident_hw.model.parameters import FRICTION_NAMES, INERTIAL_NAMES
@@ -171,8 +171,8 @@ def test_one_torque_constant_5_percent_wrong_in_the_config_fails_the_verdict_nam
     wrong = without_draws(dataclasses.replace(config, robot=dataclasses.replace(config.robot, actuators=actuators)))
     recordings = {path.stem: Recording.load(path) for path in sorted((folder / "data").glob("*.npz"))}
     quality = identify(wrong, recordings).quality
-    named = {reason.split(":")[0] for reason in quality["reasons"]} & {a.name for a in actuators}
-    assert not quality["passed"] and named == {axis}, quality["reasons"]
+    named = {reason.split(":")[0] for reason in quality.reasons} & {a.name for a in actuators}
+    assert not quality.passed and named == {axis}, quality.reasons
 
 
 def test_the_report_shows_the_numbers_of_parameters_json(main_job):
@@ -381,9 +381,9 @@ def test_a_run_with_one_percent_of_cycles_incomplete_keeps_its_rows_and_its_accu
 
     results = identify(without_draws(base_only), {name: rec})
     used = results.trajectories["excitation"]
-    assert used["rows_left_out"]["incomplete"] == len(dropped.measured)
-    kept = used["cycles"] - sum(used["rows_left_out"].values())
-    assert kept >= 0.8 * used["cycles"], used
+    assert used.rows_left_out["incomplete"] == len(dropped.measured)
+    kept = used.cycles - sum(used.rows_left_out.values())
+    assert kept >= 0.8 * used.cycles, used
     truth = dict(zip(config.sim.truth.to_model().NAMES, config.sim.truth.to_model().as_vector()))
     fit = results.base_fit
     assert len(fit.expressions) == 18

@@ -23,7 +23,7 @@ from ident_hw.model.described import DescribedRobot
 from ident_hw.report.html import render_html
 from ident_hw.report.terminal import summary_lines
 from ident_hw.results import ParameterTable, Results, load_results, mark_status, save_results
-from ident_hw.signal import FilterSettings, parallel_decimate
+from ident_hw.filtering import FilterSettings, parallel_decimate
 
 from drivers.errors import ConfigError
 from drivers.recording import Recording

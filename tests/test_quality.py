@@ -42,24 +42,24 @@ def test_a_clean_recording_passes_and_the_figures_are_the_data(sweep):
     path, rec = sweep
     results = identify(load_config(path), {"sweep": rec})
     q = results.quality
-    assert q["passed"] and q["reasons"] == [] and final_status(results) == "complete"
-    row = q["trajectories"]["sweep"]
-    assert row["coverage"] == 1.0 and row["valid_fraction"] == 1.0 and row["longest_gap_s"] == 0.0
+    assert q.passed and q.reasons == () and final_status(results) == "complete"
+    row = q.trajectories["sweep"]
+    assert row.planned_fraction == 1.0 and row.valid_fraction == 1.0 and row.longest_gap_s == 0.0
     fit = results.fits[0]
     norm = np.linalg.norm(fit.tau, axis=1)
     by_hand = 100 * np.mean(np.linalg.norm(fit.tau - fit.tau_model, axis=1)[norm > 0] / norm[norm > 0])
-    assert row["d_tau_percent"] == pytest.approx(by_hand, rel=1e-12) and by_hand < 10
-    assert set(q["well_identified"]) >= {"m_c", "fv_zeta1", "fc_zeta1"}
-    assert q["thresholds"]["max_d_tau"] == 10.0 and q["thresholds"]["min_valid_fraction"] == 0.9
+    assert row.d_tau_percent == pytest.approx(by_hand, rel=1e-12) and by_hand < 10
+    assert set(q.well_identified) >= {"m_c", "fv_zeta1", "fc_zeta1"}
+    assert q.thresholds["max_d_tau"] == 10.0 and q.thresholds["min_valid_fraction"] == 0.9
 
 
 def test_thresholds_are_config_keys(sweep, tmp_path):
     path, rec = sweep
     strict = with_quality(path, tmp_path, "{max_d_tau: 0.01, min_well_identified: 8}")
     q = identify(strict, {"sweep": rec}).quality
-    assert not q["passed"] and len(q["reasons"]) == 2
-    assert "d_tau" in q["reasons"][1] and "0.01 %" in q["reasons"][1]
-    assert q["reasons"][0].startswith("7 of 7 fitted parameters well identified") and "at least 8" in q["reasons"][0]
+    assert not q.passed and len(q.reasons) == 2
+    assert "d_tau" in q.reasons[1] and "0.01 %" in q.reasons[1]
+    assert q.reasons[0].startswith("7 of 7 fitted parameters well identified") and "at least 8" in q.reasons[0]
     with pytest.raises(ConfigError, match=r"identification.quality.max_dtau: unknown key; did you mean 'max_d_tau'"):
         with_quality(path, tmp_path, "{max_dtau: 5}")
     with pytest.raises(ConfigError, match="identification.quality.min_valid_fraction"):
@@ -81,15 +81,15 @@ def test_incomplete_cycles_and_a_gap_degrade_the_result(sweep):
                         current=np.where(valid, rec.current, np.nan), valid=valid, metadata=dict(rec.metadata))
     q = identify(config, {"sweep": damaged}).quality
     complete = valid.all(axis=1).mean()
-    row = q["trajectories"]["sweep"]
-    assert row["valid_fraction"] == pytest.approx(complete, abs=1e-12) and complete < 0.9
+    row = q.trajectories["sweep"]
+    assert row.valid_fraction == pytest.approx(complete, abs=1e-12) and complete < 0.9
     # the longest stretch without a complete cycle: from the complete cycle before the hole to the one after
     before = max(i for i in range(200) if valid[i].all())
     after = min(i for i in range(230, len(valid)) if valid[i].all())
-    assert row["longest_gap_s"] == pytest.approx((after - before - 1) * period, abs=1e-6)
-    assert not q["passed"]
-    assert any(r.startswith(f"sweep: {100 * complete:.1f} % of the cycles complete") for r in q["reasons"])
-    assert any(r.startswith("sweep: 0.") and "without a complete cycle" in r for r in q["reasons"])
+    assert row.longest_gap_s == pytest.approx((after - before - 1) * period, abs=1e-6)
+    assert not q.passed
+    assert any(r.startswith(f"sweep: {100 * complete:.1f} % of the cycles complete") for r in q.reasons)
+    assert any(r.startswith("sweep: 0.") and "without a complete cycle" in r for r in q.reasons)
 
 
 def test_a_frame_the_master_could_not_place_degrades_the_result(sweep):
@@ -101,9 +101,9 @@ def test_a_frame_the_master_could_not_place_degrades_the_result(sweep):
     marked = Recording(**{k: getattr(rec, k) for k in ("t", "cycle", "position", "velocity", "current",
                                                        "statusword", "target", "valid")}, metadata=meta)
     q = identify(load_config(path), {"sweep": marked}).quality
-    assert not q["passed"] and q["trajectories"]["sweep"]["unplaced_frames"] == 2
-    assert q["reasons"] == ["sweep: 2 frame(s) could not be placed in their SYNC cycle (late by more than "
-                            "the assembler's look-ahead, or sent twice)"]
+    assert not q.passed and q.trajectories["sweep"].unplaced_frames == 2
+    assert q.reasons == ("sweep: 2 frame(s) could not be placed in their SYNC cycle (late by more than "
+                           "the assembler's look-ahead, or sent twice)",)
 
 
 def test_the_verdict_is_in_status_parameters_report_and_terminal(sweep, tmp_path):
@@ -115,9 +115,9 @@ def test_the_verdict_is_in_status_parameters_report_and_terminal(sweep, tmp_path
     mark_status(folder, final_status(results))
     build_report(save_results(folder, results))
     status = (folder / "STATUS").read_text().strip()
-    assert status == "degraded: " + results.quality["reasons"][0]
+    assert status == "degraded: " + results.quality.reasons[0]
     doc = json.loads((folder / "parameters.json").read_text())
-    assert doc["quality"]["passed"] is False and doc["quality"]["reasons"] == results.quality["reasons"]
+    assert doc["quality"]["passed"] is False and doc["quality"]["reasons"] == list(results.quality.reasons)
     assert doc["trajectories"]["sweep"]["cycles"] == len(rec.t)
     page = (folder / "report.html").read_text()
     assert "Quality verdict: DEGRADED" in page and "max_d_tau = 0.01" in page
@@ -147,7 +147,7 @@ def test_a_parameter_its_data_do_not_excite_is_held_and_named(sweep):
     rows = {r.name: r for r in results.parameter_rows()}
     assert rows["fv_zeta3"].step == "" and rows["fc_zeta3"].step == ""          # held
     assert rows["m_c"].step == "carriages" and rows["fv_zeta1"].step == "carriages"
-    assert any(r.startswith("step carriages: fv_zeta3, fc_zeta3 not excited") for r in results.quality["reasons"])
+    assert any(r.startswith("step carriages: fv_zeta3, fc_zeta3 not excited") for r in results.quality.reasons)
 
 
 def _results_of(actuators, fits):
@@ -235,7 +235,7 @@ def test_force_lags_by_hand():
     # the residual beside the lag: the second-order term (omega T)^2 / 2, tiny against T itself
     assert all(f.sigma < 1e-3 * abs(f.seconds) for f, true in zip(found.values(), lag) if true)
     q = verdict(results, config.identification.quality, actuators)
-    (reason,) = [r for r in q["reasons"] if "lag" in r]
+    (reason,) = [r for r in q.reasons if "lag" in r]
     named = re.findall(r"\) on (\w+)", reason)
     assert named == ["zeta1", "zeta2", "zeta3"], reason
     assert reason.startswith("the measured forces lag the model's by 2.00 ms (sigma "), reason

@@ -10,6 +10,7 @@ import scipy.io
 import yaml
 
 from ident_hw.model import InertialParams, ThreePRRR
+from ident_hw.records import (BaseAnalysis, RecordingCoverage, StepRecord, TrajectoryVerdict, Verdict)
 from ident_hw.report import build_report, summary_lines
 from ident_hw.results import (BaseFit, OnlineTrace, ParameterTable, Results, TrajectoryFit, load_results, mark_status,
                               read_status, save_results)
@@ -45,9 +46,9 @@ def synthetic_results(rng) -> Results:
                        sigma=np.array([0.02, 0.1]), initial=H @ (truth * 1.3), truth=H @ truth,
                        held=("fv_zeta1",), unexcited=(), threshold=10.0)
     return Results(parameters=table, actuators=ThreePRRR.actuator_names, actuator_kinds=ThreePRRR.actuator_kinds,
-                   fits=fits, steps=[{"name": "carriages", "method": "sqp", "free": ["m_c"]}],
-                   base_parameters={"rank": 18, "n_params": 19, "base_parameters": ["I_l1 + 0.0225 m_l1"],
-                                    "unexcited": ["m_c"]}, online=online, base_fit=base_fit)
+                   fits=fits, steps=[StepRecord("carriages", ("sweep",), method="sqp", free=("m_c",))],
+                   base_analysis=BaseAnalysis(rank=18, n_params=19, expressions=("I_l1 + 0.0225 m_l1",),
+                                              unexcited=("m_c",)), online=online, base_fit=base_fit)
 
 
 def test_results_folder_round_trip_and_metrics(tmp_path):
@@ -69,6 +70,7 @@ def test_results_folder_round_trip_and_metrics(tmp_path):
     np.testing.assert_array_equal(back.fits[1].tau, results.fits[1].tau)
     np.testing.assert_array_equal(back.online.estimates["SVD-DLS"], results.online.estimates["SVD-DLS"])
     assert back.online.change_time is None and back.online.diverged == {}
+    assert back.steps == results.steps and back.base_analysis == results.base_analysis
 
     rows = json.loads((tmp_path / "parameters.json").read_text())["parameters"]
     assert rows[1]["rel_sigma_percent"] == pytest.approx(100 * 0.5 / results.parameters.identified[1])
@@ -172,3 +174,51 @@ def test_online_settling_time_and_diverged_estimator_by_hand():
     assert trace.tracked() == [0]
     assert trace.settling_time("SVD-DLS", 0) == pytest.approx(tau * np.log(25), abs=0.011)
     assert trace.settling_time("RLS", 0) is None
+
+
+#: the JSON of each record, as parameters.json holds it (key order included)
+RECORDS = [
+    (StepRecord, {"name": "carriages", "trajectories": ["sweep"], "method": "SQP", "free": ["m_c"], "cost": 1.5,
+                  "rows_left_out": {"sweep": {"incomplete": 3}}, "cond_scaled": 12.0, "unexcited": ["fv_zeta3"],
+                  "encoder_draws": 4, "encoder_sigma": [0.1], "cond_W": 20.0}),
+    (StepRecord, {"name": "links", "trajectories": ["square1"], "method": "SQP", "free": ["m_l2"],
+                  "rows_left_out": {}, "cond_scaled": 1e9, "statistics": "rank deficient"}),
+    (StepRecord, {"name": "base", "trajectories": ["excitation"], "free": ["m_c", "m_l1"], "method": "WLS",
+                  "eliminated": ["m_l1"], "sigma2": 2.0, "cond_scaled": 3.0, "consistent": "no body fits"}),
+    (StepRecord, {"name": "empty", "trajectories": ["sweep"], "skipped": "no stretch of its recordings"}),
+    (BaseAnalysis, {"rank": 1, "n_params": 2, "rtol": 1e-8, "singular_values": [2.0, 0.0],
+                    "base_parameters": ["m_c"], "eliminated": ["m_l1"], "unexcited": ["m_l1"]}),
+    (RecordingCoverage, {"file": "sweep.npz", "recording_status": "complete", "cycles": 10, "cycles_planned": 12,
+                         "coverage": 10 / 12, "valid_fraction": 0.9, "longest_gap_s": 0.004, "skipped_slots": 1,
+                         "unplaced_frames": 0, "samples_used": 5, "rows_left_out": {"edges": 2}, "gaps": 1,
+                         "stretches": 2}),
+    (Verdict, {"passed": False, "reasons": ["why"], "thresholds": {"max_d_tau": 10.0},
+               "trajectories": {"sweep": {"recording_status": "complete", "coverage": 1.0, "valid_fraction": 1.0,
+                                          "longest_gap_s": 0.0, "unplaced_frames": 0, "role": "identification",
+                                          "d_tau_percent": 2.0},
+                                "triangle": {"role": "validation", "d_tau_percent": 1.0,
+                                             "base_fit_d_tau_percent": 1.1, "disagreement_percent": 0.1}},
+               "steps": {"carriages": {"cond_scaled": 12.0}}, "well_identified": ["m_c"],
+               "axis_gain_spread_percent": {"zeta1": 0.1}, "axis_residual_ratio": {"zeta1": 1.2},
+               "force_lag_s": {"zeta1": 1e-4}, "force_lag_sigma_s": {"zeta1": 1e-5}, "axes_judged": ["zeta1"]}),
+]
+
+
+@pytest.mark.parametrize("record, doc", RECORDS, ids=[f"{r.__name__}-{i}" for i, (r, _) in enumerate(RECORDS)])
+def test_each_record_reads_and_writes_its_json_unchanged(record, doc):
+    """parameters.json keeps its keys, values and their order through the typed records."""
+    back = record.from_json(doc).to_json()
+    assert json.dumps(back) == json.dumps(doc)
+
+
+def test_records_read_folders_written_before_a_key_existed():
+    """A verdict and a coverage without the keys added later read as None or empty."""
+    verdict = Verdict.from_json({"passed": True, "reasons": [], "thresholds": {}, "trajectories": {
+        "sweep": {"recording_status": "complete", "coverage": None, "valid_fraction": 1.0, "longest_gap_s": 0.0}},
+        "steps": {}, "well_identified": []})
+    assert verdict.passed and verdict.force_lag_s == {} and verdict.trajectories["sweep"] == TrajectoryVerdict(
+        recorded=True, recording_status="complete", valid_fraction=1.0, longest_gap_s=0.0)
+    used = RecordingCoverage.from_json({"file": None, "recording_status": "complete", "cycles": 5,
+                                        "cycles_planned": None, "coverage": None, "valid_fraction": 1.0,
+                                        "longest_gap_s": 0.0})
+    assert not used.prepared and used.skipped_slots == 0 and used.unplaced_frames is None

@@ -7,7 +7,7 @@ for the six TPDOs: the run is as fast as the machine, not real time). Independen
 - the reported current x force_per_amp equals the model's Lagrange inverse dynamics of the
   plant's TRUE motion at the SYNC instants, its accelerations taken by central differences of
   the true positions (not the plant's own acceleration);
-- ``ident_hw.identification.build_dataset`` on the REPORTED (quantised) positions and currents,
+- ``build_dataset`` (``tests/measured_dataset.py``) on the REPORTED (quantised) positions and currents,
   then ``np.linalg.lstsq`` for m_c and the carriage friction, recovers m_c within 1 %;
 - the axes follow the B-spline of the targets 2 SYNC periods late (the interpolation of
   :mod:`drivers.sim.drive`), within the position loop's error.
@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 
 from drivers.sim import nominal
-from ident_hw.identification.dataset import build_dataset
+from measured_dataset import build_dataset
 from ident_hw.identification.least_squares import ols
 from ident_hw.model import ThreePRRR
-from ident_hw.signal import central_derivatives, lowpass
+from ident_hw.filtering import central_derivatives, lowpass
 from trajectories.feasibility import Limits
 from trajectories.paper import carriage_sweep
 

@@ -17,7 +17,7 @@ from drivers.sim.lockstep import LockstepSync
 from drivers.sim import Plant, SimulatedRig
 from drivers.units import AxisScaling
 from ident_hw.model import Delta
-from ident_hw.model.delta import N_BODY_PARAMS, base_parameters, nominal_parameters
+from ident_hw.model.delta import N_BODY_PARAMS, closed_form_base, nominal_parameters
 from ident_hw.model.interface import RobotModel
 from trajectories.delta_paper import training_path
 
@@ -70,7 +70,7 @@ def test_the_plant_moves_the_delta_and_its_log_is_the_regressors_inverse_dynamic
     path = _faded_training_path(log["t"])
     assert np.abs(log["Theta"] - path).max() < 0.02 and np.ptp(log["Theta"], axis=0).min() > 0.1
     # least squares on the base columns recovers H pi of the truth
-    base = base_parameters(drive_terms=True)
+    base = closed_form_base(drive_terms=True)
     kept = [ROBOT.parameter_names.index(name) for name in base.kept]
     Y = ROBOT.regressor(log["Theta"], log["Thetad"], log["Thetadd"])[:, :, kept].reshape(-1, len(kept))
     estimate, *_ = np.linalg.lstsq(Y, log["force"].reshape(-1), rcond=None)

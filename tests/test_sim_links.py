@@ -3,7 +3,7 @@
 A real canopen master streams the paper's five squares (``trajectories.five_squares``, carriages
 blocked) to the six emulated EPOS4 in CSP at 250 Hz, in lockstep (``stream_lockstep`` of
 ``test_sim_cyclic``), with 2 mA of current noise. From the REPORTED counts and milliamps only,
-``ident_hw.identification.build_dataset`` (low-pass, central differences, parallel filter) and
+``build_dataset`` of ``measured_dataset`` (low-pass, central differences, parallel filter) and
 OLS fit the link parameters ``I_l1, m_l2, I_l2, m_ee, fv_theta1..3, fc_theta1..3`` on the
 three link torques, the other parameters known (their contribution subtracted).
 
@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 from drivers.sim import nominal
-from ident_hw.identification.dataset import build_dataset
+from measured_dataset import build_dataset
 from ident_hw.identification.least_squares import ols
 from ident_hw.model import ThreePRRR
 from trajectories import Limits, five_squares

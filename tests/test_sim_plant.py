@@ -9,7 +9,7 @@ from drivers.sim import Plant, PlantJammed, TruthLog, nominal
 from ident_hw.model import Delta, ThreePRRR
 from ident_hw.model.delta import N_BODY_PARAMS, nominal_parameters
 from ident_hw.model.dynamics import friction
-from ident_hw.signal import central_derivatives
+from ident_hw.filtering import central_derivatives
 
 from ident_scenarios import follow_targets
 from test_sim_rig import PRI, Bench, configure_pdos, wait_until
@@ -91,7 +91,7 @@ def test_integration_step_converges_at_fourth_order():
 
 def test_accelerations_differenced_from_the_sampled_positions_are_the_plant_s_own():
     """What identification relies on: the second difference of the positions sampled at 250 Hz
-    (the fourth-order stencil of ``ident_hw.signal``) is the acceleration the plant logs with the
+    (the fourth-order stencil of ``ident_hw.filtering``) is the acceleration the plant logs with the
     forces, ``M^-1 (F - c)`` at the SYNC instant, to 1e-4 of its RMS away from the Coulomb
     switches. The Delta at the SYNC rate of its campaign, under the drives' cyclic demand (a cubic
     B-spline of the targets) and 20 Hz position loops, arms at up to 2.7 rad/s and 21 rad/s².

@@ -1,50 +1,13 @@
 """One emulated EPOS2/EPOS4 drive: a ``canopen.LocalNode`` plus what it lacks.
 
-``LocalNode`` answers SDO from its object dictionary and keeps an NMT state. The drive adds, in
-parts the way canopen splits a node: the object values (:mod:`drivers.sim.objects`), the PDOs
-(:mod:`drivers.sim.pdo`: SYNC and event TPDOs, RPDOs, the RPDO deadline of CiA 301), the CiA 402
-power state machine (:mod:`drivers.sim.state_machine`; with the fault reaction: a quick-stop
-ramp, then FAULT with the power off), the demand of the operating modes
-(:mod:`drivers.sim.modes`: homing (HMM), profile position (PPM) and cyclic position, EPOS4 CSP
-mode 8 on ``0x607A``, EPOS2 position mode -1 on ``0x2062``); and here: the SDO and NMT gates,
-boot-up and NMT reset, EMCY with ``0x1001``/``0x1003`` (and ``0x603F`` on a drive that has it),
-the heartbeat consumer ``0x1016:01`` (EMCY ``0x8130`` and a fault when the producer it watches
-falls silent), the following error.
-
-An SDO access to an object the drive's dictionary does not define is aborted as a real drive
-aborts it (CiA 301): ``0x06020000`` for a missing object, ``0x06090011`` for a missing
-sub-index, also of an array (canopen's ``LocalNode`` would answer a sub-index an array does not
-define with a value made up from the array's first entry).
-
-Cyclic set-points are interpolated as a real drive does (its loops run much faster than SYNC):
-the demand is the uniform cubic B-spline whose control points are the received targets. Over the
-period after SYNC k it is the segment of the last four, ``q_k-3 .. q_k``; at SYNC k it stands at
-``(q_k-3 + 4 q_k-2 + q_k-1) / 6`` with velocity ``(q_k-1 - q_k-3) / 2T`` and acceleration
-``(q_k-3 - 2 q_k-2 + q_k-1) / T^2``, all three continuous across SYNC (C2). So the demand runs
-2 periods behind the targets and smooths them: for a motion of constant acceleration ``a`` it is
-the motion itself, 2 periods late, plus a constant offset ``a T^2 / 6``; a target step becomes an
-S-curve over 4 periods. Continuous acceleration matters: a C1 demand (e.g. the cubic Hermite
-segment through the last targets' midpoint, 1.5 periods of delay) has an acceleration step at
-every SYNC, hence a force ripple at the SYNC rate that the current sampled at each SYNC catches
-at the same phase, aliased into the identification data as a bias of the link friction
-(``tests/test_sim_links.py`` checks it is absent). When streaming starts the spline's earlier
-control points are the held demand, so it leaves the standstill with no jump of position,
-velocity or acceleration.
-
-The averaged current (``0x30D1:01`` on the EPOS4, ``0x2027`` on the EPOS2) is the drive's
-running average of the current it measures, as maxon defines it: a first-order low-pass of
-50 Hz cut-off at the current loop's rate (:class:`drivers.profiles.AveragingFilter`). The rig
-hands the drive one measured current per period; the plant's force between two of them is
-continuous with its first derivative, so the filter runs over the period on the current
-interpolated linearly between them, exactly (:meth:`~drivers.profiles.AveragingFilter.over_period`):
-holding the sample instead would delay the average by half a period, 2 ms at 250 Hz against
-the filter's 3.2 ms. Both current objects then hold whole mA.
-
-Positions here are drive units (counts); the rig converts to and from the SI plant. Every
-handler runs under the rig's lock, called from the network's notifier thread (SDO, RPDO, NMT,
-SYNC) or the rig's clock thread (event timers, heartbeat and RPDO watches). Times come from the
-rig's clock (:attr:`drivers.sim.rig.SimulatedRig.time`), which stands still while the rig's
-own thread cannot run: a stall of the host process is not a timeout of the drives.
+The drive is built from parts the way canopen splits a node: object values
+(:mod:`drivers.sim.objects`), PDOs (:mod:`drivers.sim.pdo`), the CiA 402 state machine
+(:mod:`drivers.sim.state_machine`) and the demand of the operating modes
+(:mod:`drivers.sim.modes`); this module holds the drive that joins them, with the SDO and NMT
+gates, boot-up and reset, EMCY, the heartbeat consumer, the following error, the C2 set-point
+interpolation and the averaged current. Positions here are drive units (counts); every handler
+runs under the rig's lock, on the rig's clock. How each part is built and why (the set-point
+spline, the averaged current's filter, the SDO aborts): ``docs/simulated-rig.md``.
 """
 
 from __future__ import annotations

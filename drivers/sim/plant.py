@@ -1,34 +1,17 @@
 """The simulated robot behind the emulated drives: its dynamics under one position loop per actuator.
 
-Each actuator is driven by a drive-side position controller, PD plus velocity feed-forward,
-``F = Kp (q_d - q) + Kd (qd_d - qd)``, clipped to the drive's current limit. Within a period the
-demand ``q_d(t)`` is a polynomial handed over by the drive (the set-point interpolation of
-:mod:`drivers.sim.drive`, continuous up to its acceleration); since it is continuous with its
-first derivative across periods, so is the force, and the force at a period start is the force
-of that instant, not a one-sided value. There is no acceleration feed-forward. The plant moves by
-the forward dynamics in the actuated coordinates of any
-:class:`ident_hw.model.interface.RobotModel` (the 3PRRR's closed chains, the Delta) with the
-*true* parameters (friction included). The reduced mass matrix ``M`` and the velocity terms are
-evaluated once per period, at its start (the expensive part), and extrapolated over the period by
-the quadratic through the two previous periods' starts; the controller and the friction are
-re-evaluated at every substep of at most ``max_substep``, and the state advances by the classical
-Runge-Kutta method (fourth order). Both matter for identification: the logged forces are exact at
-the period starts only, while the positions the identification differentiates carry whatever the
-motion did in between. With ``M`` and the velocity terms held, the motion drifts from the model by
-O(period), a bias of the identified link friction; extrapolated linearly, with Heun's method at
-0.5 ms, the acceleration differenced from the positions is off by 0.1 % of itself, enough to move
-the Delta's rods' products of inertia by percents (``tests/test_sim_plant.py``,
-``tests/test_sim_consistency.py``).
+:class:`Plant` moves any :class:`ident_hw.model.interface.RobotModel` by its forward dynamics in
+the actuated coordinates, with the *true* parameters (friction included), each actuator under a
+drive-side PD loop with velocity feed-forward on the demand polynomial the drive hands over
+(:mod:`drivers.sim.drive`). Per period the mass matrix and velocity terms are evaluated at the
+start and extrapolated over it; the state advances by classical Runge-Kutta substeps of at most
+``max_substep``, the loop and friction re-evaluated at each. The log holds, at each period start,
+the state, the actuator forces and the exact acceleration of that state. A motion into a type II
+singularity or out of reach raises :class:`PlantJammed`. Why the integration is this accurate,
+and what the identification needs of it: ``docs/simulated-rig.md``.
 
-The log holds, at each period start, the state, the actuator forces and the *exact*
-acceleration ``M^-1 (F - c)`` of that state: the logged forces are the model's inverse dynamics
-of the logged motion to rounding, whatever the integration error.
-
-If the commanded motion drives the robot into a parallel (type II) singularity or out of
-reach, the forward kinematics has no solution any more: :meth:`Plant.step` raises :class:`PlantJammed` and
-the plant stays at its last valid pose, at rest (the rig reports it as a following error).
-
-Everything here is SI: rad, m, N·m, N, s; ``n`` is the robot's number of actuators; the drive units (counts, rpm, mA) belong to the rig.
+Everything here is SI: rad, m, N·m, N, s; ``n`` is the robot's number of actuators; the drive
+units (counts, rpm, mA) belong to the rig.
 """
 
 from __future__ import annotations

@@ -27,7 +27,7 @@ import numpy as np
 from ident_hw.model import Delta, DeltaGeometry, Geometry, InertialParams
 from ident_hw.model.delta import BODY_PARAMS, BODIES, physical_parameters
 from ident_hw.model.interface import POSITION_UNITS, RobotModel
-from ident_hw.signal import FilterSettings
+from ident_hw.filtering import FilterSettings
 from trajectories.feasibility import ActuatorLimits
 from trajectories.feasibility import Limits as FeasibilityLimits
 
@@ -456,7 +456,7 @@ class FilterConfig:
     """Data preparation: zero-phase Butterworth low-pass of the positions, parallel decimation.
 
     Defaults follow the sample rate and the motion ``bandwidth``
-    (:meth:`ident_hw.signal.FilterSettings.for_sample_rate`); ``cutoff`` and ``decimation``
+    (:meth:`ident_hw.filtering.FilterSettings.for_sample_rate`); ``cutoff`` and ``decimation``
     override them.
     """
 

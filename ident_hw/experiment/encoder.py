@@ -24,7 +24,7 @@ from typing import Sequence
 import numpy as np
 
 from drivers.recording import Recording
-from ident_hw.signal import POLYNOMIAL, lowpass
+from ident_hw.filtering import POLYNOMIAL, lowpass
 
 from .recordings import identification_valid
 

@@ -1,7 +1,7 @@
 """Identification from recorded samples: the config's steps, then validation (no bus involved).
 
 Each recording (positions and motor currents of the six axes at the SYNC rate, SI) goes through
-the same preparation (:func:`ident_hw.signal.prepare_actuated`, then the parallel filter and
+the same preparation (:func:`ident_hw.filtering.prepare_actuated`, then the parallel filter and
 decimation of forces and regressor). The steps of ``identification.steps`` run in order, each
 an SQP fit of its parameters with the others held at their current values (CAD at the start),
 so the sweep's ``m_c`` is used by the squares' step. A ``wls``/``ols`` step instead fits the
@@ -17,7 +17,7 @@ parameters side by side (:mod:`ident_hw.identification.model_comparison`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
@@ -37,10 +37,11 @@ from ident_hw.identification.physical import ConsistencyError, ConsistentSet, co
 from ident_hw.identification.model_comparison import (ModelComparison, ModelRows, compare_models,
                                                        power_energy_rows)
 from ident_hw.model.interface import RobotModel
+from ident_hw.records import BaseAnalysis, RecordingCoverage, StepRecord
 from ident_hw.report import coverage_text
 from ident_hw.results import BaseFit, ParameterTable, Results, TrajectoryFit
 from ident_hw.segments import Segments, slot_indices, split, uniform
-from ident_hw.signal import kept_samples, near_rest, parallel_decimate, prepare_actuated, running_average
+from ident_hw.filtering import kept_samples, near_rest, parallel_decimate, prepare_actuated, running_average
 
 from .encoder import count_shifts, reread, smoothed_positions, spread_covariance
 from .plan import motion_bandwidth, robot_model
@@ -108,18 +109,12 @@ def segments_of(config: Config, rec: Recording, trim: int = 0, min_kept: int = 1
                  trim=trim, min_kept=min_kept, cut_trim=cut_trim)
 
 
-def coverage(config: Config, name: str, rec: Recording) -> dict:
+def coverage(config: Config, name: str, rec: Recording) -> RecordingCoverage:
     """What the recording of trajectory ``name`` holds, for the report and the quality verdict.
 
-    Keys: ``file``; ``recording_status`` (``complete``, ``stopped: <why>`` after a fault or a
-    signal, ``running (checkpoint)`` when the recording process died, ``raw log`` or ``raw log,
-    truncated``); ``cycles`` recorded and ``cycles_planned`` (the trajectory's set-points: the
-    recording's ``n_targets``, else the config's trajectory of that name); ``coverage``
-    (their ratio, None when unknown); ``valid_fraction`` (complete cycles / SYNC slots: a slot
-    the producer skipped counts as incomplete); ``longest_gap_s`` (s, the longest stretch
-    without a complete cycle); ``skipped_slots``;
-    ``unplaced_frames`` (frames the master could not place in their cycle, so some samples
-    may hold another cycle's data: :class:`drivers.acquisition.CycleAssembler`).
+    The cycles planned are the trajectory's set-points: the recording's ``n_targets``, else the
+    config's trajectory of that name; frames not placed in their cycle are counted by
+    :class:`drivers.acquisition.CycleAssembler`.
     """
     meta = rec.metadata
     planned = meta.get("n_targets") or planned_cycles(config, name)
@@ -137,11 +132,11 @@ def coverage(config: Config, name: str, rec: Recording) -> dict:
         gap = round(float(np.max(np.diff(edges)) - 1) * period, 6)
     elif len(rec.t):
         fraction = float(complete.mean())
-    return {"file": meta.get("file"), "recording_status": status, "cycles": len(rec.t),
-            "cycles_planned": None if planned is None else int(planned),
-            "coverage": None if not planned else min(1.0, len(rec.t) / planned),
-            "valid_fraction": fraction, "longest_gap_s": gap, "skipped_slots": skipped,
-            "unplaced_frames": int(meta.get("unplaced_frames") or 0)}
+    return RecordingCoverage(file=meta.get("file"), recording_status=status, cycles=len(rec.t),
+                             cycles_planned=None if planned is None else int(planned),
+                             planned_fraction=None if not planned else min(1.0, len(rec.t) / planned),
+                             valid_fraction=fraction, longest_gap_s=gap, skipped_slots=skipped,
+                             unplaced_frames=int(meta.get("unplaced_frames") or 0))
 
 
 def _bridged(t: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -158,7 +153,7 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
     """Recording → filtered motion, regressor and forces, decimated in parallel, stretch by
     stretch (:func:`segments_of`: cut at gaps and at rows left out, each stretch filtered on
     its own and trimmed at both ends: ``trim`` rows at the recording's own ends, ``cut_trim``
-    at a cut, :class:`ident_hw.signal.Ends`); from averaged currents (:func:`current_averaging`), the
+    at a cut, :class:`ident_hw.filtering.Ends`); from averaged currents (:func:`current_averaging`), the
     regressor goes through the drives' running average too. ``scalar_models``: also the power
     and energy models' rows of every stretch, from the same filtered motion and forces
     (:func:`ident_hw.identification.model_comparison.power_energy_rows`; not matched to averaged
@@ -208,7 +203,7 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
 def fit_base(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
              coef: np.ndarray, initial: np.ndarray, truth: np.ndarray | None, threshold: float,
              basis: tuple | None = None, draws: Sequence[tuple[np.ndarray, np.ndarray]] = ()
-             ) -> tuple[BaseFit, np.ndarray, dict]:
+             ) -> tuple[BaseFit, np.ndarray, StepRecord]:
     """Least squares (``step.method`` ``wls``/``ols``) of the base parameters of ``free_names``
     on ``Y`` (N, a, n), ``tau`` (N, a), the other parameters (``names``, n) held at ``coef``;
     ``basis``: the model's readable base parameters (``RobotModel.readable_base``), used when
@@ -238,10 +233,11 @@ def fit_base(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.nd
                      initial=H @ initial, truth=None if truth is None else H @ truth,
                      held=tuple(names[i] for i in held), unexcited=base.unexcited, threshold=threshold,
                      covariance=covariance)
-    record = {"name": step.name, "trajectories": list(step.trajectories), "free": list(free_names),
-              "method": f"{fit.method} of the base parameters ({base.rank} of {len(free)})",
-              "eliminated": list(base.eliminated), **{k: v for k, v in fit.to_dict().items() if k != "parameters"},
-              "cond_scaled": scaled_condition(Y[:, :, kept], tau), **_encoder_record(draws, encoder)}
+    figures = fit.to_dict()
+    del figures["parameters"]           # the estimates are the BaseFit's
+    record = StepRecord(name=step.name, trajectories=tuple(step.trajectories), method=figures.pop("method"),
+                        free=tuple(free_names), eliminated=tuple(base.eliminated), figures=figures,
+                        cond_scaled=scaled_condition(Y[:, :, kept], tau), **_encoder_fields(draws, encoder))
     return result, equivalent, record
 
 
@@ -253,11 +249,11 @@ def _refit(fit, Y: np.ndarray, tau: np.ndarray) -> np.ndarray:
     return ols(Y, tau, fit.names).coef
 
 
-def _encoder_record(draws: Sequence, covariance: np.ndarray) -> dict:
-    """The step record's account of the encoder draws: how many, each estimate's sigma from them."""
+def _encoder_fields(draws: Sequence, covariance: np.ndarray) -> dict:
+    """The :class:`StepRecord` fields of the encoder draws: how many, each estimate's sigma from them."""
     if not len(draws):
         return {}
-    return {"encoder_draws": len(draws), "encoder_sigma": np.sqrt(np.diag(covariance)).tolist()}
+    return {"encoder_draws": len(draws), "encoder_sigma": tuple(np.sqrt(np.diag(covariance)).tolist())}
 
 
 def comparison(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
@@ -312,7 +308,8 @@ def reread_draws(config: Config, robot: RobotModel, recordings: Mapping[str, Rec
 
 
 def prepare_all(config: Config, robot: RobotModel, recordings: Mapping[str, Recording], needed: Sequence[str],
-                compared: Sequence[str], progress: Callable[[str], None] | None) -> tuple[dict, dict[str, Prepared]]:
+                compared: Sequence[str], progress: Callable[[str], None] | None
+                ) -> tuple[dict[str, RecordingCoverage], dict[str, Prepared]]:
     """Each needed trajectory's coverage (what its recording holds) and its :func:`prepare`."""
     used = {name: coverage(config, name, recordings[name]) for name in needed}
     if progress:
@@ -331,7 +328,7 @@ def prepare_all(config: Config, robot: RobotModel, recordings: Mapping[str, Reco
 def fit_sqp_step(step, free_names: Sequence[str], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
                  estimates: _Estimates, all_bounds: Mapping[str, tuple[float, float]],
                  prepared: Mapping[str, Prepared], draws: Sequence[tuple[np.ndarray, np.ndarray]] = ()
-                 ) -> tuple[dict, list[str]]:
+                 ) -> tuple[StepRecord, list[str]]:
     """The paper's bounded SQP mass fit of one step's parameters on its data (``Y`` (N, a, n),
     ``tau`` (N, a)), the others held at their current values; ``estimates`` updated in place.
     ``draws``: the step's data with the encoders read again (:func:`fit_base`); the spread of
@@ -341,29 +338,29 @@ def fit_sqp_step(step, free_names: Sequence[str], names: tuple[str, ...], Y: np.
     excited = [p for p in free_names if np.any(rows[:, names.index(p)] != 0)]
     unexcited = [p for p in free_names if p not in excited]
     if not excited:
-        return {"name": step.name, "trajectories": list(step.trajectories),
-                "skipped": f"none of {', '.join(step.parameters)} excited by its data"}, []
+        return StepRecord(step.name, tuple(step.trajectories),
+                          skipped=f"none of {', '.join(step.parameters)} excited by its data"), []
     bounds = {p: all_bounds[p] for p in excited if p in all_bounds}
     fit = sqp_fit(Y, tau, names, estimates.coef, free=excited, bounds=bounds)
     estimates.coef = coef = fit.coef
     idx = [names.index(p) for p in excited]
     held = [i for i in range(len(names)) if i not in idx]
+    figures = fit.to_dict()
+    method, free = figures.pop("method"), tuple(figures.pop("free"))
+    statistics: dict = {}
     # sigma of the free parameters: WLS statistics of the same weighted problem
-    record = {"name": step.name, "trajectories": list(step.trajectories), **fit.to_dict(),
-              "rows_left_out": {t: prepared[t].segments.left_out for t in step.trajectories},
-              "cond_scaled": scaled_condition(Y[:, :, idx], tau)}
-    if unexcited:
-        record["unexcited"] = unexcited
     try:
         stats = wls(Y[:, :, idx], tau - Y[:, :, held] @ coef[held], excited, output_std=fit.output_std)
     except ValueError as exc:  # rank deficient: the fit is bounded, but has no covariance
-        record["statistics"] = str(exc)
+        statistics["statistics_missing"] = str(exc)
     else:
         encoder = spread_covariance([_refit(stats, Yk[:, :, idx], tauk - Yk[:, :, held] @ coef[held])
                                      for Yk, tauk in draws], len(idx))
         estimates.sigma[idx] = np.sqrt(stats.std ** 2 + np.diag(encoder))
-        record.update(_encoder_record(draws, encoder))
-        record["cond_W"] = stats.cond
+        statistics.update(_encoder_fields(draws, encoder), cond_W=stats.cond)
+    record = StepRecord(name=step.name, trajectories=tuple(step.trajectories), method=method, free=free,
+                        figures=figures, rows_left_out={t: prepared[t].segments.left_out for t in step.trajectories},
+                        cond_scaled=scaled_condition(Y[:, :, idx], tau), unexcited=tuple(unexcited), **statistics)
     for i, p in zip(idx, excited):
         estimates.lower[i], estimates.upper[i] = bounds.get(p, (0.0, np.inf))
         estimates.step_of[i], estimates.method_of[i] = step.name, step.method
@@ -407,7 +404,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     coef = estimates.coef
     W, _ = stack(*check_regression_data(np.concatenate([prepared[t].Y for t in id_names]),
                                         np.concatenate([prepared[t].tau_fit for t in id_names])))
-    base = base_parameters(W, names, scale=np.maximum(np.abs(initial), 1e-3)).to_dict()
+    analysis = BaseAnalysis.of(base_parameters(W, names, scale=np.maximum(np.abs(initial), 1e-3)))
 
     fits = []
     for name, p in prepared.items():
@@ -418,16 +415,19 @@ def identify(config: Config, recordings: Mapping[str, Recording],
                            identified=coef, sigma=estimates.sigma, lower=estimates.lower, upper=estimates.upper,
                            step=tuple(estimates.step_of), method=tuple(estimates.method_of), truth=truth)
     for name, p in prepared.items():
-        used[name].update(samples_used=len(p.t), rows_left_out=p.segments.left_out, gaps=p.segments.gaps,
-                          stretches=len(p.segments.slices))
+        used[name] = used[name].with_use(samples_used=len(p.t), rows_left_out=p.segments.left_out,
+                                         gaps=p.segments.gaps, stretches=len(p.segments.slices))
     results = Results(parameters=table, actuators=robot.actuator_names, actuator_kinds=robot.actuator_kinds,
-                      fits=fits, steps=steps, base_parameters=base, base_fit=base_fit,
+                      fits=fits, steps=steps, base_analysis=analysis, base_fit=base_fit,
                       rel_sigma_threshold=ident.rel_sigma_threshold, trajectories=used,
                       model_comparison=model_comparison)
     if base_fit is not None and ident.physical.enabled:
         if progress:
             progress(f"step {base_fit.step}: the physically consistent parameters nearest the CAD values")
-        results.consistent = consistent(config, robot, base_fit, base_equivalent, initial, truth, steps)
+        results.consistent, failure = consistent(config, robot, base_fit, base_equivalent, initial, truth)
+        if failure is not None:         # the base step's record says why there is none
+            results.steps = [replace(s, consistency_failure=failure) if s.name == base_fit.step else s
+                             for s in results.steps]
     results.quality = verdict(results, ident.quality, config.robot.actuators,
                               acting_axes(robot, prepared, id_names, fitted))
     return results
@@ -446,7 +446,7 @@ def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping
     of the parameters some step fitted.
     """
     names = robot.parameter_names
-    steps = []
+    steps: list[StepRecord] = []
     base_fit, base_equivalent, model_comparison = None, None, None
     fitted: set[str] = set()            # every parameter some step fitted
     for step in ident.steps:
@@ -458,8 +458,8 @@ def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping
         Y = np.concatenate([prepared[t].Y for t in step.trajectories])
         tau = np.concatenate([prepared[t].tau_fit for t in step.trajectories])
         if not len(Y):
-            steps.append({"name": step.name, "trajectories": list(step.trajectories),
-                          "skipped": "no stretch of its recordings could be filtered"})
+            steps.append(StepRecord(step.name, tuple(step.trajectories),
+                                    skipped="no stretch of its recordings could be filtered"))
             continue
         step_draws = [(np.concatenate([d[t].Y for t in step.trajectories]),
                        np.concatenate([d[t].tau_fit for t in step.trajectories])) for d in draws]
@@ -482,11 +482,11 @@ def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping
 
 
 def consistent(config: Config, robot: RobotModel, base_fit: BaseFit, equivalent: np.ndarray, initial: np.ndarray,
-               truth: np.ndarray | None, steps: list[dict]) -> ConsistentSet | None:
+               truth: np.ndarray | None) -> tuple[ConsistentSet | None, str | None]:
     """The physical parameters nearest the CAD values ``initial`` (n,) that reproduce
-    ``base_fit`` (:func:`ident_hw.identification.physical.consistent_parameters`); the
-    parameters the base step held keep their values in ``equivalent`` (n,). None, with the reason
-    in the base step's record of ``steps``, when there is no such set."""
+    ``base_fit`` (:func:`ident_hw.identification.physical.consistent_parameters`), and None; the
+    parameters the base step held keep their values in ``equivalent`` (n,). None and the reason
+    when there is no such set."""
     physical = config.identification.physical
     names = robot.parameter_names
     held = {names.index(p): float(equivalent[names.index(p)]) for p in base_fit.held}
@@ -499,7 +499,6 @@ def consistent(config: Config, robot: RobotModel, base_fit: BaseFit, equivalent:
         scale = np.array(physical.parameter_scales(names, typical))
         return consistent_parameters(names, tuple(robot.parameter_unit(p) for p in names), base_fit.H, base_fit.coef,
                                      base_fit.covariance, initial, scale, bodies, held=held,
-                                     metric=physical.metric, prior_relative=physical.prior, truth=truth)
+                                     metric=physical.metric, prior_relative=physical.prior, truth=truth), None
     except (ConsistencyError, FieldError) as exc:
-        next(s for s in steps if s.get("name") == base_fit.step)["consistent"] = str(exc)
-        return None
+        return None, str(exc)

@@ -17,12 +17,11 @@ thresholds of ``identification.quality`` (:class:`ident_hw.config.QualityConfig`
 * per validation trajectory (each identification one when there is none): the force prediction
   error d_τ of the step-by-step parameters (and of the base-parameter fit), and how far the
   two predictions are apart. Not on identification trajectories beside a validation one: on
-  the paper's squares, with noise-free forces in whole mA, the best fit leaves d_τ 15-17 %
-  (small forces, so quantisation and noise weigh) and the ill-conditioned links step puts the
-  two predictions 7 % apart; the validation triangle's are 1.0 % and 0.04 %.
+  excitations of small forces (a carriage-only sweep, the squares) quantisation and noise
+  weigh on d_τ, and an ill-conditioned step's two predictions part, however good the fit.
 
-The verdict (a JSON-able dict, stored in ``parameters.json``) lists every figure, the
-thresholds and, when it fails, one reason per missed threshold; ``STATUS`` is then
+The verdict (a :class:`ident_hw.records.Verdict`, stored in ``parameters.json``) lists every
+figure, the thresholds and, when it fails, one reason per missed threshold; ``STATUS`` is then
 ``degraded: <reasons>`` (:func:`ident_hw.results.final_status`).
 """
 
@@ -37,6 +36,7 @@ import numpy as np
 
 from ident_hw.config import ActuatorConfig, QualityConfig
 from ident_hw.identification.metrics import validation_metrics
+from ident_hw.records import TrajectoryVerdict, Verdict
 from ident_hw.results import Results
 
 
@@ -56,8 +56,8 @@ def consistency_reasons(results: Results) -> list[str]:
     """Why the base parameters do not fit a physical robot, if they do not: no consistent set
     (the step's record says why), or none within the base parameters' covariance (χ² above
     its 95 % quantile: rigid bodies cannot produce what was measured)."""
-    out = [f"step {r['name']}: no physically consistent parameters ({r['consistent']})"
-           for r in results.steps if r.get("consistent")]
+    out = [f"step {r.name}: no physically consistent parameters ({r.consistency_failure})"
+           for r in results.steps if r.consistency_failure]
     c = results.consistent
     if c is not None and not c.reproduces_base:
         out.append(f"no physically consistent parameters reproduce the {c.base_count} base parameters within their "
@@ -185,8 +185,9 @@ def force_lags(results: Results) -> dict[str, ForceLag]:
     least-squares ``T`` of ``tau - tau_predicted = -T d(tau_predicted)/dt`` over all fitted
     trajectories (``tau(t) = tau_predicted(t - T)`` to first order), the derivative by central
     differences within each stretch of regular sample times. A model right in time leaves ~0; a
-    current filtered by the drive (the averaged current, a first-order 50 Hz low-pass: about
-    3.2 ms) and identified as an instantaneous one leaves that filter's delay on every axis.
+    current filtered by the drive (the averaged current, a first-order 50 Hz low-pass, whose delay
+    is 1/(2π·50 Hz) ≈ 3.2 ms) and identified as an instantaneous one leaves that filter's delay on
+    every axis.
     On an axis whose forces are small beside its noise (a link on a carriage-heavy excitation)
     ``T`` scatters: its ``sigma`` says by how much."""
     a = len(results.actuators)
@@ -214,52 +215,51 @@ def force_lags(results: Results) -> dict[str, ForceLag]:
     return out
 
 
-def recording_reasons(results: Results, limits: QualityConfig) -> tuple[dict[str, dict], list[str]]:
+def recording_reasons(results: Results, limits: QualityConfig) -> tuple[dict[str, TrajectoryVerdict], list[str]]:
     """Per trajectory: what its recording covered (``results.trajectories``), and why that is not
     enough (partial or truncated, too few cycles, too few complete, a gap, a frame not placed)."""
     reasons: list[str] = []
-    per_traj: dict[str, dict] = {}
-    for name, used in (results.trajectories or {}).items():
-        per_traj[name] = {k: used.get(k) for k in ("recording_status", "coverage", "valid_fraction",
-                                                   "longest_gap_s", "unplaced_frames")}
-        status = str(used.get("recording_status", ""))
+    per_traj: dict[str, TrajectoryVerdict] = {}
+    for name, used in results.trajectories.items():
+        per_traj[name] = TrajectoryVerdict.of(used)
+        status = used.recording_status
         if status.startswith(("stopped", "running")):
             reasons.append(f"{name}: partial recording ({status})")
         elif "truncated" in status:
             reasons.append(f"{name}: truncated raw log")
-        cov = used.get("coverage")
+        cov = used.planned_fraction
         if cov is not None and cov < limits.min_coverage:
-            reasons.append(f"{name}: {used['cycles']} of {used['cycles_planned']} cycles recorded "
+            reasons.append(f"{name}: {used.cycles} of {used.cycles_planned} cycles recorded "
                            f"({100 * cov:.0f} % < {100 * limits.min_coverage:g} %)")
-        if used["valid_fraction"] < limits.min_valid_fraction:
-            reasons.append(f"{name}: {100 * used['valid_fraction']:.1f} % of the cycles complete "
+        if used.valid_fraction < limits.min_valid_fraction:
+            reasons.append(f"{name}: {100 * used.valid_fraction:.1f} % of the cycles complete "
                            f"(< {100 * limits.min_valid_fraction:g} %)")
-        if used.get("stretches") == 0:
+        if used.stretches == 0:
             reasons.append(f"{name}: no stretch of consecutive complete cycles long enough to filter; "
                            f"nothing of it was fitted")
-        if used.get("unplaced_frames"):
-            reasons.append(f"{name}: {used['unplaced_frames']} frame(s) could not be placed in their SYNC "
+        if used.unplaced_frames:
+            reasons.append(f"{name}: {used.unplaced_frames} frame(s) could not be placed in their SYNC "
                            f"cycle (late by more than the assembler's look-ahead, or sent twice)")
-        if used["longest_gap_s"] > limits.max_gap:
-            reasons.append(f"{name}: {used['longest_gap_s']:.3g} s without a complete cycle (> {limits.max_gap:g} s)")
+        if used.longest_gap_s > limits.max_gap:
+            reasons.append(f"{name}: {used.longest_gap_s:.3g} s without a complete cycle (> {limits.max_gap:g} s)")
     return per_traj, reasons
 
 
-def step_reasons(results: Results, limits: QualityConfig) -> tuple[dict[str, dict], list[str]]:
-    """Per identification step: its scaled condition number, and why the step falls short (not
-    fitted, parameters its data do not excite, ill-conditioned)."""
+def step_reasons(results: Results, limits: QualityConfig) -> tuple[dict[str, float | None], list[str]]:
+    """Per identification step: its scaled condition number (None: not fitted), and why the step
+    falls short (not fitted, parameters its data do not excite, ill-conditioned)."""
     reasons: list[str] = []
     steps = {}
     for record in results.steps:
-        if record.get("skipped"):
-            reasons.append(f"step {record['name']}: not fitted ({record['skipped']})")
-        if record.get("unexcited"):
-            reasons.append(f"step {record['name']}: {', '.join(record['unexcited'])} not excited by its data "
+        if record.skipped:
+            reasons.append(f"step {record.name}: not fitted ({record.skipped})")
+        if record.unexcited:
+            reasons.append(f"step {record.name}: {', '.join(record.unexcited)} not excited by its data "
                            "(held at their previous values)")
-        cond = record.get("cond_scaled")
-        steps[record["name"]] = {"cond_scaled": cond}
+        cond = record.cond_scaled
+        steps[record.name] = cond
         if cond is not None and not cond <= limits.max_condition:
-            reasons.append(f"step {record['name']}: condition number {cond:.3g} (> {limits.max_condition:g})")
+            reasons.append(f"step {record.name}: condition number {cond:.3g} (> {limits.max_condition:g})")
     return steps, reasons
 
 
@@ -290,44 +290,41 @@ def lag_reasons(lags: dict[str, ForceLag], limits: QualityConfig) -> list[str]:
               "instantaneous (bus.current), or sample times off"]
 
 
-def prediction_reasons(results: Results, limits: QualityConfig, per_traj: dict[str, dict]) -> list[str]:
+def prediction_reasons(results: Results, limits: QualityConfig,
+                       per_traj: dict[str, TrajectoryVerdict]) -> list[str]:
     """On each validation trajectory (each identification one when there is none): the force
     prediction error d_tau of the step-by-step and the base-parameter values, and how far the two
-    predictions are apart; the figures go into ``per_traj``."""
+    predictions are apart; the figures go into ``per_traj`` (updated in place)."""
     reasons: list[str] = []
     stepwise = any(r.fitted for r in results.parameter_rows())   # else the table holds the CAD values only
     for fit in [f for f in results.fits if f.role == "validation"] or results.fits:
-        row = per_traj.setdefault(fit.name, {})
-        row["role"] = fit.role
-        if not len(fit.t):
-            continue
-        predictions = {"step-by-step": fit.tau_model if stepwise else None, "base-parameter": fit.tau_base}
-        for label, tau_hat in predictions.items():
-            if tau_hat is None:
-                continue
-            d_tau = validation_metrics(fit.tau, tau_hat).d_tau_percent
-            row["d_tau_percent" if label == "step-by-step" else "base_fit_d_tau_percent"] = d_tau
-            if not d_tau <= limits.max_d_tau:
-                reasons.append(f"{fit.name} ({fit.role}): force prediction error d_tau {d_tau:.1f} % of the "
-                               f"{label} parameters (> {limits.max_d_tau:g} %)")
-        if stepwise and fit.tau_base is not None:
-            apart = relative_difference(fit.tau, fit.tau_model, fit.tau_base)
-            row["disagreement_percent"] = apart
-            if not apart <= limits.max_disagreement:
-                reasons.append(f"{fit.name}: step-by-step and base-parameter predictions {apart:.1f} % apart "
-                               f"(> {limits.max_disagreement:g} %)")
+        figures: dict = {"role": fit.role}
+        if len(fit.t):
+            predictions = {"step-by-step": fit.tau_model if stepwise else None, "base-parameter": fit.tau_base}
+            for label, tau_hat in predictions.items():
+                if tau_hat is None:
+                    continue
+                d_tau = validation_metrics(fit.tau, tau_hat).d_tau_percent
+                figures["d_tau_percent" if label == "step-by-step" else "base_fit_d_tau_percent"] = d_tau
+                if not d_tau <= limits.max_d_tau:
+                    reasons.append(f"{fit.name} ({fit.role}): force prediction error d_tau {d_tau:.1f} % of the "
+                                   f"{label} parameters (> {limits.max_d_tau:g} %)")
+            if stepwise and fit.tau_base is not None:
+                apart = relative_difference(fit.tau, fit.tau_model, fit.tau_base)
+                figures["disagreement_percent"] = apart
+                if not apart <= limits.max_disagreement:
+                    reasons.append(f"{fit.name}: step-by-step and base-parameter predictions {apart:.1f} % apart "
+                                   f"(> {limits.max_disagreement:g} %)")
+        per_traj[fit.name] = dataclasses.replace(per_traj.get(fit.name, TrajectoryVerdict()), **figures)
     return reasons
 
 
 def verdict(results: Results, limits: QualityConfig, actuators: Sequence[ActuatorConfig] = (),
-            judged_axes: Sequence[str] | None = None) -> dict:
+            judged_axes: Sequence[str] | None = None) -> Verdict:
     """The quality verdict of ``results`` (its ``trajectories`` coverage included); ``actuators``:
     the config's, whose drives say which axes :func:`axis_reasons` compares (none: no comparison);
     ``judged_axes``: the axes whose forces the fitted parameters act on, which the axis checks and
     :func:`force_lags` judge (None: every axis).
-
-    Returns ``{"passed", "reasons", "thresholds", "trajectories", "steps", "well_identified",
-    "axis_gain_spread_percent", "axis_residual_ratio", "force_lag_s", "force_lag_sigma_s", "axes_judged"}``.
     """
     per_traj, reasons = recording_reasons(results, limits)
     steps, more = step_reasons(results, limits)
@@ -341,7 +338,8 @@ def verdict(results: Results, limits: QualityConfig, actuators: Sequence[Actuato
     lags = {name: lag for name, lag in force_lags(results).items() if name in axes}
     reasons += lag_reasons(lags, limits)
     reasons += prediction_reasons(results, limits, per_traj)
-    return {"passed": not reasons, "reasons": reasons, "thresholds": dataclasses.asdict(limits),
-            "trajectories": per_traj, "steps": steps, "well_identified": well, "axis_gain_spread_percent": spreads,
-            "axis_residual_ratio": ratios, "force_lag_s": {name: lag.seconds for name, lag in lags.items()},
-            "force_lag_sigma_s": {name: lag.sigma for name, lag in lags.items()}, "axes_judged": list(axes)}
+    return Verdict(passed=not reasons, reasons=tuple(reasons), thresholds=dataclasses.asdict(limits),
+                   trajectories=per_traj, cond_scaled=steps, well_identified=tuple(well),
+                   axis_gain_spread_percent=spreads, axis_residual_ratio=ratios,
+                   force_lag_s={name: lag.seconds for name, lag in lags.items()},
+                   force_lag_sigma_s={name: lag.sigma for name, lag in lags.items()}, axes_judged=tuple(axes))

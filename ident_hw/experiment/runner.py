@@ -12,9 +12,13 @@ identifies and validates (:func:`ident_hw.experiment.offline.identify`) and writ
 (:func:`ident_hw.results.save_results`, then :func:`ident_hw.report.build_report`). On Ctrl-C or a
 drive fault the drives are stopped and disabled by the driver, the recordings so far stay on disk, STATUS says ``partial: <why>`` and
 :class:`CampaignStopped` is raised (SIGTERM and SIGHUP are Ctrl-C too under
-:func:`ident_hw.experiment.signals.stop_on_signals`). ``data/drives.json`` holds the CiA 402
+:func:`ident_hw.experiment.interrupts.stop_on_signals`). ``data/drives.json`` holds the CiA 402
 state of every drive after the run, as the master read it (and as the in-process rig holds it).
 A run that ends normally is ``complete`` or ``degraded: <reasons>`` by the quality verdict.
+
+:func:`identify_recordings` is the same ending for recordings made earlier (``ident-hw
+identify``): STATUS ``complete``, ``degraded: <reasons>`` or ``failed: <why>``. The STATUS of
+both is written here and nowhere else.
 """
 
 from __future__ import annotations
@@ -37,11 +41,11 @@ from drivers.recording import Recording
 from ident_hw.config import Config
 from ident_hw.results import Results, final_status, mark_status, save_results
 
+from .campaign_estimator import CampaignEstimator
+from .interrupts import shielded, signal_name
 from .offline import identify
-from .online import CampaignEstimator
 from .plan import PlannedTrajectory, plan, setpoints, sync_period
 from .session import HostSettings, Session, open_session
-from .signals import shielded, signal_name
 
 #: profile-position moves to a trajectory's start run at this fraction of each axis' speed limit
 APPROACH_SPEED = 0.2
@@ -220,6 +224,31 @@ def stop_reason(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {exc}"
 
 
+def conclude(folder: Path, results: Results, report: bool) -> None:
+    """STATUS from the quality verdict (``complete`` or ``degraded: <reasons>``), written before
+    the results and the report, which shows it; then the results, then the report if asked."""
+    mark_status(folder, final_status(results))
+    save_results(folder, results)
+    if report:
+        from ident_hw.report import build_report  # matplotlib: imported when a report is built
+        build_report(folder)
+
+
+def identify_recordings(config: Config, recordings: dict[str, Recording], folder: str | Path, *,
+                        log: Callable[[str], None] | None = None, report: bool = True) -> Results:
+    """Identify offline from recordings already read (``ident-hw identify``) into ``folder``,
+    whose STATUS ends as a run's does (:func:`conclude`), or ``failed: <why>`` (:func:`stop_reason`)
+    if anything, a signal included, stops it; the exception is raised again."""
+    folder = Path(folder)
+    try:
+        results = identify(config, recordings, progress=log)
+        conclude(folder, results, report)
+    except BaseException as exc:
+        mark_status(folder, f"failed: {stop_reason(exc)}")
+        raise
+    return results
+
+
 def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = True,
                  log: Callable[[str], None] | None = None,
                  online: CampaignEstimator | None = None,
@@ -256,11 +285,7 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
         results = identify(config, recordings, progress=say)
         if online is not None:
             results.online = online.trace(results.base_fit)
-        mark_status(folder, final_status(results))    # before the report, which shows it
-        save_results(folder, results)
-        if report:
-            from ident_hw.report import build_report  # matplotlib: imported when a report is built
-            build_report(folder)
+        conclude(folder, results, report)
     except BusOpenError as exc:
         mark_status(folder, f"failed: {exc}; nothing moved, nothing recorded")
         raise

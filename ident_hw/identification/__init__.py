@@ -2,10 +2,9 @@
 
 Public API::
 
-    from ident_hw.identification import build_dataset, ols, wls, identify_base, sqp_fit
+    from ident_hw.identification import ols, wls, identify_base, sqp_fit
     from ident_hw.identification import SVDDLS, RLS, DampedRLS, validation_metrics
 
-- :func:`build_dataset`: measured positions and currents → filtered, decimated regressor and forces.
 - :func:`ols`, :func:`wls`: least squares with the statistics of the power-model paper (HAC covariance).
 - :func:`base_parameters`, :func:`identify_base`: rank, null space and base parameters (the SVD-DLS paper).
 - :func:`sqp_fit`: bounded SQP mass fit of the 3PRRR paper, cross-checked by ``lsq_linear``.
@@ -14,7 +13,7 @@ Public API::
 - :func:`power_rows`, :func:`energy_rows`: power and energy models (no accelerations).
 - :func:`validation_metrics`: RMS, NRMS, d_tau and J_RMSE on held-out data.
 
-Every result has ``to_dict()``. Imports :mod:`ident_hw.model` and :mod:`ident_hw.signal`,
+Every result has ``to_dict()``. Imports :mod:`ident_hw.model` and :mod:`ident_hw.filtering`,
 nothing of the drivers, trajectories, config or runner.
 """
 
@@ -26,8 +25,6 @@ _MODULE_OF = {
     "BaseParameters": "base_params",
     "base_parameters": "base_params",
     "identify_base": "base_params",
-    "Dataset": "dataset",
-    "build_dataset": "dataset",
     "LeastSquaresResult": "least_squares",
     "ols": "least_squares",
     "stack": "least_squares",
@@ -50,14 +47,12 @@ __all__ = [
     "RLS",
     "SVDDLS",
     "BaseParameters",
-    "Dataset",
     "DampedRLS",
     "LeastSquaresResult",
     "MassFitResult",
     "StreamTrace",
     "ValidationMetrics",
     "base_parameters",
-    "build_dataset",
     "energy_rows",
     "identify_base",
     "offline_information",

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 
+from ident_hw.model.combinations import format_combination
+
 from .least_squares import LeastSquaresResult, check_regression_data, ols, stack, wls
 
 #: Default rank tolerance, relative to the largest singular value of the scaled regressor.
@@ -86,19 +88,6 @@ def on_kept(names, kept, values) -> np.ndarray:
     out = np.zeros(values.shape[:-1] + (len(names),))
     out[..., [names.index(k) for k in kept]] = values
     return out
-
-
-def format_combination(row: np.ndarray, names, digits: int = 4) -> str:
-    """``[1, 0.25]``, ``["m_l1", "m_l2"]`` → ``"m_l1 + 0.25 m_l2"`` (terms below 1e-10 dropped)."""
-    terms = []
-    big = np.max(np.abs(row))
-    for c, nm in zip(row, names):
-        if abs(c) <= 1e-10 * big:
-            continue
-        mag = abs(c)
-        text = nm if np.isclose(mag, 1.0, rtol=10.0 ** -(digits + 1), atol=0) else f"{mag:.{digits}g} {nm}"
-        terms.append((" - " if c < 0 else " + ") + text if terms else ("-" if c < 0 else "") + text)
-    return "".join(terms) if terms else "0"
 
 
 def base_parameters(W: np.ndarray, names, rtol: float = DEFAULT_RTOL, scale=None) -> BaseParameters:

@@ -51,7 +51,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ident_hw.signal import FilterSettings, lowpass, parallel_decimate
+from ident_hw.filtering import FilterSettings, lowpass, parallel_decimate
 
 from .base_params import column_scale, identify_base, scaled_condition
 from .least_squares import POORLY_IDENTIFIED_PERCENT, informative_rows
@@ -137,11 +137,11 @@ def power_energy_rows(robot, t, Theta, Thetad, tau, poses, settings: FilterSetti
         robot: a model with an energy regressor over its parameters (:func:`energy_columns`).
         t: uniform sample times (N,), s.
         Theta, Thetad: filtered actuated positions and rates (N, n), rad or m, rad/s or m/s
-            (:func:`ident_hw.signal.prepare_actuated`).
+            (:func:`ident_hw.filtering.prepare_actuated`).
         tau: measured actuator forces (N, n), N·m or N, not filtered.
         poses: (N, pose_size) guesses of the assembly mode per sample.
         settings: the filter of the dynamic rows; the power rows get the same parallel filter,
-            trim and decimation (:func:`ident_hw.signal.parallel_decimate`).
+            trim and decimation (:func:`ident_hw.filtering.parallel_decimate`).
         window: the energy model's window, samples (default the decimation: one row per
             decimated sample), over the stretch without ``2 settings.trim`` samples at each end;
             its integrands and ``H`` low-passed by the parallel filter first.

@@ -5,7 +5,7 @@ Actuated power equals the rate of change of the kinetic energy plus the friction
     Thetadᵀ tau = dT/dt + sum_j (f_vj qd_j² + f_cj qd_j tanh(qd_j / w)),   T = h(q, qd) pi[:7]
 
 Power model: one scalar row per sample, ``dh/dt`` by fourth-order central differences
-(:func:`ident_hw.signal.central_derivatives`; the two samples at each end, where only second
+(:func:`ident_hw.filtering.central_derivatives`; the two samples at each end, where only second
 order is available, give no row). Energy model: the same integrated between sample times
 ``t_a = t_i``, ``t_b = t_{i+window}`` (cumulative Simpson rule, error O(h⁴)):
 ``∫ Pdt = h(t_b) − h(t_a) + friction work``.
@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import integrate
 
-from ident_hw.signal import central_derivatives
+from ident_hw.filtering import central_derivatives
 
 
 @dataclass(frozen=True)
@@ -148,7 +148,7 @@ def power_rows_in_layout(t, H, Thetad, tau, coulomb_width: float, layout: Fricti
     ``edges`` False: the samples 2 .. N − 3 (M = N − 4), where ``dH/dt`` is fourth order (as
     :func:`power_rows`). True: every sample (M = N), the two at each end second order, for a
     caller that filters the rows in parallel and trims more than two samples at each end anyway
-    (:func:`ident_hw.signal.parallel_decimate`).
+    (:func:`ident_hw.filtering.parallel_decimate`).
     """
     t, H, Thetad, tau = _check(t, H, Thetad, tau)
     _check_layout(H, Thetad, layout)

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .combinations import format_combination
 from .dynamics import smooth_sign
 from .interface import REVOLUTE
 from .pseudo_inertia import SPATIAL, PhysicalBody
@@ -86,20 +87,24 @@ def physical_parameters(geometry: DeltaGeometry = DeltaGeometry()) -> np.ndarray
 
 
 @dataclass(frozen=True)
-class BaseParameters:
-    """The readable base parameters of the Delta (the spec's set; any geometry, generic path).
+class ClosedFormBase:
+    """The Delta's base parameters in closed form (the spec's readable set; any geometry, generic
+    path), as opposed to those the identification finds numerically from data.
 
     ``kept`` (r,): the parameter whose regressor column carries each base parameter;
-    ``H`` (r, 79): ``pi_b = H @ pi``, so that ``Y @ pi == Y[..., kept] @ (H @ pi)``;
-    ``expressions`` (r,): each row written out (e.g. ``"arm1.mx + 0.5193 rod1.mx"``).
+    ``H`` (r, 79): ``pi_b = H @ pi``, so that ``Y @ pi == Y[..., kept] @ (H @ pi)``.
     """
 
     kept: tuple[str, ...]
     H: np.ndarray
-    expressions: tuple[str, ...]
+
+    @property
+    def expressions(self) -> tuple[str, ...]:
+        """(r,) each row written out (e.g. ``"arm1.mx + 0.5193 rod1.mx"``)."""
+        return tuple(format_combination(row, PARAM_NAMES) for row in self.H)
 
 
-def base_parameters(geometry: DeltaGeometry = DeltaGeometry(), drive_terms: bool = True) -> BaseParameters:
+def closed_form_base(geometry: DeltaGeometry = DeltaGeometry(), drive_terms: bool = True) -> ClosedFormBase:
     """34 base parameters of the bodies (one common, eleven per limb), plus ``fv_i``, ``fc_i``
     with the drive terms (40; ``Jm_i`` joins ``arm_i.Iyy``)."""
     L1, L2 = geometry.L1, geometry.L2
@@ -122,9 +127,7 @@ def base_parameters(geometry: DeltaGeometry = DeltaGeometry(), drive_terms: bool
     for r, (_, terms) in enumerate(rows):
         for name, coef in terms.items():
             H[r, index[name]] = coef
-    expressions = tuple(" + ".join(name if coef == 1.0 else f"{coef:.6g} {name}" for name, coef in terms.items())
-                        .replace("+ -", "- ") for _, terms in rows)
-    return BaseParameters(tuple(k for k, _ in rows), H, expressions)
+    return ClosedFormBase(tuple(k for k, _ in rows), H)
 
 
 @dataclass
@@ -418,8 +421,8 @@ class Delta:
                 "Jm": "kg·m²"}.get(kind, "kg·m²")
 
     def readable_base(self):
-        """The spec's 40 readable base parameters with the drive terms (:func:`base_parameters`)."""
-        base = base_parameters(self.geometry, drive_terms=True)
+        """The spec's 40 readable base parameters with the drive terms (:func:`closed_form_base`)."""
+        base = closed_form_base(self.geometry, drive_terms=True)
         return base.kept, base.H
 
     def physical_bodies(self) -> tuple[PhysicalBody, ...]:

@@ -570,7 +570,7 @@ def _inertia(p: np.ndarray) -> pin.Inertia:
 class NumericalBase:
     """Base parameters found numerically: ``pi_b = H pi`` (r, P), ``kept`` (r,) the parameter
     each row is named after (the identification layer writes the rows out,
-    :func:`ident_hw.identification.base_params.format_combination`)."""
+    :func:`ident_hw.model.combinations.format_combination`)."""
 
     kept: tuple[str, ...]
     H: np.ndarray

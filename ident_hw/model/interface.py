@@ -15,7 +15,10 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-#: the kinds of actuated joint, and the SI units of their position and force
+#: the kinds of actuated joint, and the SI units of their position and force. The drive side
+#: names its axes' kinds with the same two words (:data:`drivers.units.REVOLUTE`): the model
+#: imports nothing of the project and the drivers nothing of ident_hw, so each layer keeps its
+#: own pair, and tests/test_layers.py checks that the two agree (the config compares them).
 REVOLUTE, PRISMATIC = "revolute", "prismatic"
 POSITION_UNITS = {REVOLUTE: "rad", PRISMATIC: "m"}
 FORCE_UNITS = {REVOLUTE: "N·m", PRISMATIC: "N"}

@@ -35,7 +35,8 @@ def build_report(folder: str | Path) -> Path:
     folder = Path(folder)
     results = load_results(folder)
     table = metrics(results)
-    (folder / "metrics.yaml").write_text(yaml.safe_dump(table, sort_keys=False))
+    (folder / "metrics.yaml").write_text(yaml.safe_dump({name: m.to_json() for name, m in table.items()},
+                                                        sort_keys=False))
     folder_plots = folder / "plots"
     folder_plots.mkdir(exist_ok=True)
     jobs = []

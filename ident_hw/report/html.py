@@ -9,6 +9,7 @@ from pathlib import Path
 import jinja2
 
 from ident_hw.identification.model_comparison import EQUATIONS, OUTPUT_UNITS
+from ident_hw.records import TrajectoryMetrics
 from ident_hw.results import SETTLED, Results, read_status
 
 from .terminal import accuracy_line, coverage_text
@@ -32,19 +33,19 @@ def fmt_rel(value) -> str:
 _ENV.filters.update(fmt=fmt, fmt_rel=fmt_rel)
 
 
-def render_html(folder: Path, results: Results, table: dict, images: list[tuple[str, Path]]) -> str:
+def render_html(folder: Path, results: Results, table: dict[str, TrajectoryMetrics], images: list[tuple[str, Path]]) -> str:
     """The page: summary and verdict first, then the parameter tables (with the dynamic, power and
     energy models' base parameters when the results hold them), the online comparison,
     the force-prediction metrics per trajectory and the plots (``images``: title, PNG path)."""
     rows = results.parameter_rows()
-    base = results.base_parameters or {}
+    analysis = results.base_analysis
     return _ENV.get_template("report.html").render(
         status=read_status(folder), results=results, rows=rows,
         poor=[r.name for r in rows if r.poorly_identified],
         has_truth=results.parameters.truth is not None,
         accuracy=accuracy_line(rows, results.base_fit) if results.parameters.truth is not None else None,
         coverage={name: coverage_text(u) for name, u in results.trajectories.items()},
-        base_list=base if base.get("base_parameters") and results.base_fit is None else None,
+        base_list=analysis if analysis is not None and analysis.expressions and results.base_fit is None else None,
         online=results.online, comparison=results.online.comparison() if results.online is not None else [],
         settled_percent=100 * SETTLED, metrics=table, actuators=results.actuators,
         equations=EQUATIONS, output_units=OUTPUT_UNITS,

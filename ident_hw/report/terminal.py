@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ident_hw.identification.model_comparison import EQUATIONS, ModelComparison, ModelFit
 from ident_hw.identification.physical import ConsistentSet
+from ident_hw.records import RecordingCoverage, Verdict
 from ident_hw.results import (SETTLED, BaseFit, BaseRow, OnlineTrace, ParameterRow, load_results, metrics,
                               read_status)
 
@@ -50,34 +51,34 @@ def summary_lines(folder: str | Path) -> list[str]:
     if truth:
         lines.append(accuracy_line(rows, results.base_fit))
     for name, m in metrics(results).items():
-        text = f"  {m['role']:>14} {name}: d_tau = {m['d_tau_percent']:.2f} %, J_RMSE = {m['j_rmse']:.4g}"
-        if "base_fit" in m:
-            text += f"; base fit: d_tau = {m['base_fit']['d_tau_percent']:.2f} %"
+        text = f"  {m.role:>14} {name}: d_tau = {m.stepwise.d_tau_percent:.2f} %, J_RMSE = {m.stepwise.j_rmse:.4g}"
+        if m.base_fit is not None:
+            text += f"; base fit: d_tau = {m.base_fit.d_tau_percent:.2f} %"
         lines.append(text)
     if results.quality is not None:
         lines += _verdict_lines(results.quality)
     return lines
 
 
-def coverage_text(used: dict) -> str:
+def coverage_text(used: RecordingCoverage) -> str:
     """``107 of 266 cycles (40 % of the trajectory), 99.1 % complete, ...`` for one recording."""
-    planned = used.get("cycles_planned")
-    text = f"{used['cycles']} of {planned} cycles" if planned else f"{used['cycles']} cycles"
-    if used.get("coverage") is not None and used["coverage"] < 1.0:
-        text += f" ({100 * used['coverage']:.0f} % of the trajectory)"
-    text += f", {100 * used['valid_fraction']:.1f} % complete"
-    if used.get("longest_gap_s"):
-        text += f", longest gap {used['longest_gap_s']:.3g} s"
-    if used.get("skipped_slots"):
-        text += f", {used['skipped_slots']} SYNC slots skipped"
-    if "samples_used" in used:
-        text += f"; {used['samples_used']} samples after decimation fitted"
-        if used.get("stretches", 1) > 1:
-            text += f" from {used['stretches']} stretches"
-        out = [f"{n} {rule.replace('_', ' ')}" for rule, n in (used.get("rows_left_out") or {}).items() if n]
+    planned = used.cycles_planned
+    text = f"{used.cycles} of {planned} cycles" if planned else f"{used.cycles} cycles"
+    if used.planned_fraction is not None and used.planned_fraction < 1.0:
+        text += f" ({100 * used.planned_fraction:.0f} % of the trajectory)"
+    text += f", {100 * used.valid_fraction:.1f} % complete"
+    if used.longest_gap_s:
+        text += f", longest gap {used.longest_gap_s:.3g} s"
+    if used.skipped_slots:
+        text += f", {used.skipped_slots} SYNC slots skipped"
+    if used.prepared:
+        text += f"; {used.samples_used} samples after decimation fitted"
+        if (used.stretches if used.stretches is not None else 1) > 1:
+            text += f" from {used.stretches} stretches"
+        out = [f"{n} {rule.replace('_', ' ')}" for rule, n in (used.rows_left_out or {}).items() if n]
         if out:
             text += f" (rows left out: {', '.join(out)})"
-    status = str(used.get("recording_status", ""))
+    status = used.recording_status
     if status.startswith("stopped"):
         text += f"; partial recording ({status})"
     elif status.startswith("running"):
@@ -152,11 +153,11 @@ def _or_nan(value: float | None) -> float:
     return math.nan if value is None else value
 
 
-def _verdict_lines(quality: dict) -> list[str]:
+def _verdict_lines(quality: Verdict) -> list[str]:
     """The quality verdict for the terminal: passed, or DEGRADED with one line per reason."""
-    if quality["passed"]:
+    if quality.passed:
         return ["quality verdict: passed (identification.quality thresholds)"]
-    return ["quality verdict: DEGRADED (identification.quality thresholds):"] + [f"  {r}" for r in quality["reasons"]]
+    return ["quality verdict: DEGRADED (identification.quality thresholds):"] + [f"  {r}" for r in quality.reasons]
 
 
 def model_summary(fit: ModelFit) -> str:

@@ -1,4 +1,10 @@
-"""From measured positions and currents to an identification data set (regressor + forces)."""
+"""One gap-free measured 3PRRR run (positions and currents) to an identification data set
+(filtered, decimated regressor and forces), for the tests and benchmarks that start from arrays.
+
+It is :mod:`ident_hw.filtering`'s chain applied to a whole run at once: the production path,
+which cuts recordings at gaps and serves every robot, is
+:func:`ident_hw.experiment.offline.prepare`.
+"""
 
 from __future__ import annotations
 
@@ -6,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ident_hw.signal import FilterSettings, kept_samples, parallel_decimate, prepare_actuated
+from ident_hw.filtering import FilterSettings, kept_samples, parallel_decimate, prepare_actuated
 
 
 @dataclass(frozen=True)

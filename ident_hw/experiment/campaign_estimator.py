@@ -26,7 +26,8 @@ import numpy as np
 from drivers.recording import Recording
 from ident_hw.config import Config
 from ident_hw.identification import RLS, SVDDLS, DampedRLS, base_parameters
-from ident_hw.identification.base_params import format_combination, on_kept
+from ident_hw.identification.base_params import on_kept
+from ident_hw.model.combinations import format_combination
 from ident_hw.results import BaseFit, OnlineTrace
 
 from .offline import prepare

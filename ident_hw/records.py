@@ -1,0 +1,336 @@
+"""The records a results folder stores beside its parameter tables, each with its JSON mapping.
+
+* :class:`RecordingCoverage`: what the recording of one trajectory covered and what the fit used;
+* :class:`StepRecord`: what one identification step did (fitted, skipped, its figures);
+* :class:`BaseAnalysis`: what all the identification data determine (rank, base parameters);
+* :class:`Verdict` with a :class:`TrajectoryVerdict` per trajectory: the quality verdict;
+* :class:`TrajectoryMetrics`: the force prediction on one trajectory (the report's ``metrics.yaml``).
+
+Each is a frozen dataclass whose ``to_json()`` and ``from_json()`` are the one place its keys in
+``parameters.json`` (``metrics.yaml``) are spelt; ``from_json`` also reads folders written before a key existed
+(an absent key reads as None or empty). Quantities are SI (s); ratios are fractions (0..1)
+unless the name ends in ``_percent``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any, Mapping
+
+#: the keys of a step record that :class:`StepRecord` reads; the others are the fit's figures
+_STEP_KEYS = frozenset({"name", "trajectories", "skipped", "method", "free", "eliminated", "rows_left_out",
+                        "cond_scaled", "unexcited", "statistics", "encoder_draws", "encoder_sigma", "cond_W",
+                        "consistent"})
+
+
+@dataclass(frozen=True)
+class RecordingCoverage:
+    """What the recording of one trajectory holds, and how much of it the fit used.
+
+    ``recording_status``: ``complete``, ``stopped: <why>`` after a fault or a signal, ``running
+    (checkpoint)`` when the recording process died, ``raw log`` or ``raw log, truncated``.
+    ``cycles`` recorded of ``cycles_planned`` (None: unknown); ``planned_fraction``: their ratio,
+    at most 1 (None: unknown; JSON ``coverage``); ``valid_fraction``: complete cycles / SYNC slots
+    (a slot the producer skipped counts as incomplete); ``longest_gap_s``: s, the longest stretch
+    without a complete cycle; ``skipped_slots``: SYNC slots without a row; ``unplaced_frames``:
+    frames the master could not place in their cycle (some samples may hold another cycle's data).
+
+    Once the recording is prepared (:meth:`with_use`): ``samples_used`` after decimation,
+    ``rows_left_out`` per rule (rows at the input rate, :class:`ident_hw.segments.Segments`),
+    ``gaps`` the recording is cut at and the ``stretches`` filtered; None before.
+    """
+
+    file: str | None
+    recording_status: str
+    cycles: int
+    cycles_planned: int | None
+    planned_fraction: float | None
+    valid_fraction: float
+    longest_gap_s: float
+    skipped_slots: int = 0
+    unplaced_frames: int | None = 0
+    samples_used: int | None = None
+    rows_left_out: Mapping[str, int] | None = None
+    gaps: int | None = None
+    stretches: int | None = None
+
+    @property
+    def prepared(self) -> bool:
+        """The fit's use of the recording is known (:meth:`with_use`)."""
+        return self.samples_used is not None
+
+    def with_use(self, samples_used: int, rows_left_out: Mapping[str, int], gaps: int,
+                 stretches: int) -> RecordingCoverage:
+        """This coverage with what the fit used of the recording."""
+        return replace(self, samples_used=samples_used, rows_left_out=rows_left_out, gaps=gaps, stretches=stretches)
+
+    def to_json(self) -> dict:
+        doc = {"file": self.file, "recording_status": self.recording_status, "cycles": self.cycles,
+               "cycles_planned": self.cycles_planned, "coverage": self.planned_fraction,
+               "valid_fraction": self.valid_fraction, "longest_gap_s": self.longest_gap_s,
+               "skipped_slots": self.skipped_slots, "unplaced_frames": self.unplaced_frames}
+        if self.prepared:
+            doc.update(samples_used=self.samples_used, rows_left_out=self.rows_left_out, gaps=self.gaps,
+                       stretches=self.stretches)
+        return doc
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> RecordingCoverage:
+        return cls(file=doc.get("file"), recording_status=str(doc.get("recording_status", "")),
+                   cycles=doc["cycles"], cycles_planned=doc.get("cycles_planned"),
+                   planned_fraction=doc.get("coverage"), valid_fraction=doc["valid_fraction"],
+                   longest_gap_s=doc.get("longest_gap_s") or 0.0, skipped_slots=doc.get("skipped_slots") or 0,
+                   unplaced_frames=doc.get("unplaced_frames"), samples_used=doc.get("samples_used"),
+                   rows_left_out=doc.get("rows_left_out"), gaps=doc.get("gaps"), stretches=doc.get("stretches"))
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """What one identification step did.
+
+    ``skipped``: why it fitted nothing (None: it fitted). ``method`` and ``free``: the fit's
+    method and the parameters it fitted. ``eliminated``: for a least-squares step of base
+    parameters, the free parameters regrouped into the others or not excited; None for an SQP
+    mass fit. ``figures``: the fit's own figures, as its ``to_dict()`` gives them
+    (:mod:`ident_hw.identification`; stored, not read). ``rows_left_out``: per trajectory, rows
+    left out per rule (mass fit). ``cond_scaled``: condition number of the step's regressor,
+    columns scaled to unit RMS; ``cond_W``: of the weighted one of the statistics (mass fit).
+    ``unexcited``: free parameters its data do not excite, held. ``statistics_missing``: why the
+    mass fit has no covariance. ``encoder_draws`` and ``encoder_sigma`` (one per estimate, in
+    its unit): the encoders read again (:mod:`ident_hw.experiment.encoder`), 0 and () without.
+    ``consistency_failure``: why no physically consistent parameters reproduce the step's base
+    parameters (None: there are some, or none were asked for).
+    """
+
+    name: str
+    trajectories: tuple[str, ...]
+    skipped: str | None = None
+    method: str = ""
+    free: tuple[str, ...] = ()
+    eliminated: tuple[str, ...] | None = None
+    figures: Mapping[str, Any] = field(default_factory=dict)
+    rows_left_out: Mapping[str, Mapping[str, int]] | None = None
+    cond_scaled: float | None = None
+    unexcited: tuple[str, ...] = ()
+    statistics_missing: str | None = None
+    encoder_draws: int = 0
+    encoder_sigma: tuple[float, ...] = ()
+    cond_W: float | None = None
+    consistency_failure: str | None = None
+
+    @property
+    def fits_base_parameters(self) -> bool:
+        """A least-squares step of base parameters (else an SQP mass fit, or skipped)."""
+        return self.eliminated is not None
+
+    def to_json(self) -> dict:
+        doc: dict[str, Any] = {"name": self.name, "trajectories": list(self.trajectories)}
+        if self.skipped is not None:
+            doc["skipped"] = self.skipped
+            return doc
+        encoder = ({"encoder_draws": self.encoder_draws, "encoder_sigma": list(self.encoder_sigma)}
+                   if self.encoder_draws else {})
+        if self.fits_base_parameters:
+            doc.update({"free": list(self.free), "method": self.method, "eliminated": list(self.eliminated),
+                        **self.figures, "cond_scaled": self.cond_scaled, **encoder})
+            if self.consistency_failure is not None:
+                doc["consistent"] = self.consistency_failure
+            return doc
+        doc.update({"method": self.method, "free": list(self.free), **self.figures,
+                    "rows_left_out": self.rows_left_out, "cond_scaled": self.cond_scaled})
+        if self.unexcited:
+            doc["unexcited"] = list(self.unexcited)
+        if self.statistics_missing is not None:
+            doc["statistics"] = self.statistics_missing
+        doc.update(encoder)
+        if self.cond_W is not None:
+            doc["cond_W"] = self.cond_W
+        return doc
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> StepRecord:
+        eliminated = doc.get("eliminated")
+        return cls(name=doc.get("name", ""), trajectories=tuple(doc.get("trajectories") or ()),
+                   skipped=doc.get("skipped"), method=doc.get("method", ""), free=tuple(doc.get("free") or ()),
+                   eliminated=None if eliminated is None else tuple(eliminated),
+                   figures={k: v for k, v in doc.items() if k not in _STEP_KEYS},
+                   rows_left_out=doc.get("rows_left_out"), cond_scaled=doc.get("cond_scaled"),
+                   unexcited=tuple(doc.get("unexcited") or ()), statistics_missing=doc.get("statistics"),
+                   encoder_draws=doc.get("encoder_draws") or 0, encoder_sigma=tuple(doc.get("encoder_sigma") or ()),
+                   cond_W=doc.get("cond_W"), consistency_failure=doc.get("consistent"))
+
+
+@dataclass(frozen=True)
+class BaseAnalysis:
+    """What all the identification data determine, whether or not a step fits base parameters
+    (:func:`ident_hw.identification.base_params.base_parameters` of every identification
+    trajectory's regressor): its ``rank`` of ``n_params``, the rank tolerance ``rtol`` relative to
+    the largest of the ``singular_values`` (column-scaled regressor), the base parameters as
+    readable ``expressions`` (JSON ``base_parameters``), the parameters ``eliminated`` and those
+    ``unexcited`` (in no base parameter). An analysis, not an estimate: the estimates of one step's
+    base parameters are its :class:`ident_hw.results.BaseFit`."""
+
+    rank: int
+    n_params: int
+    rtol: float | None = None
+    singular_values: tuple[float, ...] = ()
+    expressions: tuple[str, ...] = ()
+    eliminated: tuple[str, ...] = ()
+    unexcited: tuple[str, ...] = ()
+
+    @classmethod
+    def of(cls, base) -> BaseAnalysis:
+        """The analysis of a :class:`ident_hw.identification.base_params.BaseParameters`."""
+        return cls(rank=base.rank, n_params=len(base.names), rtol=base.rtol,
+                   singular_values=tuple(base.singular_values.tolist()), expressions=base.expressions,
+                   eliminated=base.eliminated, unexcited=base.unexcited)
+
+    def to_json(self) -> dict:
+        return {"rank": self.rank, "n_params": self.n_params, "rtol": self.rtol,
+                "singular_values": list(self.singular_values), "base_parameters": list(self.expressions),
+                "eliminated": list(self.eliminated), "unexcited": list(self.unexcited)}
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> BaseAnalysis:
+        return cls(rank=doc.get("rank"), n_params=doc.get("n_params"), rtol=doc.get("rtol"),
+                   singular_values=tuple(doc.get("singular_values") or ()),
+                   expressions=tuple(doc.get("base_parameters") or ()),
+                   eliminated=tuple(doc.get("eliminated") or ()), unexcited=tuple(doc.get("unexcited") or ()))
+
+
+@dataclass(frozen=True)
+class TrajectoryVerdict:
+    """The figures the quality verdict judged on one trajectory.
+
+    Of its recording (``recorded``: it has one; the figures of its :class:`RecordingCoverage`):
+    ``recording_status``, ``planned_fraction`` (JSON ``coverage``), ``valid_fraction``,
+    ``longest_gap_s`` (s) and ``unplaced_frames``. Of the force prediction on it, when it was
+    judged (its ``role``, ``identification`` or ``validation``): ``d_tau_percent`` of the
+    step-by-step parameters, ``base_fit_d_tau_percent`` of the base-parameter fit and
+    ``disagreement_percent`` between the two predictions (None: not computed).
+    """
+
+    recorded: bool = False
+    recording_status: str | None = None
+    planned_fraction: float | None = None
+    valid_fraction: float | None = None
+    longest_gap_s: float | None = None
+    unplaced_frames: int | None = None
+    role: str | None = None
+    d_tau_percent: float | None = None
+    base_fit_d_tau_percent: float | None = None
+    disagreement_percent: float | None = None
+
+    @classmethod
+    def of(cls, coverage: RecordingCoverage) -> TrajectoryVerdict:
+        """The recording figures of ``coverage``."""
+        return cls(recorded=True, recording_status=coverage.recording_status,
+                   planned_fraction=coverage.planned_fraction, valid_fraction=coverage.valid_fraction,
+                   longest_gap_s=coverage.longest_gap_s, unplaced_frames=coverage.unplaced_frames)
+
+    def to_json(self) -> dict:
+        doc: dict[str, Any] = {}
+        if self.recorded:
+            doc.update(recording_status=self.recording_status, coverage=self.planned_fraction,
+                       valid_fraction=self.valid_fraction, longest_gap_s=self.longest_gap_s,
+                       unplaced_frames=self.unplaced_frames)
+        if self.role is not None:
+            doc["role"] = self.role
+        for key in ("d_tau_percent", "base_fit_d_tau_percent", "disagreement_percent"):
+            if getattr(self, key) is not None:
+                doc[key] = getattr(self, key)
+        return doc
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> TrajectoryVerdict:
+        return cls(recorded="recording_status" in doc, recording_status=doc.get("recording_status"),
+                   planned_fraction=doc.get("coverage"), valid_fraction=doc.get("valid_fraction"),
+                   longest_gap_s=doc.get("longest_gap_s"), unplaced_frames=doc.get("unplaced_frames"),
+                   role=doc.get("role"), d_tau_percent=doc.get("d_tau_percent"),
+                   base_fit_d_tau_percent=doc.get("base_fit_d_tau_percent"),
+                   disagreement_percent=doc.get("disagreement_percent"))
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The quality verdict of a result (:func:`ident_hw.experiment.quality.verdict`).
+
+    ``passed``: no threshold missed; ``reasons``: one per missed threshold; ``thresholds``: the
+    ``identification.quality`` values judged against, by name. Per trajectory its
+    :class:`TrajectoryVerdict`; per step its scaled condition number ``cond_scaled`` (JSON
+    ``steps``); ``well_identified``: the fitted parameters (physical, then base) with %σ at most
+    the campaign's threshold. Per judged axis (``axes_judged``): its gain spread (%) and worst
+    residual ratio against the axes of the same drive, and the lag of its measured forces
+    behind the model's with its standard error (s).
+    """
+
+    passed: bool
+    reasons: tuple[str, ...] = ()
+    thresholds: Mapping[str, float] = field(default_factory=dict)
+    trajectories: Mapping[str, TrajectoryVerdict] = field(default_factory=dict)
+    cond_scaled: Mapping[str, float | None] = field(default_factory=dict)
+    well_identified: tuple[str, ...] = ()
+    axis_gain_spread_percent: Mapping[str, float] = field(default_factory=dict)
+    axis_residual_ratio: Mapping[str, float] = field(default_factory=dict)
+    force_lag_s: Mapping[str, float] = field(default_factory=dict)
+    force_lag_sigma_s: Mapping[str, float] = field(default_factory=dict)
+    axes_judged: tuple[str, ...] = ()
+
+    def to_json(self) -> dict:
+        return {"passed": self.passed, "reasons": list(self.reasons), "thresholds": dict(self.thresholds),
+                "trajectories": {name: t.to_json() for name, t in self.trajectories.items()},
+                "steps": {name: {"cond_scaled": cond} for name, cond in self.cond_scaled.items()},
+                "well_identified": list(self.well_identified),
+                "axis_gain_spread_percent": dict(self.axis_gain_spread_percent),
+                "axis_residual_ratio": dict(self.axis_residual_ratio), "force_lag_s": dict(self.force_lag_s),
+                "force_lag_sigma_s": dict(self.force_lag_sigma_s), "axes_judged": list(self.axes_judged)}
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> Verdict:
+        return cls(passed=bool(doc["passed"]), reasons=tuple(doc.get("reasons") or ()),
+                   thresholds=doc.get("thresholds") or {},
+                   trajectories={name: TrajectoryVerdict.from_json(t)
+                                 for name, t in (doc.get("trajectories") or {}).items()},
+                   cond_scaled={name: s.get("cond_scaled") for name, s in (doc.get("steps") or {}).items()},
+                   well_identified=tuple(doc.get("well_identified") or ()),
+                   axis_gain_spread_percent=doc.get("axis_gain_spread_percent") or {},
+                   axis_residual_ratio=doc.get("axis_residual_ratio") or {},
+                   force_lag_s=doc.get("force_lag_s") or {}, force_lag_sigma_s=doc.get("force_lag_sigma_s") or {},
+                   axes_judged=tuple(doc.get("axes_judged") or ()))
+
+
+@dataclass(frozen=True)
+class PredictionMetrics:
+    """How well one parameter set predicts the measured forces of one trajectory
+    (:func:`ident_hw.identification.metrics.validation_metrics`): per actuator the RMS error
+    ``rms`` (its force unit, N·m or N) and ``nrms_percent`` (% of the RMS force); ``d_tau_percent``
+    (%, mean relative error of the force vector) and ``j_rmse`` (mixed units). NaN when nothing of
+    the trajectory could be fitted."""
+
+    rms: Mapping[str, float]
+    nrms_percent: Mapping[str, float]
+    d_tau_percent: float
+    j_rmse: float
+
+    def to_json(self) -> dict:
+        return {"rms": dict(self.rms), "nrms_percent": dict(self.nrms_percent), "d_tau_percent": self.d_tau_percent,
+                "j_rmse": self.j_rmse}
+
+
+@dataclass(frozen=True)
+class TrajectoryMetrics:
+    """The force prediction on one trajectory: its ``role`` (``identification`` or
+    ``validation``), the ``samples`` fitted, the prediction of the step-by-step parameters
+    (``stepwise``, whose keys the JSON holds at the top level) and of the base-parameter fit
+    (``base_fit``; None without one)."""
+
+    role: str
+    samples: int
+    stepwise: PredictionMetrics
+    base_fit: PredictionMetrics | None = None
+
+    def to_json(self) -> dict:
+        doc = {"role": self.role, "samples": self.samples, **self.stepwise.to_json()}
+        if self.base_fit is not None:
+            doc["base_fit"] = self.base_fit.to_json()
+        return doc
