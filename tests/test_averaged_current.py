@@ -230,6 +230,7 @@ def _rows(folder: Path) -> dict:
     return {r["name"]: r for r in json.loads((folder / "parameters.json").read_text())["parameters"]}
 
 
+@pytest.mark.slow
 def test_a_campaign_on_averaged_currents_records_the_average_and_identifies_the_truth(tmp_path):
     """The carriage sweep run twice on the simulated rig, streaming the instantaneous then the
     averaged current. The second recording says it holds averaged currents and holds, to the

@@ -33,6 +33,7 @@ def loopback_multicast_works(group: str) -> bool:
         return False
 
 
+@pytest.mark.slow
 def test_run_against_the_rig_in_another_process_over_udp_gives_the_in_process_answer(start_process, tmp_path):
     from drivers.recording import Recording
     from ident_hw.config import load_config

@@ -51,6 +51,7 @@ def two_r_base(pi: dict[str, float]) -> dict[str, float]:
     return base
 
 
+@pytest.mark.slow
 def test_the_2r_job_identifies_the_textbook_base_parameters_by_three_models(tmp_path):
     config = CONFIGS / "sim-2r.yaml"
     out = tmp_path / "2r"
@@ -135,6 +136,7 @@ def exported_forces_match_the_base_fit(results: Path, exported: Path, mujoco_loa
     assert model.nbody >= len(robot.body_names)
 
 
+@pytest.mark.slow
 def test_a_short_stewart_campaign_identifies_the_legs_friction(tmp_path):
     """The shipped Stewart config with 30 s of excitation: every cycle recorded, each leg's
     viscous and Coulomb friction within 2 % or 3σ of the truth, the base parameters' prediction

@@ -56,6 +56,7 @@ def _disturb_sync(monkeypatch, seed: int) -> None:
     monkeypatch.setattr(bus_module.BusNetwork, "send_periodic", send_periodic)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("attempt", [1, 2, 3])
 def test_a_disturbed_sync_ends_within_5_percent_or_degraded(tmp_path, monkeypatch, attempt):
     path = tmp_path / "disturbed.yaml"

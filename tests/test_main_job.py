@@ -202,6 +202,7 @@ def test_the_report_shows_the_numbers_of_parameters_json(main_job):
         assert float(row[z_column]) == pytest.approx(z, abs=0.0051), (name, row[z_column], z)
 
 
+@pytest.mark.slow
 def test_an_epos2_rig_identifies_the_carriages(tmp_path):
     """The same rig on EPOS2 drives (16-bit current, position mode -1 with set-points in 0x2062,
     homing method 35), through ``run``: the paper's carriage sweep at 250 Hz identifies ``m_c``
@@ -256,6 +257,7 @@ def test_the_online_estimate_at_the_end_agrees_with_the_offline_base_fit(main_jo
     assert "I_l1" in held and "I_l2" in held
 
 
+@pytest.mark.slow
 def test_svd_dls_tracks_a_payload_added_mid_run(tmp_path):
     """The optimised excitation at 100 Hz with 0.3 kg and 5e-4 kg·m² put on the end-effector
     10 s in: the SVD-DLS estimates of the two base parameters holding m_ee and I_ee settle within
@@ -292,6 +294,7 @@ def test_svd_dls_tracks_a_payload_added_mid_run(tmp_path):
     assert (folder / "plots" / "online.png").is_file()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rate", [0.0002, 0.002])
 def test_identify_from_raw_logs_with_late_and_lost_frames_is_right_or_degraded(main_job, tmp_path, rate):
     """The run's raw CAN logs with frames disturbed as a busy bus would: a share ``rate`` of the
@@ -350,6 +353,7 @@ def test_identify_from_raw_logs_with_late_and_lost_frames_is_right_or_degraded(m
         assert doc["quality"]["reasons"]
 
 
+@pytest.mark.slow
 def test_a_run_with_one_percent_of_cycles_incomplete_keeps_its_rows_and_its_accuracy(main_job, tmp_path):
     """The excitation's raw log with one TPDO frame lost in a seeded 1 % of its SYNC cycles, any
     TPDO of any drive alike (so lone velocity frames and lone position + current frames), decoded

@@ -51,6 +51,7 @@ def rig_states(folder: Path) -> list[str]:
     return list(json.loads((folder / "data" / "drives.json").read_text())["rig"].values())
 
 
+@pytest.mark.slow
 def test_run_then_identify_from_its_raw_can_log_gives_the_same_result(tmp_path):
     config = short_config(tmp_path)
     run = ident_hw("run", config, "--out", tmp_path / "run", "--quiet", cwd=tmp_path)
@@ -150,6 +151,7 @@ def test_a_fault_injection_on_an_unknown_trajectory_is_a_config_error(tmp_path):
     assert "sim.fault.trajectory" in out.stderr and "'nope'" in out.stderr
 
 
+@pytest.mark.slow
 def test_scan_monitor_home_and_online_on_the_simulated_rig(tmp_path):
     config = short_config(tmp_path)
     scan = ident_hw("scan", config, "--wait", "0.5", cwd=tmp_path)

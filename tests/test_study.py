@@ -42,6 +42,7 @@ def outcome(folder: Path, i: int) -> dict:
     return json.loads(run_file(folder, i).read_text())
 
 
+@pytest.mark.slow
 def test_runs_on_two_worker_processes_equal_the_same_runs_in_this_process(tmp_path):
     pytest.importorskip("distributed")
     config = short_config(tmp_path)
@@ -57,6 +58,7 @@ def test_runs_on_two_worker_processes_equal_the_same_runs_in_this_process(tmp_pa
     assert outcome(tmp_path / "here", 0)["estimates"] != outcome(tmp_path / "here", 1)["estimates"]
 
 
+@pytest.mark.slow
 def test_run_zero_is_the_configs_own_campaign_and_a_study_continues_where_it_stopped(tmp_path):
     config = short_config(tmp_path)
     folder = tmp_path / "study"

@@ -44,6 +44,7 @@ def campaign(request):
     return config, plan(config, online=True)
 
 
+@pytest.mark.slow
 def test_check_accepts_every_trajectory_and_run_cyclic_streams_it_without_a_limit_stop(campaign):
     config, planned = campaign
     axes = drive_axes(config)
@@ -60,6 +61,7 @@ def test_check_accepts_every_trajectory_and_run_cyclic_streams_it_without_a_limi
             assert low <= counts[:, j].min() and counts[:, j].max() <= high, (p.config.name, a.name)
 
 
+@pytest.mark.slow
 def test_run_streams_byte_for_byte_the_set_points_check_validated(campaign):
     """``ident-hw run`` plans in its own process: the same set-points, bit for bit, as the check's."""
     config, planned = campaign
