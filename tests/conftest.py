@@ -36,6 +36,7 @@ def _shares_a_module_fixture(item) -> bool:
                                     for defs in info.name2fixturedefs.values() for d in defs)
 
 
+@pytest.hookimpl(tryfirst=True)      # before pytest-xdist's own, which reads the groups
 def pytest_collection_modifyitems(config, items):
     """Group the tests that share a module fixture (``xdist_group``, one worker builds it) and
     hand out the slow work first (a unit's weight: its slow tests; a group without any ahead of
