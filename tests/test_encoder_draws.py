@@ -15,6 +15,7 @@ from ident_hw.experiment.encoder import count_shifts, reread, smoothed_positions
 from ident_hw.experiment.offline import fit_base
 
 from ident_scenarios import CONFIGS
+from ident_hw.config.to_drivers import encoder_edge_counts
 
 RATE = 250.0
 
@@ -104,11 +105,11 @@ def _sim_config(tmp_path, extra: str):
 
 
 def test_sim_encoder_edges_fixed_by_default_random_from_the_seed(tmp_path):
-    assert np.array_equal(_sim_config(tmp_path, "").sim.encoder_edge_counts(6), np.zeros(6))
+    assert np.array_equal(encoder_edge_counts(_sim_config(tmp_path, "").sim, 6), np.zeros(6))
     five = _sim_config(tmp_path, "sim: {seed: 5, encoder_edges: random}").sim
     six = _sim_config(tmp_path, "sim: {seed: 6, encoder_edges: random}").sim
-    edges = five.encoder_edge_counts(6)
-    assert np.array_equal(edges, five.encoder_edge_counts(6))
-    assert np.all(np.abs(edges) <= 0.5) and not np.array_equal(edges, six.encoder_edge_counts(6))
+    edges = encoder_edge_counts(five, 6)
+    assert np.array_equal(edges, encoder_edge_counts(five, 6))
+    assert np.all(np.abs(edges) <= 0.5) and not np.array_equal(edges, encoder_edge_counts(six, 6))
     with pytest.raises(ConfigError, match="encoder_edges"):
         _sim_config(tmp_path, "sim: {encoder_edges: sometimes}")

@@ -32,6 +32,9 @@ from ident_hw.results import BaseFit, OnlineTrace
 
 from .offline import prepare
 from .plan import robot_model
+from ident_hw.config.robots import initial_parameters, true_parameters
+from ident_hw.config.to_drivers import axis_scaling
+from ident_hw.config.to_identification import online_scales
 
 #: the estimator whose estimates are printed and judged; the others are baselines
 MAIN = "SVD-DLS"
@@ -48,8 +51,8 @@ class CampaignEstimator:
         self.show = show
         online = config.identification.online
         physical = self.robot.parameter_names
-        cad = config.robot.initial_parameters()
-        scale = np.array(online.parameter_scales(physical, cad))
+        cad = initial_parameters(config.robot)
+        scale = np.array(online_scales(online, physical, cad))
         basis = self.robot.readable_base()
         if basis is None:      # the physical parameters (their base ones follow from the data)
             self._kept, self._columns, self._H = None, None, None
@@ -60,7 +63,7 @@ class CampaignEstimator:
             self.names = tuple(format_combination(h, physical) for h in self._H)
             self.units = tuple(map(self.robot.parameter_unit, self._kept))
             self.cad, self.scale = self._H @ cad, np.abs(self._H) @ scale
-        force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
+        force_per_amp = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])
         self.output_std = online.output_noise * force_per_amp
         n = len(self.names)
         common = {"forgetting": online.forgetting, "scale": self.scale, "output_std": self.output_std}
@@ -85,7 +88,7 @@ class CampaignEstimator:
 
     def _truth_at(self, name: str, t: np.ndarray) -> np.ndarray | None:
         """(M, n) the simulated truth at the trajectory's times ``t`` (s from its start)."""
-        true = self.config.true_parameters()
+        true = true_parameters(self.config)
         if true is None:
             return None
         truth = np.tile(true, (len(t), 1))
