@@ -52,8 +52,9 @@ class OnlineConfig:
     the outputs, so that ``threshold`` means the same for every direction (100 ⇔ a relative
     standard deviation of 10 % of the scale). Scales: ``scales`` per parameter name, friction
     kind (``fv_zeta`` ...) or drive term (``fv``), else the magnitude of the CAD value, else
-    :data:`FRICTION_SCALES`, else (a body parameter) the largest CAD magnitude of its family
-    (:data:`BODY_PARAMETER_FAMILIES`).
+    :data:`~ident_hw.config.scales.FRICTION_SCALES`, else (a body parameter) the largest CAD
+    magnitude of its family (:data:`~ident_hw.config.scales.BODY_PARAMETER_FAMILIES`), by
+    :func:`~ident_hw.config.to_identification.online_scales`.
     """
 
     forgetting: float = field(default=0.999, metadata=spec(in_range(0.5, 1.0)))

@@ -10,8 +10,8 @@ comparing ``robot.kind`` with names; this module is the only place that does (a 
 Three kinds: ``3prrr`` and ``delta`` (hand-derived models, :mod:`ident_hw.model`) and
 ``described``: any robot from its description file (:class:`ident_hw.model.described.DescribedRobot`),
 settings in ``robot.described`` (:class:`~ident_hw.config.described.DescribedConfig`), true
-parameters in ``sim.parameters`` (:class:`~ident_hw.config.described.ParameterSetConfig`). Adding a robot of this kind is a description
-file and a config, no code.
+parameters in ``sim.parameters`` (:class:`~ident_hw.config.described.ParameterSetConfig`).
+Adding a robot of this kind is a description file and a config, no code.
 """
 
 from __future__ import annotations

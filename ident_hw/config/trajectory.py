@@ -62,6 +62,8 @@ class TrajectoryConfig:
     ``online_only``: streamed only for the online estimators (``ident-hw online``, or ``run``
     with ``identification.online.in_run``), after the others; otherwise ``run`` leaves it out. ``payload``: on the in-process simulated rig, a payload added during this trajectory
     (:class:`PayloadConfig`), e.g. on an ``online_only`` one for the online estimators to track.
+    A key the trajectory's kind does not read (:data:`KEYS_OF_KIND`, :data:`COMMON_KEYS`) is
+    refused rather than ignored.
     """
 
     name: str

@@ -6,7 +6,7 @@ identification (stretches cut at gaps, filter, derivatives, regressor, parallel 
 and then, sample by sample in time order, into the three estimators. The rows of an axis near
 rest are left out, as in the offline fits (``identification.min_speed``): the smoothed Coulomb
 term does not describe friction there. Parameters are scaled by
-:meth:`ident_hw.config.OnlineConfig.parameter_scales` (CAD magnitudes, friction magnitudes by
+:func:`ident_hw.config.to_identification.online_scales` (CAD magnitudes, friction magnitudes by
 kind) and forces by ``identification.online.output_noise`` times each axis' force per ampere,
 so that the SVD-DLS threshold reads as a relative standard deviation. The estimates start at
 the CAD values with no information: a direction the data have not excited yet stays there.
