@@ -6,7 +6,7 @@
     to_drivers.axis_scaling(cfg.robot.actuators[3])  # drivers.units.AxisScaling
 
 The sections are plain data, one module per family (:mod:`.robot` and the robots' own
-:mod:`.threeprrr`, :mod:`.delta`, :mod:`.described`; :mod:`.actuators`, :mod:`.bus`, :mod:`.sim`,
+:mod:`.robot_3prrr`, :mod:`.robot_delta`, :mod:`.robot_described`; :mod:`.actuators`, :mod:`.bus`, :mod:`.sim`,
 :mod:`.trajectory`, :mod:`.identification`; the whole file :mod:`.file`), read by the generic
 :mod:`.schema` from what :mod:`.source` composes; their cross-field rules are :mod:`.checks`. The
 adapters turn them into the objects of the layers below, in those layers' own types:
@@ -24,16 +24,16 @@ import yaml
 from .actuators import ActuatorConfig, HomingConfig, LimitsConfig
 from .bus import BusConfig
 from .checks import CHECKS
-from .delta import DeltaConfig, DeltaGeometryConfig, DeltaParametersConfig
-from .described import DescribedConfig, ParameterSetConfig
 from .file import Config, OutputConfig
 from .identification import (FilterConfig, IdentificationConfig, OnlineConfig, PhysicalConfig, QualityConfig,
                              StepConfig)
 from .robot import RobotConfig, SafetyConfig
+from .robot_3prrr import GeometryConfig, InertialConfig
+from .robot_delta import DeltaConfig, DeltaGeometryConfig, DeltaParametersConfig
+from .robot_described import DescribedConfig, ParameterSetConfig
 from .schema import ConfigError, build
 from .sim import SimConfig, SimFaultConfig
 from .source import compose_file
-from .threeprrr import GeometryConfig, InertialConfig
 from .trajectory import PayloadConfig, TrajectoryConfig
 
 __all__ = [

@@ -19,15 +19,15 @@ from ident_hw.model.delta import BODIES, BODY_PARAMS
 from ident_hw.model.interface import RobotModel
 
 from .actuators import ActuatorConfig
-from .delta import DeltaParametersConfig
 from .file import Config
 from .identification import IdentificationConfig, OnlineConfig, PhysicalConfig
 from .robot import RobotConfig
+from .robot_3prrr import GeometryConfig
+from .robot_delta import DeltaParametersConfig
 from .robots import COMMON_TRAJECTORY_KINDS, RobotKind, check_parameter_set, kind_of, model_of
 from .scales import check_scales, drive_term, parameter_kind
 from .schema import FieldError
 from .sim import TRUTH_KEYS
-from .threeprrr import GeometryConfig
 from .trajectory import COMMON_KEYS, KEYS_OF_KIND, TrajectoryConfig
 
 

@@ -6,10 +6,10 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from .actuators import ActuatorConfig
-from .delta import DeltaConfig
-from .described import DescribedConfig
+from .robot_3prrr import GeometryConfig, InertialConfig
+from .robot_delta import DeltaConfig
+from .robot_described import DescribedConfig
 from .schema import in_range, positive, spec
-from .threeprrr import GeometryConfig, InertialConfig
 
 
 @dataclass(frozen=True)

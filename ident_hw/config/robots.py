@@ -9,8 +9,8 @@ comparing ``robot.kind`` with names; this module is the only place that does (a 
 
 Three kinds: ``3prrr`` and ``delta`` (hand-derived models, :mod:`ident_hw.model`) and
 ``described``: any robot from its description file (:class:`ident_hw.model.described.DescribedRobot`),
-settings in ``robot.described`` (:class:`~ident_hw.config.described.DescribedConfig`), true
-parameters in ``sim.parameters`` (:class:`~ident_hw.config.described.ParameterSetConfig`).
+settings in ``robot.described`` (:class:`~ident_hw.config.robot_described.DescribedConfig`), true
+parameters in ``sim.parameters`` (:class:`~ident_hw.config.robot_described.ParameterSetConfig`).
 Adding a robot of this kind is a description file and a config, no code.
 """
 
@@ -29,7 +29,7 @@ from ident_hw.model.pseudo_inertia import SPATIAL
 from trajectories import delta_paper, joint_space
 
 from . import to_model
-from .described import ParameterSetConfig
+from .robot_described import ParameterSetConfig
 from .schema import FieldError
 from .to_trajectories import actuator_limits, excitation_of, feasibility_limits
 

@@ -7,10 +7,10 @@ from typing import Literal
 
 from drivers.cia import NODE_ID_MAX, NODE_ID_MIN
 
-from .delta import DeltaParametersConfig
-from .described import ParameterSetConfig
+from .robot_3prrr import InertialConfig
+from .robot_delta import DeltaParametersConfig
+from .robot_described import ParameterSetConfig
 from .schema import in_range, non_negative, positive, spec
-from .threeprrr import InertialConfig
 
 #: the keys of ``sim`` that hold some robot kind's true parameters
 TRUTH_KEYS = ("truth", "delta_truth", "parameters")

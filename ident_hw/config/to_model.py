@@ -12,9 +12,9 @@ import numpy as np
 from ident_hw.model import Delta, DeltaGeometry, Geometry, InertialParams
 from ident_hw.model.delta import physical_parameters
 
-from .delta import DeltaGeometryConfig, DeltaParametersConfig
-from .described import ParameterSetConfig
-from .threeprrr import GeometryConfig, InertialConfig
+from .robot_3prrr import GeometryConfig, InertialConfig
+from .robot_delta import DeltaGeometryConfig, DeltaParametersConfig
+from .robot_described import ParameterSetConfig
 
 if TYPE_CHECKING:  # pinocchio, which described imports, is imported by described robots only
     from ident_hw.model.described import DescribedRobot
