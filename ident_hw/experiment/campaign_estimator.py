@@ -25,6 +25,9 @@ import numpy as np
 
 from drivers.recording import Recording
 from ident_hw.config import Config
+from ident_hw.config.robots import initial_parameters, true_parameters
+from ident_hw.config.to_drivers import axis_scaling
+from ident_hw.config.to_identification import online_scales
 from ident_hw.identification import RLS, SVDDLS, DampedRLS, base_parameters
 from ident_hw.identification.base_params import on_kept
 from ident_hw.model.combinations import format_combination
@@ -32,9 +35,6 @@ from ident_hw.results import BaseFit, OnlineTrace
 
 from .offline import prepare
 from .plan import robot_model
-from ident_hw.config.robots import initial_parameters, true_parameters
-from ident_hw.config.to_drivers import axis_scaling
-from ident_hw.config.to_identification import online_scales
 
 #: the estimator whose estimates are printed and judged; the others are baselines
 MAIN = "SVD-DLS"

@@ -12,10 +12,10 @@ from pathlib import Path
 
 from drivers.errors import ConfigError, RecordingError
 from ident_hw.config import load_config
+from ident_hw.config.robots import model_of
 from ident_hw.model.described import DescribedRobot
 from ident_hw.model.description_writer import write_description
 from ident_hw.results import load_results
-from ident_hw.config.robots import model_of
 
 
 def export_description(results_folder: str | Path, to: str | Path, for_mujoco: bool = False) -> Path:

@@ -27,8 +27,11 @@ from drivers.errors import RecordingError
 from drivers.profiles import AveragingFilter, get_profile
 from drivers.recording import Recording
 from ident_hw.config import Config
-from ident_hw.config.schema import FieldError
 from ident_hw.config.identification import IdentificationConfig
+from ident_hw.config.robots import initial_parameters, true_parameters
+from ident_hw.config.schema import FieldError
+from ident_hw.config.to_drivers import axis_scaling
+from ident_hw.config.to_identification import filter_settings, physical_scales, step_parameters
 from ident_hw.identification.base_params import (base_parameters, column_scale, identify_base, on_kept,
                                                   scaled_condition)
 from ident_hw.identification.least_squares import check_regression_data, ols, stack, wls
@@ -47,9 +50,6 @@ from .encoder import count_shifts, reread, smoothed_positions, spread_covariance
 from .plan import motion_bandwidth, robot_model
 from .quality import verdict
 from .recordings import identification_valid, planned_cycles, require_trajectories
-from ident_hw.config.robots import initial_parameters, true_parameters
-from ident_hw.config.to_drivers import axis_scaling
-from ident_hw.config.to_identification import filter_settings, physical_scales, step_parameters
 
 #: rows a stretch needs beyond the filters' support at its two ends
 MIN_FILTERED = 8

@@ -35,10 +35,10 @@ from typing import Sequence
 import numpy as np
 
 from ident_hw.config import ActuatorConfig, QualityConfig
+from ident_hw.config.to_drivers import axis_scaling
 from ident_hw.identification.metrics import validation_metrics
 from ident_hw.records import TrajectoryVerdict, Verdict
 from ident_hw.results import Results
-from ident_hw.config.to_drivers import axis_scaling
 
 
 #: a lag counts when it exceeds its threshold and this many of its standard errors

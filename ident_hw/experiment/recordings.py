@@ -19,9 +19,9 @@ import numpy as np
 from drivers.errors import RecordingError
 from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log
 from ident_hw.config import Config
+from ident_hw.config.to_drivers import axis_config, axis_scaling
 
 from .plan import plan
-from ident_hw.config.to_drivers import axis_config, axis_scaling
 
 #: drive-scaling fields compared between a recording and the config (drivers.units.AxisScaling)
 SCALING_FIELDS = ("kind", "counts_per_turn", "torque_constant", "gear_ratio", "screw_lead")

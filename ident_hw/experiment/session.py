@@ -27,9 +27,9 @@ from drivers.sim.lockstep import LockstepSync
 from drivers.sync import PeriodicSync, SyncSource
 from drivers.units import MA_PER_AMP
 from ident_hw.config import Config
-from ident_hw.experiment.plan import drive_axes, robot_model, sync_period
 from ident_hw.config.robots import true_parameters
 from ident_hw.config.to_drivers import axis_scaling, bus_settings, encoder_edge_counts
+from ident_hw.experiment.plan import drive_axes, robot_model, sync_period
 
 if TYPE_CHECKING:     # the rig (its compiled plant) is imported where one is built
     from drivers.sim import SimulatedRig
