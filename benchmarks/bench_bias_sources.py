@@ -48,6 +48,8 @@ from ident_hw.experiment.offline import identify, prepare  # noqa: E402
 from ident_hw.experiment.plan import plan, robot_model  # noqa: E402
 from ident_hw.identification.base_params import column_scale, identify_base  # noqa: E402
 from ident_scenarios import follow_targets  # noqa: E402
+from ident_hw.config.robots import true_parameters
+from ident_hw.config.to_drivers import axis_scaling
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "sim-3prrr.yaml"
 SOURCES = ("exact", "setpoints", "rig", "phase")
@@ -71,7 +73,7 @@ def base_only_config(config_path: Path, trajectory: str, cutoff: float | None, o
 def plant_motion(config, targets: np.ndarray, theta0: np.ndarray) -> dict:
     """The truth log of the config's plant following ``targets`` (N, a) at the SYNC rate."""
     sim = config.sim
-    plant = Plant(robot_model(config), config.true_parameters(), theta0, bandwidth_hz=sim.bandwidth,
+    plant = Plant(robot_model(config), true_parameters(config), theta0, bandwidth_hz=sim.bandwidth,
                   damping=sim.damping, max_substep=sim.max_substep or DEFAULT_MAX_SUBSTEP)
     follow_targets(plant, targets[:-1], 1.0 / config.bus.sync_rate)
     return plant.truth()
@@ -116,8 +118,8 @@ def summary(label: str, expressions, errors: np.ndarray, sigmas: np.ndarray, tru
 def sensed(config, source: str, truth_log: dict, targets: np.ndarray, run: int) -> Recording:
     """What run ``run`` records of the plant's ``truth_log`` under ``source`` (module docstring):
     currents with the config's noise in whole mA, positions exact or in whole counts."""
-    counts = np.array([a.scaling().counts_per_unit for a in config.robot.actuators])
-    force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
+    counts = np.array([axis_scaling(a).counts_per_unit for a in config.robot.actuators])
+    force_per_amp = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])
     t, n, axes = truth_log["t"], len(truth_log["t"]), counts.size
     rng = np.random.default_rng(run)
     phase = rng.uniform(-0.5, 0.5, axes) if source == "phase" else 0.0
@@ -173,7 +175,7 @@ def main() -> None:
         config = base_only_config(args.config, args.trajectory, args.cutoff, args.order, Path(tmp), args.encoder_draws)
     (planned,) = plan(config, [args.trajectory])
     traj = planned.trajectory
-    counts = np.array([a.scaling().counts_per_unit for a in config.robot.actuators])
+    counts = np.array([axis_scaling(a).counts_per_unit for a in config.robot.actuators])
     print(f"{args.config.name}, {args.trajectory}: {len(traj.t)} cycles at {config.bus.sync_rate:g} Hz, "
           f"current noise {1000 * config.sim.current_noise:g} mA, filter {config.identification.filter}, "
           f"encoder draws {config.identification.encoder_draws}")

@@ -19,6 +19,7 @@ from ident_hw.config import load_config
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import described_hand as dh  # noqa: E402
+from ident_hw.config.robots import initial_parameters, model_of
 
 CONFIGS = "configs"
 SAMPLES = 2000
@@ -46,7 +47,7 @@ def hand_and_described(name: str):
     (home from the hand model's kinematics, through the tests' maps of the two trees)."""
     from ident_hw.model.described import DescribedRobot
 
-    hand = load_config(f"{CONFIGS}/robot-{name}.yaml").robot.to_model()
+    hand = model_of(load_config(f"{CONFIGS}/robot-{name}.yaml").robot)
     if name == "3prrr":
         X0 = np.zeros((1, 3))
         theta, beta = hand.inverse_kinematics(X0, X0)
@@ -69,7 +70,7 @@ def main():
         guess = np.tile(start, (SAMPLES, 1))
         t_hand = per_call(lambda: hand.identification_regressor(Theta, Thetad, Thetadd, guess), SAMPLES)
         t_gen = per_call(lambda: described.identification_regressor(Theta, Thetad, Thetadd, None), SAMPLES)
-        pi_hand = load_config(f"{CONFIGS}/robot-{name}.yaml").robot.initial_parameters()
+        pi_hand = initial_parameters(load_config(f"{CONFIGS}/robot-{name}.yaml").robot)
         pi = described.nominal_parameters()
         q = described.pose(Theta[1], None)
         p_hand = per_call(lambda: [hand.plant_dynamics(Theta[1], Thetad[1], pi_hand, start) for _ in range(200)], 200)
@@ -77,7 +78,7 @@ def main():
         print(f"  {name:8s} hand-made {t_hand:8.1f} µs, generic {t_gen:8.1f} µs ({t_gen / t_hand:5.0f}x); "
               f"plant_dynamics hand-made {p_hand:6.1f} µs, generic {p_gen:6.1f} µs")
     for name in ("stewart", "2r"):
-        robot = load_config(f"{CONFIGS}/robot-{name}.yaml").robot.to_model()
+        robot = model_of(load_config(f"{CONFIGS}/robot-{name}.yaml").robot)
         amplitude = np.full(len(robot.actuator_names), 0.03 if name == "stewart" else 0.5)
         Theta, Thetad, Thetadd = smooth_motion(robot.home_actuated(), amplitude)
         t_gen = per_call(lambda: robot.identification_regressor(Theta, Thetad, Thetadd, None), SAMPLES)

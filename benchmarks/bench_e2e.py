@@ -37,11 +37,12 @@ from drivers.cia import SYNC_COB_ID
 from drivers.bus import BusConfig, check_bus_load, cycle_bits, frame_bits, max_sync_rate, open_network
 from drivers.epos import DriveGroup
 from drivers.sim import Plant, SimulatedRig
-from ident_hw.config import load_config
+from ident_hw.config import load_config, to_model
 from ident_hw.model import ThreePRRR
+from ident_hw.config.to_drivers import axis_config
 
 CONFIG = load_config(Path(__file__).resolve().parent.parent / "configs" / "sim-3prrr.yaml")
-AXES = [dataclasses.replace(a.to_driver(), profile="epos2" if i < 3 else "epos4")
+AXES = [dataclasses.replace(axis_config(a), profile="epos2" if i < 3 else "epos4")
         for i, a in enumerate(CONFIG.robot.actuators)]
 BITRATE = 1_000_000
 DRAIN_TIMEOUT = 120.0  # s to let the rig work off its backlog after a run
@@ -111,9 +112,9 @@ def stats_us(x: np.ndarray) -> str:
 def run(rate_hz: float, seconds: float, index: int) -> dict:
     period = 1.0 / rate_hz
     channel = f"bench-e2e-{index}"
-    robot = ThreePRRR(CONFIG.robot.geometry.to_model(), coulomb_width=CONFIG.robot.coulomb_width)
+    robot = ThreePRRR(to_model.geometry(CONFIG.robot.geometry), coulomb_width=CONFIG.robot.coulomb_width)
     rig = SimulatedRig([(a.node_id, a.profile, a.scaling) for a in AXES],
-                       Plant(robot, CONFIG.sim.truth.to_model()), seed=1, current_noise_ma=2.0,
+                       Plant(robot, to_model.inertial_params(CONFIG.sim.truth)), seed=1, current_noise_ma=2.0,
                        interface="virtual", channel=channel, ignore_config=True).start()
     network = open_network(BusConfig("virtual", channel, ignore_config=True))
     group = DriveGroup(network, AXES, sdo_timeout=10.0)   # SDO waits behind the rig's SYNC backlog at 1 kHz

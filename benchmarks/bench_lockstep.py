@@ -37,6 +37,8 @@ from drivers.epos import DriveGroup
 from drivers.sim.lockstep import LockstepSync
 from ident_hw.config import load_config
 from ident_hw.experiment.session import simulated_rig
+from ident_hw.config.to_drivers import axis_config
+from ident_hw.config.to_trajectories import actuator_limits
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "sim-3prrr.yaml"
 #: the main job's sinusoid amplitudes (rad, m), as measured since the first figures
@@ -54,7 +56,7 @@ def run(seconds: float, rate_hz: float, path: Path = CONFIG, drop: float = 0.0) 
     config = dataclasses.replace(config, bus=dataclasses.replace(config.bus, sync_rate=rate_hz,
                                                                  channel="bench-lockstep"))
     period = 1.0 / rate_hz
-    axes = [a.to_driver() for a in config.robot.actuators]
+    axes = [axis_config(a) for a in config.robot.actuators]
     rig = simulated_rig(config).start()
     network = open_network(BusConfig("virtual", config.bus.channel, ignore_config=True))
     group = DriveGroup(network, axes, sync=LockstepSync(period))
@@ -63,7 +65,7 @@ def run(seconds: float, rate_hz: float, path: Path = CONFIG, drop: float = 0.0) 
         group.home()
         start = group.positions()
         t = np.arange(round(seconds / period)) * period
-        limits = config.robot.actuator_limits()
+        limits = actuator_limits(config.robot)
         room = np.minimum(start - limits.low, limits.high - start)
         amplitude = MAIN_JOB_AMPLITUDE if Path(path) == CONFIG else 0.1 * room
         targets = start + np.sin(2 * np.pi * 0.5 * t)[:, None] * np.sin(np.pi * t / t[-1])[:, None] * amplitude

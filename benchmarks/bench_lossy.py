@@ -21,6 +21,8 @@ from ident_hw.experiment.offline import identify  # noqa: E402
 from ident_hw.experiment.recordings import load_recording  # noqa: E402
 from lossy_logs import drop_frames  # noqa: E402
 from test_main_job import BIAS_BUDGET, evaluate  # noqa: E402
+from ident_hw.config.robots import model_of, true_parameters
+from ident_hw.config.to_drivers import axis_config
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "sim-3prrr.yaml"
 
@@ -33,8 +35,8 @@ def main(folder: Path, shares: list[float], seeds: list[int]) -> None:
                         "    - {name: base, trajectories: [excitation], parameters: [all], method: wls}\n"
                         "  validation: []\n")
         config = load_config(path)
-        truth = dict(zip(config.robot.to_model().parameter_names, config.true_parameters()))
-        layouts = master_layouts([a.to_driver() for a in config.robot.actuators])
+        truth = dict(zip(model_of(config.robot).parameter_names, true_parameters(config)))
+        layouts = master_layouts([axis_config(a) for a in config.robot.actuators])
         cycles = len(Recording.load(folder / "data" / "excitation.npz").t)
         for share in [0.0] + shares:
             for seed in seeds if share else [0]:

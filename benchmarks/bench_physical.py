@@ -17,6 +17,8 @@ import numpy as np
 from ident_hw.config import load_config
 from ident_hw.identification.base_params import base_parameters
 from ident_hw.identification.physical import consistent_parameters
+from ident_hw.config.robots import initial_parameters, model_of, true_parameters
+from ident_hw.config.to_identification import physical_scales
 
 CONFIGS = ("configs/sim-3prrr.yaml", "configs/sim-delta.yaml", "configs/sim-2r.yaml", "configs/sim-stewart.yaml")
 
@@ -32,7 +34,7 @@ def base_of(config, robot):
     Theta = home + 0.02 * rng.standard_normal((N, len(home)))
     Y, _ = robot.identification_regressor(Theta, rng.standard_normal(Theta.shape),
                                           rng.standard_normal(Theta.shape), np.zeros((N, robot.pose_size)))
-    return base_parameters(Y, robot.parameter_names, scale=np.maximum(np.abs(config.robot.initial_parameters()),
+    return base_parameters(Y, robot.parameter_names, scale=np.maximum(np.abs(initial_parameters(config.robot)),
                                                                       1e-3)).H
 
 
@@ -43,15 +45,15 @@ def main() -> None:
           f"{'q95':>6} {'min margin':>11}")
     for path in CONFIGS:
         config = load_config(path)
-        robot = config.robot.to_model()
+        robot = model_of(config.robot)
         names = robot.parameter_names
-        cad, truth = config.robot.initial_parameters(), config.true_parameters()
+        cad, truth = initial_parameters(config.robot), true_parameters(config)
         H = base_of(config, robot)
         beta = H @ truth
         sigma = 0.002 * np.maximum(np.abs(beta), 1e-3 * np.abs(beta).max())
         noisy = beta + sigma * np.random.default_rng(1).standard_normal(len(beta))
         typical = np.where(cad != 0, cad, truth)
-        scale = np.array(config.identification.physical.parameter_scales(names, np.where(typical != 0, typical, 1.0)))
+        scale = np.array(physical_scales(config.identification.physical, names, np.where(typical != 0, typical, 1.0)))
         for metric in ("euclidean", "entropic"):
             times = []
             for _ in range(5):

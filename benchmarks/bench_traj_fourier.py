@@ -14,10 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ident_hw.config import load_config
+from ident_hw.config import load_config, to_model
 from ident_hw.model import ThreePRRR
 from trajectories import carriage_sweep, check_trajectory, five_squares, validation_triangle
 from trajectories.fourier import optimise_excitation, stacked_regressor
+from ident_hw.config.to_trajectories import feasibility_limits
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -32,7 +33,7 @@ def main() -> None:
     parser.add_argument("--write", action="store_true", help="write trajectories/data/fourier-nominal.json")
     args = parser.parse_args()
     cfg = load_config(ROOT / "configs" / "robot-3prrr.yaml").robot
-    robot, limits = ThreePRRR(cfg.geometry.to_model(), cfg.coulomb_width), cfg.feasibility_limits()
+    robot, limits = ThreePRRR(to_model.geometry(cfg.geometry), cfg.coulomb_width), feasibility_limits(cfg)
 
     start = time.perf_counter()
     sweep, squares, triangle = (carriage_sweep(robot, limits), five_squares(robot, limits),

@@ -22,6 +22,8 @@ from drivers.sim.modes import Demand, cyclic_segment
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
 from ident_hw.experiment.plan import robot_model
 from ident_hw.model import InertialParams, ThreePRRR
+from ident_hw.config.robots import true_parameters
+from ident_hw.config.to_drivers import axis_scaling
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 #: a campaign of the paper's carriage sweep alone, identifying m_c and the carriage friction
@@ -236,13 +238,13 @@ def exact_recording(config, traj, max_substep: float | None) -> Recording:
     every period start: positions, velocities, forces as currents. No drive units, no noise."""
     period = 1.0 / config.bus.sync_rate
     sim = config.sim
-    plant = Plant(robot_model(config), config.true_parameters(), traj.Theta[0], bandwidth_hz=sim.bandwidth,
+    plant = Plant(robot_model(config), true_parameters(config), traj.Theta[0], bandwidth_hz=sim.bandwidth,
                   damping=sim.damping, max_substep=max_substep or DEFAULT_MAX_SUBSTEP)
     axes = traj.Theta.shape[1]
     follow_targets(plant, traj.Theta[:-1], period)
     truth = plant.truth()
     n = len(truth["t"])
-    force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
+    force_per_amp = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])
     return Recording(t=truth["t"], cycle=np.arange(n), position=truth["Theta"], velocity=truth["Thetad"],
                      current=truth["force"] / force_per_amp, statusword=np.zeros((n, axes), np.int32),
                      target=traj.Theta[:n], valid=np.ones((n, axes), bool), metadata={"sync_period": period})

@@ -5,6 +5,7 @@ run in a guest where numpy alone takes seconds."""
 
 import subprocess
 from pathlib import Path
+from ident_hw.config.robots import model_of, true_parameters
 
 
 def parameter_rows(folder: Path) -> dict:
@@ -18,7 +19,7 @@ def assert_step_identified(config, rows: dict) -> None:
     simulated truth, or within 3 sigma where the data excite it less (the sweep's viscous friction:
     %sigma ~3)."""
     (step,) = config.identification.steps
-    truth = dict(zip(config.robot.to_model().parameter_names, config.true_parameters()))
+    truth = dict(zip(model_of(config.robot).parameter_names, true_parameters(config)))
     for name in step.parameters:
         row = rows[name]
         assert row["step"] == step.name, name

@@ -33,6 +33,7 @@ from drivers.sim.drive import EmulatedDrive
 from ident_hw.config import ConfigError, load_config
 from ident_hw.experiment.plan import drive_axes
 from ident_hw.filtering import running_average
+from ident_hw.config.robots import model_of, true_parameters
 
 ROOT = Path(__file__).resolve().parent.parent
 SIM = ROOT / "configs" / "sim-3prrr.yaml"
@@ -260,7 +261,7 @@ def test_a_campaign_on_averaged_currents_records_the_average_and_identifies_the_
     assert np.abs(averaged.current[settled] * 1e3 - np.array(by_hand)[settled]).max() <= 1.0 + 1e-6
 
     config = load_config(_sweep_config(tmp_path, "averaged"))
-    truth = dict(zip(config.robot.to_model().parameter_names, config.true_parameters()))
+    truth = dict(zip(model_of(config.robot).parameter_names, true_parameters(config)))
     matched = _rows(tmp_path / "averaged")
     for name in ("m_c", "fv_zeta1", "fv_zeta2", "fv_zeta3", "fc_zeta1", "fc_zeta2", "fc_zeta3"):
         assert abs(matched[name]["identified"] - truth[name]) <= 3 * matched[name]["sigma"], (name, matched[name])

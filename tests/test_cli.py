@@ -14,9 +14,10 @@ import pytest
 import yaml
 
 from drivers.recording import Recording
-from ident_hw.config import load_config
+from ident_hw.config import load_config, to_model
 from ident_hw.experiment.offline import identify
 from ident_hw.experiment.plan import plan, robot_model
+from ident_hw.config.to_drivers import axis_scaling
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
@@ -73,10 +74,10 @@ def synthetic_recordings(config, folder: Path) -> list[Path]:
     """Recordings of the campaign as the drives would report them for a perfectly tracked motion:
     true-parameter forces as whole mA plus noise, positions in encoder counts (model-made data)."""
     robot = robot_model(config)
-    scal = [a.scaling() for a in config.robot.actuators]
+    scal = [axis_scaling(a) for a in config.robot.actuators]
     fpa = np.array([s.force_per_amp for s in scal])
     cpu = np.array([s.counts_per_unit for s in scal])
-    truth = config.sim.truth.to_model()
+    truth = to_model.inertial_params(config.sim.truth)
     rng = np.random.default_rng(3)
     paths = []
     for planned in plan(config):
@@ -163,7 +164,7 @@ def test_base_parameter_step_on_the_optimised_excitation(tmp_path):
     base = doc["base_fit"]
     assert len(base["rows"]) == 18 and base["held"] == [] and base["unexcited"] == []
     H = np.array(base["H"])
-    truth = config.sim.truth.to_model().as_vector()
+    truth = to_model.inertial_params(config.sim.truth).as_vector()
     # 18 rows from one noise draw: each row's bound is the z of a 1 % family-wise false alarm
     # (Bonferroni, two-sided), fixed before looking at the draw; the sigma are calibrated in
     # test_ident_noise (RMS z 1.08 over 12 draws)

@@ -15,6 +15,7 @@ from drivers.bus import open_network
 from ident_hw.config import load_config
 from ident_hw.experiment.inspection import nmt_state, read_node, scan
 from ident_hw.experiment.session import simulated_rig
+from ident_hw.config.to_drivers import bus_settings
 
 SIM = Path(__file__).resolve().parent.parent / "configs" / "sim-3prrr.yaml"
 
@@ -36,7 +37,7 @@ def test_nmt_state_rules():
 
 def test_scan_sees_boot_ups_sdo_answers_and_a_stopped_node(tmp_path):
     config = rig_config(tmp_path)
-    network = open_network(config.bus.to_driver())
+    network = open_network(bus_settings(config.bus))
     rig = simulated_rig(config)
     try:
         # 1. the drives power up during the scan: found by their boot-up messages, which give the state

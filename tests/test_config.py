@@ -8,7 +8,10 @@ from pathlib import Path
 import pytest
 import yaml
 
-from ident_hw.config import ConfigError, load_config, resolved_yaml
+from ident_hw.config import ConfigError, load_config, resolved_yaml, to_model
+from ident_hw.config.robots import initial_parameters, model_of
+from ident_hw.config.to_drivers import axis_scaling
+from ident_hw.config.to_trajectories import feasibility_limits
 from ident_hw.model import ThreePRRR
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
@@ -51,31 +54,31 @@ def expect_error(path: Path, key: str, line: int, *words: str) -> ConfigError:
 @pytest.mark.parametrize("name", sorted(p.name for p in CONFIGS.glob("*.yaml")))
 def test_every_shipped_config_loads(name):
     cfg = load_config(CONFIGS / name)
-    model = cfg.robot.to_model()
+    model = model_of(cfg.robot)
     assert [a.kind for a in cfg.robot.actuators] == list(model.actuator_kinds)
-    assert len(cfg.robot.initial_parameters()) == len(model.parameter_names)
+    assert len(initial_parameters(cfg.robot)) == len(model.parameter_names)
 
 
 def test_robot_values_map_to_model_and_drive_scaling():
     cfg = load_config(CONFIGS / "robot-3prrr.yaml")
-    geo = cfg.robot.geometry.to_model()
+    geo = to_model.geometry(cfg.robot.geometry)
     assert geo.gamma == pytest.approx((0.0, 2 * math.pi / 3, 4 * math.pi / 3))
     assert (geo.l1, geo.l2, geo.s1, geo.s2, geo.h, geo.a) == (0.30, 0.30, 0.15, 0.15, 0.12, 0.40)
-    cad = cfg.robot.cad.to_model()
+    cad = to_model.inertial_params(cfg.robot.cad)
     assert (cad.m_c, cad.m_l1, cad.m_l2, cad.m_ee) == (780.0, 0.30, 0.354, 0.78)
     # slender rod and disc formulas, computed here independently of the file's numbers
     assert cad.I_l1 == pytest.approx(0.30 * 0.30**2 / 12)
     assert cad.I_l2 == pytest.approx(0.354 * 0.30**2 / 12)
     assert cad.I_ee == pytest.approx(0.78 * 0.12**2 / 2)
-    carriage = cfg.robot.actuators[3].scaling()
+    carriage = axis_scaling(cfg.robot.actuators[3])
     assert carriage.kind == "prismatic" and carriage.screw_lead == 0.002
     assert carriage.force_per_amp == pytest.approx(0.0603 * 2 * math.pi / 0.002)
-    assert cfg.robot.feasibility_limits().carriage_stroke == 0.10
+    assert feasibility_limits(cfg.robot).carriage_stroke == 0.10
 
 
 def test_homing_offsets_are_the_home_pose_angles():
     cfg = load_config(CONFIGS / "robot-3prrr.yaml")
-    robot = ThreePRRR(cfg.robot.geometry.to_model())
+    robot = ThreePRRR(to_model.geometry(cfg.robot.geometry))
     theta, _ = robot.inverse_kinematics([[0.0, 0.0, 0.0]], [[0.0, 0.0, 0.0]])
     offsets = [a.homing.offset for a in cfg.robot.actuators[:3]]
     assert offsets == pytest.approx(theta[0], abs=1e-6)
@@ -230,12 +233,36 @@ def test_fourier_trajectory_defaults_to_the_shipped_excitation(tmp_path):
     assert abs(planned.trajectory.Thetad[[0, -1]]).max() < 1e-12
 
 
+@pytest.mark.parametrize("old, new, where", [
+    ("{name: sweep, kind: carriage_sweep, size: 0.06}",
+     "{name: sweep, kind: carriage_sweep, size: 0.06, rotation_deg: 10}", "trajectories[0].rotation"),
+    ("{name: square1, kind: square, size: 0.12,", "{name: square1, kind: square, harmonics: 3, size: 0.12,",
+     "trajectories[1].harmonics"),
+    ("{name: excitation, kind: fourier, cycles: 10}", "{name: excitation, kind: fourier, cycles: 10, speed_scale: 0.5}",
+     "trajectories[6].speed_scale"),
+    ("{name: triangle, kind: triangle}", "{name: triangle, kind: triangle, seed: 3}", "trajectories[7].seed"),
+])
+def test_a_key_its_trajectory_kind_does_not_read_is_refused(tmp_path, old, new, where):
+    """A key that the trajectory's kind would silently ignore is an error naming file, line and key."""
+    write(tmp_path, "robot-3prrr.yaml", ROBOT_TEXT)
+    assert old in SIM_TEXT
+    text = SIM_TEXT.replace(old, new, 1)
+    expect_error(write(tmp_path, "sim.yaml", text), where, line_of(text, new), "does not use", "ignored")
+
+
+def test_source_and_base_dir_are_given_by_the_loader_not_the_file(tmp_path):
+    config = load_config(CONFIGS / "sim-3prrr.yaml")
+    assert config.source == str(CONFIGS / "sim-3prrr.yaml") and config.base_dir == CONFIGS
+    path, text = robot_with(tmp_path, "robot:", "base_dir: elsewhere\nrobot:")
+    expect_error(path, "base_dir", line_of(text, "base_dir"), "unknown key")
+
+
 def test_path_only_for_file_and_fourier_trajectories(tmp_path):
     write(tmp_path, "robot-3prrr.yaml", ROBOT_TEXT)
     old = "{name: square1, kind: square, size: 0.12,"
     text = SIM_TEXT.replace(old, "{name: square1, kind: square, path: a.json, size: 0.12,")
     expect_error(write(tmp_path, "sim.yaml", text), "trajectories[1].path", line_of(text, "a.json"),
-                 "only 'file' and 'fourier'")
+                 "a 'square' trajectory does not use path", "ignored")
     text = SIM_TEXT.replace("kind: fourier, cycles: 10}", "kind: fourier, path: missing.json}")
     config = load_config(write(tmp_path, "sim.yaml", text))
     from ident_hw.experiment.plan import plan
@@ -288,4 +315,4 @@ def test_per_arm_amplitudes_are_for_the_delta_s_paths(tmp_path):
     expect_error(two, "trajectories[0].amplitude", 3, "one amplitude per arm", "got 2")
     square = write(tmp_path, "square.yaml", f"extends: {CONFIGS / 'sim-3prrr.yaml'}\ntrajectories:\n"
                    "  - {name: s, kind: square, size: 0.05, amplitude: [1.0, 1.0, 1.0]}\n")
-    expect_error(square, "trajectories[0].amplitude", 3, "one amplitude per arm", "'square'")
+    expect_error(square, "trajectories[0].amplitude", 3, "a 'square' trajectory does not use amplitude")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from ident_hw.config import ConfigError, load_config
-from ident_hw.config.robots import KINDS, kind_of
+from ident_hw.config.robots import KINDS, initial_parameters, kind_of, model_of, true_parameters
 from ident_hw.model.described import DescribedRobot
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
@@ -41,14 +41,14 @@ def expect_error(path: Path, key: str, needle: str, *words: str) -> None:
 
 def test_the_2r_config_is_its_description_with_the_config_s_actuators(tmp_path):
     cfg = load_config(setup(tmp_path))
-    model = cfg.robot.to_model()
+    model = model_of(cfg.robot)
     assert isinstance(model, DescribedRobot)
     assert model.actuator_names == ("shoulder", "elbow")
     assert model.actuated_joints == ("joint1", "joint2")
     assert model.path == tmp_path / "robots" / "2r.urdf"     # relative to the robot file that names it
     np.testing.assert_array_equal(model.home_actuated(), [0.0, 1.2])
     names = model.parameter_names
-    cad, truth = cfg.robot.initial_parameters(), cfg.true_parameters()
+    cad, truth = initial_parameters(cfg.robot), true_parameters(cfg)
     # CAD: the file's link 2 (2.0 kg at 0.15 m), the config's rotor inertias; truth: the factors
     assert cad[names.index("link2.m")] == pytest.approx(2.0)
     assert cad[names.index("link2.mx")] == pytest.approx(0.3)
@@ -63,7 +63,7 @@ def test_a_path_in_a_base_config_holds_in_the_config_extending_it(tmp_path):
     setup(tmp_path)
     sub.mkdir()
     (sub / "mine.yaml").write_text("extends: ../sim-2r.yaml\n")
-    assert load_config(sub / "mine.yaml").robot.to_model().path == tmp_path / "robots" / "2r.urdf"
+    assert model_of(load_config(sub / "mine.yaml").robot).path == tmp_path / "robots" / "2r.urdf"
 
 
 @pytest.mark.parametrize("old, new, key, needle, words", [
@@ -89,7 +89,9 @@ def test_robot_mistakes_name_file_key_and_line(tmp_path, old, new, key, needle, 
     ("fv: [0.30, 0.15]", "fv: [0.30]", "sim.parameters.fv", "fv:", ("one value per actuator",)),
     ("  parameters:               #", "  truth:                    #", "sim.truth.factors", "factors:",
      ("unknown key",)),
-    ("kind: joint_excitation, duration: 60.0", "kind: square, size: 0.1, duration: 60.0", "trajectories[0].kind",
+    # (without the excitation's keys: those a square does not read are refused first, each by its key)
+    ("kind: joint_excitation, duration: 60.0, bandwidth: 1.5, seed: 1", "kind: square, size: 0.1, bandwidth: 1.5",
+     "trajectories[0].kind",
      "square", ("not one of the described's", "joint_excitation")),
     ("duration: 20.0, bandwidth: 1.5, seed: 2}", "duration: 20.0, bandwidth: 1.5, seed: 2, amplitude: [1, 1, 1]}",
      "trajectories[1].amplitude", "amplitude", ("one amplitude per actuator (2)",)),

@@ -16,8 +16,9 @@ import numpy as np
 import pytest
 import yaml
 
-from ident_hw.config import load_config
+from ident_hw.config import load_config, to_model
 from ident_hw.model.delta import PARAM_NAMES, closed_form_base
+from ident_hw.config.robots import true_parameters
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "sim-delta.yaml"
 #: the accuracy claimed where the estimate's own statistics support it (%sigma at most 1 %)
@@ -42,11 +43,11 @@ def test_the_delta_job_identifies_the_specs_base_parameters(tmp_path):
     doc = json.loads((out / "parameters.json").read_text())
     assert [a["name"] for a in doc["actuators"]] == ["q1", "q2", "q3"]
     # the spec's 40 readable base parameters, in its basis
-    spec = closed_form_base(load_config(CONFIG).robot.delta.geometry.to_model(), drive_terms=True)
+    spec = closed_form_base(to_model.delta_geometry(load_config(CONFIG).robot.delta.geometry), drive_terms=True)
     rows = doc["base_fit"]["rows"]
     assert [r["base_parameter"] for r in rows] == list(spec.expressions)
     # against the config's truth through the spec's H
-    truth = spec.H @ load_config(CONFIG).true_parameters()
+    truth = spec.H @ true_parameters(load_config(CONFIG))
     accurate = 0
     for row, true in zip(rows, truth):
         if row["well_identified"] and row["rel_sigma_percent"] <= 1.0:
@@ -103,9 +104,9 @@ trajectories:
     trace = OnlineTrace.load(out / "online.npz")
     assert set(trace.estimates) == {"SVD-DLS", "RLS", "damped RLS"} and not trace.diverged
     loaded = load_config(config)
-    spec = closed_form_base(loaded.robot.delta.geometry.to_model(), drive_terms=True)
+    spec = closed_form_base(to_model.delta_geometry(loaded.robot.delta.geometry), drive_terms=True)
     common = 0                                      # the common mass: plat.m and the rods
-    pi = loaded.true_parameters()
+    pi = true_parameters(loaded)
     pi[PARAM_NAMES.index("plat.m")] += 0.5
     true_end = (spec.H @ pi)[common]
     for label, estimates in trace.estimates.items():

@@ -28,7 +28,7 @@ import pinocchio as pin
 import pytest
 
 import described_hand as dh
-from ident_hw.config import load_config
+from ident_hw.config import load_config, to_model
 from ident_hw.model import Delta, ThreePRRR
 from ident_hw.model.delta import BODY_PARAMS as DELTA_BODY_PARAMS
 from ident_hw.model.delta import DeltaGeometry, nominal_parameters
@@ -47,8 +47,8 @@ POSE_TOL = 1e-9  # rad, m: Newton stops at a closure residual of 1e-12 (configur
 def prrr():
     """The hand 3PRRR of robot-3prrr.yaml: ``(model, geometry, cad params)``."""
     cfg = load_config(ROBOT_3PRRR).robot
-    geometry = cfg.geometry.to_model()
-    return ThreePRRR(geometry, coulomb_width=cfg.coulomb_width), geometry, cfg.cad.to_model()
+    geometry = to_model.geometry(cfg.geometry)
+    return ThreePRRR(geometry, coulomb_width=cfg.coulomb_width), geometry, to_model.inertial_params(cfg.cad)
 
 
 @pytest.fixture(scope="module")

@@ -19,6 +19,7 @@ from ident_hw.config import load_config
 from ident_hw.experiment.offline import prepare
 from ident_hw.identification.metrics import validation_metrics
 from ident_hw.results import TrajectoryFit
+from ident_hw.config.robots import model_of, true_parameters
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
@@ -61,7 +62,7 @@ def test_the_2r_job_identifies_the_textbook_base_parameters_by_three_models(tmp_
     doc = json.loads((out / "parameters.json").read_text())
     assert [a["name"] for a in doc["actuators"]] == ["shoulder", "elbow"]
     cfg = load_config(config)
-    truth = two_r_base(dict(zip(cfg.robot.to_model().parameter_names, cfg.true_parameters())))
+    truth = two_r_base(dict(zip(model_of(cfg.robot).parameter_names, true_parameters(cfg))))
     rows = {r["base_parameter"]: r for r in doc["base_fit"]["rows"]}
     assert set(rows) == set(truth)                          # the numerical base is the textbook one
     well = [name for name, row in rows.items() if row["well_identified"]]
@@ -80,7 +81,7 @@ def test_the_2r_job_identifies_the_textbook_base_parameters_by_three_models(tmp_
     assert "Dynamic, power and energy models" in (out / "report.html").read_text()
     # the description travels with the results: their config reads it from the folder
     copy = load_config(out / "config.yaml")
-    assert copy.robot.to_model().path == out / "description" / "2r.urdf"
+    assert model_of(copy.robot).path == out / "description" / "2r.urdf"
     # the physically consistent set gives the textbook base parameters back, its bodies real
     consistent = doc["consistent"]
     values = {p["name"]: p["value"] for p in consistent["parameters"]}
@@ -102,7 +103,7 @@ def exported_forces_match_the_base_fit(results: Path, exported: Path, mujoco_loa
     config = exported.with_suffix(".yaml")
     config.write_text(f"extends: {results / 'config.yaml'}\nrobot:\n  described:\n    description: {exported}\n")
     config = load_config(config)
-    robot = config.robot.to_model()
+    robot = model_of(config.robot)
     assert robot.path == exported
     pi = robot.nominal_parameters()
     consistent = json.loads((results / "parameters.json").read_text())["consistent"]
@@ -116,7 +117,7 @@ def exported_forces_match_the_base_fit(results: Path, exported: Path, mujoco_loa
     recording = Recording.load(results / "data" / "validation.npz")
     # the simulated rig's plant on the exported file (its own parameters) is the original
     # model's with the consistent ones: the rig can run the identified robot
-    original = load_config(results / "config.yaml").robot.to_model()
+    original = model_of(load_config(results / "config.yaml").robot)
     consistent_pi = np.array([values[name] for name in original.parameter_names])
     guess = robot.pose(recording.position[0], robot.pose(robot.home_actuated(), np.zeros(robot.pose_size)))
     for k in range(0, len(recording.t), len(recording.t) // 5):
@@ -154,7 +155,7 @@ trajectories:
     excitation = doc["trajectories"]["excitation"]
     assert excitation["cycles"] == excitation["cycles_planned"] == 7501 and excitation["valid_fraction"] == 1.0
     cfg = load_config(config)
-    truth = dict(zip(cfg.robot.to_model().parameter_names, cfg.true_parameters()))
+    truth = dict(zip(model_of(cfg.robot).parameter_names, true_parameters(cfg)))
     rows = {r["base_parameter"]: r for r in doc["base_fit"]["rows"]}
     for leg in range(1, 7):
         for term in ("fv", "fc"):

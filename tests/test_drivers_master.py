@@ -21,13 +21,14 @@ from drivers.errors import BringUpError, DriveFault, HeartbeatTimeout
 from drivers.profiles import EPOS2
 from drivers.recording import Recording, decode_log
 from drivers.sim import Plant, SimulatedRig
-from ident_hw.config import load_config
+from ident_hw.config import load_config, to_model
 from ident_hw.model import ThreePRRR
+from ident_hw.config.to_drivers import axis_config
 
 _channels = itertools.count()
 CONFIG = load_config(Path(__file__).resolve().parent.parent / "configs" / "sim-3prrr.yaml")
 # theta1..3 on EPOS2 drives, zeta1..3 on EPOS4: both generations in every run
-AXES = [dataclasses.replace(a.to_driver(), profile="epos2" if i < 3 else "epos4")
+AXES = [dataclasses.replace(axis_config(a), profile="epos2" if i < 3 else "epos4")
         for i, a in enumerate(CONFIG.robot.actuators)]
 
 
@@ -44,8 +45,8 @@ def rig_factory():
 
     def make(initial_states=None, up=True, sdo_timeout=0.5, sync="lockstep", noise_ma=0.0, period=PERIOD, axes=AXES):
         channel = f"drivers-test-{next(_channels)}"
-        robot = ThreePRRR(CONFIG.robot.geometry.to_model(), coulomb_width=CONFIG.robot.coulomb_width)
-        plant = Plant(robot, CONFIG.sim.truth.to_model())
+        robot = ThreePRRR(to_model.geometry(CONFIG.robot.geometry), coulomb_width=CONFIG.robot.coulomb_width)
+        plant = Plant(robot, to_model.inertial_params(CONFIG.sim.truth))
         lockstep = sync == "lockstep"
         rig = SimulatedRig([(a.node_id, a.profile, a.scaling) for a in axes], plant, seed=1,
                            initial_states=initial_states, interface="virtual", channel=channel,
@@ -326,7 +327,7 @@ def test_lockstep_at_1khz_reports_the_model_currents(rig_factory, tmp_path):
     rows = slice(start_step, start_step + n)
     Y = rig.plant.robot.regressor_from_actuated(truth["Theta"][rows], truth["Thetad"][rows],
                                                  truth["Thetadd"][rows], truth["X"][rows])
-    force = Y @ CONFIG.sim.truth.to_model().as_vector()
+    force = Y @ to_model.inertial_params(CONFIG.sim.truth).as_vector()
     milliamps = force / np.array([a.scaling.force_per_amp for a in AXES]) * 1e3
     assert np.abs(rec.current * 1e3 - milliamps).max() <= 0.5 + 1e-6
 

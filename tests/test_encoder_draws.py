@@ -15,6 +15,7 @@ from ident_hw.experiment.encoder import count_shifts, reread, smoothed_positions
 from ident_hw.experiment.offline import fit_base
 
 from ident_scenarios import CONFIGS
+from ident_hw.config.to_drivers import encoder_edge_counts
 
 RATE = 250.0
 
@@ -83,13 +84,14 @@ def test_fit_base_adds_the_covariance_of_the_draws_estimates():
     alone, _, record_alone = fit_base(step, names, names, Y, tau, coef0, coef0, None, 10.0)
     fit, _, record = fit_base(step, names, names, Y, tau, coef0, coef0, None, 10.0, draws=draws)
     assert np.array_equal(fit.coef, alone.coef)                    # the estimate is the data's own
-    std = np.array(record_alone["output_std"])
+    std = np.array(record_alone.figures["output_std"])
     estimates = np.array([_weighted_lstsq(Yk, tk, std) for Yk, tk in draws])
     spread = np.cov(estimates, rowvar=False)
     np.testing.assert_allclose(fit.covariance, alone.covariance + spread, rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(fit.sigma, np.sqrt(np.diag(alone.covariance) + np.diag(spread)), rtol=1e-9)
-    np.testing.assert_allclose(record["encoder_sigma"], np.sqrt(np.diag(spread)), rtol=1e-9)
-    assert record["encoder_draws"] == 6 and "encoder_draws" not in record_alone
+    np.testing.assert_allclose(record.encoder_sigma, np.sqrt(np.diag(spread)), rtol=1e-9)
+    assert record.encoder_draws == 6 and record_alone.encoder_draws == 0
+    assert "encoder_draws" in record.to_json() and "encoder_draws" not in record_alone.to_json()
 
 
 def test_spread_covariance_of_fewer_than_two_draws_is_zero():
@@ -104,11 +106,11 @@ def _sim_config(tmp_path, extra: str):
 
 
 def test_sim_encoder_edges_fixed_by_default_random_from_the_seed(tmp_path):
-    assert np.array_equal(_sim_config(tmp_path, "").sim.encoder_edge_counts(6), np.zeros(6))
+    assert np.array_equal(encoder_edge_counts(_sim_config(tmp_path, "").sim, 6), np.zeros(6))
     five = _sim_config(tmp_path, "sim: {seed: 5, encoder_edges: random}").sim
     six = _sim_config(tmp_path, "sim: {seed: 6, encoder_edges: random}").sim
-    edges = five.encoder_edge_counts(6)
-    assert np.array_equal(edges, five.encoder_edge_counts(6))
-    assert np.all(np.abs(edges) <= 0.5) and not np.array_equal(edges, six.encoder_edge_counts(6))
+    edges = encoder_edge_counts(five, 6)
+    assert np.array_equal(edges, encoder_edge_counts(five, 6))
+    assert np.all(np.abs(edges) <= 0.5) and not np.array_equal(edges, encoder_edge_counts(six, 6))
     with pytest.raises(ConfigError, match="encoder_edges"):
         _sim_config(tmp_path, "sim: {encoder_edges: sometimes}")

@@ -7,7 +7,7 @@ from scipy import signal as sps
 
 from drivers.recording import Recording
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
-from ident_hw.config import load_config
+from ident_hw.config import load_config, to_model
 from ident_hw.experiment.offline import identify, prepare
 from ident_hw.segments import split, uniform
 from ident_hw.experiment.plan import excitation_of, motion_bandwidth, plan, robot_model
@@ -16,6 +16,8 @@ from ident_hw.filtering import (EVEN, ODD, POLYNOMIAL, Ends, FilterSettings, cen
                              near, near_rest, runs_at_least)
 
 from ident_scenarios import CONFIGS, NAMES, exact_recording
+from ident_hw.config.to_drivers import axis_scaling
+from ident_hw.config.to_identification import filter_settings
 
 
 
@@ -100,7 +102,7 @@ def test_filter_bandwidth_key_overrides(tmp_path):
                     .replace("{name: square1, kind: square,", "{name: square1, kind: square, bandwidth: 2.5,"))
     config = load_config(path)
     assert motion_bandwidth(config, "square1") == 2.5
-    assert config.identification.filter.settings(250.0, 2.5).cutoff_hz == pytest.approx(25.0)
+    assert filter_settings(config.identification.filter, 250.0, 2.5).cutoff_hz == pytest.approx(25.0)
 
 
 def test_main_lobe_of_the_parallel_filter_against_its_frequency_response():
@@ -217,8 +219,8 @@ def test_rows_of_axes_near_rest_are_left_out_of_the_fits():
     robot = robot_model(config)
     (planned,) = plan(config, ["sweep"])
     tr = planned.trajectory
-    fpa = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
-    tau = robot.inverse_dynamics(tr.X, tr.Xd, tr.Xdd, tr.zeta, tr.zetad, tr.zetadd, config.sim.truth.to_model())
+    fpa = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])
+    tau = robot.inverse_dynamics(tr.X, tr.Xd, tr.Xdd, tr.zeta, tr.zetad, tr.zetadd, to_model.inertial_params(config.sim.truth))
     n = len(tr.t)
     period = float(tr.t[1] - tr.t[0])
     rec = Recording(t=tr.t, cycle=np.arange(n), position=tr.Theta, velocity=tr.Thetad, current=tau / fpa,
@@ -227,7 +229,7 @@ def test_rows_of_axes_near_rest_are_left_out_of_the_fits():
     p = prepare(config, robot, "sweep", rec)
     assert not p.moving[:, :3].any()
     threshold = config.identification.min_speed * np.array([a.limits.velocity for a in config.robot.actuators[3:]])
-    lobe = main_lobe(config.identification.filter.settings(1.0 / period, motion_bandwidth(config, "sweep")))
+    lobe = main_lobe(filter_settings(config.identification.filter, 1.0 / period, motion_bandwidth(config, "sweep")))
     t = tr.t - tr.t[0]
     slowest = np.array([np.abs(tr.Thetad[np.abs(t - tk) <= (lobe + 0.5) * period, 3:]).min(axis=0) for tk in p.t])
     clear = np.abs(slowest - threshold) > 1e-4   # away from the threshold

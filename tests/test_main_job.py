@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from drivers.recording import Recording
-from ident_hw.config import load_config
+from ident_hw.config import load_config, to_model
 from ident_hw.experiment import runner
 from ident_hw.experiment.campaign_estimator import CampaignEstimator
 from ident_hw.experiment.offline import identify
@@ -31,6 +31,7 @@ from ident_hw.experiment.folders import new_results_folder
 from ident_hw.model.parameters import FRICTION_NAMES, INERTIAL_NAMES
 from ident_hw.results import save_results
 from ident_scenarios import CONFIGS, SWEEP_CAMPAIGN
+from ident_hw.config.to_drivers import axis_config
 
 #: bias allowed beyond 3 sigma, as a fraction of the true value
 BIAS_BUDGET = 0.01
@@ -115,7 +116,7 @@ def main_job(tmp_path_factory):
 
 def test_the_main_job_identifies_the_simulated_truth(main_job):
     config, folder = main_job
-    truth = dict(zip(config.sim.truth.to_model().NAMES, config.sim.truth.to_model().as_vector()))
+    truth = dict(zip(to_model.inertial_params(config.sim.truth).NAMES, to_model.inertial_params(config.sim.truth).as_vector()))
     doc = json.loads((folder / "parameters.json").read_text())
     assert accuracy_failures(doc, truth) == []
     assert doc["quality"]["passed"] and (folder / "STATUS").read_text().startswith("complete")
@@ -146,7 +147,7 @@ def test_a_torque_constant_5_percent_wrong_fails_the_accuracy_check(main_job, tm
     """The run's recordings with every current 5 % high (what a torque constant 5 % low in the
     drive data gives): the masses and frictions come out 5 % high, with the same small σ."""
     config, folder = main_job
-    truth = dict(zip(config.sim.truth.to_model().NAMES, config.sim.truth.to_model().as_vector()))
+    truth = dict(zip(to_model.inertial_params(config.sim.truth).NAMES, to_model.inertial_params(config.sim.truth).as_vector()))
     recordings = {}
     for path in sorted((folder / "data").glob("*.npz")):
         rec = Recording.load(path)
@@ -221,7 +222,7 @@ def test_an_epos2_rig_identifies_the_carriages(tmp_path):
     runner.run_campaign(config, folder, show_progress=False,
                                 host=HostSettings.for_command(config))
     doc = json.loads((folder / "parameters.json").read_text())
-    truth = dict(zip(config.sim.truth.to_model().NAMES, config.sim.truth.to_model().as_vector()))
+    truth = dict(zip(to_model.inertial_params(config.sim.truth).NAMES, to_model.inertial_params(config.sim.truth).as_vector()))
     rows = {r["name"]: r for r in doc["parameters"] if r["step"]}
     assert set(rows) == {"m_c", "fv_zeta1", "fv_zeta2", "fv_zeta3", "fc_zeta1", "fc_zeta2", "fc_zeta3"}
     well = {n: r for n, r in rows.items() if r["rel_sigma_percent"] <= doc["rel_sigma_threshold_percent"]}
@@ -238,7 +239,7 @@ def test_the_online_estimate_at_the_end_agrees_with_the_offline_base_fit(main_jo
     offline fit identifies well is within 2 % of the truth and of the offline value."""
     config, folder = main_job
     doc = json.loads((folder / "parameters.json").read_text())
-    truth = dict(zip(config.sim.truth.to_model().NAMES, config.sim.truth.to_model().as_vector()))
+    truth = dict(zip(to_model.inertial_params(config.sim.truth).NAMES, to_model.inertial_params(config.sim.truth).as_vector()))
     online = CampaignEstimator(config)
     for name in [t.name for t in config.trajectories if not t.online_only]:
         online.update(name, Recording.load(folder / "data" / f"{name}.npz"))
@@ -341,7 +342,7 @@ def test_identify_from_raw_logs_with_late_and_lost_frames_is_right_or_degraded(m
     results = identify(without_draws(config), recordings)
     save_results(tmp_path / "res", results)
     doc = json.loads((tmp_path / "res" / "parameters.json").read_text())
-    truth = dict(zip(config.sim.truth.to_model().NAMES, config.sim.truth.to_model().as_vector()))
+    truth = dict(zip(to_model.inertial_params(config.sim.truth).NAMES, to_model.inertial_params(config.sim.truth).as_vector()))
     late = sum(r.metadata.get("late_frames", 0) for r in recordings.values())
     logging.getLogger(__name__).warning(
         "disturbed logs: %s; late frames placed %d; verdict %s %s", disturbed, late,
@@ -372,7 +373,7 @@ def test_a_run_with_one_percent_of_cycles_incomplete_keeps_its_rows_and_its_accu
                     "    - {name: base, trajectories: [excitation], parameters: [all], method: wls}\n"
                     "  validation: []\n")
     base_only = load_config(path)
-    axes = [a.to_driver() for a in base_only.robot.actuators]
+    axes = [axis_config(a) for a in base_only.robot.actuators]
     cycles = len(Recording.load(folder / "data" / "excitation.npz").t)
     dropped = drop_frames(folder / "data" / "excitation.log", tmp_path / "excitation.log",
                           master_layouts(axes), 0.01, cycles, seed=0)
@@ -388,7 +389,7 @@ def test_a_run_with_one_percent_of_cycles_incomplete_keeps_its_rows_and_its_accu
     assert used.rows_left_out["incomplete"] == len(dropped.measured)
     kept = used.cycles - sum(used.rows_left_out.values())
     assert kept >= 0.8 * used.cycles, used
-    truth = dict(zip(config.sim.truth.to_model().NAMES, config.sim.truth.to_model().as_vector()))
+    truth = dict(zip(to_model.inertial_params(config.sim.truth).NAMES, to_model.inertial_params(config.sim.truth).as_vector()))
     fit = results.base_fit
     assert len(fit.expressions) == 18
     for expression, value, sigma in zip(fit.expressions, fit.coef, fit.sigma):

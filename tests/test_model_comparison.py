@@ -28,6 +28,8 @@ from ident_hw.filtering import FilterSettings, parallel_decimate
 from drivers.errors import ConfigError
 from drivers.recording import Recording
 from ident_scenarios import CONFIGS, ROBOT, TRUE, make_motion
+from ident_hw.config.to_drivers import axis_scaling
+from ident_hw.config.to_identification import filter_settings, step_parameters
 
 #: a 2R arm in the horizontal plane (hinges along z): centres of mass off the links' axes, so
 #: that every base parameter has a non-zero true value
@@ -198,7 +200,7 @@ def test_prepare_gives_the_power_and_energy_models_the_least_squares_steps_stret
     config = load_config(CONFIGS / "sim-3prrr.yaml")
     rate = config.bus.sync_rate
     m = make_motion(rate=rate, duration=10.0)
-    force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
+    force_per_amp = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])
     n = len(m.t)
     rec = Recording(t=m.t, cycle=np.arange(n), position=m.Theta, velocity=m.Thetad, current=m.tau / force_per_amp,
                     statusword=np.zeros((n, 6), np.int32), target=m.Theta, valid=np.ones((n, 6), bool),
@@ -210,11 +212,11 @@ def test_prepare_gives_the_power_and_energy_models_the_least_squares_steps_stret
     np.testing.assert_array_equal(both.Y, plain.Y)
     np.testing.assert_array_equal(both.tau_fit, plain.tau_fit)
     assert both.power.Y.shape == (len(both.t), 1, 19) and 0.8 * len(both.t) < len(both.energy.Y) < len(both.t)
-    settings = config.identification.filter.settings(rate, 1.0)
+    settings = filter_settings(config.identification.filter, rate, 1.0)
     assert both.energy.window == pytest.approx(settings.decimation / rate)
     step = next(s for s in config.identification.steps if s.method != "sqp")
     names, truth = ROBOT.parameter_names, TRUE.as_vector()
-    free = step.parameter_names(names)
+    free = step_parameters(step, names)
     result = comparison(step, free, names, both.Y, both.tau_fit, {"excitation": both}, truth, truth, True, 10.0)
     base_fit, _, _ = fit_base(step, free, names, both.Y, both.tau_fit, truth, truth, truth, 10.0)
     dynamic = result.fit("dynamic")

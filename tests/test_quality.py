@@ -18,6 +18,7 @@ from ident_hw.experiment.offline import identify
 from ident_hw.experiment.quality import relative_difference
 from ident_hw.report import build_report, summary_lines
 from ident_hw.results import final_status, mark_status, save_results
+from ident_hw.config.to_drivers import axis_scaling
 
 
 @pytest.fixture(scope="module")
@@ -168,7 +169,7 @@ def test_axis_residuals_against_the_same_drives_by_hand():
     config = load_config(CONFIGS / "sim-3prrr.yaml")
     actuators = config.robot.actuators
     assert same_drive_groups(actuators) == [(0, 1, 2), (3, 4, 5)]
-    per_amp = np.array([a.scaling().force_per_amp for a in actuators])
+    per_amp = np.array([axis_scaling(a).force_per_amp for a in actuators])
     n = 400
     signs = np.where(np.arange(n) % 2 == 0, 1.0, -1.0)[:, None]      # RMS of +-r is r, sum 0
     ma = {"a": np.array([10, 10, 10, 2, 2, 2.0]), "b": np.array([10, 40, 10, 2, 2, 5.0])}

@@ -25,8 +25,9 @@ from drivers.sim.lockstep import LockstepSync
 from drivers.errors import ConfigError
 from drivers.profiles import make_object_dictionary
 from drivers.sim import SimulatedRig
-from ident_hw.config import load_config
+from ident_hw.config import load_config, to_model
 from ident_hw.experiment.plan import robot_model
+from ident_hw.config.to_drivers import axis_config
 
 CONFIG = load_config(Path(__file__).resolve().parent.parent / "configs" / "sim-3prrr.yaml")
 PERIOD = 0.004
@@ -111,7 +112,7 @@ def spied_rig(axes, name: str):
     :class:`DriveGroup` on them (not brought up) and a :class:`SdoTraffic` spy, all on one fresh
     python-can virtual channel named after ``name``; yields ``(rig, group, spy)`` and closes all."""
     channel = f"{name}-{next(_channels)}"
-    rig = SimulatedRig.build(robot_model(CONFIG), CONFIG.sim.truth.to_model(),
+    rig = SimulatedRig.build(robot_model(CONFIG), to_model.inertial_params(CONFIG.sim.truth),
                              [(a.node_id, a.profile, a.scaling) for a in axes], sync_period=PERIOD, seed=1,
                              lockstep=True, interface="virtual", channel=channel, ignore_config=True).start()
     spy_bus = can.Bus(interface="virtual", channel=channel, ignore_config=True)
@@ -133,7 +134,7 @@ def test_the_master_writes_only_objects_a_real_epos4_has(tmp_path):
     """Bring-up, homing, a cyclic stream and the stop of six EPOS4 drives: every object written
     over SDO exists in the dictionary (checked against maxon's above) and is writable there, and
     none is one maxon's files say an EPOS4 lacks or keeps read-only (a real drive would abort)."""
-    axes = [dataclasses.replace(a.to_driver(), profile="epos4") for a in CONFIG.robot.actuators]
+    axes = [dataclasses.replace(axis_config(a), profile="epos4") for a in CONFIG.robot.actuators]
     with spied_rig(axes, "real-od") as (_, group, spy):
         group.bring_up()
         group.home()
@@ -167,10 +168,10 @@ def test_the_master_uses_the_drives_own_eds_and_names_what_it_lacks(tmp_path):
     """``object_dictionary`` of an axis: the master's dictionary comes from that EDS/DCF (a run
     works on it); a file without an object the master needs is refused when the drives are set
     up, before anything moves, naming the node, the file and the object."""
-    axes = [dataclasses.replace(a.to_driver(), profile="epos4") for a in CONFIG.robot.actuators]
+    axes = [dataclasses.replace(axis_config(a), profile="epos4") for a in CONFIG.robot.actuators]
     own = [dataclasses.replace(a, object_dictionary=str(_exported_eds(tmp_path, a.node_id))) for a in axes]
     channel = f"real-od-{next(_channels)}"
-    rig = SimulatedRig.build(robot_model(CONFIG), CONFIG.sim.truth.to_model(),
+    rig = SimulatedRig.build(robot_model(CONFIG), to_model.inertial_params(CONFIG.sim.truth),
                              [(a.node_id, a.profile, a.scaling) for a in axes], sync_period=PERIOD,
                              lockstep=True, interface="virtual", channel=channel, ignore_config=True).start()
     network = open_network(BusConfig("virtual", channel, ignore_config=True))
@@ -192,4 +193,4 @@ def test_the_master_uses_the_drives_own_eds_and_names_what_it_lacks(tmp_path):
 
 def test_a_configs_object_dictionary_is_relative_to_the_config_file(tmp_path):
     actuator = dataclasses.replace(CONFIG.robot.actuators[3], object_dictionary="drives/zeta1.dcf")
-    assert actuator.to_driver(tmp_path).object_dictionary == str(tmp_path / "drives" / "zeta1.dcf")
+    assert axis_config(actuator, tmp_path).object_dictionary == str(tmp_path / "drives" / "zeta1.dcf")

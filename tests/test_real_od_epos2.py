@@ -24,6 +24,7 @@ from ident_hw.config import load_config
 
 from test_real_od import PERIOD, _variables, _writable, spied_rig
 from test_sim_rig import Bench
+from ident_hw.config.to_drivers import axis_config
 
 CONFIG = load_config(Path(__file__).resolve().parent.parent / "configs" / "sim-3prrr.yaml")
 
@@ -166,7 +167,7 @@ def _epos2_axes():
     """The simulated 3PRRR's axes on six EPOS2 (homing on the actual position: method 35 there)."""
     axes = []
     for a in CONFIG.robot.actuators:
-        axis = dataclasses.replace(a.to_driver(), profile="epos2")
+        axis = dataclasses.replace(axis_config(a), profile="epos2")
         if axis.homing is not None:
             axis = dataclasses.replace(axis, homing=dataclasses.replace(axis.homing, method=35))
         axes.append(axis)

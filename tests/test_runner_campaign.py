@@ -21,6 +21,7 @@ from drivers.stream import setpoint_counts
 from drivers.units import AxesScaling
 from ident_hw.config import load_config
 from ident_hw.experiment.plan import drive_axes, plan, setpoints
+from ident_hw.config.to_drivers import axis_config
 
 ROOT = Path(__file__).resolve().parent.parent
 SIM = ROOT / "configs" / "sim-3prrr.yaml"
@@ -74,7 +75,7 @@ def test_run_then_identify_from_its_raw_can_log_gives_the_same_result(tmp_path):
     assert set(rig_states(res)) == {"SWITCH ON DISABLED"}
 
     # the decoded recording is the raw log, replayed
-    axes = [a.to_driver() for a in load_config(config).robot.actuators]
+    axes = [axis_config(a) for a in load_config(config).robot.actuators]
     rec = Recording.load(res / "data" / "square.npz")
     replay = decode_log(res / "data" / "square.log", axes, max_cycles=CYCLE)
     assert rec.metadata["status"] == "complete" and len(rec.t) == CYCLE
@@ -124,7 +125,7 @@ def test_ctrl_c_mid_trajectory_stops_disables_and_keeps_the_data(tmp_path):
     assert rec.metadata["status"].startswith("stopped")
     assert 100 < len(rec.t) < 30 * CYCLE and np.isfinite(rec.position[rec.valid]).all()
     # the raw log holds the same cycles
-    axes = [a.to_driver() for a in load_config(config).robot.actuators]
+    axes = [axis_config(a) for a in load_config(config).robot.actuators]
     replay = decode_log(res / "data" / "square.log", axes, max_cycles=len(rec.t))
     np.testing.assert_array_equal(replay.position, rec.position)
 

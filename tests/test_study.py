@@ -19,6 +19,7 @@ from ident_hw.config import load_config
 from ident_hw.experiment.study import (Estimate, RunOutcome, RunTask, StudyError, run_file, run_study, run_yaml,
                                         summarize)
 from ident_hw.report.study import study_lines, write_study_report
+from ident_hw.config.to_drivers import encoder_edge_counts
 
 ROOT = Path(__file__).resolve().parents[1]
 SIM = ROOT / "configs" / "sim-3prrr.yaml"
@@ -138,6 +139,6 @@ def test_every_run_but_the_first_draws_where_its_encoders_count(tmp_path):
     for index in range(3):
         path = tmp_path / f"run{index}.yaml"
         path.write_text(run_yaml(RunTask(index, 1 + index, "")))
-        edges.append(load_config(path).sim.encoder_edge_counts(6))
+        edges.append(encoder_edge_counts(load_config(path).sim, 6))
     assert load_config(tmp_path / "run0.yaml").sim.seed == 1 and not edges[0].any()
     assert edges[1].all() and edges[2].all() and not (edges[1] == edges[2]).any()

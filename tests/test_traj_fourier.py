@@ -6,10 +6,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ident_hw.config import load_config
+from ident_hw.config import load_config, to_model
 from ident_hw.model import ThreePRRR
 from trajectories import carriage_sweep, check_trajectory, five_squares, validation_triangle
 from trajectories.fourier import FourierExcitation, base_scaling, optimise_excitation, stacked_regressor
+from ident_hw.config.to_trajectories import feasibility_limits
 
 ROOT = Path(__file__).resolve().parents[1]
 CACHED = ROOT / "trajectories" / "data" / "fourier-nominal.json"
@@ -18,7 +19,7 @@ CACHED = ROOT / "trajectories" / "data" / "fourier-nominal.json"
 @pytest.fixture(scope="module")
 def rig():
     cfg = load_config(ROOT / "configs" / "robot-3prrr.yaml").robot
-    return ThreePRRR(cfg.geometry.to_model(), cfg.coulomb_width), cfg.feasibility_limits()
+    return ThreePRRR(to_model.geometry(cfg.geometry), cfg.coulomb_width), feasibility_limits(cfg)
 
 
 def test_series_derivatives_and_rest_to_rest():

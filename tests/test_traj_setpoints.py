@@ -23,6 +23,7 @@ from drivers.errors import ConfigError
 from drivers.stream import setpoint_counts
 from ident_hw.config import load_config
 from ident_hw.experiment.plan import build, check, drive_axes, plan, robot_model, setpoints, sync_period
+from ident_hw.config.to_trajectories import feasibility_limits
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
 #: every shipped config with trajectories (the robot-*.yaml bases have none); the Stewart's
@@ -105,7 +106,7 @@ def test_check_refuses_a_carriage_move_beyond_the_drives_limits_within_the_strok
     wide = home.copy()
     wide[3] = 0.095
     trajectories.save(trajectories.actuator_trajectory(robot, "wide", np.array([home, wide, home]),
-                                                       config.robot.feasibility_limits(), rate=100.0),
+                                                       feasibility_limits(config.robot), rate=100.0),
                       tmp_path / "wide.npz")
     (tmp_path / "wide.yaml").write_text(
         f"extends: {CONFIGS / 'hil-3prrr-epos4.yaml'}\n"

@@ -1,13 +1,18 @@
 """Config files: YAML → validated, typed, frozen dataclasses. Loading never opens a bus.
 
-    from ident_hw.config import load_config, ConfigError
+    from ident_hw.config import load_config, ConfigError, to_model, to_drivers
     cfg = load_config("configs/sim-3prrr.yaml")     # raises ConfigError naming file, line, key
-    cfg.robot.geometry.to_model()                    # ident_hw.model.Geometry
-    cfg.robot.actuators[3].scaling()                 # drivers.units.AxisScaling
+    to_model.geometry(cfg.robot.geometry)            # ident_hw.model.Geometry
+    to_drivers.axis_scaling(cfg.robot.actuators[3])  # drivers.units.AxisScaling
 
-Sections turn into the objects of the layers below (model geometry and parameters, drive axis
-and bus settings, trajectory limits, filter settings), so the config imports those; it imports
-nothing of the runner, the report or the CLI.
+The sections are plain data, one module per family (:mod:`.robot` and the robots' own
+:mod:`.robot_3prrr`, :mod:`.robot_delta`, :mod:`.robot_described`; :mod:`.actuators`, :mod:`.bus`, :mod:`.sim`,
+:mod:`.trajectory`, :mod:`.identification`; the whole file :mod:`.file`), read by the generic
+:mod:`.schema` from what :mod:`.source` composes; their cross-field rules are :mod:`.checks`. The
+adapters turn them into the objects of the layers below, in those layers' own types:
+:mod:`.to_model`, :mod:`.to_drivers`, :mod:`.to_trajectories`, :mod:`.to_identification`, and the
+robot as a whole by its kind (:mod:`.robots`). The config imports nothing of the runner, the
+report or the CLI.
 """
 
 from __future__ import annotations
@@ -16,25 +21,34 @@ from pathlib import Path
 
 import yaml
 
+from .actuators import ActuatorConfig, HomingConfig, LimitsConfig
+from .bus import BusConfig
+from .checks import CHECKS
+from .file import Config, OutputConfig
+from .identification import (FilterConfig, IdentificationConfig, OnlineConfig, PhysicalConfig, QualityConfig,
+                             StepConfig)
+from .robot import RobotConfig, SafetyConfig
+from .robot_3prrr import GeometryConfig, InertialConfig
+from .robot_delta import DeltaConfig, DeltaGeometryConfig, DeltaParametersConfig
+from .robot_described import DescribedConfig, ParameterSetConfig
 from .schema import ConfigError, build
-from .sections import (ActuatorConfig, BusConfig, Config, FilterConfig, GeometryConfig, HomingConfig,
-                       IdentificationConfig, InertialConfig, LimitsConfig, OnlineConfig,
-                       OutputConfig, QualityConfig, RobotConfig, SafetyConfig, SimConfig, SimFaultConfig, StepConfig, TrajectoryConfig)
+from .sim import SimConfig, SimFaultConfig
 from .source import compose_file
+from .trajectory import PayloadConfig, TrajectoryConfig
 
 __all__ = [
     "load_config", "resolved_yaml", "ConfigError", "Config", "RobotConfig", "GeometryConfig",
-    "InertialConfig", "ActuatorConfig", "LimitsConfig", "HomingConfig", "SafetyConfig", "BusConfig",
-    "SimConfig", "SimFaultConfig", "TrajectoryConfig", "IdentificationConfig", "StepConfig",
-    "FilterConfig", "OnlineConfig", "OutputConfig", "QualityConfig",
+    "InertialConfig", "DeltaConfig", "DeltaGeometryConfig", "DeltaParametersConfig", "DescribedConfig",
+    "ParameterSetConfig", "ActuatorConfig", "LimitsConfig", "HomingConfig", "SafetyConfig", "BusConfig",
+    "SimConfig", "SimFaultConfig", "TrajectoryConfig", "PayloadConfig", "IdentificationConfig", "StepConfig",
+    "FilterConfig", "OnlineConfig", "PhysicalConfig", "OutputConfig", "QualityConfig",
 ]
 
 
 def load_config(path: str | Path) -> Config:
-    """Read, merge (``extends:``) and validate a config file."""
-    config = build(Config, compose_file(path))
-    object.__setattr__(config, "source", str(path))
-    return config
+    """Read, merge (``extends:``) and validate a config file; its relative paths are relative to
+    its folder (:attr:`Config.base_dir <ident_hw.config.file.Config.base_dir>`)."""
+    return build(Config, compose_file(path), CHECKS, given={"source": str(path), "base_dir": Path(path).parent})
 
 
 def resolved_yaml(path: str | Path, replace: dict[str, str] | None = None) -> str:

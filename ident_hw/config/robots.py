@@ -9,17 +9,15 @@ comparing ``robot.kind`` with names; this module is the only place that does (a 
 
 Three kinds: ``3prrr`` and ``delta`` (hand-derived models, :mod:`ident_hw.model`) and
 ``described``: any robot from its description file (:class:`ident_hw.model.described.DescribedRobot`),
-settings in ``robot.described`` (:class:`DescribedConfig`), true parameters in
-``sim.parameters`` (:class:`ParameterSetConfig`). Adding a robot of this kind is a description
-file and a config, no code.
+settings in ``robot.described`` (:class:`~ident_hw.config.robot_described.DescribedConfig`), true
+parameters in ``sim.parameters`` (:class:`~ident_hw.config.robot_described.ParameterSetConfig`).
+Adding a robot of this kind is a description file and a config, no code.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
-from importlib import resources
-from pathlib import Path
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
@@ -30,84 +28,21 @@ from ident_hw.model.interface import RobotModel
 from ident_hw.model.pseudo_inertia import SPATIAL
 from trajectories import delta_paper, joint_space
 
-from .schema import FieldError, non_negative, positive, spec
+from . import to_model
+from .robot_described import ParameterSetConfig
+from .schema import FieldError
+from .to_trajectories import actuator_limits, excitation_of, feasibility_limits
 
 if TYPE_CHECKING:  # pinocchio, which described imports, is imported by described robots only
     from ident_hw.model.described import DescribedRobot
 
-#: the Fourier excitation optimised for the nominal 3PRRR, shipped with ``trajectories``
-NOMINAL_EXCITATION = resources.files(trajectories) / "data" / "fourier-nominal.json"
-
-
-# ----------------------------------------------------------------------------- described robots
-@dataclass(frozen=True)
-class ParameterSetConfig:
-    """Parameters of a described robot: the description file's bodies with ``factors`` (by
-    parameter name, ``platform.m: 1.1`` = 10 % heavier) then ``values`` (by name, in SI units)
-    applied, and per actuator, in actuator order, viscous ``fv`` and Coulomb ``fc`` friction and
-    the rotor inertia ``Jm`` reflected through the gear (default 0)."""
-
-    factors: dict[str, float] = field(default_factory=dict)
-    values: dict[str, float] = field(default_factory=dict)
-    fv: tuple[float, ...] = field(default=(), metadata=spec(non_negative, unit="N m s/rad | N s/m"))
-    fc: tuple[float, ...] = field(default=(), metadata=spec(non_negative, unit="N m | N"))
-    Jm: tuple[float, ...] = field(default=(), metadata=spec(non_negative, unit="kg m^2 | kg"))
-
-    def check_against(self, model: DescribedRobot) -> None:
-        """Every name a parameter of ``model``, one drive term per actuator (FieldError otherwise)."""
-        names = model.parameter_names
-        for key in ("factors", "values"):
-            for name in getattr(self, key):
-                if name not in names:
-                    bodies = sorted({n.split(".")[0] for n in names if "." in n})
-                    raise FieldError(f"{key}.{name}", f"unknown parameter of {model.path.name}; expected "
-                                     f"<body>.<parameter> with bodies {bodies} and parameters of "
-                                     f"{list(SPATIAL)}")
-        n = len(model.actuator_names)
-        for key in ("fv", "fc", "Jm"):
-            given = getattr(self, key)
-            if given and len(given) != n:
-                raise FieldError(key, f"expected one value per actuator ({n}: {', '.join(model.actuator_names)}), "
-                                      f"got {len(given)}")
-
-    def vector(self, model: DescribedRobot) -> np.ndarray:
-        """(P,) in the order of ``model.parameter_names``."""
-        pi = model.nominal_parameters()
-        names = model.parameter_names
-        for name, factor in self.factors.items():
-            pi[names.index(name)] *= factor
-        for name, value in self.values.items():
-            pi[names.index(name)] = value
-        n = len(model.actuator_names)
-        start = len(pi) - 3 * n
-        for k, key in enumerate(("fv", "fc", "Jm")):
-            given = getattr(self, key)
-            if given:
-                pi[start + k * n:start + (k + 1) * n] = given
-        return pi
-
-
-@dataclass(frozen=True)
-class DescribedConfig:
-    """A robot from its description file (MJCF for closed chains, URDF for serial robots).
-
-    The actuators of ``robot.actuators`` name the joints they drive (``joint``); ``home`` gives
-    tree joint values (rad, m) of an assembled configuration near home, whose assembly mode is
-    kept; ``end_effector`` is the body a payload goes on; ``cad``: the CAD parameters (the
-    description's inertias by default); ``max_condition``: the feasibility check's largest
-    condition number of the passive joints' closure Jacobian (distance to a parallel singularity).
-    """
-
-    description: str = field(metadata=spec(path=True, doc="MJCF (.xml) or URDF (.urdf), relative to this file"))
-    home: dict[str, float] = field(default_factory=dict)
-    home_actuated: tuple[float, ...] | None = field(default=None, metadata=spec(
-        unit="rad | m", doc="actuated coordinates of home (default: those of home)"))
-    end_effector: str | None = None
-    cad: ParameterSetConfig = ParameterSetConfig()
-    max_condition: float = field(default=100.0, metadata=spec(positive))
+    from .file import Config
+    from .robot import RobotConfig
 
 
 # ----------------------------------------------------------------------------- the registry
+
+
 @dataclass(frozen=True)
 class RobotKind:
     """One robot kind (see the module docstring). Its functions take the config's ``robot``
@@ -143,7 +78,7 @@ class RobotKind:
 
 # ---- the 3PRRR
 def _threeprrr_build(config, tcfg, robot, rate):
-    limits = config.robot.feasibility_limits()
+    limits = feasibility_limits(config.robot)
     k = tcfg.speed_scale
     # a generated path keeps within the stroke and within the carriage drives' software position
     # limits (those the set-points are checked against): the carriage schedule's bounds
@@ -163,13 +98,6 @@ def _threeprrr_build(config, tcfg, robot, rate):
     return excitation_of(config, tcfg).trajectory(robot, rate, name=tcfg.name)
 
 
-def excitation_of(config, tcfg) -> trajectories.FourierExcitation:
-    """The coefficients of a 3PRRR ``fourier`` trajectory: its ``path`` (relative to the config)
-    or the excitation shipped for the nominal rig."""
-    path = NOMINAL_EXCITATION if tcfg.path is None else Path(config.source).parent / tcfg.path
-    return trajectories.FourierExcitation.load(path)
-
-
 def _threeprrr_validate(robot) -> None:
     for key in ("geometry", "stroke", "cad"):
         if getattr(robot, key) is None:
@@ -179,12 +107,12 @@ def _threeprrr_validate(robot) -> None:
 THREE_PRRR = RobotKind(
     name="3prrr", sections=("geometry", "stroke", "cad", "safety"), truth_key="truth",
     trajectory_kinds=("carriage_sweep", "square", "triangle", "fourier"),
-    model=lambda robot: ThreePRRR(robot.geometry.to_model(), coulomb_width=robot.coulomb_width),
-    initial=lambda robot: robot.cad.to_model().as_vector(),
-    truth=lambda robot, sim: sim.truth.to_model().as_vector(),
+    model=lambda robot: ThreePRRR(to_model.geometry(robot.geometry), coulomb_width=robot.coulomb_width),
+    initial=lambda robot: to_model.inertial_params(robot.cad).as_vector(),
+    truth=lambda robot, sim: to_model.inertial_params(sim.truth).as_vector(),
     actuators=lambda robot: (ThreePRRR.actuator_names, ThreePRRR.actuator_kinds),
     build=_threeprrr_build,
-    check=lambda config, traj, robot: trajectories.check_trajectory(traj, robot, config.robot.feasibility_limits()),
+    check=lambda config, traj, robot: trajectories.check_trajectory(traj, robot, feasibility_limits(config.robot)),
     validate=_threeprrr_validate)
 
 
@@ -196,16 +124,16 @@ def _delta_validate(robot) -> None:
 
 def _delta_check(config, traj, robot):
     safety = config.robot.safety
-    return delta_paper.check_delta_trajectory(traj, robot, config.robot.actuator_limits(),
+    return delta_paper.check_delta_trajectory(traj, robot, actuator_limits(config.robot),
                                               safety.min_serial_margin, safety.max_cond_A)
 
 
 DELTA = RobotKind(
     name="delta", sections=("delta", "safety"), truth_key="delta_truth",
     trajectory_kinds=("delta_training", "delta_verification", "delta_held_arm"),
-    model=lambda robot: Delta(robot.delta.geometry.to_model(), coulomb_width=robot.coulomb_width),
-    initial=lambda robot: robot.delta.cad.vector(robot.delta.geometry.to_model()),
-    truth=lambda robot, sim: sim.delta_truth.vector(robot.delta.geometry.to_model()),
+    model=lambda robot: Delta(to_model.delta_geometry(robot.delta.geometry), coulomb_width=robot.coulomb_width),
+    initial=lambda robot: to_model.delta_parameters(robot.delta.cad, to_model.delta_geometry(robot.delta.geometry)),
+    truth=lambda robot, sim: to_model.delta_parameters(sim.delta_truth, to_model.delta_geometry(robot.delta.geometry)),
     actuators=lambda robot: (Delta.actuator_names, Delta.actuator_kinds),
     build=lambda config, tcfg, robot, rate: delta_paper.delta_trajectory(
         robot, tcfg.kind, tcfg.duration, rate, tcfg.fade, name=tcfg.name, amplitude=tcfg.amplitude),
@@ -223,6 +151,25 @@ def described_model(robot) -> DescribedRobot:
                           coulomb_width=robot.coulomb_width)
 
 
+def check_parameter_set(params: ParameterSetConfig, model: DescribedRobot) -> None:
+    """Every name of a described robot's parameter set a parameter of ``model``, one drive term
+    per actuator (FieldError, key relative to the set, otherwise)."""
+    names = model.parameter_names
+    for key in ("factors", "values"):
+        for name in getattr(params, key):
+            if name not in names:
+                bodies = sorted({n.split(".")[0] for n in names if "." in n})
+                raise FieldError(f"{key}.{name}", f"unknown parameter of {model.path.name}; expected "
+                                 f"<body>.<parameter> with bodies {bodies} and parameters of "
+                                 f"{list(SPATIAL)}")
+    n = len(model.actuator_names)
+    for key in ("fv", "fc", "Jm"):
+        given = getattr(params, key)
+        if given and len(given) != n:
+            raise FieldError(key, f"expected one value per actuator ({n}: {', '.join(model.actuator_names)}), "
+                                  f"got {len(given)}")
+
+
 def _described_validate(robot) -> None:
     if robot.described is None:
         raise FieldError("described", "missing key: a described robot needs its described section (description)")
@@ -238,7 +185,7 @@ def _described_validate(robot) -> None:
             raise FieldError(f"actuators[{i}].kind", f"joint {joint!r} of {model.path.name} is "
                              f"{model_kinds[joint]}, the actuator says {act.kind!r}")
     try:
-        robot.described.cad.check_against(model)
+        check_parameter_set(robot.described.cad, model)
     except FieldError as exc:
         raise FieldError(f"described.cad.{exc.key}", exc.message) from None
 
@@ -246,7 +193,7 @@ def _described_validate(robot) -> None:
 def _described_build(config, tcfg, robot, rate):
     # the motion's bandwidth: the trajectory's, else the identification filter's (what it is filtered at)
     bandwidth = tcfg.bandwidth or (config.identification.filter.bandwidth if config.identification else 2.0)
-    return joint_space.joint_excitation(robot, config.robot.actuator_limits(), tcfg.duration, rate,
+    return joint_space.joint_excitation(robot, actuator_limits(config.robot), tcfg.duration, rate,
                                         bandwidth, fade=tcfg.fade,
                                         seed=tcfg.seed, name=tcfg.name, amplitude=tcfg.amplitude,
                                         harmonics=tcfg.harmonics)
@@ -255,12 +202,12 @@ def _described_build(config, tcfg, robot, rate):
 DESCRIBED = RobotKind(
     name="described", sections=("described",), truth_key="parameters", trajectory_kinds=("joint_excitation",),
     model=described_model,
-    initial=lambda robot: robot.described.cad.vector(described_model(robot)),
-    truth=lambda robot, sim: sim.parameters.vector(described_model(robot)),
+    initial=lambda robot: to_model.described_parameters(robot.described.cad, described_model(robot)),
+    truth=lambda robot, sim: to_model.described_parameters(sim.parameters, described_model(robot)),
     actuators=lambda robot: (tuple(a.name for a in robot.actuators), tuple(a.kind for a in robot.actuators)),
     build=_described_build,
     check=lambda config, traj, robot: joint_space.check_described_trajectory(
-        traj, robot, config.robot.actuator_limits(), config.robot.described.max_condition),
+        traj, robot, actuator_limits(config.robot), config.robot.described.max_condition),
     validate=_described_validate)
 
 
@@ -274,3 +221,19 @@ def kind_of(robot) -> RobotKind:
     """The :class:`RobotKind` of a ``robot`` section."""
     return KINDS[robot.kind]
 
+
+def model_of(robot: RobotConfig) -> RobotModel:
+    """The model of a ``robot`` section (its kind's), a new one per call."""
+    return kind_of(robot).model(robot)
+
+
+def initial_parameters(robot: RobotConfig) -> np.ndarray:
+    """The CAD values (P,) of a ``robot`` section, in the order of its model's ``parameter_names``."""
+    return kind_of(robot).initial(robot)
+
+
+def true_parameters(config: Config) -> np.ndarray | None:
+    """The simulated rig's true parameters (P,) in the model's order; None without ``sim``."""
+    if config.sim is None:
+        return None
+    return kind_of(config.robot).truth(config.robot, config.sim)

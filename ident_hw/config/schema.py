@@ -8,9 +8,12 @@ A config section is a frozen dataclass. Its annotated fields say the expected ty
         l1: float = field(metadata=spec(positive, unit="m"))
         gamma: tuple[float, float, float] = field(metadata=spec(angle=True))
 
-A field marked ``angle=True`` (value in rad) may instead be written as ``<name>_deg`` in degrees.
-Cross-field rules live in an optional ``_check(self)`` method that raises :class:`FieldError`
-naming the offending key (path relative to the section).
+A field marked ``angle=True`` (value in rad) may instead be written as ``<name>_deg`` in degrees;
+one marked ``key=False`` is no key of the file: the loader gives it (``build(..., given=...)``).
+Cross-field rules are not the sections': :func:`build` takes them as ``checks``, one function per
+section class, ``check(section, written)`` (``written``: the keys the file gives, ``_deg`` ones by
+their field's name), raising :class:`FieldError` naming the offending key (path relative to the
+section); each runs as soon as its section is built, so its error points at the section's node.
 
 Every error is one :class:`ConfigError` naming the file, the line, the key path
 (``robot.geometry.l1``) and what was expected. Unknown keys are errors (with a "did you mean").
@@ -25,7 +28,7 @@ import os
 import types
 import typing
 from pathlib import Path
-from typing import Any, Callable, Literal, Union
+from typing import Any, Callable, Literal, Mapping, Union
 
 import yaml
 
@@ -54,7 +57,7 @@ class ConfigError(drivers.errors.ConfigError):
 
 
 class FieldError(ValueError):
-    """Raised by a section's ``_check`` (or a validator): ``key`` is a dotted path inside the section."""
+    """Raised by a section's check (or a validator): ``key`` is a dotted path inside the section."""
 
     def __init__(self, key: str, message: str) -> None:
         super().__init__(message)
@@ -62,12 +65,17 @@ class FieldError(ValueError):
 
 
 def spec(check: Callable[[Any], None] | None = None, *, unit: str = "", angle: bool = False,
-         doc: str = "", path: bool = False) -> dict:
+         doc: str = "", path: bool = False, key: bool = True) -> dict:
     """Field metadata: an optional validator ``check(value)`` raising ValueError("expected ..."),
-    the SI unit (for messages and docs), whether ``<name>_deg`` is accepted (value in rad), and
+    the SI unit (for messages and docs), whether ``<name>_deg`` is accepted (value in rad),
     whether the value is a file path relative to the config file that writes it (``path``: read
-    as that file's folder joined with it, so a base config's path holds in the configs extending it)."""
-    return {"check": check, "unit": unit, "angle": angle, "doc": doc, "path": path}
+    as that file's folder joined with it, so a base config's path holds in the configs extending it),
+    and whether the field is a key of the file at all (``key=False``: set by the loader)."""
+    return {"check": check, "unit": unit, "angle": angle, "doc": doc, "path": path, "key": key}
+
+
+#: a section's cross-field check: ``(section, keys written in the file) -> None``, raising FieldError
+Check = Callable[[Any, frozenset], None]
 
 
 # ----------------------------------------------------------------------------- validators
@@ -102,9 +110,12 @@ def _flat(value):
 
 
 # ----------------------------------------------------------------------------- building
-def build(cls: type, node: yaml.Node, path: str = ""):
-    """Build dataclass ``cls`` from a composed YAML node, validating every key."""
-    return _Builder().dataclass(cls, node, path)
+def build(cls: type, node: yaml.Node, checks: Mapping[type, Check] | None = None,
+          given: Mapping[str, Any] | None = None):
+    """Build dataclass ``cls`` from a composed YAML node, validating every key and running the
+    cross-field ``checks`` of each section built; ``given``: the values of ``cls``'s fields that
+    are no keys of the file (``spec(key=False)``)."""
+    return _Builder(checks or {}).dataclass(cls, node, "", given or {})
 
 
 def location(node: yaml.Node) -> tuple[str, int]:
@@ -168,10 +179,13 @@ def _type_name(tp) -> str:
 
 
 class _Builder:
-    def dataclass(self, cls, node, path):
+    def __init__(self, checks: Mapping[type, Check]) -> None:
+        self.checks = checks
+
+    def dataclass(self, cls, node, path, preset=None):
         items = mapping_items(node, path)
         hints = typing.get_type_hints(cls)
-        inits = [f for f in dataclasses.fields(cls) if f.init]
+        inits = [f for f in dataclasses.fields(cls) if f.init and (f.metadata or {}).get("key", True)]
         known = {f.name for f in inits} | {f"{f.name}_deg" for f in inits if (f.metadata or {}).get("angle")}
         unknown = [k for k in items if k not in known]
         if unknown:
@@ -179,7 +193,7 @@ class _Builder:
             close = difflib.get_close_matches(k, sorted(known), n=1)
             hint = f"; did you mean {close[0]!r}?" if close else f"; expected one of {sorted(known)}"
             raise error_at(items[k][0], _join(path, k), f"unknown key{hint}")
-        kwargs = {}
+        kwargs = dict(preset or {})
         for f in inits:
             meta = f.metadata or {}
             key = f.name
@@ -210,11 +224,12 @@ class _Builder:
                     unit = f" ({meta['unit']})" if meta.get("unit") else ""
                     raise error_at(value_node, _join(path, used), f"{exc}{unit}") from None
             kwargs[key] = value
+        written = frozenset(f.name for f in inits if f.name in items or f"{f.name}_deg" in items)
         try:
             obj = cls(**kwargs)
-            check = getattr(obj, "_check", None)
+            check = self.checks.get(cls)
             if check is not None:
-                check()
+                check(obj, written)
         except FieldError as exc:
             target = _find(node, exc.key)
             raise error_at(target, _join(path, exc.key), exc.message) from None

@@ -6,7 +6,7 @@ identification (stretches cut at gaps, filter, derivatives, regressor, parallel 
 and then, sample by sample in time order, into the three estimators. The rows of an axis near
 rest are left out, as in the offline fits (``identification.min_speed``): the smoothed Coulomb
 term does not describe friction there. Parameters are scaled by
-:meth:`ident_hw.config.OnlineConfig.parameter_scales` (CAD magnitudes, friction magnitudes by
+:func:`ident_hw.config.to_identification.online_scales` (CAD magnitudes, friction magnitudes by
 kind) and forces by ``identification.online.output_noise`` times each axis' force per ampere,
 so that the SVD-DLS threshold reads as a relative standard deviation. The estimates start at
 the CAD values with no information: a direction the data have not excited yet stays there.
@@ -25,6 +25,9 @@ import numpy as np
 
 from drivers.recording import Recording
 from ident_hw.config import Config
+from ident_hw.config.robots import initial_parameters, true_parameters
+from ident_hw.config.to_drivers import axis_scaling
+from ident_hw.config.to_identification import online_scales
 from ident_hw.identification import RLS, SVDDLS, DampedRLS, base_parameters
 from ident_hw.identification.base_params import on_kept
 from ident_hw.model.combinations import format_combination
@@ -48,8 +51,8 @@ class CampaignEstimator:
         self.show = show
         online = config.identification.online
         physical = self.robot.parameter_names
-        cad = config.robot.initial_parameters()
-        scale = np.array(online.parameter_scales(physical, cad))
+        cad = initial_parameters(config.robot)
+        scale = np.array(online_scales(online, physical, cad))
         basis = self.robot.readable_base()
         if basis is None:      # the physical parameters (their base ones follow from the data)
             self._kept, self._columns, self._H = None, None, None
@@ -60,7 +63,7 @@ class CampaignEstimator:
             self.names = tuple(format_combination(h, physical) for h in self._H)
             self.units = tuple(map(self.robot.parameter_unit, self._kept))
             self.cad, self.scale = self._H @ cad, np.abs(self._H) @ scale
-        force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
+        force_per_amp = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])
         self.output_std = online.output_noise * force_per_amp
         n = len(self.names)
         common = {"forgetting": online.forgetting, "scale": self.scale, "output_std": self.output_std}
@@ -85,7 +88,7 @@ class CampaignEstimator:
 
     def _truth_at(self, name: str, t: np.ndarray) -> np.ndarray | None:
         """(M, n) the simulated truth at the trajectory's times ``t`` (s from its start)."""
-        true = self.config.true_parameters()
+        true = true_parameters(self.config)
         if true is None:
             return None
         truth = np.tile(true, (len(t), 1))

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from drivers.errors import ConfigError, RecordingError
 from ident_hw.config import load_config
+from ident_hw.config.robots import model_of
 from ident_hw.model.described import DescribedRobot
 from ident_hw.model.description_writer import write_description
 from ident_hw.results import load_results
@@ -29,7 +30,7 @@ def export_description(results_folder: str | Path, to: str | Path, for_mujoco: b
     folder = Path(results_folder)
     results = load_results(folder)
     config = load_config(folder / "config.yaml")
-    robot = config.robot.to_model()
+    robot = model_of(config.robot)
     if not isinstance(robot, DescribedRobot):
         raise ConfigError(f"{folder / 'config.yaml'}: robot.kind {config.robot.kind!r} is a hand-written model with "
                           "no description file to write; export needs a described robot (robot.kind: described)")

@@ -27,8 +27,11 @@ from drivers.errors import RecordingError
 from drivers.profiles import AveragingFilter, get_profile
 from drivers.recording import Recording
 from ident_hw.config import Config
+from ident_hw.config.identification import IdentificationConfig
+from ident_hw.config.robots import initial_parameters, true_parameters
 from ident_hw.config.schema import FieldError
-from ident_hw.config.sections import IdentificationConfig
+from ident_hw.config.to_drivers import axis_scaling
+from ident_hw.config.to_identification import filter_settings, physical_scales, step_parameters
 from ident_hw.identification.base_params import (base_parameters, column_scale, identify_base, on_kept,
                                                   scaled_condition)
 from ident_hw.identification.least_squares import check_regression_data, ols, stack, wls
@@ -105,7 +108,7 @@ def segments_of(config: Config, rec: Recording, trim: int = 0, min_kept: int = 1
     return split(rec.t, recording_period(rec), identification_valid(rec), rec.current, rec.target,
                  current_limit=np.array([a.limits.current for a in acts]),
                  acceleration_limit=np.array([a.limits.acceleration for a in acts]),
-                 counts_per_unit=np.array([a.scaling().counts_per_unit for a in acts]),
+                 counts_per_unit=np.array([axis_scaling(a).counts_per_unit for a in acts]),
                  trim=trim, min_kept=min_kept, cut_trim=cut_trim)
 
 
@@ -165,13 +168,13 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
              for a, ok in zip(config.robot.actuators, identification_valid(rec).any(axis=0)) if not ok]
     if empty:
         raise RecordingError(f"{where}: no valid sample of {', '.join(empty)}")
-    settings = config.identification.filter.settings(1.0 / recording_period(rec), motion_bandwidth(config, name))
+    settings = filter_settings(config.identification.filter, 1.0 / recording_period(rec), motion_bandwidth(config, name))
     segments = segments_of(config, rec, settings.trim, MIN_FILTERED, settings.cut_trim)
     if not segments.slices:      # nothing to fit; the quality verdict says why
         a, m = len(robot.actuator_names), len(robot.parameter_names)
         return Prepared(name, np.zeros(0), np.zeros((0, a)), np.zeros((0, robot.pose_size)), np.zeros((0, a, m)),
                         np.zeros((0, a)), np.zeros((0, a), bool), segments=segments)
-    force_per_amp = np.array([a.scaling().force_per_amp for a in config.robot.actuators])
+    force_per_amp = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])
     speed_limit = np.array([a.limits.velocity for a in config.robot.actuators])
     # start poses for the forward kinematics of each stretch: a continuation from the home pose
     # along the whole recording, across its gaps (a Newton start only, never data)
@@ -296,10 +299,10 @@ def reread_draws(config: Config, robot: RobotModel, recordings: Mapping[str, Rec
     """``draws`` versions of the recordings ``names`` read again by encoders whose count edges are
     moved (:mod:`ident_hw.experiment.encoder`), each prepared as the recording was: one dict
     (trajectory name -> :class:`Prepared`) per draw."""
-    counts_per_unit = np.array([a.scaling().counts_per_unit for a in config.robot.actuators])
+    counts_per_unit = np.array([axis_scaling(a).counts_per_unit for a in config.robot.actuators])
     smooth = {}
     for name in names if draws else ():      # the motion the draws read again, once per recording
-        settings = config.identification.filter.settings(1.0 / recording_period(recordings[name]),
+        settings = filter_settings(config.identification.filter, 1.0 / recording_period(recordings[name]),
                                                         motion_bandwidth(config, name))
         smooth[name] = smoothed_positions(recordings[name], settings.cutoff_hz, settings.order)
     return [{name: prepare(config, robot, name, reread(recordings[name], smooth[name], counts_per_unit, shift))
@@ -395,9 +398,9 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         progress(f"the encoders read again, count edges moved: {ident.encoder_draws} draws")
     draws = reread_draws(config, robot, recordings, id_names, ident.encoder_draws)
 
-    initial = config.robot.initial_parameters()
+    initial = initial_parameters(config.robot)
     estimates = _Estimates.initial(initial)
-    truth = config.true_parameters()
+    truth = true_parameters(config)
     steps, base_fit, base_equivalent, model_comparison, fitted = _run_steps(
         ident, robot, prepared, compared, estimates, initial, truth, progress, draws)
 
@@ -450,7 +453,7 @@ def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping
     base_fit, base_equivalent, model_comparison = None, None, None
     fitted: set[str] = set()            # every parameter some step fitted
     for step in ident.steps:
-        free_names = step.parameter_names(names)
+        free_names = step_parameters(step, names)
         if progress:
             progress(f"step {step.name}: fitting "
                      + ("all parameters" if step.parameters == ("all",) else ", ".join(free_names))
@@ -496,7 +499,7 @@ def consistent(config: Config, robot: RobotModel, base_fit: BaseFit, equivalent:
     typical = np.array([abs(equivalent[i]) if i not in in_body and not initial[i] else initial[i]
                         for i in range(len(names))])
     try:
-        scale = np.array(physical.parameter_scales(names, typical))
+        scale = np.array(physical_scales(physical, names, typical))
         return consistent_parameters(names, tuple(robot.parameter_unit(p) for p in names), base_fit.H, base_fit.coef,
                                      base_fit.covariance, initial, scale, bodies, held=held,
                                      metric=physical.metric, prior_relative=physical.prior, truth=truth), None

@@ -10,7 +10,9 @@ import numpy as np
 import trajectories
 from drivers.axis import AxisConfig, outside_position_limits
 from ident_hw.config import Config, TrajectoryConfig
-from ident_hw.config.robots import excitation_of, kind_of
+from ident_hw.config.robots import kind_of, model_of
+from ident_hw.config.to_drivers import axis_config, axis_scaling
+from ident_hw.config.to_trajectories import excitation_of
 from ident_hw.model import KinematicsError
 from ident_hw.model.interface import POSITION_UNITS, RobotModel
 
@@ -40,7 +42,7 @@ class PlannedTrajectory:
 
 def robot_model(config: Config) -> RobotModel:
     """The model of the config's robot (``robot.kind``)."""
-    return config.robot.to_model()
+    return model_of(config.robot)
 
 
 def sample_rate(config: Config) -> float:
@@ -63,15 +65,14 @@ def setpoints(traj: trajectories.Trajectory) -> np.ndarray:
 def drive_axes(config: Config) -> list[AxisConfig]:
     """The drives' axis settings of the config's actuators, their software position limits
     included: those of the run's drive group (:meth:`ident_hw.experiment.session.Session.drive_group`)."""
-    base = Path(config.source).parent
-    return [a.to_driver(base, config.current) for a in config.robot.actuators]
+    return [axis_config(a, config.base_dir, config.current) for a in config.robot.actuators]
 
 
 def build(config: Config, tcfg: TrajectoryConfig, robot: RobotModel) -> trajectories.Trajectory:
     """Generate one trajectory (all cycles) at the SYNC rate."""
     rate = sample_rate(config)
     if tcfg.kind == "file":
-        traj = trajectories.load(Path(config.source).parent / tcfg.path).resample(rate)
+        traj = trajectories.load(Path(config.base_dir or "") / tcfg.path).resample(rate)
     else:
         traj = kind_of(config.robot).build(config, tcfg, robot, rate)
     traj = repeat(traj, tcfg.cycles)
@@ -166,7 +167,7 @@ def quantisation_notes(config: Config, traj: trajectories.Trajectory) -> tuple[s
     parts = []
     for j, axis in enumerate(config.robot.actuators):
         rms = float(np.sqrt(np.mean(traj.Thetadd[:, j] ** 2)))
-        quantum = 1.0 / (axis.scaling().counts_per_unit * period**2)
+        quantum = 1.0 / (axis_scaling(axis).counts_per_unit * period**2)
         if 0 < rms < quantum:
             unit = "rad/s²" if axis.kind == "revolute" else "m/s²"
             parts.append(f"{axis.name} {quantum:.3g} {unit} = {quantum / rms:.1f}x its RMS")

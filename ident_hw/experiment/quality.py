@@ -35,6 +35,7 @@ from typing import Sequence
 import numpy as np
 
 from ident_hw.config import ActuatorConfig, QualityConfig
+from ident_hw.config.to_drivers import axis_scaling
 from ident_hw.identification.metrics import validation_metrics
 from ident_hw.records import TrajectoryVerdict, Verdict
 from ident_hw.results import Results
@@ -123,7 +124,7 @@ def _gains_and_residuals(results: Results, actuators: Sequence[ActuatorConfig], 
     """The figures :func:`axis_reasons` judges, over the fitted trajectories: each axis's gain
     (n_axes,), %, and, per axis of ``groups``, its worst residual against its twins as ``(ratio,
     trajectory, its RMS residual in A, the median of the twins' in A)``."""
-    per_amp = np.array([a.scaling().force_per_amp for a in actuators])
+    per_amp = np.array([axis_scaling(a).force_per_amp for a in actuators])
     worst: dict[str, tuple[float, str, float, float]] = {}
     along, power = np.zeros(len(actuators)), np.zeros(len(actuators))
     for fit in results.fits:

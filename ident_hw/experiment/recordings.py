@@ -19,6 +19,7 @@ import numpy as np
 from drivers.errors import RecordingError
 from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log
 from ident_hw.config import Config
+from ident_hw.config.to_drivers import axis_config, axis_scaling
 
 from .plan import plan
 
@@ -65,7 +66,7 @@ def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
             profiles, drive scaling); the message names the file, the config and the axis.
     """
     path = Path(path)
-    axes = [a.to_driver(current=config.current) for a in config.robot.actuators]
+    axes = [axis_config(a, current=config.current) for a in config.robot.actuators]
     if path.suffix.lower() in RAW_LOG_SUFFIXES:
         name = path.stem
         meta = {"trajectory": name, "file": str(path), "current": config.current}
@@ -105,7 +106,7 @@ def check_axes(path: Path, rec: Recording, config: Config) -> None:
     for act, r in zip(acts, recorded):
         if str(r.get("profile", act.profile)).lower() != act.profile:
             differ.append(f"{act.name} (node {act.node_id}) profile {r.get('profile')!r} (config: {act.profile!r})")
-        mine = act.scaling()
+        mine = axis_scaling(act)
         for key in SCALING_FIELDS:
             theirs, ours = (r.get("scaling") or {}).get(key), getattr(mine, key)
             if not _same(theirs, ours):

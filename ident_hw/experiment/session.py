@@ -27,6 +27,8 @@ from drivers.sim.lockstep import LockstepSync
 from drivers.sync import PeriodicSync, SyncSource
 from drivers.units import MA_PER_AMP
 from ident_hw.config import Config
+from ident_hw.config.robots import true_parameters
+from ident_hw.config.to_drivers import axis_scaling, bus_settings, encoder_edge_counts
 from ident_hw.experiment.plan import drive_axes, robot_model, sync_period
 
 if TYPE_CHECKING:     # the rig (its compiled plant) is imported where one is built
@@ -49,13 +51,13 @@ def simulated_rig(config: Config) -> SimulatedRig:
     from drivers.sim import SimulatedRig
     sim, robot = config.sim, config.robot
     lockstep = config.sync_mode == "lockstep"
-    axes = [(a.node_id, a.profile, a.scaling()) for a in robot.actuators]
-    return SimulatedRig.build(robot_model(config), config.true_parameters(), axes,
+    axes = [(a.node_id, a.profile, axis_scaling(a)) for a in robot.actuators]
+    return SimulatedRig.build(robot_model(config), true_parameters(config), axes,
                               bandwidth_hz=sim.bandwidth, damping=sim.damping,
                               **({"max_substep": sim.max_substep} if sim.max_substep else {}),
                               sync_period=sync_period(config) if lockstep else None,
                               current_noise_ma=sim.current_noise * MA_PER_AMP, seed=sim.seed, lockstep=lockstep, brakes=sim.brakes,
-                              encoder_edges=sim.encoder_edge_counts(len(axes)),
+                              encoder_edges=encoder_edge_counts(sim, len(axes)),
                               interface=config.bus.interface, channel=config.bus.channel, ignore_config=True)
 
 
@@ -133,7 +135,7 @@ def open_session(config: Config) -> Iterator[Session]:
             raise BusOpenError(f"simulated rig: cannot open CAN bus interface={config.bus.interface!r} "
                                f"channel={config.bus.channel!r}: {exc}") from exc
     try:
-        network = open_network(config.bus.to_driver())
+        network = open_network(bus_settings(config.bus))
     except BaseException:
         if rig is not None:
             rig.stop()

@@ -9,6 +9,7 @@ import pytest
 from rig_runs import RunInOneProcess, assert_same_in_one_process, assert_step_identified, parameter_rows
 
 from .conftest import VCAN_CHANNEL, VCAN_CONFIG as CONFIG
+from ident_hw.config.to_drivers import axis_config
 
 pytestmark = pytest.mark.vcan
 
@@ -110,7 +111,7 @@ def test_cli_run_against_rig_process_matches_candump(vcan_rig, candump, tmp_path
     # on where it stands against the SYNC frames; the master's socket gets its own SYNC and RPDO frames
     # looped back, so near a SYNC boundary its interleaving can differ from candump's: a cell one observer
     # assembled may be incomplete for the other, and a set-point may count from the neighbouring cycle.
-    decoded = decode_log(dumped, [a.to_driver() for a in actuators], max_cycles=n)
+    decoded = decode_log(dumped, [axis_config(a) for a in actuators], max_cycles=n)
     np.testing.assert_array_equal(decoded.cycle, recorded.cycle)
     both = decoded.valid & recorded.valid
     # at least half of the master's cells are compared, so the comparison cannot pass on nothing
@@ -120,6 +121,6 @@ def test_cli_run_against_rig_process_matches_candump(vcan_rig, candump, tmp_path
     print(f"cells assembled: by the master {recorded.valid.sum()}, from candump {decoded.valid.sum()}, "
           f"by both {both.sum()} of {recorded.valid.size}")
     # and the run's own raw CAN log decodes to its recording as well
-    replayed = decode_log(own_log, [a.to_driver() for a in actuators], max_cycles=n)
+    replayed = decode_log(own_log, [axis_config(a) for a in actuators], max_cycles=n)
     for name in ("cycle", "position", "current", "statusword", "target", "valid"):
         np.testing.assert_array_equal(getattr(replayed, name), getattr(recorded, name), err_msg=name)

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from .conftest import VCAN_CHANNEL
+from ident_hw.config.to_drivers import axis_config
 
 pytestmark = pytest.mark.vcan
 
@@ -45,7 +46,7 @@ def test_master_streams_from_rig_process_and_raw_logs_replay(start_process, cand
     free_running.write_text(f"extends: {CONFIG}\nbus: {{sync: periodic, sync_rate: {1 / SYNC_PERIOD:g}}}\n"
                             f"sim: {{max_substep: {MAX_SUBSTEP}}}\n")
     config = load_config(free_running)
-    axes = [a.to_driver() for a in config.robot.actuators]
+    axes = [axis_config(a) for a in config.robot.actuators]
     start_process(["ident-hw", "sim", str(free_running)], ready="simulated rig:")
     network = open_network(BusConfig("socketcan", VCAN_CHANNEL, bitrate=1_000_000))
     group = DriveGroup(network, axes, heartbeat_period=HEARTBEAT, heartbeat_timeout=8 * HEARTBEAT,

@@ -1,5 +1,4 @@
-"""Typical sizes of the parameters, and the physically consistent step's section
-(``identification.physical``).
+"""Typical sizes of the parameters, and the kinds of parameters their names tell.
 
 A parameter's scale is its typical magnitude: the online estimators work in parameters divided by
 it, and the consistent step's CAD prior has a standard deviation of ``prior`` scales. Scales come
@@ -10,10 +9,7 @@ largest CAD magnitude of its family (:data:`BODY_PARAMETER_FAMILIES`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Literal
-
-from .schema import FieldError, positive, spec
+from .schema import FieldError
 
 #: typical magnitudes of the friction coefficients by kind (they have no CAD value): the
 #: parameter scales where a config's ``scales`` give none. A lab's rig:
@@ -41,7 +37,6 @@ def drive_term(name: str) -> str | None:
     """``fv``, ``fc`` or ``Jm`` for an actuator's drive parameter (``fv_elbow``), else None."""
     head = name.split("_", 1)[0]
     return head if "_" in name and head in ("fv", "fc", "Jm") else None
-
 
 
 def check_scales(scales: dict[str, float]) -> None:
@@ -74,28 +69,3 @@ def parameter_scales(names, cad, scales: dict[str, float], where: str) -> tuple[
                              "(or one for its kind)")
         out.append(float(scale))
     return tuple(out)
-
-
-@dataclass(frozen=True)
-class PhysicalConfig:
-    """The physically consistent parameters after the least-squares step
-    (:mod:`ident_hw.identification.physical`): every body's mass, centre of mass and inertia
-    realisable, friction and rotor inertia non-negative, nearest the CAD values in ``metric``,
-    reproducing the identified base parameters within their covariance."""
-
-    enabled: bool = field(default=True, metadata=spec(
-        doc="compute them after the least-squares step (none without such a step)"))
-    metric: Literal["euclidean", "entropic"] = field(default="entropic", metadata=spec(
-        doc="distance to the CAD prior: scaled squares, or the log-determinant divergence of the bodies' "
-            "pseudo-inertias (needs CAD bodies with positive-definite pseudo-inertias; others keep the squares)"))
-    prior: float = field(default=1.0, metadata=spec(
-        positive, doc="standard deviation of the CAD prior, in parameter scales: 1 = the CAD value is known to "
-                      "about its own size; smaller trusts the CAD values more"))
-    scales: dict[str, float] = field(default_factory=dict)
-
-    def _check(self) -> None:
-        check_scales(self.scales)
-
-    def parameter_scales(self, names, cad) -> tuple[float, ...]:
-        """(n,) the prior's scale of every parameter (module docstring)."""
-        return parameter_scales(names, cad, self.scales, "identification.physical.scales")

@@ -1,0 +1,251 @@
+"""The cross-field rules of a config: what no single key's type and range can say.
+
+One function per section class (:data:`CHECKS`, handed to :func:`ident_hw.config.schema.build`),
+``check(section, written)`` with ``written`` the keys the file gives; each raises
+:class:`~ident_hw.config.schema.FieldError` naming the offending key relative to its section.
+The whole file's rules (:func:`check_config`) tie the sections together: the identification's
+parameter names are the robot model's, every trajectory named exists, the simulated rig's truth
+is the robot's, and so on.
+"""
+
+from __future__ import annotations
+
+import difflib
+import fnmatch
+from typing import Callable
+
+from drivers.units import PRISMATIC, REVOLUTE
+from ident_hw.model.delta import BODIES, BODY_PARAMS
+from ident_hw.model.interface import RobotModel
+
+from .actuators import ActuatorConfig
+from .file import Config
+from .identification import IdentificationConfig, OnlineConfig, PhysicalConfig
+from .robot import RobotConfig
+from .robot_3prrr import GeometryConfig
+from .robot_delta import DeltaParametersConfig
+from .robots import COMMON_TRAJECTORY_KINDS, RobotKind, check_parameter_set, kind_of, model_of
+from .scales import check_scales, drive_term, parameter_kind
+from .schema import FieldError
+from .sim import TRUTH_KEYS
+from .trajectory import COMMON_KEYS, KEYS_OF_KIND, TrajectoryConfig
+
+
+# ----------------------------------------------------------------------------- sections
+def check_geometry(g: GeometryConfig, written: frozenset = frozenset()) -> None:
+    if g.s1 > g.l1:
+        raise FieldError("s1", f"expected s1 <= l1 = {g.l1} m, got {g.s1}")
+    if g.s2 > g.l2:
+        raise FieldError("s2", f"expected s2 <= l2 = {g.l2} m, got {g.s2}")
+
+
+def check_delta_parameters(p: DeltaParametersConfig, written: frozenset = frozenset()) -> None:
+    bodies = {f"{b}.{q}" for b in BODIES for q in BODY_PARAMS}
+    for name in p.factors:
+        if name not in bodies:
+            raise FieldError(f"factors.{name}", "unknown body parameter; expected <body>.<parameter>, "
+                             f"bodies {list(BODIES)}, parameters {list(BODY_PARAMS)}")
+
+
+def check_actuator(a: ActuatorConfig, written: frozenset = frozenset()) -> None:
+    if a.kind == PRISMATIC and a.screw_lead is None:
+        raise FieldError("screw_lead", "missing key: a prismatic actuator needs screw_lead (m per motor turn)")
+    if a.kind == REVOLUTE and a.screw_lead is not None:
+        raise FieldError("screw_lead", "a revolute actuator has no screw_lead")
+
+
+def check_robot(robot: RobotConfig, written: frozenset = frozenset()) -> None:
+    """Only the sections of the robot's kind, its kind's own rules, the actuators it expects and
+    every node id once."""
+    kind = kind_of(robot)
+    for key in ("geometry", "stroke", "cad", "delta", "described"):
+        if getattr(robot, key) is not None and key not in kind.sections:
+            raise FieldError(key, f"belongs to another robot than robot.kind {robot.kind!r} "
+                                  f"(its sections: {', '.join(kind.sections)})")
+    kind.validate(robot)
+    names, kinds = kind.actuators(robot)
+    if len(robot.actuators) != len(names):
+        raise FieldError("actuators", f"expected {len(names)} actuators ({', '.join(names)}), got {len(robot.actuators)}")
+    for i, (act, expected) in enumerate(zip(robot.actuators, kinds)):
+        if act.kind != expected:
+            raise FieldError(f"actuators[{i}].kind",
+                             f"actuator {i} ({names[i]}) must be {expected!r}, got {act.kind!r}")
+    seen: dict[int, int] = {}
+    for i, act in enumerate(robot.actuators):
+        if act.node_id in seen:
+            raise FieldError(f"actuators[{i}].node_id",
+                             f"node id {act.node_id} is already used by actuators[{seen[act.node_id]}]")
+        seen[act.node_id] = i
+
+
+def check_trajectory(t: TrajectoryConfig, written: frozenset = frozenset()) -> None:
+    """The keys its kind needs, and no key its kind does not read (it would be silently ignored)."""
+    unread = sorted(written - set(COMMON_KEYS) - set(KEYS_OF_KIND[t.kind]))
+    if unread:
+        reads = ", ".join(KEYS_OF_KIND[t.kind]) or "none"
+        raise FieldError(unread[0], f"a {t.kind!r} trajectory does not use {unread[0]} (it would be ignored); "
+                                    f"its own keys: {reads}; any trajectory's: {', '.join(COMMON_KEYS)}")
+    if (t.kind.startswith("delta_") or t.kind == "joint_excitation") and t.duration is None:
+        raise FieldError("duration", f"missing key: a {t.kind!r} trajectory needs duration (s)")
+    if t.kind == "file" and t.path is None:
+        raise FieldError("path", "missing key: a 'file' trajectory needs path")
+    if isinstance(t.amplitude, tuple) and t.kind.startswith("delta_") and len(t.amplitude) != 3:
+        raise FieldError("amplitude", f"one amplitude per arm is for the Delta's three arms, got "
+                                      f"{len(t.amplitude)} for a {t.kind!r} trajectory")
+    if t.kind in ("carriage_sweep", "square") and t.size is None:
+        raise FieldError("size", f"missing key: a {t.kind!r} trajectory needs size (m)")
+
+
+def check_scales_of(section: OnlineConfig | PhysicalConfig, written: frozenset = frozenset()) -> None:
+    check_scales(section.scales)
+
+
+def check_identification(ident: IdentificationConfig, written: frozenset = frozenset()) -> None:
+    """At most one least-squares step; every bound ``[min, max]`` ordered."""
+    least_squares = [i for i, s in enumerate(ident.steps) if s.method != "sqp"]
+    if len(least_squares) > 1:
+        raise FieldError(f"steps[{least_squares[1]}].method",
+                         f"only one step may fit base parameters by least squares (steps "
+                         f"{[ident.steps[i].name for i in least_squares]} are 'wls'/'ols')")
+    for name, pair in ident.bounds.items():
+        if not pair[0] <= pair[1]:
+            raise FieldError(f"bounds.{name}", f"expected [min, max] with min <= max, got {list(pair)}")
+
+
+# ----------------------------------------------------------------------------- the whole file
+def check_config(config: Config, written: frozenset = frozenset()) -> None:
+    """The rules that tie the sections together (the module docstring)."""
+    model = model_of(config.robot)            # once: a described robot's is read from its file
+    _check_parameter_names(config.identification, model.parameter_names)
+    kind = kind_of(config.robot)
+    _check_sim(config, model, kind)
+    names = _check_trajectory_names(config)
+    bus = config.bus
+    if bus is not None and bus.sync == "lockstep" and not config.simulated:
+        raise FieldError("bus.sync", f"lockstep paces the SYNC by the simulated rig's answers; "
+                         f"{bus.interface}:{bus.channel} may carry real drives, which "
+                         f"need 'periodic'" + ("" if config.sim is not None else " (no sim: section)"))
+    _check_fault(config, names)
+    _check_trajectory_kinds(config, kind)
+    _check_compare_models(config.identification, model)
+    for i, t in enumerate(config.trajectories):
+        if t.payload is not None and (config.sim is None or not config.sim.in_process):
+            raise FieldError(f"trajectories[{i}].payload", "a payload is put on by the in-process simulated "
+                             "rig (sim.in_process: true)")
+
+
+def _check_compare_models(ident: IdentificationConfig | None, model: RobotModel) -> None:
+    """The model comparison needs a least-squares step and a robot with an energy regressor."""
+    if ident is None or not ident.compare_models:
+        return
+    if not any(s.method != "sqp" for s in ident.steps):
+        raise FieldError("identification.compare_models", "needs a step that fits base parameters by "
+                         "least squares (method 'wls' or 'ols')")
+    from ident_hw.identification.model_comparison import supports_energy_models
+    why = supports_energy_models(model)
+    if why:
+        raise FieldError("identification.compare_models", why)
+
+
+def _check_sim(config: Config, model: RobotModel, kind: RobotKind) -> None:
+    """The sim section's truth is the robot kind's (``sim.<truth key>``), and its parameters the model's."""
+    sim = config.sim
+    if sim is None:
+        return
+    key = kind.truth_key
+    if getattr(sim, key) is None:
+        raise FieldError(f"sim.{key}", f"missing key: the simulated {config.robot.kind}'s true parameters")
+    for other in TRUTH_KEYS:
+        if other != key and getattr(sim, other) is not None:
+            raise FieldError(f"sim.{other}", f"belongs to another robot than robot.kind {config.robot.kind!r} "
+                             f"(its true parameters are sim.{key})")
+    if sim.parameters is not None:
+        try:
+            check_parameter_set(sim.parameters, model)
+        except FieldError as exc:
+            raise FieldError(f"sim.parameters.{exc.key}", exc.message) from None
+
+
+def _check_trajectory_names(config: Config) -> dict[str, int]:
+    """Every trajectory name once, and every one the identification names defined; returns
+    name -> index."""
+    names: dict[str, int] = {}
+    for i, t in enumerate(config.trajectories):
+        if t.name in names:
+            raise FieldError(f"trajectories[{i}].name", f"trajectory name {t.name!r} is used twice")
+        names[t.name] = i
+    ident = config.identification
+    if ident is None:
+        return names
+    for s, step in enumerate(ident.steps):
+        for j, t in enumerate(step.trajectories):
+            if t not in names:
+                raise FieldError(f"identification.steps[{s}].trajectories[{j}]",
+                                 f"no trajectory named {t!r}; defined: {list(names)}")
+    for j, t in enumerate(ident.validation):
+        if t not in names:
+            raise FieldError(f"identification.validation[{j}]", f"no trajectory named {t!r}; defined: {list(names)}")
+    return names
+
+
+def _check_fault(config: Config, names: dict[str, int]) -> None:
+    """An injected fault names a trajectory and an actuator of this config, on the in-process rig."""
+    fault = config.sim.fault if config.sim is not None else None
+    if fault is None:
+        return
+    if fault.trajectory not in names:
+        raise FieldError("sim.fault.trajectory", f"no trajectory named {fault.trajectory!r}; "
+                         f"defined: {list(names)}")
+    if fault.node_id not in [a.node_id for a in config.robot.actuators]:
+        raise FieldError("sim.fault.node_id", f"no actuator with node id {fault.node_id}")
+    if not config.sim.in_process:
+        raise FieldError("sim.fault", "fault injection needs the in-process rig (sim.in_process: true)")
+
+
+def _check_trajectory_kinds(config: Config, kind: RobotKind) -> None:
+    """Every trajectory of a kind the robot has, a joint excitation's amplitudes one per actuator."""
+    allowed = kind.trajectory_kinds + COMMON_TRAJECTORY_KINDS
+    actuators = len(config.robot.actuators)
+    for i, t in enumerate(config.trajectories):
+        if t.kind not in allowed:
+            raise FieldError(f"trajectories[{i}].kind", f"a {t.kind!r} trajectory is not one of the "
+                             f"{config.robot.kind}'s (robot.kind): expected one of {list(allowed)}")
+        if isinstance(t.amplitude, tuple) and t.kind == "joint_excitation" and len(t.amplitude) != actuators:
+            raise FieldError(f"trajectories[{i}].amplitude", f"expected one amplitude per actuator "
+                             f"({actuators}), got {len(t.amplitude)}")
+
+
+def _check_parameter_names(ident: IdentificationConfig | None, known: tuple[str, ...]) -> None:
+    """Parameter names of the identification section: those of the robot's model (``known``)."""
+    if ident is None:
+        return
+    for s, step in enumerate(ident.steps):
+        for i, p in enumerate(() if step.parameters == ("all",) else step.parameters):
+            if p not in known and not any(fnmatch.fnmatchcase(n, p) for n in known):
+                close = difflib.get_close_matches(p, known, n=1)
+                hint = f"did you mean {close[0]!r}?" if close else f"expected one of {list(known)}"
+                raise FieldError(f"identification.steps[{s}].parameters[{i}]",
+                                 f"unknown parameter {p!r} (no parameter matches it); {hint}")
+    for name in ident.bounds:
+        if name not in known:
+            raise FieldError(f"identification.bounds.{name}", f"unknown parameter; expected one of {list(known)}")
+    kinds = set(known) | {parameter_kind(n) for n in known} | {drive_term(n) for n in known} - {None}
+    for section in ("online", "physical"):
+        for name in getattr(ident, section).scales:
+            if name not in kinds:
+                raise FieldError(f"identification.{section}.scales.{name}",
+                                 f"unknown parameter or kind; expected one of {sorted(kinds)}")
+
+
+#: every section's cross-field check, by section class
+CHECKS: dict[type, Callable[[object, frozenset], None]] = {
+    GeometryConfig: check_geometry,
+    DeltaParametersConfig: check_delta_parameters,
+    ActuatorConfig: check_actuator,
+    RobotConfig: check_robot,
+    TrajectoryConfig: check_trajectory,
+    OnlineConfig: check_scales_of,
+    PhysicalConfig: check_scales_of,
+    IdentificationConfig: check_identification,
+    Config: check_config,
+}

@@ -1,0 +1,154 @@
+"""The ``identification`` section: the steps, the data preparation, the online estimators, the
+physically consistent step and the thresholds of the quality verdict."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+from ident_hw.identification.least_squares import POORLY_IDENTIFIED_PERCENT
+
+from .schema import in_range, non_negative, positive, spec
+
+
+@dataclass(frozen=True)
+class FilterConfig:
+    """Data preparation: zero-phase Butterworth low-pass of the positions, parallel decimation.
+
+    Defaults follow the sample rate and the motion ``bandwidth``
+    (:meth:`ident_hw.filtering.FilterSettings.for_sample_rate`); ``cutoff`` and ``decimation``
+    override them.
+    """
+
+    bandwidth: float = field(default=5.0, metadata=spec(positive, unit="Hz"))
+    order: int = field(default=4, metadata=spec(in_range(1, 12)))
+    cutoff: float | None = field(default=None, metadata=spec(positive, unit="Hz"))
+    decimation: int | None = field(default=None, metadata=spec(in_range(1, 100)))
+
+
+@dataclass(frozen=True)
+class StepConfig:
+    """One identification step: which recorded trajectories identify which parameters.
+
+    ``sqp``: bounded fit of the listed parameters, the others held at their current values
+    (the 3PRRR paper); the result is carried into the next steps. ``wls``/``ols``: least squares of the
+    base parameters of the listed ones (the SVD-DLS paper; the others held), with their standard
+    deviations (the power-model paper); reported beside the physical parameters, not carried on (a base
+    parameter can group several physical ones). At most one step is ``wls``/``ols``.
+    """
+
+    name: str
+    trajectories: tuple[str, ...]
+    parameters: tuple[str, ...] = field(metadata=spec(
+        doc="parameter names or shell-style patterns of them (leg?_rod.I*), or [all]: every parameter of the model"))
+    method: Literal["sqp", "ols", "wls"] = "sqp"
+
+
+@dataclass(frozen=True)
+class OnlineConfig:
+    """The online estimators (SVD-DLS, beside RLS and damped RLS on the same data).
+
+    They work on parameters divided by their ``scales`` and on forces divided by the noise of
+    the outputs, so that ``threshold`` means the same for every direction (100 ⇔ a relative
+    standard deviation of 10 % of the scale). Scales: ``scales`` per parameter name, friction
+    kind (``fv_zeta`` ...) or drive term (``fv``), else the magnitude of the CAD value, else
+    :data:`~ident_hw.config.scales.FRICTION_SCALES`, else (a body parameter) the largest CAD
+    magnitude of its family (:data:`~ident_hw.config.scales.BODY_PARAMETER_FAMILIES`), by
+    :func:`~ident_hw.config.to_identification.online_scales`.
+    """
+
+    forgetting: float = field(default=0.999, metadata=spec(in_range(0.5, 1.0)))
+    threshold: float = field(default=100.0, metadata=spec(
+        positive, doc="eigenvalue threshold of the scaled information matrix: 100 = 10 % relative std"))
+    output_noise: float = field(default=0.001, metadata=spec(
+        positive, unit="A", doc="standard deviation of a motor current after the parallel filter and decimation "
+                                "(1 mA: the drives' resolution)"))
+    scales: dict[str, float] = field(default_factory=dict)
+    damping: float = field(default=100.0, metadata=spec(
+        positive, doc="regularisation of the damped-RLS baseline, in the scaled units of the threshold"))
+    in_run: bool = field(default=False, metadata=spec(
+        doc="run the estimators in `ident-hw run` too, as `ident-hw online` does (the online_only "
+            "trajectories streamed after the others, the comparison printed and in the report)"))
+
+
+@dataclass(frozen=True)
+class QualityConfig:
+    """Thresholds of the quality verdict (:mod:`ident_hw.experiment.quality`) of every run and
+    identify: a result whose data or fit miss one ends ``degraded`` (with the reasons), not
+    ``complete``."""
+
+    min_coverage: float = field(default=1.0, metadata=spec(
+        in_range(0.0, 1.0), doc="fraction of each trajectory's set-points its recording must hold"))
+    min_valid_fraction: float = field(default=0.9, metadata=spec(
+        in_range(0.0, 1.0), doc="fraction of complete cycles (every frame of every drive) per trajectory"))
+    max_gap: float = field(default=0.2, metadata=spec(
+        positive, unit="s", doc="longest stretch of a trajectory without a complete cycle"))
+    max_condition: float = field(default=1e4, metadata=spec(
+        positive, doc="condition number of each step's regressor, columns scaled to unit RMS (the paper's "
+                      "squares give 2.2e3 for the link step: its inertias then come out poorly identified)"))
+    max_d_tau: float = field(default=10.0, metadata=spec(
+        positive, unit="%", doc="force prediction error d_tau of the result on each validation trajectory "
+                                "(on each identification one when there is none)"))
+    max_disagreement: float = field(default=10.0, metadata=spec(
+        positive, unit="%", doc="difference of the step-by-step and base-parameter force predictions, "
+                                "relative to the measured forces, on the trajectories max_d_tau judges"))
+    min_well_identified: int = field(default=1, metadata=spec(
+        non_negative, doc="fitted parameters (physical or base) with %sigma <= rel_sigma_threshold"))
+    max_force_lag: float = field(default=5e-4, metadata=spec(
+        positive, unit="s", doc="delay of an axis's measured forces behind the model's (least squares over all "
+                                "fitted trajectories): beyond it the data and the model disagree in time (a current "
+                                "averaged by the drive identified as instantaneous: bus.current)"))
+    max_axis_gain_spread: float = field(default=2.0, metadata=spec(
+        positive, unit="%", doc="an axis's forces against the model's prediction (least-squares gain over all "
+                                "fitted trajectories), minus the median of the other axes with the same drive: "
+                                "beyond it, that axis's torque constant, gear or lead is likely off"))
+    max_axis_residual_ratio: float = field(default=3.0, metadata=spec(
+        positive, doc="an axis's force residual (RMS, on any fitted trajectory) over the median of those of "
+                      "the other axes with the same drive: above it the data contradict the model on that "
+                      "axis (its torque constant, gear, lead or friction model)"))
+
+
+@dataclass(frozen=True)
+class PhysicalConfig:
+    """The physically consistent parameters after the least-squares step
+    (:mod:`ident_hw.identification.physical`): every body's mass, centre of mass and inertia
+    realisable, friction and rotor inertia non-negative, nearest the CAD values in ``metric``,
+    reproducing the identified base parameters within their covariance."""
+
+    enabled: bool = field(default=True, metadata=spec(
+        doc="compute them after the least-squares step (none without such a step)"))
+    metric: Literal["euclidean", "entropic"] = field(default="entropic", metadata=spec(
+        doc="distance to the CAD prior: scaled squares, or the log-determinant divergence of the bodies' "
+            "pseudo-inertias (needs CAD bodies with positive-definite pseudo-inertias; others keep the squares)"))
+    prior: float = field(default=1.0, metadata=spec(
+        positive, doc="standard deviation of the CAD prior, in parameter scales: 1 = the CAD value is known to "
+                      "about its own size; smaller trusts the CAD values more"))
+    scales: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class IdentificationConfig:
+    """Steps run in order (each fixes the parameters it identifies), validation trajectories,
+    the SQP bounds ``[min, max]`` per parameter, the %σ above which an estimate is reported
+    as poorly identified on its data, and the thresholds of the quality verdict."""
+
+    steps: tuple[StepConfig, ...]
+    validation: tuple[str, ...] = ()
+    rel_sigma_threshold: float = field(default=POORLY_IDENTIFIED_PERCENT, metadata=spec(
+        positive, unit="%", doc="estimates with a larger relative standard deviation are poorly identified"))
+    min_speed: float = field(default=0.02, metadata=spec(
+        in_range(0.0, 0.5), doc="an axis moving slower than this fraction of its velocity limit gives no row to the "
+                                "fits: the Coulomb term sign(qdot) does not describe friction near rest"))
+    encoder_draws: int = field(default=8, metadata=spec(
+        in_range(0, 1000), doc="draws of the recordings read again by encoders whose count edges are moved by a "
+                               "random fraction of a count; the spread of their estimates joins every sigma "
+                               "(the encoders' resolution, whose errors repeat where the motion repeats); 0: "
+                               "the least-squares statistics alone"))
+    bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
+    filter: FilterConfig = FilterConfig()
+    online: OnlineConfig = OnlineConfig()
+    quality: QualityConfig = QualityConfig()
+    physical: PhysicalConfig = PhysicalConfig()
+    compare_models: bool = field(default=False, metadata=spec(
+        doc="the power-model paper's comparison: the least-squares step's base parameters by the dynamic, "
+            "power and energy models on the same recordings and filters (robots with an energy regressor)"))

@@ -1,0 +1,57 @@
+"""Config sections → the drivers' own settings (:mod:`drivers`): an actuator's unit scaling and
+axis settings, the bus's python-can settings, and the simulated rig's encoder edges. The master
+side of the drivers never reads the config."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+import drivers.axis
+import drivers.bus
+from drivers.units import AxisScaling
+
+from .actuators import ActuatorConfig
+from .bus import BusConfig
+from .sim import SimConfig
+
+
+def axis_scaling(actuator: ActuatorConfig) -> AxisScaling:
+    """Drive-unit ↔ SI scaling of an actuator's axis."""
+    return AxisScaling(kind=actuator.kind, counts_per_turn=actuator.counts_per_turn,
+                       torque_constant=actuator.torque_constant, gear_ratio=actuator.gear_ratio,
+                       screw_lead=actuator.screw_lead)
+
+
+def axis_config(actuator: ActuatorConfig, base_dir: Path | None = None,
+                current: str = drivers.axis.INSTANTANEOUS) -> drivers.axis.AxisConfig:
+    """The drive driver's axis settings (SI) of an actuator; ``base_dir``: the folder its
+    ``object_dictionary`` is relative to (the config file's, :attr:`Config.base_dir
+    <ident_hw.config.file.Config.base_dir>`; None: the working directory); ``current``: the motor
+    current it streams (``bus.current``)."""
+    od_file = actuator.object_dictionary
+    if od_file is not None and base_dir is not None:
+        od_file = str(Path(base_dir) / od_file)
+    limits = actuator.limits
+    return drivers.axis.AxisConfig(
+        name=actuator.name, node_id=actuator.node_id, profile=actuator.profile, scaling=axis_scaling(actuator),
+        position_min=limits.position[0], position_max=limits.position[1], max_velocity=limits.velocity,
+        max_current=limits.current, following_error_window=limits.following_error,
+        product_code=actuator.product_code, homing=actuator.homing, object_dictionary=od_file, current=current)
+
+
+def bus_settings(bus: BusConfig, ignore_config: bool = True) -> drivers.bus.BusConfig:
+    """python-can settings of the bus (``ignore_config``: ignore the user's python-can files; a
+    virtual bus has no bitrate)."""
+    bitrate = None if bus.interface == "virtual" else bus.bitrate
+    return drivers.bus.BusConfig(interface=bus.interface, channel=bus.channel, bitrate=bitrate,
+                                 ignore_config=ignore_config)
+
+
+def encoder_edge_counts(sim: SimConfig, axes: int) -> np.ndarray:
+    """(axes,) counts: each simulated axis's count-edge shift (``sim.encoder_edges``: 0 when
+    ``fixed``, drawn from ``sim.seed`` when ``random``)."""
+    if sim.encoder_edges == "fixed":
+        return np.zeros(axes)
+    return np.random.default_rng([sim.seed, 2]).uniform(-0.5, 0.5, axes)

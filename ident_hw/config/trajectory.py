@@ -1,0 +1,85 @@
+"""The ``trajectories`` section: one entry per trajectory of the campaign, and the keys each
+kind of trajectory reads (:data:`KEYS_OF_KIND`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+from .schema import in_range, non_negative, positive, spec
+
+#: the keys every trajectory may have
+COMMON_KEYS = ("name", "kind", "cycles", "bandwidth", "online_only", "payload")
+#: the further keys each kind of trajectory reads: any other is refused (it would be ignored)
+KEYS_OF_KIND = {
+    "carriage_sweep": ("size", "speed_scale", "dwell"),
+    "square": ("size", "rotation", "speed_scale", "dwell"),
+    "triangle": ("speed_scale", "dwell"),
+    "fourier": ("path",),
+    "file": ("path",),
+    "delta_training": ("duration", "fade", "amplitude"),
+    "delta_verification": ("duration", "fade", "amplitude"),
+    "delta_held_arm": ("duration", "fade", "amplitude"),
+    "joint_excitation": ("duration", "fade", "amplitude", "harmonics", "seed"),
+}
+
+
+@dataclass(frozen=True)
+class PayloadConfig:
+    """A payload the in-process simulated rig takes on ``after`` s into its trajectory (mass and
+    inertia about the end-effector point, added to the true ``m_ee`` and ``I_ee``) and drops at
+    the trajectory's end: what the online estimators must track."""
+
+    after: float = field(metadata=spec(non_negative, unit="s"))
+    mass: float = field(metadata=spec(positive, unit="kg"))
+    inertia: float = field(default=0.0, metadata=spec(non_negative, unit="kg m^2"))
+
+
+@dataclass(frozen=True)
+class TrajectoryConfig:
+    """One trajectory of the campaign (generators of :mod:`trajectories`).
+
+    ``kind``: ``carriage_sweep`` (rotary actuators held, each carriage 0 → -size → +size → 0,
+    then the three together), ``square`` (carriages held, side ``size``, rotated by
+    ``rotation``), ``triangle`` (the paper's validation triangle, carriages scheduled for
+    singularity margins), ``fourier`` (an optimised Fourier excitation of all the base
+    parameters, :class:`trajectories.FourierExcitation`; ``path`` to its JSON coefficients,
+    default the excitation optimised for the nominal rig that ships with ``trajectories``),
+    ``file`` (a saved trajectory, CSV or NPZ). ``path`` is relative to the config file.
+    Timing of the generated paths is rest-to-rest at ``speed_scale`` × the actuator limits,
+    with ``dwell`` s at rest at each waypoint (the Fourier excitation and a file have their own
+    timing); the motion is repeated ``cycles`` times. ``bandwidth`` (Hz), the highest frequency
+    the motion has, sets the identification filter of this trajectory (default: the highest
+    harmonic of a Fourier excitation, else ``identification.filter.bandwidth``).
+    The Delta's paths (the SVD-DLS paper, :mod:`trajectories.delta_paper`): ``delta_training``
+    (Table 2), ``delta_verification`` (eq. 60), ``delta_held_arm`` (eq. 60 with arm 3 held), each
+    ``duration`` s long, its angles scaled by ``amplitude`` (one factor, or one per arm), faded
+    in and out over ``fade`` s from and back to the arms at rest.
+    A described robot's excitation (:func:`trajectories.joint_space.joint_excitation`):
+    ``joint_excitation``, ``duration`` s of ``harmonics`` sines per actuator up to ``bandwidth``
+    Hz (default: ``identification.filter.bandwidth``) about home, phases and frequencies drawn from ``seed``, fitted to 0.8 of
+    each actuator's limits and scaled by ``amplitude`` (one factor, or one per actuator).
+    ``online_only``: streamed only for the online estimators (``ident-hw online``, or ``run``
+    with ``identification.online.in_run``), after the others; otherwise ``run`` leaves it out. ``payload``: on the in-process simulated rig, a payload added during this trajectory
+    (:class:`PayloadConfig`), e.g. on an ``online_only`` one for the online estimators to track.
+    A key the trajectory's kind does not read (:data:`KEYS_OF_KIND`, :data:`COMMON_KEYS`) is
+    refused rather than ignored.
+    """
+
+    name: str
+    kind: Literal["carriage_sweep", "square", "triangle", "fourier", "file",
+                  "delta_training", "delta_verification", "delta_held_arm", "joint_excitation"]
+    size: float | None = field(default=None, metadata=spec(positive, unit="m"))
+    rotation: float = field(default=0.0, metadata=spec(unit="rad", angle=True))
+    speed_scale: float = field(default=1.0, metadata=spec(in_range(0.01, 1.0)))
+    dwell: float = field(default=0.0, metadata=spec(non_negative, unit="s"))
+    cycles: int = field(default=1, metadata=spec(in_range(1, 1000)))
+    path: str | None = None
+    bandwidth: float | None = field(default=None, metadata=spec(positive, unit="Hz"))
+    duration: float | None = field(default=None, metadata=spec(positive, unit="s"))
+    fade: float = field(default=1.0, metadata=spec(non_negative, unit="s"))
+    amplitude: float | tuple[float, ...] = field(default=1.0, metadata=spec(in_range(0.01, 10.0)))
+    online_only: bool = False
+    payload: PayloadConfig | None = None
+    harmonics: int = field(default=5, metadata=spec(in_range(1, 50)))
+    seed: int = 0
