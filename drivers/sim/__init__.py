@@ -16,25 +16,12 @@ from :mod:`~drivers.sim.objects` (object values), :mod:`~drivers.sim.pdo` (PDOs)
 without a config). A config's rig is served on a shared bus by ``ident-hw sim CONFIG``.
 """
 
-import importlib
+import lazy_loader
 
-# Each name is imported from its module on first use (PEP 562): a master that only needs the
-# rig's lockstep SYNC source (drivers.sim.lockstep) does not load the compiled plant.
-_MODULE_OF = {"EmulatedDrive": "drive", "Plant": "plant", "PlantJammed": "plant", "TruthLog": "plant",
-              "SimulatedRig": "rig"}
-
-__all__ = ["EmulatedDrive", "Plant", "PlantJammed", "SimulatedRig", "TruthLog"]
-
-
-def __getattr__(name: str):
-    try:
-        module = _MODULE_OF[name]
-    except KeyError:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_MODULE_OF})
+# Each name is imported from its module on first use (PEP 562, by lazy_loader): a master that only
+# needs the rig's lockstep SYNC source (drivers.sim.lockstep) does not load the compiled plant.
+__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
+    "drive": ["EmulatedDrive"],
+    "plant": ["Plant", "PlantJammed", "TruthLog"],
+    "rig": ["SimulatedRig"],
+})

@@ -17,64 +17,16 @@ Every result has ``to_dict()``. Imports :mod:`ident_hw.model` and :mod:`ident_hw
 nothing of the drivers, trajectories, config or runner.
 """
 
-import importlib
+import lazy_loader
 
-# Each name is imported from its module on first use (PEP 562): ``ident_hw.identification.least_squares``
-# and the config that reads its constants do not pay for SciPy's optimiser and signal modules.
-_MODULE_OF = {
-    "BaseParameters": "base_params",
-    "base_parameters": "base_params",
-    "identify_base": "base_params",
-    "LeastSquaresResult": "least_squares",
-    "ols": "least_squares",
-    "stack": "least_squares",
-    "wls": "least_squares",
-    "MassFitResult": "mass_fit",
-    "sqp_fit": "mass_fit",
-    "ValidationMetrics": "metrics",
-    "validation_metrics": "metrics",
-    "RLS": "online",
-    "SVDDLS": "online",
-    "DampedRLS": "online",
-    "StreamTrace": "online",
-    "offline_information": "online",
-    "run_stream": "online",
-    "energy_rows": "power",
-    "power_rows": "power",
-}
-
-__all__ = [
-    "RLS",
-    "SVDDLS",
-    "BaseParameters",
-    "DampedRLS",
-    "LeastSquaresResult",
-    "MassFitResult",
-    "StreamTrace",
-    "ValidationMetrics",
-    "base_parameters",
-    "energy_rows",
-    "identify_base",
-    "offline_information",
-    "ols",
-    "power_rows",
-    "run_stream",
-    "sqp_fit",
-    "stack",
-    "validation_metrics",
-    "wls",
-]
-
-
-def __getattr__(name: str):
-    try:
-        module = _MODULE_OF[name]
-    except KeyError:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_MODULE_OF})
+# Each name is imported from its module on first use (PEP 562, by lazy_loader):
+# ``ident_hw.identification.least_squares`` and the config that reads its constants do not pay
+# for SciPy's optimiser and signal modules.
+__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
+    "base_params": ["BaseParameters", "base_parameters", "identify_base"],
+    "least_squares": ["LeastSquaresResult", "ols", "stack", "wls"],
+    "mass_fit": ["MassFitResult", "sqp_fit"],
+    "metrics": ["ValidationMetrics", "validation_metrics"],
+    "online": ["RLS", "SVDDLS", "DampedRLS", "StreamTrace", "offline_information", "run_stream"],
+    "power": ["energy_rows", "power_rows"],
+})
