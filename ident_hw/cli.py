@@ -131,7 +131,7 @@ def cmd_study(args) -> int:
               file=sys.stderr, flush=True)
     try:
         study = run_study(args.config, folder, args.runs, workers=args.workers, scheduler=args.scheduler,
-                          on_outcome=progress)
+                          perturb=args.perturb, on_outcome=progress)
     except StudyError as exc:
         print(f"config error: {exc}", file=sys.stderr)
         return Exit.CONFIG
@@ -337,6 +337,9 @@ def _add_campaign_commands(command) -> None:
     p.add_argument("--workers", type=int, metavar="K", help="worker processes of a local Dask cluster "
                    "(default: this machine's CPUs); 0: every run in this process")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on the workers of this Dask scheduler instead")
+    p.add_argument("--perturb", type=float, default=0.0, metavar="REL",
+                   help="each run but run 0 on a true robot of its own: every body's parameters scaled by a "
+                        "factor exp(REL * N(0, 1)) drawn from the run's seed (sim.perturb; default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress")
 
 

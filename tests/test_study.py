@@ -142,3 +142,64 @@ def test_every_run_but_the_first_draws_where_its_encoders_count(tmp_path):
         edges.append(encoder_edge_counts(load_config(path).sim, 6))
     assert load_config(tmp_path / "run0.yaml").sim.seed == 1 and not edges[0].any()
     assert edges[1].all() and edges[2].all() and not (edges[1] == edges[2]).any()
+
+
+def smallest_pseudo_inertia_eigenvalue(body: np.ndarray) -> float:
+    """A body ``[m, mx, my, mz, Ixx, Ixy, Ixz, Iyy, Iyz, Izz]`` is realisable by a mass density
+    iff ``[[tr(I)/2 - I, h], [h^T, m]]`` is positive semidefinite."""
+    m, h, (ixx, ixy, ixz, iyy, iyz, izz) = body[0], body[1:4], body[4:]
+    inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    J = np.block([[np.trace(inertia) / 2 * np.eye(3) - inertia, h[:, None]], [h[None, :], np.array([[m]])]])
+    return float(np.linalg.eigvalsh(J)[0])
+
+
+def test_a_perturbed_truth_scales_each_body_as_a_whole_and_spreads_as_asked(tmp_path):
+    """``sim.perturb`` (a study's --perturb): on the Delta every body's ten parameters share one
+    factor (a realisable body stays realisable) and each drive term has its own; the same seed
+    gives the same truth; over many seeds the log-factors of the 3PRRR's parameters have the
+    asked spread and no bias; runs 1.. of a study get it, run 0 keeps the config's truth."""
+    from ident_hw.config.robots import model_of, true_parameters
+    from ident_hw.model.delta import PARAM_NAMES
+
+    def truth(base: Path, seed: int, perturb: float) -> np.ndarray:
+        path = tmp_path / f"{base.stem}-{seed}-{perturb}.yaml"
+        path.write_text(f"extends: {base}\nsim: {{seed: {seed}, perturb: {perturb}}}\n")
+        return true_parameters(load_config(path))
+
+    delta = ROOT / "configs" / "sim-delta.yaml"
+    nominal, drawn = truth(delta, 5, 0.0), truth(delta, 5, 0.1)
+    assert np.array_equal(drawn, truth(delta, 5, 0.1)) and not np.array_equal(drawn, truth(delta, 6, 0.1))
+    ratio = {}
+    for name, a, b in zip(PARAM_NAMES, nominal, drawn):
+        if a != 0:
+            ratio.setdefault(name.split(".")[0] if "." in name else name, set()).add(round(b / a, 12))
+        else:
+            assert b == 0, name
+    assert all(len(r) == 1 for r in ratio.values()), ratio          # one factor per body
+    assert len({r.pop() for r in ratio.values()}) == len(ratio)      # and a different one for each
+    for k in range(7):
+        assert smallest_pseudo_inertia_eigenvalue(drawn[10 * k:10 * k + 10]) >= -1e-12, PARAM_NAMES[10 * k]
+
+    sim = ROOT / "configs" / "sim-3prrr.yaml"
+    names = model_of(load_config(sim).robot).parameter_names
+    base = truth(sim, 0, 0.0)
+    logs = np.array([np.log(truth(sim, seed, 0.05)[base > 0] / base[base > 0]) for seed in range(100)])
+    assert logs.shape[1] == sum(base > 0) and len(names) == len(base)
+    assert abs(logs.std() / 0.05 - 1) < 0.1 and abs(logs.mean()) < 0.05 * 3 / math.sqrt(logs.size)
+
+    (tmp_path / "config.yaml").write_text(f"extends: {sim}\n")
+    for index in (0, 1):
+        path = tmp_path / f"run{index}.yaml"
+        path.write_text(run_yaml(RunTask(index, 1 + index, "", perturb=0.05)))
+        assert load_config(path).sim.perturb == (0.05 if index else 0.0)
+
+
+def test_a_study_continued_with_another_perturbation_is_refused(tmp_path):
+    config = short_config(tmp_path)
+    folder = tmp_path / "study"
+    folder.mkdir()
+    from ident_hw.config import resolved_yaml
+    (folder / "config.yaml").write_text(resolved_yaml(load_config(config).source))
+    (folder / "study.json").write_text(json.dumps({"config": "short.yaml", "runs_asked": 2, "perturb": 0.05}))
+    with pytest.raises(StudyError, match=r"holds a study with --perturb 0\.05, not 0\.0"):
+        run_study(config, folder, runs=2, workers=0)

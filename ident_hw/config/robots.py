@@ -233,7 +233,24 @@ def initial_parameters(robot: RobotConfig) -> np.ndarray:
 
 
 def true_parameters(config: Config) -> np.ndarray | None:
-    """The simulated rig's true parameters (P,) in the model's order; None without ``sim``."""
+    """The simulated rig's true parameters (P,) in the model's order, drawn around the configured
+    ones when ``sim.perturb`` is set (:func:`perturbed`); None without ``sim``."""
     if config.sim is None:
         return None
-    return kind_of(config.robot).truth(config.robot, config.sim)
+    values = kind_of(config.robot).truth(config.robot, config.sim)
+    if config.sim.perturb:
+        values = perturbed(values, model_of(config.robot).parameter_names, config.sim.perturb, config.sim.seed)
+    return values
+
+
+def perturbed(values: np.ndarray, names: tuple[str, ...], relative_std: float, seed: int) -> np.ndarray:
+    """``values`` (P,) with each group of parameters scaled by its own factor ``exp(relative_std *
+    z)``, ``z`` standard normal drawn from ``seed``: a group is a body's inertial parameters (the
+    names sharing the part before a '.', ``rod1.m``, ``rod1.Ixx``, ...; a realisable body stays
+    realisable, its pseudo-inertia scaled by a positive factor), every name without a '.' a group
+    of its own (the 3PRRR's masses and inertias, friction, rotor inertias). Signs and zeros stay."""
+    groups = [name.split(".", 1)[0] if "." in name else name for name in names]
+    order = list(dict.fromkeys(groups))
+    z = np.random.default_rng([seed, 3]).standard_normal(len(order))
+    factor = dict(zip(order, np.exp(relative_std * z)))
+    return np.asarray(values, dtype=float) * np.array([factor[g] for g in groups])

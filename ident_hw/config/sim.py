@@ -55,4 +55,9 @@ class SimConfig:
         doc="where the encoders count: 'fixed' halfway between whole multiples of a count, 'random' moved by a "
             "fraction of a count per axis drawn from the seed (what differs between two rigs, or two homings of "
             "one; a study draws them per run)"))
+    perturb: float = field(default=0.0, metadata=spec(
+        in_range(0.0, 1.0), doc="the true parameters drawn around the configured ones: each body's inertial "
+        "parameters (a described or Delta body: the names before the '.') scaled by one factor, every other "
+        "parameter by its own, the factors exp(perturb * N(0, 1)) drawn from the seed (a study's --perturb); "
+        "0: the configured truth"))
     fault: SimFaultConfig | None = None

@@ -6,6 +6,9 @@ What a run draws is what differs between two campaigns on a real rig: the curren
 where the encoders count (``sim.encoder_edges: random``, a fraction of a count per axis; run 0
 keeps the config's own). With the count edges fixed, every run would read the same rounded
 positions along the same motion, and their errors, the same in every run, would show as a bias.
+With ``perturb`` (``--perturb``) each run but run 0 also has a truth of its own, drawn around
+the config's (``sim.perturb``, :func:`ident_hw.config.robots.perturbed`): an identification
+that only works near the CAD values, or a σ that holds for one truth only, shows.
 
     study = run_study("configs/sim-3prrr.yaml", "results/study-sim-3prrr", runs=40)
     study.summary      # one ParameterSummary per parameter
@@ -18,7 +21,7 @@ run 0 is the config's own campaign (:func:`run_yaml`).
 
 The study folder::
 
-    study.json           what was asked (the config's name, the runs) and the summary
+    study.json           what was asked (the config's name, the runs, the perturbation) and the summary
     config.yaml          the config, every ``extends:`` merged in (a described robot's file beside it)
     runs/run-0007.json   one finished run: seed, STATUS, wall time, worker, every estimate with σ
     study.html, plots/   the report (:mod:`ident_hw.report.study`)
@@ -103,12 +106,14 @@ class RunOutcome:
 @dataclass(frozen=True)
 class RunTask:
     """One run as a worker gets it: the config as YAML text, the files it names (relative path,
-    bytes), the run's index and seed. Nothing in it refers to the machine that made it."""
+    bytes), the run's index and seed, and the relative spread of its truth (``sim.perturb``; 0:
+    the config's). Nothing in it refers to the machine that made it."""
 
     index: int
     seed: int
     config_yaml: str
     files: tuple[tuple[str, bytes], ...] = ()
+    perturb: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -126,7 +131,7 @@ class ParameterSummary:
 
     kind: str
     name: str
-    truth: float
+    truth: float                # run 0's (the config's own; with --perturb each run has its own)
     runs: int
     claimed_share: float
     mean_error: float
@@ -188,9 +193,12 @@ def estimates_of(results: Results) -> tuple[Estimate, ...]:
 
 def run_yaml(task: RunTask) -> str:
     """The config of one run, over the study's ``config.yaml``: its seed and, but for run 0 (the
-    config's own campaign, ``ident-hw run`` of the config), count edges of its own."""
-    edges = ", encoder_edges: random" if task.index else ""
-    return f"extends: config.yaml\nsim: {{seed: {task.seed}{edges}}}\n"
+    config's own campaign, ``ident-hw run`` of the config), count edges and, with ``perturb``, a
+    truth of its own."""
+    own = ", encoder_edges: random" if task.index else ""
+    if task.index and task.perturb:
+        own += f", perturb: {task.perturb!r}"
+    return f"extends: config.yaml\nsim: {{seed: {task.seed}{own}}}\n"
 
 
 def run_one(task: RunTask) -> RunOutcome:
@@ -286,8 +294,9 @@ def _write_json(path: Path, data) -> None:
     write_atomically(path, json.dumps(data, indent=1))
 
 
-def _prepare_folder(folder: Path, config: Config, config_yaml: str, runs: int) -> None:
-    """Create the study folder, or check that the one there holds this config's study."""
+def _prepare_folder(folder: Path, config: Config, config_yaml: str, runs: int, perturb: float) -> None:
+    """Create the study folder, or check that the one there holds this config's study, with the
+    same perturbation of the truth."""
     (folder / RUNS_DIR).mkdir(parents=True, exist_ok=True)
     copy = folder / "config.yaml"
     if copy.exists() and copy.read_text() != config_yaml:
@@ -297,8 +306,12 @@ def _prepare_folder(folder: Path, config: Config, config_yaml: str, runs: int) -
     study_file = folder / STUDY_FILE
     asked = runs
     if study_file.exists():
-        asked = max(runs, json.loads(study_file.read_text()).get("runs_asked", runs))
-    _write_json(study_file, {"config": Path(config.source).name, "runs_asked": asked})
+        before = json.loads(study_file.read_text())
+        if before.get("perturb", 0.0) != perturb:
+            raise StudyError(f"{folder}: holds a study with --perturb {before.get('perturb', 0.0)!r}, not "
+                             f"{perturb!r}; choose another --out")
+        asked = max(runs, before.get("runs_asked", runs))
+    _write_json(study_file, {"config": Path(config.source).name, "runs_asked": asked, "perturb": perturb})
 
 
 def load_outcomes(folder: Path, runs: int) -> tuple[RunOutcome, ...]:
@@ -312,7 +325,7 @@ def load_outcomes(folder: Path, runs: int) -> tuple[RunOutcome, ...]:
 
 
 def run_study(config_path: str | Path, folder: str | Path, runs: int, *, workers: int | None = None,
-              scheduler: str | None = None,
+              scheduler: str | None = None, perturb: float = 0.0,
               on_outcome: Callable[[RunOutcome, int, int], None] | None = None) -> Study:
     """Run the ``runs`` campaigns of ``config_path`` that ``folder`` does not hold yet, and
     summarize all of them.
@@ -325,16 +338,21 @@ def run_study(config_path: str | Path, folder: str | Path, runs: int, *, workers
             this process may use); 0: every run in this process, one after the other, no Dask.
         scheduler: the address of a running Dask scheduler (``tcp://HOST:PORT``) whose workers run
             the study instead; they need ident_hw installed, nothing of this machine.
+        perturb: each run but run 0 on a truth of its own, drawn around the config's with this
+            relative spread (``sim.perturb``); 0: every run on the config's truth.
         on_outcome: called with each finished run, the runs finished and the runs asked (progress).
     """
     if runs < 1:
         raise StudyError(f"--runs must be at least 1, got {runs}")
+    if not 0.0 <= perturb < 1.0:
+        raise StudyError(f"--perturb must be in [0, 1), got {perturb}")
     config = load_config(config_path)
     check_config(config)
     folder = Path(folder)
     config_yaml, files = study_task_source(config)
-    _prepare_folder(folder, config, config_yaml, runs)
-    tasks = [RunTask(i, config.sim.seed + i, config_yaml, files) for i in range(runs) if not finished(folder, i)]
+    _prepare_folder(folder, config, config_yaml, runs, perturb)
+    tasks = [RunTask(i, config.sim.seed + i, config_yaml, files, perturb)
+             for i in range(runs) if not finished(folder, i)]
     done = runs - len(tasks)
     for outcome in _execute(tasks, workers, scheduler):
         _write_json(run_file(folder, outcome.index), outcome.to_dict())
