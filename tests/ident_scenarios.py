@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from drivers.recording import Recording
-from drivers.sim import Plant, nominal
+from drivers.sim import Plant
+import nominal
 from drivers.sim.modes import Demand, cyclic_segment
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
 from ident_hw.experiment.plan import robot_model

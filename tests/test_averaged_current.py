@@ -28,7 +28,7 @@ from drivers.axis import AxisConfig
 from drivers.errors import ConfigError as DriverConfigError
 from drivers.profiles import EPOS4, make_object_dictionary
 from drivers.recording import Recording
-from drivers.sim import nominal
+import nominal
 from drivers.sim.drive import EmulatedDrive
 from ident_hw.config import ConfigError, load_config
 from ident_hw.experiment.plan import drive_axes
