@@ -58,8 +58,8 @@ def main(n_cycles: int = 20000, profile: str = "epos4") -> None:
     network.disconnect()
     frames = n_cycles * (1 + len(per_cycle))
     print(f"{profile}: {n_cycles} cycles x {1 + len(per_cycle)} frames in {elapsed:.2f} s: "
-          f"{frames / elapsed:,.0f} frames/s decoded+recorded; rows {rec.metadata['n_cycles']}, "
-          f"invalid {rec.n_invalid}, overflows {rec.metadata['buffer_overflows']}")
+          f"{frames / elapsed:,.0f} frames/s decoded+recorded; rows {rec.metadata.n_cycles}, "
+          f"invalid {rec.n_invalid}, overflows {rec.metadata.buffer_overflows}")
 
 
 if __name__ == "__main__":

@@ -42,6 +42,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from drivers.recording import Recording  # noqa: E402
+from drivers.recording_metadata import RecordingMetadata  # noqa: E402
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP, Plant  # noqa: E402
 from ident_hw.config import load_config  # noqa: E402
 from ident_hw.experiment.offline import identify, prepare  # noqa: E402
@@ -129,7 +130,7 @@ def sensed(config, source: str, truth_log: dict, targets: np.ndarray, run: int) 
                          + rng.normal(0.0, 1000.0 * config.sim.current_noise, (n, axes)))
     return Recording(t=t, cycle=np.arange(n), position=position, velocity=truth_log["Thetad"],
                      current=milliamps / 1000.0, statusword=np.zeros((n, axes), np.int32), target=targets[:n],
-                     valid=np.ones((n, axes), bool), metadata={"sync_period": 1.0 / config.bus.sync_rate})
+                     valid=np.ones((n, axes), bool), metadata=RecordingMetadata(sync_period=1.0 / config.bus.sync_rate))
 
 
 def run_source(config, args, source: str, traj, motion: tuple) -> None:

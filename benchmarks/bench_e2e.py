@@ -32,7 +32,7 @@ from pathlib import Path
 import can
 import numpy as np
 
-from drivers.acquisition import cycle_frame_sizes, event_bits_per_s
+from drivers.acquisition import cycle_frame_sizes
 from drivers.cia import SYNC_COB_ID
 from drivers.bus import BusConfig, check_bus_load, cycle_bits, frame_bits, max_sync_rate, open_network
 from drivers.epos import DriveGroup
@@ -51,7 +51,7 @@ DRAIN_TIMEOUT = 120.0  # s to let the rig work off its backlog after a run
 def bus_budget(group: DriveGroup) -> None:
     """Worst-case load of this layout at 1 Mbit/s, and the minimal TPDO1 + RPDO1 layout."""
     sizes = cycle_frame_sizes(group.layouts)
-    background = event_bits_per_s(group.layouts) + frame_bits(1) * (len(AXES) + 1) / group.heartbeat_period
+    background = frame_bits(1) * (len(AXES) + 1) / group.heartbeat_period
     minimal = [0] + [8, 6] * len(AXES)
     for label, frames, bg in (("this run's layout", sizes, background),
                               ("minimal: SYNC + TPDO1 + RPDO1 per drive", minimal, 0.0)):
@@ -147,10 +147,10 @@ def run(rate_hz: float, seconds: float, index: int) -> dict:
     dev = np.diff(rec.t) - period
     invalid_cells = int(np.count_nonzero(~rec.valid))
     print(f"\n{rate_hz:g} Hz SYNC, {seconds:g} s: {len(targets)} cycles in {wall:.1f} s wall")
-    print(f"  rows recorded {rec.metadata['n_cycles']}, invalid rows {rec.n_invalid} "
+    print(f"  rows recorded {rec.metadata.n_cycles}, invalid rows {rec.n_invalid} "
           f"({rec.n_invalid / max(1, len(rec.t)):.2%}), invalid cells {invalid_cells}, buffer overflows "
-          f"{rec.metadata['buffer_overflows']}, late frames {rec.metadata['late_frames']}, late set-points "
-          f"{rec.metadata['late_setpoints']}")
+          f"{rec.metadata.buffer_overflows}, late frames {rec.metadata.books.late_frames}, late set-points "
+          f"{rec.metadata.late_setpoints}")
     print(f"  SYNC period: mean {np.mean(np.diff(rec.t)) * 1e6:.1f} us (nominal {period * 1e6:.0f}), "
           f"|dev| std {dev.std() * 1e6:.0f} us, p99 {np.percentile(np.abs(dev), 99) * 1e6:.0f} us, "
           f"max {np.abs(dev).max() * 1e6:.0f} us")
@@ -161,8 +161,8 @@ def run(rate_hz: float, seconds: float, index: int) -> dict:
     print(f"  rig per-SYNC cost: {stats_us(cost)} (budget {period * 1e6:.0f} us)")
     print(f"  process CPU time per SYNC cycle (rig + master + SYNC, one GIL): {cpu / len(targets) * 1e6:.0f} us "
           f"of {period * 1e6:.0f} us")
-    print(f"  garbage collections while streaming: {rec.metadata['gc_collections']}, longest "
-          f"{rec.metadata['gc_longest_pause'] * 1e3:.2f} ms")
+    print(f"  garbage collections while streaming: {rec.metadata.gc_collections}, longest "
+          f"{rec.metadata.gc_longest_pause * 1e3:.2f} ms")
     return {"rate": rate_hz, "invalid": rec.n_invalid, "rows": len(rec.t)}
 
 

@@ -85,12 +85,12 @@ def run(seconds: float, rate_hz: float, path: Path = CONFIG, drop: float = 0.0) 
     enabled, limit = np.ones(n_axes, bool), np.full(n_axes, 1e3)
     n = 500
     plant_us = timeit.timeit(lambda: plant.step(period, demand, enabled, limit), number=n) / n * 1e6
-    cycles = rec.metadata["n_cycles"]
+    cycles = rec.metadata.n_cycles
     per_cycle_us = wall / cycles * 1e6
     print(f"lockstep at {rate_hz:g} Hz, {seconds:g} s simulated: {cycles} cycles in {wall:.1f} s wall = "
           f"{cycles / wall:.0f} cycles/s ({cycles / wall * period:.2f}x real time); "
-          f"{rec.n_invalid} incomplete, {rec.metadata.get('lockstep_retries')} asked again "
-          f"({rec.metadata.get('lockstep_waited_out')} after waiting; {rig.network.dropped} frames dropped)")
+          f"{rec.n_invalid} incomplete, {rec.metadata.sync_report.lockstep_retries} asked again "
+          f"({rec.metadata.sync_report.lockstep_waited_out} after waiting; {rig.network.dropped} frames dropped)")
     print(f"per cycle {per_cycle_us:.0f} us: rig {rig_us:.0f} us (plant step {plant_us:.0f} us, drives "
           f"{rig_us - plant_us:.0f} us), master + bus + hand-offs {per_cycle_us - rig_us:.0f} us")
 

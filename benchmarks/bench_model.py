@@ -11,11 +11,14 @@ figure of the day that the other benchmarks quote beside theirs)
 
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from drivers.sim import nominal
-from ident_hw.model import ThreePRRR
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+import nominal  # noqa: E402
+from ident_hw.model import ThreePRRR  # noqa: E402
 
 ROBOT = ThreePRRR(nominal.GEOMETRY)
 PARAMS = nominal.TRUE_PARAMS

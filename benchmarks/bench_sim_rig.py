@@ -1,6 +1,6 @@
 """Per-SYNC cost of the simulated rig at 250 Hz and 1 kHz: alone, and with a canopen master in the process.
 
-The nominal rig (:mod:`drivers.sim.nominal`, six EPOS4) on python-can's virtual bus. "alone": the
+The nominal rig (``tests/nominal.py``, six EPOS4) on python-can's virtual bus. "alone": the
 benchmark drives the rig's SYNC cycle directly, with the six drives enabled in CSP and their
 TPDOs mapped, so the numbers are the rig's own cost (plant step + drives + TPDO packing).
 "with master": a canopen master maps TPDO1 (position + current, SYNC) and TPDO2 (statusword,
@@ -10,14 +10,19 @@ forward kinematics and reduced dynamics, once, then the Heun substeps) and, insi
 model's dynamics alone. Run: ``python benchmarks/bench_sim_rig.py``.
 """
 
+import sys
 import time
 import timeit
+from pathlib import Path
 
 import canopen
 import numpy as np
 
-from drivers.profiles import make_object_dictionary
-from drivers.sim import SimulatedRig, nominal
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+import nominal  # noqa: E402
+from drivers.profiles import make_object_dictionary  # noqa: E402
+from drivers.sim import SimulatedRig  # noqa: E402
 
 CHANNEL = "bench-sim-rig"
 

@@ -53,15 +53,14 @@ class PdoFrame:
         number: PDO number 1..4.
         entries: ``(field, object)`` pairs in mapping order; field is one of :data:`FIELDS`
             or ``"controlword"``.
-        trans_type: CiA 301 transmission type (1 = every SYNC, 255 = event-driven).
-        event_timer: event timer in ms for event-driven TPDOs (``None`` for none).
+        trans_type: CiA 301 transmission type (1 = every SYNC, 255 = event-driven). No event
+            timer is mapped: the EPOS2 and EPOS4 have none on their TPDOs.
     """
 
     direction: str
     number: int
     entries: tuple[tuple[str, ObjectRef], ...]
     trans_type: int
-    event_timer: int | None = None
 
     def cob_id(self, node_id: int) -> int:
         return pdo_cob_id(self.direction, self.number, node_id)
@@ -83,14 +82,13 @@ class PdoFrame:
         return self.direction == "rpdo" or 1 <= self.trans_type <= 240
 
 
-def pdo_layout(profile: DriveProfile, with_velocity: bool = True,
-               current: str = INSTANTANEOUS) -> tuple[PdoFrame, ...]:
+def pdo_layout(profile: DriveProfile, current: str = INSTANTANEOUS) -> tuple[PdoFrame, ...]:
     """The PDOs the master configures on a drive of ``profile`` for a streaming run.
 
     Every TPDO is SYNC-triggered: TPDO1 = position + current (``current``: the instantaneous or
     the averaged one, :meth:`DriveProfile.streamed_current`) (+ statusword where it fits: the
-    EPOS2's 16-bit current); else the statusword travels in TPDO2 with the velocity (6 bytes), or
-    alone without the velocity. No event timer is used: a real EPOS4 has none on its TPDOs.
+    EPOS2's 16-bit current); TPDO2 = velocity (+ the statusword where it did not fit in TPDO1:
+    6 bytes). No event timer is used: a real EPOS4 has none on its TPDOs.
     """
     frames = []
     streamed = profile.streamed_current(current)
@@ -99,11 +97,10 @@ def pdo_layout(profile: DriveProfile, with_velocity: bool = True,
     if status_in_first:
         first += (("statusword", profile.statusword),)
     frames.append(PdoFrame("tpdo", 1, first, 1))
-    second = (("velocity", profile.velocity_actual),) if with_velocity else ()
+    second = (("velocity", profile.velocity_actual),)
     if not status_in_first:
         second += (("statusword", profile.statusword),)
-    if second:
-        frames.append(PdoFrame("tpdo", 2, second, 1))
+    frames.append(PdoFrame("tpdo", 2, second, 1))
     frames.append(PdoFrame("rpdo", 1, (("target", profile.cyclic_target),
                                        ("controlword", profile.controlword)), 1))
     return tuple(frames)
@@ -117,10 +114,10 @@ class AxisLayout:
     frames: tuple[PdoFrame, ...]
 
 
-def master_layouts(axes: Sequence, with_velocity: bool = True) -> list[AxisLayout]:
+def master_layouts(axes: Sequence) -> list[AxisLayout]:
     """The PDO layout the master maps on each of ``axes`` (:class:`drivers.axis.AxisConfig`:
     node-ID, drive profile, streamed current), in their order: :func:`pdo_layout` of each."""
-    return [AxisLayout(a.node_id, pdo_layout(a.drive_profile, with_velocity, a.current)) for a in axes]
+    return [AxisLayout(a.node_id, pdo_layout(a.drive_profile, a.current)) for a in axes]
 
 
 #: version of the stored form of a PDO layout (:func:`layout_record`)
@@ -133,7 +130,7 @@ def layout_record(axes: Sequence[AxisLayout]) -> dict:
     master maps later (:func:`layout_from_record` reads it back).
 
     ``{"version": 1, "axes": [{"node_id": 1, "frames": [{"direction": "tpdo", "number": 1,
-    "cob_id": 385, "trans_type": 1, "event_timer": null, "entries": [{"field": "position",
+    "cob_id": 385, "trans_type": 1, "entries": [{"field": "position",
     "index": 24676, "subindex": 0, "data_type": "INTEGER32", "unit": "qc"}, ...]}, ...]}, ...]}``:
     per axis in sample order, every PDO with its COB-ID and its mapped objects in mapping order
     (CiA 301 data type names, drive units).
@@ -141,7 +138,7 @@ def layout_record(axes: Sequence[AxisLayout]) -> dict:
     return {"version": LAYOUT_VERSION, "axes": [
         {"node_id": axis.node_id, "frames": [
             {"direction": f.direction, "number": f.number, "cob_id": f.cob_id(axis.node_id),
-             "trans_type": f.trans_type, "event_timer": f.event_timer,
+             "trans_type": f.trans_type,
              "entries": [{"field": name, "index": ref.index, "subindex": ref.subindex,
                           "data_type": ref.data_type, "unit": ref.unit} for name, ref in f.entries]}
             for f in axis.frames]}
@@ -171,8 +168,7 @@ def layout_from_record(record) -> tuple[AxisLayout, ...]:
                         raise ValueError(f"node {node_id}: unknown field {e['field']!r}")
                     entries.append((e["field"], ObjectRef(int(e["index"]), int(e["subindex"]), e["data_type"],
                                                           e.get("unit", ""))))
-                frame = PdoFrame(f["direction"], int(f["number"]), tuple(entries), int(f["trans_type"]),
-                                 f.get("event_timer"))
+                frame = PdoFrame(f["direction"], int(f["number"]), tuple(entries), int(f["trans_type"]))
                 where = f"node {node_id} {frame.direction.upper()}{frame.number}"
                 if frame.cob_id(node_id) != int(f["cob_id"]):
                     raise ValueError(f"{where}: COB-ID 0x{int(f['cob_id']):03X}, not CiA 301's default "
@@ -191,13 +187,6 @@ def layout_from_record(record) -> tuple[AxisLayout, ...]:
 def cycle_frame_sizes(axes: Sequence[AxisLayout]) -> list[int]:
     """Data lengths of all frames sent once per SYNC cycle, the SYNC (0 bytes) included."""
     return [0] + [f.size for a in axes for f in a.frames if f.per_sync]
-
-
-def event_bits_per_s(axes: Sequence[AxisLayout]) -> float:
-    """Worst-case bits/s of the event-driven TPDOs (sent at least once per event timer)."""
-    from drivers.bus import frame_bits
-    return sum(frame_bits(f.size) * 1000.0 / f.event_timer
-               for a in axes for f in a.frames if not f.per_sync and f.event_timer)
 
 
 @dataclass
@@ -509,8 +498,19 @@ class CycleAssembler(can.Listener):
         """Forwarded listeners are stopped by their owner, not here."""
 
 
-def cycle_books(assembler: CycleAssembler) -> dict[str, int]:
+@dataclass(frozen=True)
+class CycleBooks:
+    """The counts of misplaced frames of a :class:`CycleAssembler` (its attributes of the same
+    names), for a recording's metadata."""
+
+    late_frames: int = 0
+    lost_frames: int = 0
+    withdrawn_cells: int = 0
+    unplaced_frames: int = 0
+    error_frames: int = 0
+
+
+def cycle_books(assembler: CycleAssembler) -> CycleBooks:
     """The assembler's counts of misplaced frames, for a recording's metadata."""
-    return {"late_frames": assembler.late_frames, "lost_frames": assembler.lost_frames,
-            "withdrawn_cells": assembler.withdrawn_cells, "unplaced_frames": assembler.unplaced_frames,
-            "error_frames": assembler.error_frames}
+    return CycleBooks(assembler.late_frames, assembler.lost_frames, assembler.withdrawn_cells,
+                      assembler.unplaced_frames, assembler.error_frames)

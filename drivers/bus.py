@@ -272,7 +272,7 @@ def check_bus_load(cycle_frame_sizes: Iterable[int], period: float, bitrate: int
             (the SYNC itself included).
         period: SYNC period in s.
         bitrate: bus bitrate in bit/s; ``None`` skips the check (returns 0).
-        background_bits_per_s: traffic that is not per cycle (heartbeats, event-driven PDOs).
+        background_bits_per_s: traffic that is not per cycle (heartbeats).
         max_load: accepted fraction of the bitrate.
 
     Returns:

@@ -24,7 +24,7 @@ import numpy as np
 from canopen.profiles.p402 import Homing, State402
 from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
 
-from drivers.acquisition import PdoFrame, cycle_frame_sizes, event_bits_per_s, master_layouts
+from drivers.acquisition import PdoFrame, cycle_frame_sizes, master_layouts
 from drivers.axis import AxisConfig, check_setpoints
 from drivers.bus import BusConfig, check_bus_load, frame_bits
 from drivers.cia import (CW_CHANGE_IMMEDIATELY, CW_ENABLE_OPERATION, CW_FAULT_RESET, CW_NEW_SETPOINT, ERROR_REGISTER,
@@ -35,6 +35,7 @@ from drivers.emcy import describe
 from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, NodeError
 from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, load_object_dictionary, make_object_dictionary
 from drivers.recording import Recording
+from drivers.recording_metadata import RecordingMetadata
 from drivers.stream import CyclicStream
 from drivers.supervision import Supervisor
 from drivers.sync import PeriodicSync, SyncSource
@@ -174,7 +175,6 @@ class EposDrive:
                     for _, ref in frame.entries:
                         pdo.add_variable(ref.index, ref.subindex)
                     pdo.trans_type = frame.trans_type
-                    pdo.event_timer = frame.event_timer
                 try:
                     pdo.save()
                 except (SdoAbortedError, SdoCommunicationError) as exc:
@@ -429,7 +429,6 @@ class DriveGroup:
         heartbeat_period: producer heartbeat time of the drives and of the master (s).
         heartbeat_timeout: consumer timeout on both sides (s); default 3.5 periods.
         master_id: node-ID under which the master produces its heartbeat (not a drive's).
-        with_velocity: map velocity actual (TPDO3) too.
         sdo_timeout: SDO response timeout (s).
         sync: the SYNC producer and the clock of every wait for the drives (homing, moves,
             stops): :class:`drivers.sync.PeriodicSync` (the default: real drives) or another
@@ -441,7 +440,7 @@ class DriveGroup:
 
     def __init__(self, network: canopen.Network, axes: Sequence[AxisConfig],
                  heartbeat_period: float = 0.1, heartbeat_timeout: float | None = None,
-                 master_id: int = 127, with_velocity: bool = True,
+                 master_id: int = 127,
                  sdo_timeout: float = 0.5, sync: SyncSource | None = None):
         bus_config = getattr(network, "config", None)
         if not isinstance(bus_config, BusConfig):
@@ -472,12 +471,11 @@ class DriveGroup:
         self.heartbeat_period = heartbeat_period
         self.master_id = master_id
         self._master_heartbeat = None  # the periodic task, while running
-        self.with_velocity = with_velocity
         self.supervisor = Supervisor()
         self.drives = [EposDrive(network, a, self.supervisor, sdo_timeout, self.sync) for a in self.axes]
         for drive in self.drives:
             self.supervisor.watch_heartbeat(drive.label, drive.node.nmt, self.heartbeat_timeout)
-        self.layouts = master_layouts(self.axes, with_velocity)
+        self.layouts = master_layouts(self.axes)
 
     def __enter__(self) -> "DriveGroup":
         return self
@@ -539,8 +537,7 @@ class DriveGroup:
     def check_bus_load(self, period: float) -> float:
         """Worst-case bus load of a run at SYNC ``period`` (raises :class:`BusLoadError`)."""
         hb_bits = frame_bits(1) * (len(self.drives) + 1) / self.heartbeat_period
-        return check_bus_load(cycle_frame_sizes(self.layouts), period, self.bitrate,
-                              hb_bits + event_bits_per_s(self.layouts))
+        return check_bus_load(cycle_frame_sizes(self.layouts), period, self.bitrate, hb_bits)
 
     # -- commanding (calling thread) -------------------------------------------------------------
     def _wait_all(self, done, timeout: float, what: str) -> None:
@@ -631,7 +628,7 @@ class DriveGroup:
 
     # -- streaming ---------------------------------------------------------------------------------
     def run_cyclic(self, targets: np.ndarray, period: float, output: str | None = None,
-                   raw_log: str | None = None, metadata: dict | None = None,
+                   raw_log: str | None = None, metadata: RecordingMetadata | None = None,
                    queue_size: int = 100_000, sync_timeout: float | None = None,
                    quiet: Callable[[], AbstractContextManager] = nullcontext) -> Recording:
         """Stream ``targets`` (n_cycles, n_axes) in rad|m, one row per SYNC, and record.
@@ -651,7 +648,7 @@ class DriveGroup:
         no deadline. Otherwise the SYNC stops first and the drives hold the last set-point in the
         cyclic mode. Either way they stay enabled, e.g. for :meth:`move_to`. The metadata keeps
         ``gc_collections`` and ``gc_longest_pause`` (s) of the run and what the SYNC source
-        reports (:meth:`drivers.sync.SyncSource.report`), e.g. ``sync_slots_skipped``: the SYNC
+        reports (``sync_report``, :meth:`drivers.sync.SyncSource.report`), e.g. ``sync_slots_skipped``: the SYNC
         slots a thread-timed producer left out because the host woke it too late (``None`` under
         a bus timer); a skipped slot leaves a gap of whole periods in ``t``, the cycles stay
         consecutive.
@@ -661,7 +658,8 @@ class DriveGroup:
             period: SYNC period in s.
             output: NPZ file for the samples (``None``: memory only).
             raw_log: raw CAN log (``.log``/``.asc``/``.blf``), ``None`` for none.
-            metadata: JSON-able extra metadata (e.g. the configuration).
+            metadata: the caller's part of the recording's metadata (the trajectory, the
+                config, free-form ``extra``); the stream fills the rest.
             queue_size: bounded buffer between the notifier and the recorder thread (rows).
             sync_timeout: s without a SYNC before the run is declared stalled
                 (default: max(0.5 s, 50 periods)).

@@ -10,19 +10,19 @@
   current), ``statusword`` (-1 = none received yet), ``target`` rad|m, ``valid`` (N, n_axes):
   every TPDO of the axis placed in its cycle, ``position_valid``, ``velocity_valid``,
   ``current_valid`` (N, n_axes): the TPDO carrying that value placed in its cycle (validity per
-  TPDO: a lost velocity frame leaves position and current valid), and ``metadata`` (a JSON
-  string: axes, units, scalings, node-IDs, profiles, the PDO layout ``pdo_layout``, SYNC period,
-  counts of missing cycles / late frames / buffer overflows, the caller's config). Invalid
-  values are NaN.
+  TPDO: a lost velocity frame leaves position and current valid), and ``metadata``
+  (:class:`~drivers.recording_metadata.RecordingMetadata` as JSON: axes, scalings, node-IDs,
+  profiles, the PDO layout, SYNC period, counts of missing cycles / late frames / buffer
+  overflows, the caller's run information). Invalid values are NaN.
 * ``target``: the set-point of each row. A streaming run records the set-points it sent, row k
   the one sent for SYNC k (:func:`take_sent_setpoints`); the RPDO echoes the assembler saw only
-  count the rows whose echo disagreed (``late_setpoints``: the set-point reached the bus after
+  count the rows whose echo disagreed (``metadata.late_setpoints``: the set-point reached the bus after
   its SYNC, or its echo came back out of order, as SocketCAN's can under load). A raw log decodes
   to the sent set-points its sidecar holds, else to the echoes.
 * :class:`SampleRecorder` drains the bounded queue the assembler writes into, in its own thread,
   and rewrites the NPZ atomically at least every ``checkpoint_interval`` s, so a crash or Ctrl-C
   keeps what was recorded.
-* ``t`` is the *measured* bus timestamp of each SYNC frame (``metadata["t0"]`` is the first one,
+* ``t`` is the *measured* bus timestamp of each SYNC frame (``metadata.t0`` is the first one,
   absolute), not ``k * sync_period``: the SYNC producer (the kernel BCM on SocketCAN, a Python
   timer thread elsewhere) drifts above the nominal period, each period being the nominal one plus
   the timer latency, so ``k * period`` would slowly run ahead of the samples. Identification
@@ -43,7 +43,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Sequence
 
 import can
 import numpy as np
@@ -52,7 +52,8 @@ from drivers.acquisition import (AxisLayout, CycleAssembler, Row, cycle_books, l
                                  master_layouts)
 from drivers.axis import AxisConfig
 from drivers.errors import ConfigError, RecordingError
-from drivers.units import REVOLUTE, AxesScaling
+from drivers.recording_metadata import RecordingMetadata
+from drivers.units import AxesScaling
 
 logger = logging.getLogger(__name__)
 
@@ -63,21 +64,6 @@ ARRAYS = ("t", "cycle", "position", "velocity", "current", "statusword", "target
           "position_valid", "velocity_valid", "current_valid")
 #: 2: validity per TPDO (``<channel>_valid``), the PDO layout in the metadata, sent set-points
 FORMAT_VERSION = 2
-#: the arrays a recording of format 1 may lack (derived from ``valid`` when read)
-_SINCE_VERSION_2 = tuple(f"{c}_valid" for c in CHANNELS)
-
-
-def axis_units(axis: AxisConfig) -> dict[str, str]:
-    rev = axis.scaling.kind == REVOLUTE
-    return {"position": "rad" if rev else "m", "velocity": "rad/s" if rev else "m/s",
-            "current": "A", "target": "rad" if rev else "m"}
-
-
-def axes_metadata(axes: Sequence[AxisConfig]) -> list[dict[str, Any]]:
-    """JSON-able description of the axes (names, node-IDs, profiles, scalings, units, the motor
-    current streamed: ``instantaneous`` or ``averaged``)."""
-    return [{"name": a.name, "node_id": a.node_id, "profile": a.drive_profile.name,
-             "scaling": dataclasses.asdict(a.scaling), "units": axis_units(a), "current": a.current} for a in axes]
 
 
 def rows_to_arrays(rows: Sequence[Row], axes: Sequence[AxisConfig]) -> dict[str, np.ndarray]:
@@ -113,8 +99,7 @@ class Recording:
     """Decoded samples of a run (arrays as described in the module docstring).
 
     ``position_valid``, ``velocity_valid``, ``current_valid`` (N, n_axes) bool default to
-    ``valid`` (a recording made before validity per TPDO, or by hand: a value is valid where
-    every TPDO of its axis is).
+    ``valid`` (a recording made by hand: a value is valid where every TPDO of its axis is).
     """
 
     t: np.ndarray
@@ -125,19 +110,19 @@ class Recording:
     statusword: np.ndarray
     target: np.ndarray
     valid: np.ndarray
-    metadata: dict[str, Any] = field(default_factory=dict)
+    metadata: RecordingMetadata = field(default_factory=RecordingMetadata)
     position_valid: np.ndarray | None = None
     velocity_valid: np.ndarray | None = None
     current_valid: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        for name in _SINCE_VERSION_2:
+        for name in (f"{c}_valid" for c in CHANNELS):
             if getattr(self, name) is None:
                 setattr(self, name, np.array(self.valid, dtype=bool, copy=True))
 
     @classmethod
     def from_chunks(cls, chunks: Sequence[dict[str, np.ndarray]], n_axes: int,
-                    metadata: dict[str, Any]) -> "Recording":
+                    metadata: RecordingMetadata) -> "Recording":
         """Concatenate converted chunks; ``t`` becomes relative to the first SYNC (µs grid)."""
         if chunks:
             arrays = {k: np.concatenate([c[k] for c in chunks]) for k in ARRAYS}
@@ -145,13 +130,12 @@ class Recording:
             arrays = {k: np.zeros((0,) if k in ("t", "cycle") else (0, n_axes),
                                   dtype=bool if k.endswith("valid") else np.int32 if k == "statusword"
                                   else np.int64 if k == "cycle" else float) for k in ARRAYS}
-        metadata = dict(metadata)
         if len(arrays["t"]):
             t0 = float(arrays["t"][0])
-            metadata["t0"] = t0
+            metadata = dataclasses.replace(metadata, t0=t0)
             arrays["t"] = np.round((arrays["t"] - t0) * 1e6) * 1e-6
-        metadata["n_cycles"] = int(len(arrays["t"]))
-        metadata["invalid_cycles"] = int(np.count_nonzero(~arrays["valid"].all(axis=1)))
+        metadata = dataclasses.replace(metadata, n_cycles=int(len(arrays["t"])),
+                                       invalid_cycles=int(np.count_nonzero(~arrays["valid"].all(axis=1))))
         return cls(**arrays, metadata=metadata)
 
     @property
@@ -165,7 +149,7 @@ class Recording:
         tmp = path.with_name(path.name + ".tmp")
         with open(tmp, "wb") as f:
             np.savez(f, **{k: getattr(self, k) for k in ARRAYS},
-                     metadata=np.array(json.dumps(self.metadata, default=_json_default)))
+                     metadata=np.array(self.metadata.to_json()))
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
@@ -188,12 +172,12 @@ class Recording:
         if not isinstance(data, np.lib.npyio.NpzFile):
             raise RecordingError(f"{path}: not a recording (an NPZ file with arrays {ARRAYS})")
         with data:
-            missing = [k for k in (*ARRAYS, "metadata") if k not in data and k not in _SINCE_VERSION_2]
+            missing = [k for k in (*ARRAYS, "metadata") if k not in data]
             if missing:
                 raise RecordingError(f"{path}: not a recording, missing arrays {missing}")
             try:
-                arrays = {k: data[k] for k in ARRAYS if k in data}    # format 1: validity per axis only
-                metadata = json.loads(str(data["metadata"]))
+                arrays = {k: data[k] for k in ARRAYS}
+                metadata = RecordingMetadata.from_json(str(data["metadata"]))
             except Exception as exc:   # a member cut short or corrupt (BadZipFile, zlib, EOFError)
                 raise RecordingError(f"{path}: damaged recording ({_why(exc)})") from exc
         n = len(arrays["t"])
@@ -210,9 +194,9 @@ def take_sent_setpoints(rec: Recording, sent_counts: np.ndarray, axes: Sequence[
 
     The set-points ``rec`` held are the RPDO echoes the assembler saw; the rows where an echo
     differs from the sent set-point by more than half a count (or is missing) on any axis are
-    counted in ``metadata["late_setpoints"]``: the set-point reached the bus after its SYNC, or
+    counted in ``metadata.late_setpoints``: the set-point reached the bus after its SYNC, or
     its echo came back out of order. A row's set-point is never taken from the echo order.
-    ``metadata["setpoints"]`` says ``"sent"``. In place; nothing happens to an empty recording.
+    ``metadata.setpoints`` says ``"sent"``. In place; nothing happens to an empty recording.
     """
     if not len(rec.t):
         return
@@ -222,8 +206,8 @@ def take_sent_setpoints(rec: Recording, sent_counts: np.ndarray, axes: Sequence[
     units = AxesScaling([a.scaling for a in axes])
     sent = units.position_from_counts(counts[np.minimum(rec.cycle, len(counts) - 1)])
     echoed_off = ~(np.abs(rec.target - sent) <= units.position_from_counts(0.5))   # NaN: no echo
-    rec.metadata["late_setpoints"] = int(np.count_nonzero(echoed_off.any(axis=1)))
-    rec.metadata["setpoints"] = "sent"
+    rec.metadata = dataclasses.replace(rec.metadata, late_setpoints=int(np.count_nonzero(echoed_off.any(axis=1))),
+                                       setpoints="sent")
     rec.target = sent
 
 
@@ -233,51 +217,37 @@ def _why(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
-def _json_default(obj):
-    if dataclasses.is_dataclass(obj):
-        return dataclasses.asdict(obj)
-    if isinstance(obj, (np.integer, np.floating)):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
-
-
 class SampleRecorder:
     """Bounded queue of rows drained by a recorder thread into checkpointed NPZ files.
 
     Args:
         axes: the axes, in sample order.
         path: NPZ file to write (``None``: keep in memory only).
-        metadata: JSON-able metadata stored with the samples.
+        metadata: the metadata stored with the samples (its axes default to ``axes``; the
+            format version, the PDO layout, the status and the counts are the recorder's).
         maxsize: capacity of the queue in rows; a row that does not fit is counted in
             :attr:`overflows` (and in the metadata), never silently dropped.
         checkpoint_interval: s between rewrites of the NPZ while running (grows to 10× the time
             a write takes, so that long runs do not spend their time writing).
         layouts: the PDO layout the master configured, per axis, stored in the metadata
-            (``pdo_layout``, :func:`drivers.acquisition.layout_record`); ``None``: the master's
-            :func:`~drivers.acquisition.pdo_layout` of the axes' profiles (with the velocity TPDO
-            unless the metadata's ``with_velocity`` says otherwise).
+            (``pdo_layout``); ``None``: the master's :func:`~drivers.acquisition.pdo_layout` of
+            the axes' profiles.
         setpoints: the set-points the master sends, counts (n_targets, n_axes), row k for SYNC
             k: every recording written (checkpoints too) holds them as its ``target``
             (:func:`take_sent_setpoints`); ``None``: the RPDO echoes the assembler saw.
     """
 
     def __init__(self, axes: Sequence[AxisConfig], path: str | os.PathLike | None = None,
-                 metadata: dict[str, Any] | None = None, maxsize: int = 100_000,
+                 metadata: RecordingMetadata | None = None, maxsize: int = 100_000,
                  checkpoint_interval: float = 1.0, layouts: Sequence[AxisLayout] | None = None,
                  setpoints: np.ndarray | None = None):
         self.axes = list(axes)
         self.path = Path(path) if path is not None else None
-        self.metadata = dict(metadata or {})
-        self.metadata.setdefault("axes", axes_metadata(self.axes))
-        self.metadata["format_version"] = FORMAT_VERSION
-        if layouts is None:
-            with_velocity = bool(self.metadata.get("with_velocity", True))
-            layouts = master_layouts(self.axes, with_velocity)
-        self.metadata["pdo_layout"] = layout_record(layouts)
+        metadata = metadata or RecordingMetadata()
+        if not metadata.axes:
+            metadata = metadata.with_axes(self.axes)
+        self.metadata = dataclasses.replace(metadata, format_version=FORMAT_VERSION,
+                                            pdo_layout=tuple(master_layouts(self.axes) if layouts is None else layouts))
         self.setpoints = None if setpoints is None else np.array(setpoints, dtype=np.int64)
         self.queue: queue.Queue[Row] = queue.Queue(maxsize)
         self.overflows = 0
@@ -325,19 +295,20 @@ class SampleRecorder:
 
     def recording(self, status: str) -> Recording:
         """The samples drained so far."""
-        meta = dict(self.metadata, status=status, buffer_overflows=self.overflows)
+        meta = dataclasses.replace(self.metadata, status=status, buffer_overflows=self.overflows)
         rec = Recording.from_chunks(self._chunks, len(self.axes), meta)
         if self.setpoints is not None:
             take_sent_setpoints(rec, self.setpoints, self.axes)
         return rec
 
-    def close(self, status: str = "complete", **extra_metadata) -> Recording:
-        """Stop the thread, drain the queue, write the final NPZ and return the recording."""
+    def close(self, status: str = "complete", **metadata) -> Recording:
+        """Stop the thread, drain the queue, write the final NPZ and return the recording;
+        ``metadata``: fields of :class:`RecordingMetadata` the run filled meanwhile."""
         self._stop.set()
         if self._thread.is_alive():
             self._thread.join()
         self._drain()
-        self.metadata.update(extra_metadata)
+        self.metadata = dataclasses.replace(self.metadata, **metadata)
         rec = self.recording(status)
         if self.path is not None:
             rec.save(self.path)
@@ -446,9 +417,8 @@ class FlushingLogger(can.Listener):
         self.writer.stop()
 
 
-def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocity: bool = True,
-               max_cycles: int | None = None,
-               metadata: dict[str, Any] | None = None, lockstep_period: float | None = None) -> Recording:
+def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], max_cycles: int | None = None,
+               metadata: RecordingMetadata | None = None, lockstep_period: float | None = None) -> Recording:
     """Replay a raw CAN log through the acquisition decoder.
 
     The log decodes with the PDO layout of its :class:`LogSidecar` (the one it was recorded
@@ -465,9 +435,8 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
     Args:
         path: ``.log``/``.asc``/``.blf`` file written during a run.
         axes: the axes of the run, in sample order (node-IDs, profiles, scalings).
-        with_velocity: whether the run mapped the velocity TPDO (for a log without a sidecar).
         max_cycles: stop after this many cycles (the run's ``n_cycles``; ``None``: all).
-        metadata: extra metadata for the result.
+        metadata: the caller's part of the result's metadata (the trajectory, the SYNC period...).
         lockstep_period: the SYNC period (s) of a run in lockstep, whose row times are the cycle
             index times the period (the simulated time); ``None``: the SYNCs' bus time stamps.
 
@@ -478,14 +447,14 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
     path = Path(path)
     if not path.is_file():
         raise RecordingError(f"raw CAN log {path}: no such file")
-    sidecar, layouts, source = _log_layouts(path, axes, with_velocity)
+    sidecar, layouts, source = _log_layouts(path, axes)
     rows: list[Row] = []
     assembler = CycleAssembler(layouts, rows.append, max_cycles=max_cycles, period=lockstep_period)
     heard, truncated = _replay(path, assembler)
     assembler.flush()
-    meta = dict(metadata or {}, axes=axes_metadata(axes), source=str(path), status="decoded",
-                **cycle_books(assembler), format_version=FORMAT_VERSION, log_truncated=truncated,
-                nodes_heard=sorted(heard), pdo_layout=layout_record(layouts), pdo_layout_source=source)
+    meta = dataclasses.replace((metadata or RecordingMetadata()).with_axes(axes), source=str(path), status="decoded",
+                               books=cycle_books(assembler), format_version=FORMAT_VERSION, log_truncated=truncated,
+                               nodes_heard=tuple(sorted(heard)), pdo_layout=tuple(layouts), pdo_layout_source=source)
     chunks = [rows_to_arrays(rows, axes)] if rows else []
     rec = Recording.from_chunks(chunks, len(axes), meta)
     if sidecar is not None and sidecar.setpoints is not None:
@@ -493,8 +462,7 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], with_velocit
     return rec
 
 
-def _log_layouts(path: Path, axes: Sequence[AxisConfig],
-                 with_velocity: bool) -> tuple[LogSidecar | None, list[AxisLayout], str]:
+def _log_layouts(path: Path, axes: Sequence[AxisConfig]) -> tuple[LogSidecar | None, list[AxisLayout], str]:
     """The PDO layouts a log decodes with: its sidecar's (checked against the node-IDs of
     ``axes``), else the ones the master maps today (with a warning). Returns the sidecar (or
     None), the layouts and where they came from (``pdo_layout_source`` of the metadata)."""
@@ -510,7 +478,7 @@ def _log_layouts(path: Path, axes: Sequence[AxisConfig],
                                  f"the axes given are nodes {configured}: {'; '.join(differ)}")
         source = f"stored ({sidecar_path(path).name})"
     else:
-        layouts = master_layouts(axes, with_velocity)
+        layouts = master_layouts(axes)
         source = "assumed: the layout the master maps today (the log has no sidecar)"
         logger.warning("raw CAN log %s: no %s beside it; decoded with the PDO layout the master maps today, "
                        "which may not be the one it was recorded with", path, sidecar_path(path).name)

@@ -20,6 +20,7 @@ is a context entered while the SYNC runs (e.g. :func:`drivers.gc_freeze.frozen_g
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from contextlib import AbstractContextManager, ExitStack, nullcontext
 from typing import Callable, Sequence
@@ -33,6 +34,7 @@ from drivers.cia import CW_ENABLE_OPERATION, SW_FAULT
 from drivers.errors import ConfigError, DriveError, DriveFault
 from drivers.gc_freeze import GcPauses
 from drivers.recording import FlushingLogger, Recording, SampleRecorder
+from drivers.recording_metadata import RecordingMetadata
 from drivers.supervision import Supervisor
 from drivers.units import AxesScaling
 
@@ -88,7 +90,7 @@ class CyclicStream:
     the contract are :meth:`DriveGroup.run_cyclic`'s."""
 
     def __init__(self, group, targets, period: float, output: str | None = None,
-                 raw_log: str | None = None, metadata: dict | None = None, queue_size: int = 100_000,
+                 raw_log: str | None = None, metadata: RecordingMetadata | None = None, queue_size: int = 100_000,
                  sync_timeout: float | None = None,
                  quiet: Callable[[], AbstractContextManager] = nullcontext):
         self.group = group
@@ -154,8 +156,8 @@ class CyclicStream:
         """Recorder, raw log, set-point streamer and cycle assembler on the notifier; the
         caller's ``quiet`` context entered, the garbage collector's pauses counted."""
         group, sync = self.group, self.sync
-        meta = dict(self.metadata or {}, sync_period=self.period, with_velocity=group.with_velocity,
-                    bus_load=self.load, bitrate=group.bitrate, n_targets=len(self.targets), sync=sync.name)
+        meta = dataclasses.replace(self.metadata or RecordingMetadata(), sync_period=self.period, bus_load=self.load,
+                                   bitrate=group.bitrate, n_targets=len(self.targets), sync=sync.name)
         self.recorder = SampleRecorder(group.axes, self.output, meta, maxsize=self.queue_size,
                                        layouts=group.layouts, setpoints=self.counts).start()
         self.raw = (FlushingLogger(self.raw_log, layouts=group.layouts, setpoints=self.counts)
@@ -219,11 +221,11 @@ class CyclicStream:
         if self.raw is not None:
             self.raw.stop()
         status = "complete" if error is None else f"stopped: {error}"
-        recording = self.recorder.close(status, **cycle_books(self.assembler),
+        recording = self.recorder.close(status, books=cycle_books(self.assembler),
                                         raw_log=str(self.raw_log) if self.raw_log else None,
                                         gc_collections=len(self._pauses.durations),
                                         gc_longest_pause=self._pauses.longest,
-                                        **self.sync.report())
+                                        sync_report=self.sync.report())
         if error is not None:
             if isinstance(error, DriveFault):
                 error.recording = self.output

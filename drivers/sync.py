@@ -16,7 +16,8 @@ from __future__ import annotations
 import logging
 import time
 from abc import ABC, abstractmethod
-from typing import Any, Callable, Mapping
+from dataclasses import dataclass
+from typing import Callable, Mapping
 
 import canopen
 
@@ -90,9 +91,27 @@ class SyncSource(ABC):
     def stop(self) -> None:
         """Stop the SYNC of the stream (a no-op for a stepped source)."""
 
-    def report(self) -> dict[str, Any]:
+    def report(self) -> SyncReport:
         """What the last stream's SYNC did, for the recording's metadata."""
-        return {}
+        return SyncReport()
+
+
+@dataclass(frozen=True)
+class SyncReport:
+    """What the SYNC of a stream did, for its recording's metadata; each source fills its own
+    fields, the others stay ``None``.
+
+    Args:
+        sync_slots_skipped: SYNC slots a thread-timed periodic SYNC woke up too late for.
+        sync_warning: the warning given before the stream (a thread-timed SYNC too fast).
+        lockstep_retries: cycles a lockstep SYNC asked again (answers missing in time).
+        lockstep_waited_out: cycles a lockstep SYNC gave up asking again and moved on from.
+    """
+
+    sync_slots_skipped: int | None = None
+    sync_warning: str | None = None
+    lockstep_retries: int | None = None
+    lockstep_waited_out: int | None = None
 
 
 class PeriodicSync(SyncSource):
@@ -136,6 +155,6 @@ class PeriodicSync(SyncSource):
             self._skipped = getattr(self._task, "skipped", None)
             self._task = None
 
-    def report(self) -> dict[str, Any]:
-        return {"sync_slots_skipped": self._skipped, "sync_warning": self.warning}
+    def report(self) -> SyncReport:
+        return SyncReport(sync_slots_skipped=self._skipped, sync_warning=self.warning)
 

@@ -17,7 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from drivers.recording import Recording
-from drivers.sim import Plant, nominal
+from drivers.recording_metadata import RecordingMetadata
+from drivers.sim import Plant
+import nominal
 from drivers.sim.modes import Demand, cyclic_segment
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
 from ident_hw.experiment.plan import robot_model
@@ -247,4 +249,4 @@ def exact_recording(config, traj, max_substep: float | None) -> Recording:
     force_per_amp = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])
     return Recording(t=truth["t"], cycle=np.arange(n), position=truth["Theta"], velocity=truth["Thetad"],
                      current=truth["force"] / force_per_amp, statusword=np.zeros((n, axes), np.int32),
-                     target=traj.Theta[:n], valid=np.ones((n, axes), bool), metadata={"sync_period": period})
+                     target=traj.Theta[:n], valid=np.ones((n, axes), bool), metadata=RecordingMetadata(sync_period=period))

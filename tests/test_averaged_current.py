@@ -20,6 +20,8 @@ import time
 from pathlib import Path
 
 import canopen
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -28,7 +30,7 @@ from drivers.axis import AxisConfig
 from drivers.errors import ConfigError as DriverConfigError
 from drivers.profiles import EPOS4, make_object_dictionary
 from drivers.recording import Recording
-from drivers.sim import nominal
+import nominal
 from drivers.sim.drive import EmulatedDrive
 from ident_hw.config import ConfigError, load_config
 from ident_hw.experiment.plan import drive_axes
@@ -247,7 +249,7 @@ def test_a_campaign_on_averaged_currents_records_the_average_and_identifies_the_
         assert out.returncode == 0, out.stderr                     # the quality verdict passed
         runs[current] = Recording.load(tmp_path / current / "data" / "sweep.npz")
     plain, averaged = runs["instantaneous"], runs["averaged"]
-    assert plain.metadata["current"] == "instantaneous" and averaged.metadata["current"] == "averaged"
+    assert plain.metadata.current == "instantaneous" and averaged.metadata.current == "averaged"
     np.testing.assert_array_equal(averaged.position, plain.position)     # the same motion
     ma = plain.current * 1e3
     a, steps = math.exp(-2 * math.pi * CUTOFF / 25_000.0), 250          # 10 ms at 25 kHz
@@ -265,7 +267,7 @@ def test_a_campaign_on_averaged_currents_records_the_average_and_identifies_the_
     matched = _rows(tmp_path / "averaged")
     for name in ("m_c", "fv_zeta1", "fv_zeta2", "fv_zeta3", "fc_zeta1", "fc_zeta2", "fc_zeta3"):
         assert abs(matched[name]["identified"] - truth[name]) <= 3 * matched[name]["sigma"], (name, matched[name])
-    averaged.metadata["current"] = "instantaneous"
+    averaged.metadata = dataclasses.replace(averaged.metadata, current="instantaneous")
     (tmp_path / "unmatched").mkdir()
     averaged.save(tmp_path / "unmatched" / "sweep.npz")
     out = ident_hw("identify", tmp_path / "averaged" / "config.yaml", tmp_path / "unmatched" / "sweep.npz",

@@ -14,6 +14,7 @@ import pytest
 import yaml
 
 from drivers.recording import Recording
+from drivers.recording_metadata import RecordingMetadata
 from ident_hw.config import load_config, to_model
 from ident_hw.experiment.offline import identify
 from ident_hw.experiment.plan import plan, robot_model
@@ -87,7 +88,7 @@ def synthetic_recordings(config, folder: Path) -> list[Path]:
         n = len(tr.t)
         rec = Recording(t=tr.t - tr.t[0], cycle=np.arange(n), position=np.rint(tr.Theta * cpu) / cpu,
                         velocity=tr.Thetad, current=ma * 1e-3, statusword=np.zeros((n, 6), np.int32),
-                        target=tr.Theta, valid=np.ones((n, 6), bool), metadata={"trajectory": tr.name})
+                        target=tr.Theta, valid=np.ones((n, 6), bool), metadata=RecordingMetadata(trajectory=tr.name))
         paths.append(rec.save(folder / f"{tr.name}.npz"))
     return paths
 

@@ -53,8 +53,8 @@ def test_run_against_the_rig_in_another_process_over_udp_gives_the_in_process_an
     assert (tmp_path / "udp" / "STATUS").read_text().strip() == "complete"
     (traj,) = config.trajectories
     recorded = Recording.load(tmp_path / "udp" / "data" / f"{traj.name}.npz")
-    assert recorded.metadata.get("sync") == "lockstep" and recorded.n_invalid == 0
-    print(f"cycles asked again (frames UDP dropped, or a slow rig): {recorded.metadata.get('lockstep_retries')}")
+    assert recorded.metadata.sync == "lockstep" and recorded.n_invalid == 0
+    print(f"cycles asked again (frames UDP dropped, or a slow rig): {recorded.metadata.sync_report.lockstep_retries}")
 
     rows = parameter_rows(tmp_path / "udp")
     assert_step_identified(config, rows)

@@ -111,33 +111,33 @@ def _check_bookkeeping(rec, targets, period, raw_log):
     timestamps, the recorded set-points are the commanded ones (or, sent late, one commanded
     shortly before)."""
     n = len(targets)
-    assert rec.metadata["n_cycles"] == n and list(rec.cycle) == list(range(n))
-    assert rec.metadata["buffer_overflows"] == 0
+    assert rec.metadata.n_cycles == n and list(rec.cycle) == list(range(n))
+    assert rec.metadata.buffer_overflows == 0
     bad = ~rec.valid
     for name in ("position", "velocity", "current"):
         values, valid = getattr(rec, name), getattr(rec, f"{name}_valid")
         assert np.isnan(values[~valid]).all() and np.isfinite(values[valid]).all(), name
-    assert rec.metadata["invalid_cycles"] == rec.n_invalid == np.count_nonzero(bad.any(axis=1))
-    if rec.metadata["sync"] == "lockstep":
+    assert rec.metadata.invalid_cycles == rec.n_invalid == np.count_nonzero(bad.any(axis=1))
+    if rec.metadata.sync == "lockstep":
         # the simulated time: the SYNC count times the period, whatever the host did
         np.testing.assert_array_equal(rec.t, np.round(np.arange(n) * period * 1e6) * 1e-6)
         return
     # t: the bus timestamps of the SYNC frames (BCM/timer drift included), not k * period
     stamps = _sync_stamps(raw_log)[:n]
     # (the log and rec.t are both on a 1 us grid: 0.5 us rounding each)
-    np.testing.assert_allclose(rec.t + rec.metadata["t0"], stamps, rtol=0, atol=1.01e-6)
+    np.testing.assert_allclose(rec.t + rec.metadata.t0, stamps, rtol=0, atol=1.01e-6)
     # SYNC on the period grid: never two within half a period (no catch-up burst); a slot the
     # producer thread woke up too late for is skipped and counted
     assert np.diff(rec.t).min() > 0.4 * period
     # (the count runs until the SYNC stops, after the switch to holding at the end)
-    skipped = rec.metadata["sync_slots_skipped"] or 0
+    skipped = rec.metadata.sync_report.sync_slots_skipped or 0
     span = rec.t[-1] - rec.t[0]
     assert 0.99 * (n - 1) * period - 2 * period <= span <= 1.01 * (n - 1 + skipped) * period + 2 * period
     exact, near = _setpoints_on_time(rec, targets, max_lag=round(0.2 / period))
-    if rec.metadata.get("setpoints") == "sent":     # the recording holds the sent set-points
+    if rec.metadata.setpoints == "sent":     # the recording holds the sent set-points
         assert exact.all()
     else:                                           # the RPDO echoes: late ones count
-        assert rec.metadata["late_setpoints"] == np.count_nonzero(~exact)
+        assert rec.metadata.late_setpoints == np.count_nonzero(~exact)
     assert near.all()
     log = logging.getLogger(__name__)
     log.warning("%g Hz: late set-points %d, invalid cycles %d of %d, SYNC slots skipped %d", 1 / period,
@@ -187,14 +187,14 @@ def test_lockstep_stream_records_every_cycle_exactly(rig_factory, tmp_path):
     rec = group.run_cyclic(targets, PERIOD, output=tmp_path / "run.npz", raw_log=tmp_path / "run.log")
     _check_bookkeeping(rec, targets, PERIOD, tmp_path / "run.log")
     _check_following(rec)
-    assert rec.n_invalid == 0 and rec.metadata["late_setpoints"] == 0
+    assert rec.n_invalid == 0 and rec.metadata.late_setpoints == 0
     np.testing.assert_allclose(rec.target, targets, rtol=0, atol=0.5 / COUNTS.min())
     # the rig took exactly one step per cycle (and one more that closes the last row); a cycle
     # the host held up past the retry time was asked again and answered without a step
     assert rig.syncs_done == len(targets) + 1 and rig.syncs_held == 0
     on_disk = Recording.load(tmp_path / "run.npz")
     np.testing.assert_array_equal(on_disk.position, rec.position)
-    assert on_disk.metadata["status"] == "complete" and on_disk.metadata["sync_period"] == PERIOD
+    assert on_disk.metadata.status == "complete" and on_disk.metadata.sync_period == PERIOD
     replay = decode_log(tmp_path / "run.log", AXES, max_cycles=len(targets))
     for name in ("position", "velocity", "current", "target", "valid"):
         np.testing.assert_array_equal(getattr(replay, name), getattr(rec, name), err_msg=name)
@@ -237,8 +237,8 @@ def test_lockstep_survives_lost_frames_by_asking_again(rig_factory):
     rig_lossy, group_lossy = rig_factory()
     rig_lossy.frame_faults(drop_probability=0.05)
     lossy = group_lossy.run_cyclic(targets, PERIOD)
-    assert lossy.metadata["lockstep_retries"] >= 10 and rig_lossy.sync_retries >= 10
-    assert lossy.metadata["lockstep_waited_out"] == 0 and group_lossy.sync.retry_after == 1.0
+    assert lossy.metadata.sync_report.lockstep_retries >= 10 and rig_lossy.sync_retries >= 10
+    assert lossy.metadata.sync_report.lockstep_waited_out == 0 and group_lossy.sync.retry_after == 1.0
     assert rig_lossy.network.dropped >= 10
     for name in ("position", "velocity", "current", "target", "valid"):
         np.testing.assert_array_equal(getattr(lossy, name), getattr(clean, name), err_msg=name)
@@ -256,8 +256,8 @@ def test_lockstep_a_slow_rig_answers_twice_and_no_copy_lands_in_the_next_cycle(r
     for cycle in (20, 21, 60):
         rig_slow.schedule(cycle * PERIOD, lambda: time.sleep(0.2))    # inside the rig's SYNC handling
     slow = group_slow.run_cyclic(targets, PERIOD)
-    assert slow.metadata["lockstep_retries"] >= 3 and rig_slow.sync_retries >= 3
-    assert slow.n_invalid == 0 and slow.metadata["late_frames"] == 0
+    assert slow.metadata.sync_report.lockstep_retries >= 3 and rig_slow.sync_retries >= 3
+    assert slow.n_invalid == 0 and slow.metadata.books.late_frames == 0
     for name in ("position", "velocity", "current", "target", "valid"):
         np.testing.assert_array_equal(getattr(slow, name), getattr(clean, name), err_msg=name)
 
@@ -391,7 +391,7 @@ def test_raw_log_replay_gives_the_recorded_samples(rig_factory, tmp_path, suffix
     rig, group = rig_factory()
     targets = _targets(group, 1.0, 0.004)
     rec = group.run_cyclic(targets, 0.004, raw_log=tmp_path / f"raw{suffix}")
-    replay = decode_log(tmp_path / f"raw{suffix}", AXES, max_cycles=rec.metadata["n_cycles"],
+    replay = decode_log(tmp_path / f"raw{suffix}", AXES, max_cycles=rec.metadata.n_cycles,
                         lockstep_period=PERIOD)
     for name in ("cycle", "position", "velocity", "current", "statusword", "target", "valid"):
         np.testing.assert_array_equal(getattr(replay, name), getattr(rec, name), err_msg=name)
@@ -406,8 +406,8 @@ def _fault_run(rig, group, tmp_path, inject, after_cycles=100, unreachable=()):
         group.run_cyclic(targets, PERIOD, output=out)
     _assert_disabled(rig, skip=unreachable)
     saved = Recording.load(out)
-    assert saved.metadata["status"].startswith("stopped")
-    assert 50 < saved.metadata["n_cycles"] < len(targets)
+    assert saved.metadata.status.startswith("stopped")
+    assert 50 < saved.metadata.n_cycles < len(targets)
     assert info.value.recording == out
     assert _setpoints_on_time(saved, targets, max_lag=50)[1].all()
     return info.value
@@ -453,7 +453,7 @@ def test_dropped_frames_are_flagged_not_filled(rig_factory):
     np.testing.assert_array_equal(dropped_cycles, lost_first | lost_second)
     assert np.isnan(rec.position[lost_first, 5]).all() and np.isnan(rec.current[lost_first, 5]).all()
     assert np.isnan(rec.velocity[lost_second, 5]).all() and np.isfinite(rec.position[lost_second & ~lost_first, 5]).all()
-    assert rec.metadata["invalid_cycles"] >= dropped_cycles.sum()
+    assert rec.metadata.invalid_cycles >= dropped_cycles.sum()
 
 
 def test_late_jittered_and_dropped_frames_leave_no_valid_cell_of_another_cycle(rig_factory):
@@ -463,7 +463,15 @@ def test_late_jittered_and_dropped_frames_leave_no_valid_cell_of_another_cycle(r
     drive sent for that cycle."""
     period = 0.01
     rig, group = rig_factory(sync="periodic")
-    rig.network.sent = sent = []
+    sent = []                       # every PDO frame as the drives sent it: (SYNC count, COB-ID, data)
+    send = rig.network.send_message
+
+    def spy(can_id, data, remote=False):
+        if 0x180 <= can_id < 0x580:
+            sent.append((rig.sync_count, can_id, bytes(data)))   # the rig sends a cycle's TPDOs on its SYNC
+        send(can_id, data, remote)
+
+    rig.network.send_message = spy
     rig.frame_faults(drop_probability=0.02, delay=period, jitter=2 * period, delayed_share=0.05,
                      node_ids=[2, 3, 5])
     targets = _targets(group, 3.0, period)
@@ -495,9 +503,9 @@ def test_late_jittered_and_dropped_frames_leave_no_valid_cell_of_another_cycle(r
     meta = rec.metadata
     logging.getLogger(__name__).warning(
         "jitter: %d of %d cells invalid on the jittered axes; late %d, lost %d, withdrawn %d, unplaced %d",
-        np.count_nonzero(~rec.valid[:, faulty]), n * len(faulty), meta["late_frames"], meta["lost_frames"],
-        meta["withdrawn_cells"], meta["unplaced_frames"])
-    assert meta["late_frames"] > 0 and meta["withdrawn_cells"] > 0   # the faults happened
+        np.count_nonzero(~rec.valid[:, faulty]), n * len(faulty), meta.books.late_frames, meta.books.lost_frames,
+        meta.books.withdrawn_cells, meta.books.unplaced_frames)
+    assert meta.books.late_frames > 0 and meta.books.withdrawn_cells > 0   # the faults happened
     assert rec.valid[:, faulty].mean() > 0.3                          # and not everything was thrown away
     clean = [i for i in range(len(AXES)) if i not in faulty]
     assert rec.valid[:, clean].mean() > 0.9

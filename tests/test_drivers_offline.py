@@ -1,13 +1,15 @@
 """Master-side pieces that need no drive: bus-load budget, EMCY texts, the SYNC-cycle assembler
 fed with hand-made frames, recordings on disk and the raw-log decoder."""
 
+import dataclasses
+import json
 
 import can
 import canopen
 import numpy as np
 import pytest
 
-from drivers.acquisition import (LOOKAHEAD, AxisLayout, CycleAssembler, PdoFrame, layout_record, master_layouts,
+from drivers.acquisition import (LOOKAHEAD, AxisLayout, CycleAssembler, CycleBooks, PdoFrame, master_layouts,
                                  pdo_layout)
 from drivers.axis import AxisConfig
 from drivers.bus import BusConfig, check_bus_load, frame_bits, max_sync_rate, open_network
@@ -16,6 +18,8 @@ from drivers.epos import DriveGroup
 from drivers.errors import BusLoadError, ConfigError, RecordingError
 from drivers.recording import (FlushingLogger, Recording, SampleRecorder, decode_log, rows_to_arrays,
                                sidecar_path)
+from drivers.recording_metadata import RecordingMetadata
+from drivers.sync import SyncReport
 from drivers.units import AxesScaling, AxisScaling
 
 
@@ -172,9 +176,9 @@ def test_decode_log_reproduces_rows_from_hand_made_traffic(tmp_path, suffix):
             m.timestamp += 1.7e9
             asm.on_message_received(m)
     logger.stop()
-    live = Recording.from_chunks([rows_to_arrays(rows, axes)], 3, {})
+    live = Recording.from_chunks([rows_to_arrays(rows, axes)], 3, RecordingMetadata())
     replay = decode_log(tmp_path / f"raw{suffix}", axes, max_cycles=40)
-    assert live.metadata["n_cycles"] == replay.metadata["n_cycles"] == 40
+    assert live.metadata.n_cycles == replay.metadata.n_cycles == 40
     for name in ("cycle", "position", "velocity", "current", "statusword", "target", "valid"):
         np.testing.assert_array_equal(getattr(live, name), getattr(replay, name), err_msg=name)
     np.testing.assert_allclose(live.t, replay.t, rtol=0, atol=1.01e-6)
@@ -187,13 +191,13 @@ def test_recording_round_trip_and_bad_files(tmp_path):
     for k in range(4):
         for m in _frames(axes, k, [4096 * k, 0], [1500, -20]):
             asm.on_message_received(m)
-    rec = Recording.from_chunks([rows_to_arrays(rows, axes)], 2, {"note": "x"})
+    rec = Recording.from_chunks([rows_to_arrays(rows, axes)], 2, RecordingMetadata(extra={"note": "x"}))
     # 4096 counts = 2 motor turns = 2/26 joint turns
     np.testing.assert_allclose(rec.position[1], [2 * 2 * np.pi / 26, 0.0])
     np.testing.assert_array_equal(rec.current[1], [1.5, -0.02])
     back = Recording.load(rec.save(tmp_path / "r.npz"))
     np.testing.assert_array_equal(back.position, rec.position)
-    assert back.metadata["note"] == "x" and back.metadata["n_cycles"] == 3
+    assert back.metadata.extra["note"] == "x" and back.metadata.n_cycles == 3
     np.save(tmp_path / "other.npy", np.zeros(3))
     with pytest.raises(RecordingError, match="other.npy"):
         Recording.load(tmp_path / "other.npy")
@@ -274,7 +278,7 @@ def test_a_lost_velocity_frame_leaves_position_and_current_valid():
     assert rows[5].position == [500, 501] and rows[5].current == [50, 51]
     assert rows[9].valid == [True, False] and rows[9].position == [900, None] and rows[9].current == [90, None]
     assert rows[9].velocity == [1009, 1009]
-    rec = Recording.from_chunks([rows_to_arrays(rows, axes)], 2, {})
+    rec = Recording.from_chunks([rows_to_arrays(rows, axes)], 2, RecordingMetadata())
     np.testing.assert_array_equal(rec.velocity_valid[5], [False, True])
     np.testing.assert_array_equal(rec.position_valid[5], [True, True])
     np.testing.assert_array_equal(rec.current_valid[9], [True, False])
@@ -311,8 +315,8 @@ def test_raw_logs_of_today_s_layout_and_of_a_changed_one_both_decode(tmp_path, s
                 logger.on_message_received(m)
         logger.stop()
         rec = decode_log(path, axes, max_cycles=n)
-        assert rec.metadata["pdo_layout_source"].startswith("stored") and rec.n_invalid == 0, label
-        assert rec.metadata["pdo_layout"] == layout_record(layouts)
+        assert rec.metadata.pdo_layout_source.startswith("stored") and rec.n_invalid == 0, label
+        assert rec.metadata.pdo_layout == tuple(layouts)
         k = np.arange(n)[:, None]
         i = np.arange(2)[None, :]
         # by hand: 4096 counts = 2 motor turns = 2/26 joint turns; mA / 1000; rpm of the motor / gear
@@ -324,7 +328,7 @@ def test_raw_logs_of_today_s_layout_and_of_a_changed_one_both_decode(tmp_path, s
     caplog.clear()
     with caplog.at_level("WARNING", logger="drivers.recording"):
         wrong = decode_log(tmp_path / f"changed{suffix}", axes, max_cycles=n)
-    assert wrong.metadata["pdo_layout_source"].startswith("assumed") and "no changed" in caplog.text
+    assert wrong.metadata.pdo_layout_source.startswith("assumed") and "no changed" in caplog.text
     assert not np.allclose(wrong.position, rec.position)
 
 
@@ -350,7 +354,7 @@ def test_the_set_points_are_the_ones_sent_not_the_echo_order(tmp_path):
     sent = np.array([[1000 * k, -1000 * k] for k in range(n)], dtype=np.int64)
     log = tmp_path / "run.log"
     raw = FlushingLogger(log, layouts=layouts, setpoints=sent)
-    recorder = SampleRecorder(axes, tmp_path / "run.npz", {"n_targets": n}, layouts=layouts, setpoints=sent)
+    recorder = SampleRecorder(axes, tmp_path / "run.npz", RecordingMetadata(n_targets=n), layouts=layouts, setpoints=sent)
     asm = CycleAssembler(layouts, recorder.put, max_cycles=n, forward=[raw])
     recorder.start()
     echoes = [can.Message(arbitration_id=0x200 + a.node_id, is_extended_id=False,
@@ -374,16 +378,16 @@ def test_the_set_points_are_the_ones_sent_not_the_echo_order(tmp_path):
     rec = recorder.close()
     units = AxesScaling([a.scaling for a in axes])
     np.testing.assert_array_equal(rec.target, units.position_from_counts(sent))
-    assert rec.metadata["late_setpoints"] == 1 and rec.metadata["setpoints"] == "sent"
+    assert rec.metadata.late_setpoints == 1 and rec.metadata.setpoints == "sent"
     echoed = units.position_from_counts(sent)
     echoed[6] = echoed[5]
     np.testing.assert_array_equal(rows_to_arrays_target(log, axes, n), echoed)     # what the echoes said
     again = Recording.load(tmp_path / "run.npz")
     np.testing.assert_array_equal(again.target, rec.target)
-    assert again.metadata["late_setpoints"] == 1 and again.metadata["pdo_layout"] == layout_record(layouts)
+    assert again.metadata.late_setpoints == 1 and again.metadata.pdo_layout == tuple(layouts)
     replay = decode_log(log, axes, max_cycles=n)
     np.testing.assert_array_equal(replay.target, rec.target)
-    assert replay.metadata["late_setpoints"] == 1
+    assert replay.metadata.late_setpoints == 1
 
 
 def rows_to_arrays_target(log, axes, n):
@@ -397,14 +401,48 @@ def rows_to_arrays_target(log, axes, n):
     return rows_to_arrays(rows, axes)["target"]
 
 
-def test_a_recording_of_format_1_loads_with_validity_per_axis(tmp_path):
-    """A recording written before validity per TPDO (no ``*_valid`` arrays): each value is valid
-    where its axis is."""
-    valid = np.array([[True, False], [True, True]])
-    arrays = {"t": np.zeros(2), "cycle": np.arange(2), "position": np.ones((2, 2)), "velocity": np.ones((2, 2)),
-              "current": np.ones((2, 2)), "statusword": np.zeros((2, 2), np.int32), "target": np.ones((2, 2)),
-              "valid": valid}
-    np.savez(tmp_path / "old.npz", **arrays, metadata=np.array('{"format_version": 1}'))
-    rec = Recording.load(tmp_path / "old.npz")
-    for name in ("position_valid", "velocity_valid", "current_valid"):
-        np.testing.assert_array_equal(getattr(rec, name), valid, err_msg=name)
+def test_recording_metadata_round_trips_through_its_json_form():
+    """Every field of the metadata comes back from the JSON stored in the NPZ, the nested
+    records and the free-form ``extra`` at its top level."""
+    axes = [AxisConfig("theta1", 1, "epos2", AxisScaling("revolute", 2048, 0.0369, gear_ratio=26.0),
+                       -1.0, 1.0, 1.0, 10.0, 1.0, current="averaged"),
+            AxisConfig("zeta1", 4, "epos4", AxisScaling("prismatic", 2048, 0.0603, screw_lead=0.002),
+                       -0.1, 0.1, 0.05, 4.0, 0.002)]
+    meta = dataclasses.replace(
+        RecordingMetadata(trajectory="square", config="sim.yaml", current="averaged", status="complete",
+                          format_version=2, pdo_layout=master_layouts(axes), sync="periodic", sync_period=0.004,
+                          bus_load=0.3, bitrate=1_000_000, n_targets=10, t0=12.5, n_cycles=10, invalid_cycles=1,
+                          setpoints="sent", late_setpoints=2, buffer_overflows=0,
+                          books=CycleBooks(late_frames=3, unplaced_frames=1),
+                          sync_report=SyncReport(sync_slots_skipped=4, sync_warning="late"), raw_log="square.log",
+                          gc_collections=2, gc_longest_pause=1e-3, log_truncated=True, nodes_heard=(1, 4),
+                          extra={"operator": "me", "run": [1, 2]}),
+        ).with_axes(axes)
+    doc = json.loads(meta.to_json())
+    assert doc["late_frames"] == 3 and doc["sync_slots_skipped"] == 4 and doc["operator"] == "me"
+    assert doc["axes"][0]["units"]["position"] == "rad" and doc["axes"][1]["scaling"]["screw_lead"] == 0.002
+    assert RecordingMetadata.from_json(meta.to_json()) == meta
+    with pytest.raises(ValueError, match="n_cycles"):
+        RecordingMetadata(extra={"n_cycles": 3})
+
+
+def test_metadata_as_recordings_stored_it_before_loads_typed():
+    """The flat JSON of a recording written before the metadata was typed: the known keys fill
+    their fields (missing ones keep their defaults), the retired ``with_velocity`` is dropped,
+    an unknown key is kept in ``extra``."""
+    stored = {"trajectory": "square", "config": "sim.yaml", "current": "instantaneous", "sync_period": 0.004,
+              "with_velocity": True, "bus_load": 0.2, "bitrate": 1000000, "n_targets": 5, "sync": "lockstep",
+              "axes": [{"name": "theta1", "node_id": 1, "profile": "EPOS2", "units": {"position": "rad"},
+                        "scaling": {"kind": "revolute", "counts_per_turn": 2048, "torque_constant": 0.0369,
+                                    "gear_ratio": 26.0, "screw_lead": None}, "current": "instantaneous"}],
+              "format_version": 2, "status": "complete", "buffer_overflows": 0, "t0": 1.5, "n_cycles": 5,
+              "invalid_cycles": 0, "late_frames": 1, "lost_frames": 0, "withdrawn_cells": 0, "unplaced_frames": 0,
+              "error_frames": 0, "raw_log": None, "gc_collections": 0, "gc_longest_pause": 0.0,
+              "lockstep_retries": 2, "lockstep_waited_out": 0, "late_setpoints": 0, "setpoints": "sent",
+              "site": "lab 2"}
+    meta = RecordingMetadata.from_json(json.dumps(stored))
+    assert (meta.trajectory, meta.sync_period, meta.sync, meta.n_cycles, meta.t0) == ("square", 0.004, "lockstep", 5, 1.5)
+    assert meta.books == CycleBooks(late_frames=1) and meta.sync_report == SyncReport(lockstep_retries=2,
+                                                                                      lockstep_waited_out=0)
+    assert meta.axes[0].profile == "EPOS2" and meta.axes[0].scaling.gear_ratio == 26.0
+    assert dict(meta.extra) == {"site": "lab 2"} and meta.pdo_layout == () and meta.file is None

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from drivers.recording import Recording
+from drivers.recording_metadata import RecordingMetadata
 from ident_hw.config import load_config
 from ident_hw.config.schema import ConfigError
 from ident_hw.experiment.encoder import count_shifts, reread, smoothed_positions, spread_covariance
@@ -32,7 +33,7 @@ def smooth_recording(counts_per_unit: np.ndarray, seconds: float = 4.0) -> tuple
     position[400:411, 0] = np.nan
     rec = Recording(t=t, cycle=np.arange(n), position=position, velocity=np.zeros((n, 2)), current=np.zeros((n, 2)),
                     statusword=np.zeros((n, 2), np.int32), target=truth.copy(), valid=valid,
-                    position_valid=position_valid, metadata={"sync_period": 1 / RATE})
+                    position_valid=position_valid, metadata=RecordingMetadata(sync_period=1 / RATE))
     return rec, truth
 
 

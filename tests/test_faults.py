@@ -196,7 +196,7 @@ def check_interrupted_folder(res: Path, out, signame: str) -> Recording:
     master = json.loads((res / "data" / "drives.json").read_text())["master"]
     assert set(master.values()) == {"SWITCH ON DISABLED"}
     rec = Recording.load(res / "data" / "square.npz")
-    assert rec.metadata["status"].startswith("stopped")
+    assert rec.metadata.status.startswith("stopped")
     assert 100 < len(rec.t) < LONG * CYCLE and np.isfinite(rec.position[rec.valid]).all()
     return rec
 
@@ -254,7 +254,7 @@ def test_identify_recognises_the_checkpoint_of_a_killed_run(tmp_path):
     proc.kill()                     # SIGKILL: nothing can be done; the checkpoint is what is left
     proc.communicate(timeout=60)
     rec = Recording.load(res / "data" / "square.npz")
-    assert rec.metadata["status"] == "running (checkpoint)"
+    assert rec.metadata.status == "running (checkpoint)"
     out = ident_hw("identify", res / "config.yaml", res / "data" / "square.npz", "--out", tmp_path / "res",
                    cwd=tmp_path)
     no_traceback(out)
@@ -387,7 +387,7 @@ def test_dropped_pdo_frames_end_the_run_degraded_not_complete(tmp_path, monkeypa
     rec = Recording.load(folder / "data" / "square.npz")
     # complete cycles over the SYNC slots: a slot the SYNC thread skipped (counted by the
     # producer) counts as an incomplete cycle
-    slots = len(rec.t) + (rec.metadata.get("sync_slots_skipped") or 0)
+    slots = len(rec.t) + (rec.metadata.sync_report.sync_slots_skipped or 0)
     complete = float(rec.valid.all(axis=1).sum()) / slots
     assert complete < 0.9          # 1 - 0.95^(6 drives x 2-3 PDOs) of the cycles lose a frame
     status = (folder / "STATUS").read_text()

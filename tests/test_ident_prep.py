@@ -6,6 +6,7 @@ from scipy import linalg
 from scipy import signal as sps
 
 from drivers.recording import Recording
+from drivers.recording_metadata import RecordingMetadata
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
 from ident_hw.config import load_config, to_model
 from ident_hw.experiment.offline import identify, prepare
@@ -225,7 +226,7 @@ def test_rows_of_axes_near_rest_are_left_out_of_the_fits():
     period = float(tr.t[1] - tr.t[0])
     rec = Recording(t=tr.t, cycle=np.arange(n), position=tr.Theta, velocity=tr.Thetad, current=tau / fpa,
                     statusword=np.zeros((n, 6), np.int32), target=tr.Theta, valid=np.ones((n, 6), bool),
-                    metadata={"trajectory": "sweep", "sync_period": period})
+                    metadata=RecordingMetadata(trajectory="sweep", sync_period=period))
     p = prepare(config, robot, "sweep", rec)
     assert not p.moving[:, :3].any()
     threshold = config.identification.min_speed * np.array([a.limits.velocity for a in config.robot.actuators[3:]])

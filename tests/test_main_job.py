@@ -230,7 +230,7 @@ def test_an_epos2_rig_identifies_the_carriages(tmp_path):
     for name, r in well.items():
         assert abs(r["identified"] - truth[name]) <= 3 * r["sigma"] + BIAS_BUDGET * abs(truth[name]), (name, r)
     rec = Recording.load(folder / "data" / "sweep.npz")
-    assert [a["profile"] for a in rec.metadata["axes"]] == ["EPOS2"] * 6
+    assert [a.profile for a in rec.metadata.axes] == ["EPOS2"] * 6
 
 
 def test_the_online_estimate_at_the_end_agrees_with_the_offline_base_fit(main_job):
@@ -343,11 +343,11 @@ def test_identify_from_raw_logs_with_late_and_lost_frames_is_right_or_degraded(m
     save_results(tmp_path / "res", results)
     doc = json.loads((tmp_path / "res" / "parameters.json").read_text())
     truth = dict(zip(to_model.inertial_params(config.sim.truth).NAMES, to_model.inertial_params(config.sim.truth).as_vector()))
-    late = sum(r.metadata.get("late_frames", 0) for r in recordings.values())
+    late = sum(r.metadata.books.late_frames for r in recordings.values())
     logging.getLogger(__name__).warning(
         "disturbed logs: %s; late frames placed %d; verdict %s %s", disturbed, late,
         doc["quality"]["passed"], doc["quality"]["reasons"][:4])
-    assert late > 0 and all(r.metadata.get("unplaced_frames", 0) == 0 for r in recordings.values())
+    assert late > 0 and all(r.metadata.books.unplaced_frames == 0 for r in recordings.values())
     if doc["quality"]["passed"]:
         assert accuracy_failures(doc, truth) == [], doc["quality"]
     else:

@@ -27,6 +27,7 @@ from ident_hw.filtering import FilterSettings, parallel_decimate
 
 from drivers.errors import ConfigError
 from drivers.recording import Recording
+from drivers.recording_metadata import RecordingMetadata
 from ident_scenarios import CONFIGS, ROBOT, TRUE, make_motion
 from ident_hw.config.to_drivers import axis_scaling
 from ident_hw.config.to_identification import filter_settings, step_parameters
@@ -204,7 +205,7 @@ def test_prepare_gives_the_power_and_energy_models_the_least_squares_steps_stret
     n = len(m.t)
     rec = Recording(t=m.t, cycle=np.arange(n), position=m.Theta, velocity=m.Thetad, current=m.tau / force_per_amp,
                     statusword=np.zeros((n, 6), np.int32), target=m.Theta, valid=np.ones((n, 6), bool),
-                    metadata={"sync_period": 1.0 / rate})
+                    metadata=RecordingMetadata(sync_period=1.0 / rate))
     robot = EnergyThreePRRR(ROBOT)
     plain = prepare(config, robot, "excitation", rec)
     both = prepare(config, robot, "excitation", rec, scalar_models=True)

@@ -3,7 +3,7 @@ vectorised model: forward kinematics, mass matrix and velocity terms at random s
 
 import numpy as np
 
-from drivers.sim import nominal
+import nominal
 from ident_hw.model import KinematicsError, ThreePRRR
 from ident_hw.model.single import SingleState
 

@@ -4,6 +4,7 @@ report, the terminal)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 
@@ -12,6 +13,7 @@ import pytest
 from ident_scenarios import CONFIGS
 from test_cli import SWEEP_ONLY, synthetic_recordings
 
+from drivers.acquisition import CycleBooks
 from drivers.recording import Recording
 from ident_hw.config import ConfigError, load_config
 from ident_hw.experiment.offline import identify
@@ -79,7 +81,7 @@ def test_incomplete_cycles_and_a_gap_degrade_the_result(sweep):
     valid[hole] = False
     damaged = Recording(**{k: getattr(rec, k) for k in ("t", "cycle", "statusword", "target")},
                         position=np.where(valid, rec.position, np.nan), velocity=rec.velocity,
-                        current=np.where(valid, rec.current, np.nan), valid=valid, metadata=dict(rec.metadata))
+                        current=np.where(valid, rec.current, np.nan), valid=valid, metadata=rec.metadata)
     q = identify(config, {"sweep": damaged}).quality
     complete = valid.all(axis=1).mean()
     row = q.trajectories["sweep"]
@@ -98,7 +100,7 @@ def test_a_frame_the_master_could_not_place_degrades_the_result(sweep):
     some cells handed out before may hold another cycle's data) is not marked good, however
     clean its samples look."""
     path, rec = sweep
-    meta = dict(rec.metadata, unplaced_frames=2)
+    meta = dataclasses.replace(rec.metadata, books=CycleBooks(unplaced_frames=2))
     marked = Recording(**{k: getattr(rec, k) for k in ("t", "cycle", "position", "velocity", "current",
                                                        "statusword", "target", "valid")}, metadata=meta)
     q = identify(load_config(path), {"sweep": marked}).quality
@@ -143,7 +145,7 @@ def test_a_parameter_its_data_do_not_excite_is_held_and_named(sweep):
     valid = rec.valid & ~moving[:, None]
     damaged = Recording(**{k: getattr(rec, k) for k in ("t", "cycle", "statusword", "target", "velocity")},
                         position=np.where(valid, rec.position, np.nan), current=np.where(valid, rec.current, np.nan),
-                        valid=valid, metadata=dict(rec.metadata))
+                        valid=valid, metadata=rec.metadata)
     results = identify(load_config(path), {"sweep": damaged})
     rows = {r.name: r for r in results.parameter_rows()}
     assert rows["fv_zeta3"].step == "" and rows["fc_zeta3"].step == ""          # held

@@ -78,7 +78,7 @@ def test_run_then_identify_from_its_raw_can_log_gives_the_same_result(tmp_path):
     axes = [axis_config(a) for a in load_config(config).robot.actuators]
     rec = Recording.load(res / "data" / "square.npz")
     replay = decode_log(res / "data" / "square.log", axes, max_cycles=CYCLE)
-    assert rec.metadata["status"] == "complete" and len(rec.t) == CYCLE
+    assert rec.metadata.status == "complete" and len(rec.t) == CYCLE
     # the drives got, cycle by cycle, the set-points the check validated (plan.setpoints) in whole counts
     (planned,) = plan(load_config(config))
     streamed = AxesScaling([a.scaling for a in axes]).position_from_counts(
@@ -122,7 +122,7 @@ def test_ctrl_c_mid_trajectory_stops_disables_and_keeps_the_data(tmp_path):
     assert set(rig_states(res)) == {"SWITCH ON DISABLED"}
 
     rec = Recording.load(res / "data" / "square.npz")
-    assert rec.metadata["status"].startswith("stopped")
+    assert rec.metadata.status.startswith("stopped")
     assert 100 < len(rec.t) < 30 * CYCLE and np.isfinite(rec.position[rec.valid]).all()
     # the raw log holds the same cycles
     axes = [axis_config(a) for a in load_config(config).robot.actuators]
@@ -142,7 +142,7 @@ def test_a_drive_fault_ends_the_run_with_the_fault_in_message_and_folder(tmp_pat
     states = rig_states(res)
     assert states[4] == "FAULT" and set(states[:4] + states[5:]) == {"SWITCH ON DISABLED"}
     rec = Recording.load(res / "data" / "square.npz")
-    assert rec.metadata["status"].startswith("stopped") and 50 < len(rec.t) < 2 * CYCLE
+    assert rec.metadata.status.startswith("stopped") and 50 < len(rec.t) < 2 * CYCLE
 
 
 def test_a_fault_injection_on_an_unknown_trajectory_is_a_config_error(tmp_path):
@@ -198,6 +198,6 @@ def test_a_hil_campaign_that_check_accepts_runs_to_its_end(tmp_path, hil):
     units = AxesScaling([a.scaling for a in axes])
     for planned in plan(loaded):
         rec = Recording.load(tmp_path / "run" / "data" / f"{planned.config.name}.npz")
-        assert rec.metadata["status"] == "complete", planned.config.name
+        assert rec.metadata.status == "complete", planned.config.name
         np.testing.assert_array_equal(rec.target, units.position_from_counts(
             setpoint_counts(axes, setpoints(planned.trajectory))))

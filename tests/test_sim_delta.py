@@ -118,7 +118,7 @@ def test_three_epos4_drives_stream_the_delta_over_canopen(delta_rig):
     t = np.arange(round(3.0 / PERIOD)) * PERIOD
     start_step = len(rig.plant.truth()["t"])
     recording = group.run_cyclic(_faded_training_path(t), PERIOD)
-    assert recording.n_invalid == 0 and recording.metadata["sync"] == "lockstep"
+    assert recording.n_invalid == 0 and recording.metadata.sync == "lockstep"
     truth = rig.plant.truth()
     rows = slice(start_step, start_step + len(t))
     torque = ROBOT.inverse_dynamics(truth["Theta"][rows], truth["Thetad"][rows], truth["Thetadd"][rows], TRUTH)

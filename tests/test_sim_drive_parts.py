@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from canopen.profiles.p402 import State402
 
+from drivers.cia import DISABLED, ENABLED, FAULT, FAULT_REACTION, NOT_READY, QUICK_STOP, READY, SWITCHED_ON
 from drivers.profiles import EPOS2, EPOS4, make_object_dictionary
 from drivers.sim.modes import Demand, cyclic_segment, profile_step, ramp_down
 from drivers.sim.objects import ObjectStore
-from drivers.sim.state_machine import (DISABLED, ENABLED, FAULT, FAULT_REACTION, NOT_READY, QUICK_STOP,
-                                       READY, SWITCHED_ON, next_state, statusword)
+from drivers.sim.state_machine import next_state, statusword
 
 COMMANDED = (DISABLED, READY, SWITCHED_ON, ENABLED, QUICK_STOP)
 

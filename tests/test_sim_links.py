@@ -25,7 +25,7 @@ What is left is measured, not removed (hence the strict xfail):
 import numpy as np
 import pytest
 
-from drivers.sim import nominal
+import nominal
 from measured_dataset import build_dataset
 from ident_hw.identification.least_squares import ols
 from ident_hw.model import ThreePRRR

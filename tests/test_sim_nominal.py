@@ -1,11 +1,11 @@
-"""drivers.sim.nominal (the rig of the tests and benchmarks that run without a config) holds the
+"""tests/nominal.py (the rig of the tests and benchmarks that run without a config) holds the
 same rig as configs/sim-3prrr.yaml: geometry, true parameters, drive scalings."""
 
 from pathlib import Path
 
 import numpy as np
 
-from drivers.sim import nominal
+import nominal
 from ident_hw.config import load_config, to_model
 from ident_hw.config.to_drivers import axis_scaling
 

@@ -5,7 +5,8 @@ import math
 
 import numpy as np
 
-from drivers.sim import Plant, PlantJammed, TruthLog, nominal
+from drivers.sim import Plant, PlantJammed, TruthLog
+import nominal
 from ident_hw.model import Delta, ThreePRRR
 from ident_hw.model.delta import N_BODY_PARAMS, nominal_parameters
 from ident_hw.model.dynamics import friction

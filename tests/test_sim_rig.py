@@ -10,7 +10,8 @@ from canopen.profiles.p402 import BaseNode402
 from canopen.sdo import SdoAbortedError
 
 from drivers.profiles import make_object_dictionary
-from drivers.sim import SimulatedRig, nominal
+from drivers.sim import SimulatedRig
+import nominal
 
 _channels = itertools.count()
 REV, PRI = nominal.REVOLUTE, nominal.PRISMATIC

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from drivers.profiles import EPOS2
-from drivers.sim import nominal
+import nominal
 from ident_hw.model import ThreePRRR
 from trajectories.feasibility import Limits
 from trajectories.paper import carriage_sweep

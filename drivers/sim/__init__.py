@@ -11,9 +11,8 @@
 :mod:`drivers.sim.rig` holds the rig (bus, clock, SYNC handling, fault injection),
 :mod:`drivers.sim.plant` the simulated 3PRRR, :mod:`drivers.sim.drive` one emulated drive, built
 from :mod:`~drivers.sim.objects` (object values), :mod:`~drivers.sim.pdo` (PDOs),
-:mod:`~drivers.sim.state_machine` (CiA 402) and :mod:`~drivers.sim.modes` (the demand);
-:mod:`drivers.sim.nominal` holds the project's nominal rig (for tests and benchmarks that run
-without a config). A config's rig is served on a shared bus by ``ident-hw sim CONFIG``.
+:mod:`~drivers.sim.state_machine` (CiA 402) and :mod:`~drivers.sim.modes` (the demand).
+A config's rig is served on a shared bus by ``ident-hw sim CONFIG``.
 """
 
 import lazy_loader

@@ -18,20 +18,19 @@ import struct
 import canopen
 from canopen.sdo import SdoAbortedError
 
-from drivers.cia import (CW_FAULT_RESET, CW_HALT, CW_NEW_SETPOINT, CW_RELATIVE, EMCY_COB_ID, ERROR_CODE,
-                         ERROR_HISTORY, ERROR_REGISTER, HEARTBEAT_CONSUMER, MODE_HMM, MODE_PPM,
-                         NMT_ENTER_PRE_OPERATIONAL, SW_BIT12, SW_TARGET_REACHED)
+from drivers.cia import (CW_FAULT_RESET, CW_HALT, CW_NEW_SETPOINT, CW_RELATIVE, DISABLED, EMCY_COB_ID, ENABLED,
+                         ERROR_CODE, ERROR_HISTORY, ERROR_REGISTER, FAULT, FAULT_REACTION, HEARTBEAT_CONSUMER,
+                         MODE_HMM, MODE_PPM, NMT_ENTER_PRE_OPERATIONAL, QUICK_STOP, SW_BIT12,
+                         SW_TARGET_REACHED)
 from drivers.profiles import get_profile, make_object_dictionary
 from drivers.units import AxisScaling
 
 from . import modes
 from .objects import ObjectStore
 from .pdo import EMCY_RPDO_TIMEOUT, PDO_PARAMETERS, PdoEngine
-from .state_machine import (DISABLED, ENABLED, FAULT, FAULT_REACTION, NOT_READY, POWERED, QUICK_STOP, READY,
-                            SWITCHED_ON, next_state, statusword)
+from .state_machine import POWERED, next_state, statusword
 
-__all__ = ["EmulatedDrive", "error_register", "NOT_READY", "DISABLED", "READY", "SWITCHED_ON", "ENABLED",
-           "QUICK_STOP", "FAULT_REACTION", "FAULT"]
+__all__ = ["EmulatedDrive", "error_register"]
 
 logger = logging.getLogger(__name__)
 

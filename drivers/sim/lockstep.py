@@ -33,7 +33,7 @@ import canopen
 
 from drivers.cia import SYNC_COB_ID
 from drivers.errors import ConfigError, DriveError
-from drivers.sync import SYNC_COUNTER_MAX, TICK, SyncSource
+from drivers.sync import SYNC_COUNTER_MAX, TICK, SyncReport, SyncSource
 
 #: COB-ID of the rig's answer frame (outside CiA 301's predefined connection set and LSS)
 ANSWER_COB_ID = 0x7F0
@@ -151,8 +151,8 @@ class LockstepSync(SyncSource, can.Listener):
             self.step(lambda k=k: send(k), poll=poll)
             poll()
 
-    def report(self) -> dict:
-        return {"lockstep_retries": self.retries, "lockstep_waited_out": self.waited_out}
+    def report(self) -> SyncReport:
+        return SyncReport(lockstep_retries=self.retries, lockstep_waited_out=self.waited_out)
 
     # -- notifier thread ----------------------------------------------------------------------
     def on_message_received(self, msg: can.Message) -> None:

@@ -53,10 +53,10 @@ import numpy as np
 
 from drivers.axis import AxisConfig
 from drivers.bus import BusConfig, open_bus
-from drivers.cia import SYNC_COB_ID
+from drivers.cia import FAULT, FAULT_REACTION, SYNC_COB_ID
 from drivers.gc_freeze import frozen_gc
 from drivers.sim.lockstep import ANSWER_COB_ID, answer_frame
-from drivers.sim.drive import EMCY_FOLLOWING_ERROR, FAULT, FAULT_REACTION, EmulatedDrive
+from drivers.sim.drive import EMCY_FOLLOWING_ERROR, EmulatedDrive
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP, Plant, PlantJammed
 from drivers.units import MA_PER_AMP, AxesScaling, AxisScaling
 from ident_hw.model.interface import RobotModel
@@ -76,9 +76,7 @@ class _RigNetwork(canopen.Network):
 
     A share ``delayed_share`` of the frames (drawn at random; 1: all) is held for ``delay`` plus
     a uniform random share of ``jitter`` (s); no frame overtakes an earlier frame of its COB-ID: a drive's frames leave in order, so a long
-    delay holds the following ones back and they go out in a burst. ``sent`` (a list, when
-    set) logs every PDO frame as the drives sent it, ``(sync_count, can_id, data)``: the spy
-    that tells which cycle a frame belongs to.
+    delay holds the following ones back and they go out in a burst.
     """
 
     def __init__(self, bus=None):
@@ -89,8 +87,6 @@ class _RigNetwork(canopen.Network):
         self.delayed_share = 1.0
         self.faulty_nodes = None   # None = all
         self.dropped = 0
-        self.sent: list | None = None
-        self.sync_count = None     # the SYNC count of the frames being sent (set by the rig)
         self._rng = np.random.default_rng()
         self._delayed: list = []
         self._release_after: dict[int, float] = {}  # COB-ID -> release time of its last held frame
@@ -98,8 +94,6 @@ class _RigNetwork(canopen.Network):
 
     def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
         pdo = 0x180 <= can_id < 0x580
-        if pdo and self.sent is not None:
-            self.sent.append((self.sync_count, can_id, bytes(data)))
         if ((self.drop_probability or self.delay or self.jitter) and pdo
                 and (self.faulty_nodes is None or can_id & 0x7F in self.faulty_nodes)):
             if self.drop_probability and self._rng.random() < self.drop_probability:
@@ -161,7 +155,7 @@ class SimulatedRig:
                 raise ValueError(f"node {node_id}: the third item must be an AxisScaling, got {scaling!r}")
         self.initial_states = dict(initial_states or {})
         for node_id, state in self.initial_states.items():
-            if node_id not in ids or state not in ("FAULT", "STOPPED"):
+            if node_id not in ids or state not in (FAULT, "STOPPED"):
                 raise ValueError(f"initial_states: {node_id}: {state!r} (node-IDs {ids}; FAULT or STOPPED)")
         if sync_period is not None and not sync_period > 0:
             raise ValueError(f"sync_period must be positive, got {sync_period}")
@@ -245,7 +239,7 @@ class SimulatedRig:
                 state = self.initial_states.get(drive.id)
                 if state == "STOPPED":
                     drive.node.nmt.send_command(0x02)
-                elif state == "FAULT":
+                elif state == FAULT:
                     drive.emcy(0x1000)
             self.network.subscribe(SYNC_COB_ID, self._on_sync)
         self._stop.clear()
@@ -373,7 +367,6 @@ class SimulatedRig:
         for j, drive in enumerate(self.drives):     # each drive rounds to whole mA (and averages)
             drive.update(int(counts[j]), int(rpm[j]), float(milliamps[j]), period)
         if sync_count is not None:
-            self.network.sync_count = sync_count
             for drive in self.drives:
                 drive.send_sync_tpdos(sync_count)
         if period > 0:

@@ -1,11 +1,12 @@
 """The CiA 402 power state machine of an emulated drive, as pure functions: the state a
 controlword leads to, and the statusword a state shows. The drive (:mod:`drivers.sim.drive`)
-keeps the state and acts on the transitions (demand reset, fault reaction, event TPDOs)."""
+keeps the state and acts on the transitions (demand reset, fault reaction, event TPDOs). The state
+names are the master's (:mod:`drivers.cia`)."""
 
 from __future__ import annotations
 
-from drivers.cia import (DISABLED, ENABLED, FAULT, FAULT_REACTION, NOT_READY, QUICK_STOP, READY,  # noqa: F401
-                         SW_HOMED, SW_REMOTE, SW_VOLTAGE_ENABLED, SWITCHED_ON, state_bits)
+from drivers.cia import (DISABLED, ENABLED, FAULT_REACTION, NOT_READY, QUICK_STOP, READY, SW_HOMED, SW_REMOTE,
+                         SW_VOLTAGE_ENABLED, SWITCHED_ON, state_bits)
 #: states in which the position loop is closed (also while quick-stopping and during the fault reaction)
 POWERED = (ENABLED, QUICK_STOP, FAULT_REACTION)
 

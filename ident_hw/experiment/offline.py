@@ -22,7 +22,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from drivers.axis import AVERAGED, INSTANTANEOUS
+from drivers.axis import AVERAGED
 from drivers.errors import RecordingError
 from drivers.profiles import AveragingFilter, get_profile
 from drivers.recording import Recording
@@ -83,19 +83,18 @@ class Prepared:
 
 def recording_period(rec: Recording) -> float:
     """The SYNC period of a recording, s: its ``sync_period``, else the median row interval."""
-    period = rec.metadata.get("sync_period")
+    period = rec.metadata.sync_period
     if period:
         return float(period)
     if len(rec.t) < 2:
-        raise RecordingError(f"{rec.metadata.get('file', 'recording')}: {len(rec.t)} rows and no SYNC period")
+        raise RecordingError(f"{rec.metadata.file or 'recording'}: {len(rec.t)} rows and no SYNC period")
     return float(np.median(np.diff(rec.t)))
 
 
 def current_averaging(config: Config, rec: Recording) -> list[AveragingFilter] | None:
     """Each actuator's running average (its drive generation's filter) when ``rec`` holds the
-    drives' averaged currents (metadata ``current``; a recording without it holds the
-    instantaneous ones), else None."""
-    if rec.metadata.get("current", INSTANTANEOUS) != AVERAGED:
+    drives' averaged currents (``metadata.current``), else None."""
+    if rec.metadata.current != AVERAGED:
         return None
     return [get_profile(a.profile).current_averaging for a in config.robot.actuators]
 
@@ -120,10 +119,10 @@ def coverage(config: Config, name: str, rec: Recording) -> RecordingCoverage:
     :class:`drivers.acquisition.CycleAssembler`.
     """
     meta = rec.metadata
-    planned = meta.get("n_targets") or planned_cycles(config, name)
-    status = str(meta.get("status", "unknown"))
+    planned = meta.n_targets or planned_cycles(config, name)
+    status = meta.status or "unknown"
     if status == "decoded":
-        status = "raw log, truncated" if meta.get("log_truncated") else "raw log"
+        status = "raw log, truncated" if meta.log_truncated else "raw log"
     complete = rec.valid.all(axis=1)
     gap, fraction, skipped = 0.0, 0.0, 0
     if len(rec.t) > 1:
@@ -135,11 +134,11 @@ def coverage(config: Config, name: str, rec: Recording) -> RecordingCoverage:
         gap = round(float(np.max(np.diff(edges)) - 1) * period, 6)
     elif len(rec.t):
         fraction = float(complete.mean())
-    return RecordingCoverage(file=meta.get("file"), recording_status=status, cycles=len(rec.t),
+    return RecordingCoverage(file=meta.file, recording_status=status, cycles=len(rec.t),
                              cycles_planned=None if planned is None else int(planned),
                              planned_fraction=None if not planned else min(1.0, len(rec.t) / planned),
                              valid_fraction=fraction, longest_gap_s=gap, skipped_slots=skipped,
-                             unplaced_frames=int(meta.get("unplaced_frames") or 0))
+                             unplaced_frames=int(meta.books.unplaced_frames))
 
 
 def _bridged(t: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -161,7 +160,7 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
     and energy models' rows of every stretch, from the same filtered motion and forces
     (:func:`ident_hw.identification.model_comparison.power_energy_rows`; not matched to averaged
     currents, whose average does not commute with the product of force and velocity)."""
-    where = f"{rec.metadata.get('file', 'recording')} (trajectory {name!r})"
+    where = f"{rec.metadata.file or 'recording'} (trajectory {name!r})"
     if len(rec.t) < 3:
         raise RecordingError(f"{where}: {len(rec.t)} samples, too few to identify from")
     empty = [f"node {a.node_id} ({a.name})"

@@ -2,7 +2,7 @@
 anything is written.
 
 A decoded ``.npz`` keeps the node-IDs, profiles and drive scalings it was converted with
-(metadata ``axes``); a mismatch with the config is an error naming both files, since the SI
+(``metadata.axes``); a mismatch with the config is an error naming both files, since the SI
 samples of the file were made with the recording's values (a raw CAN log holds counts and mA and
 is decoded with the config's values instead). A raw log must hold frames of every configured
 node. What each recording covers (complete, stopped, checkpoint, truncated) is reported by
@@ -11,6 +11,7 @@ node. What each recording covers (complete, stopped, checkpoint, truncated) is r
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -18,6 +19,7 @@ import numpy as np
 
 from drivers.errors import RecordingError
 from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log
+from drivers.recording_metadata import RecordingMetadata
 from ident_hw.config import Config
 from ident_hw.config.to_drivers import axis_config, axis_scaling
 
@@ -54,7 +56,7 @@ def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
     """A recording from a decoded ``.npz`` or a raw CAN log (``.log``/``.asc``/``.blf``), checked
     against ``config``; returns (trajectory name, recording).
 
-    The trajectory name is the recording's ``trajectory`` metadata, else the file stem. A raw
+    The trajectory name is the recording's ``metadata.trajectory``, else the file stem. A raw
     log is decoded up to the length of the config's trajectory of that name (the SYNC keeps
     running for a few cycles after the last set-point), on the config's SYNC period (in lockstep
     the row times are the cycle times, as the run recorded them). The
@@ -69,46 +71,42 @@ def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
     axes = [axis_config(a, current=config.current) for a in config.robot.actuators]
     if path.suffix.lower() in RAW_LOG_SUFFIXES:
         name = path.stem
-        meta = {"trajectory": name, "file": str(path), "current": config.current}
-        lockstep_period = None
-        if config.bus is not None:
-            meta["sync_period"] = 1.0 / config.bus.sync_rate
-            if config.sync_mode == "lockstep":
-                lockstep_period = meta["sync_period"]
+        period = 1.0 / config.bus.sync_rate if config.bus is not None else None
+        lockstep_period = period if period is not None and config.sync_mode == "lockstep" else None
         cycles = planned_cycles(config, name)
-        if cycles is not None:
-            meta["n_targets"] = cycles
+        meta = RecordingMetadata(trajectory=name, file=str(path), current=config.current, sync_period=period,
+                                 n_targets=cycles)
         rec = decode_log(path, axes, max_cycles=cycles, metadata=meta, lockstep_period=lockstep_period)
         check_log_nodes(path, rec, config)
     else:
         rec = Recording.load(path)
-        rec.metadata["file"] = str(path)
+        rec.metadata = dataclasses.replace(rec.metadata, file=str(path))
         check_axes(path, rec, config)
-    return str(rec.metadata.get("trajectory", path.stem)), rec
+    return rec.metadata.trajectory or path.stem, rec
 
 
 def check_axes(path: Path, rec: Recording, config: Config) -> None:
-    """The axes a decoded recording was made with (metadata ``axes``) are the config's: same
-    node-IDs, profiles and drive scaling. A recording without that metadata is not checked."""
-    recorded = rec.metadata.get("axes")
+    """The axes a decoded recording was made with (``metadata.axes``) are the config's: same
+    node-IDs, profiles and drive scaling. A recording without them is not checked."""
+    recorded = rec.metadata.axes
     if not recorded:
         return
     acts = config.robot.actuators
     if len(recorded) != len(acts):
         raise RecordingError(f"{path}: recorded with {len(recorded)} axes, {config.source} has {len(acts)}")
-    nodes = [f"{a.name} on node {r.get('node_id')} (config: node {a.node_id})"
-             for a, r in zip(acts, recorded) if r.get("node_id") != a.node_id]
+    nodes = [f"{a.name} on node {r.node_id} (config: node {a.node_id})"
+             for a, r in zip(acts, recorded) if r.node_id != a.node_id]
     if nodes:
         raise RecordingError(f"{path} was recorded from other nodes than {config.source} configures: "
                              f"{'; '.join(nodes)}. Identify with the run's own config (config.yaml of its "
                              "results folder)")
     differ = []
     for act, r in zip(acts, recorded):
-        if str(r.get("profile", act.profile)).lower() != act.profile:
-            differ.append(f"{act.name} (node {act.node_id}) profile {r.get('profile')!r} (config: {act.profile!r})")
+        if r.profile.lower() != act.profile:
+            differ.append(f"{act.name} (node {act.node_id}) profile {r.profile!r} (config: {act.profile!r})")
         mine = axis_scaling(act)
         for key in SCALING_FIELDS:
-            theirs, ours = (r.get("scaling") or {}).get(key), getattr(mine, key)
+            theirs, ours = getattr(r.scaling, key), getattr(mine, key)
             if not _same(theirs, ours):
                 differ.append(f"{act.name} (node {act.node_id}) {key} = {theirs} (config: {ours})")
     if differ:
@@ -121,7 +119,7 @@ def check_axes(path: Path, rec: Recording, config: Config) -> None:
 def check_log_nodes(path: Path, rec: Recording, config: Config) -> None:
     """Every configured node has samples in a decoded raw log (else the log is of other nodes,
     or holds no streaming at all)."""
-    heard = rec.metadata.get("nodes_heard", [])
+    heard = list(rec.metadata.nodes_heard)
     if not len(rec.t):
         raise RecordingError(f"{path}: no SYNC cycle of the configured nodes in the log (nodes heard: "
                              f"{heard or 'none'})")

@@ -38,6 +38,7 @@ from drivers.cia import SYNC_COB_ID, UNPOWERED
 from drivers.epos import DriveGroup
 from drivers.errors import BusOpenError, ConfigError, DriveError, NodeError
 from drivers.recording import Recording
+from drivers.recording_metadata import RecordingMetadata
 from ident_hw.config import Config
 from ident_hw.results import Results, final_status, mark_status, save_results
 
@@ -175,8 +176,8 @@ def stream(session: Session, group: DriveGroup, planned: PlannedTrajectory, data
     with _progress(session.network, traj.name, len(targets), show_progress), _injected_events(session, traj.name):
         return group.run_cyclic(targets, sync_period(config), output=data / f"{traj.name}.npz",
                                 raw_log=data / f"{traj.name}{config.output.raw_log}",
-                                metadata={"trajectory": traj.name, "config": Path(config.source).name,
-                                          "current": config.current},
+                                metadata=RecordingMetadata(trajectory=traj.name, config=Path(config.source).name,
+                                                           current=config.current),
                                 quiet=host.quiet)
 
 
@@ -199,8 +200,8 @@ def record_campaign(config: Config, data: Path, planned: list[PlannedTrajectory]
                 say(f"[{i}/{len(planned)}] {p.describe()}")
                 rec = stream(session, group, p, data, show_progress, host)
                 recordings[p.config.name] = rec
-                skipped = rec.metadata.get("sync_slots_skipped") or 0
-                say(f"    recorded {rec.metadata['n_cycles']} cycles, {rec.n_invalid} incomplete"
+                skipped = rec.metadata.sync_report.sync_slots_skipped or 0
+                say(f"    recorded {rec.metadata.n_cycles} cycles, {rec.n_invalid} incomplete"
                     + (f", {skipped} SYNC slots skipped (the host woke the SYNC thread late)" if skipped else ""))
                 if online is not None:
                     online.update(p.config.name, rec)

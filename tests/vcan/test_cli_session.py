@@ -67,10 +67,10 @@ def test_cli_run_against_rig_process_matches_candump(vcan_rig, candump, tmp_path
     assert (out / "STATUS").read_text().strip() == "complete"
     (traj,) = config.trajectories
     recorded = Recording.load(out / "data" / f"{traj.name}.npz")
-    n = recorded.metadata["n_cycles"]
-    print(f"recorded {n} cycles at {config.bus.sync_rate:g} Hz in {recorded.metadata.get('sync')}, "
-          f"{recorded.n_invalid} incomplete, cycles asked again {recorded.metadata.get('lockstep_retries')}")
-    assert recorded.metadata.get("sync") == "lockstep" and recorded.n_invalid == 0
+    n = recorded.metadata.n_cycles
+    print(f"recorded {n} cycles at {config.bus.sync_rate:g} Hz in {recorded.metadata.sync}, "
+          f"{recorded.n_invalid} incomplete, cycles asked again {recorded.metadata.sync_report.lockstep_retries}")
+    assert recorded.metadata.sync == "lockstep" and recorded.n_invalid == 0
     # the identification is right, and it is the answer of the same config with the rig in the master's
     # process (lockstep: the process boundary, the kernel's sockets and the guest's speed reach no sample)
     rows = parameter_rows(out)

@@ -66,20 +66,20 @@ def test_master_streams_from_rig_process_and_raw_logs_replay(start_process, cand
     n = len(targets)
     # every cycle is a row, assembled or flagged: an invalid value is NaN, a valid one is not
     # (validity per TPDO: a lost velocity frame leaves the position and current of its cycle)
-    assert rec.metadata["n_cycles"] == n and list(rec.cycle) == list(range(n))
-    assert rec.metadata["buffer_overflows"] == 0
+    assert rec.metadata.n_cycles == n and list(rec.cycle) == list(range(n))
+    assert rec.metadata.buffer_overflows == 0
     for name in ("position", "velocity", "current"):
         values, valid = getattr(rec, name), getattr(rec, f"{name}_valid")
         assert np.isnan(values[~valid]).all() and np.isfinite(values[valid]).all(), name
     print(f"\nvcan: {n} cycles at {1 / SYNC_PERIOD:g} Hz, incomplete {rec.n_invalid} (per axis "
-          f"{(~rec.valid).sum(axis=0).tolist()}), late frames {rec.metadata['late_frames']}, late set-points "
-          f"{rec.metadata['late_setpoints']}, mean SYNC period {np.diff(rec.t).mean() * 1e3:.3f} ms")
+          f"{(~rec.valid).sum(axis=0).tolist()}), late frames {rec.metadata.books.late_frames}, late set-points "
+          f"{rec.metadata.late_setpoints}, mean SYNC period {np.diff(rec.t).mean() * 1e3:.3f} ms")
     # samples really arrive from the other process (the comparisons below are not about NaNs only)
     assert rec.valid.all(axis=1).any()
     # t: the kernel timestamps of the BCM's SYNC frames, as logged
     with can.LogReader(raw_log) as reader:
         syncs = np.array([m.timestamp for m in reader if m.arbitration_id == 0x80])[:n]
-    np.testing.assert_allclose(rec.t + rec.metadata["t0"], syncs, rtol=0, atol=1.01e-6)
+    np.testing.assert_allclose(rec.t + rec.metadata.t0, syncs, rtol=0, atol=1.01e-6)
     # the recorded set-points are the commanded ones (to half a count), or one commanded shortly before
     counts = np.array([a.scaling.counts_per_unit for a in axes])
     near = np.zeros_like(rec.valid)
@@ -101,7 +101,7 @@ def test_master_streams_from_rig_process_and_raw_logs_replay(start_process, cand
     dumped.write_text("\n".join(lines[first:]) + "\n")
     seen = decode_log(dumped, axes, max_cycles=n)
     # (candump's log has no sidecar: its set-points are the RPDOs as seen, the run's the ones sent)
-    compared = ("cycle", "position", "velocity", "current", "valid") + (("target",) if not rec.metadata["late_setpoints"]
+    compared = ("cycle", "position", "velocity", "current", "valid") + (("target",) if not rec.metadata.late_setpoints
                                                                          else ())
     for name in compared:
         np.testing.assert_array_equal(getattr(seen, name), getattr(rec, name), err_msg=name)

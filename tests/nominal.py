@@ -1,5 +1,6 @@
 """The nominal 3PRRR rig of the project (the values of ``configs/robot-3prrr.yaml`` and
-``configs/sim-3prrr.yaml``), for the tests and benchmarks that run without a config.
+``configs/sim-3prrr.yaml``), for the tests and benchmarks that run without a config
+(the benchmarks put ``tests/`` on their path to import it).
 
 A config-driven rig is built by the CLI (``ident-hw sim CONFIG``) through
 :meth:`drivers.sim.SimulatedRig.build`.
