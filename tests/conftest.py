@@ -44,7 +44,7 @@ def pytest_collection_modifyitems(config, items):
     unit = {}
     for item in items:
         if _shares_a_module_fixture(item):
-            unit[id(item)] = str(item.path)
+            unit[id(item)] = item.nodeid.split("::", 1)[0]        # the file, relative to the root
             item.add_marker(pytest.mark.xdist_group(unit[id(item)]))
         else:
             unit[id(item)] = item.nodeid
