@@ -95,3 +95,12 @@ def online_comparison(path=training_path, seconds: float = 60.0, seed: int = 0) 
         est.warm_start(offline.coef, information)
         traces[name] = run_stream(est, Y, tau)
     return Comparison(t, Y, tau, base_truth, 30.0 + seconds / 2, offline, traces)
+
+
+def smallest_pseudo_inertia_eigenvalue(body: np.ndarray) -> float:
+    """A Delta body ``[m, mx, my, mz, Ixx, Ixy, Ixz, Iyy, Iyz, Izz]`` realisable by a mass
+    density iff ``[[tr(I)/2 - I, h], [h^T, m]]`` is positive semidefinite."""
+    m, h, (ixx, ixy, ixz, iyy, iyz, izz) = body[0], body[1:4], body[4:]
+    inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    J = np.block([[np.trace(inertia) / 2 * np.eye(3) - inertia, h[:, None]], [h[None, :], np.array([[m]])]])
+    return float(np.linalg.eigvalsh(J)[0])

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import yaml
 
+from delta_scenarios import smallest_pseudo_inertia_eigenvalue
 from ident_hw.config import load_config, to_model
 from ident_hw.model.delta import PARAM_NAMES, closed_form_base
 from ident_hw.config.robots import true_parameters
@@ -68,15 +69,6 @@ def test_the_delta_job_identifies_the_specs_base_parameters(tmp_path):
     for row, implied in zip(rows, spec.H @ values):
         assert abs(implied - row["identified"]) <= 0.1 * row["sigma"], row["base_parameter"]
     assert consistent["reproduces_base"] and consistent["chi2"] <= consistent["chi2_limit_95"]
-
-
-def smallest_pseudo_inertia_eigenvalue(body: np.ndarray) -> float:
-    """A Delta body ``[m, mx, my, mz, Ixx, Ixy, Ixz, Iyy, Iyz, Izz]`` realisable by a mass
-    density iff ``[[tr(I)/2 - I, h], [h^T, m]]`` is positive semidefinite."""
-    m, h, (ixx, ixy, ixz, iyy, iyz, izz) = body[0], body[1:4], body[4:]
-    inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
-    J = np.block([[np.trace(inertia) / 2 * np.eye(3) - inertia, h[:, None]], [h[None, :], np.array([[m]])]])
-    return float(np.linalg.eigvalsh(J)[0])
 
 
 @pytest.mark.slow

@@ -144,20 +144,12 @@ def test_every_run_but_the_first_draws_where_its_encoders_count(tmp_path):
     assert edges[1].all() and edges[2].all() and not (edges[1] == edges[2]).any()
 
 
-def smallest_pseudo_inertia_eigenvalue(body: np.ndarray) -> float:
-    """A body ``[m, mx, my, mz, Ixx, Ixy, Ixz, Iyy, Iyz, Izz]`` is realisable by a mass density
-    iff ``[[tr(I)/2 - I, h], [h^T, m]]`` is positive semidefinite."""
-    m, h, (ixx, ixy, ixz, iyy, iyz, izz) = body[0], body[1:4], body[4:]
-    inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
-    J = np.block([[np.trace(inertia) / 2 * np.eye(3) - inertia, h[:, None]], [h[None, :], np.array([[m]])]])
-    return float(np.linalg.eigvalsh(J)[0])
-
-
 def test_a_perturbed_truth_scales_each_body_as_a_whole_and_spreads_as_asked(tmp_path):
     """``sim.perturb`` (a study's --perturb): on the Delta every body's ten parameters share one
     factor (a realisable body stays realisable) and each drive term has its own; the same seed
     gives the same truth; over many seeds the log-factors of the 3PRRR's parameters have the
     asked spread and no bias; runs 1.. of a study get it, run 0 keeps the config's truth."""
+    from delta_scenarios import smallest_pseudo_inertia_eigenvalue
     from ident_hw.config.robots import model_of, true_parameters
     from ident_hw.model.delta import PARAM_NAMES
 
