@@ -29,7 +29,8 @@ DEFAULT_RTOL = 1e-8
 
 @dataclass(frozen=True)
 class BaseParameters:
-    """Result of :func:`base_parameters`.
+    """Result of :func:`base_parameters` (stored in a results folder as
+    :class:`ident_hw.records.BaseAnalysis`).
 
     Attributes:
         names: the n physical parameter names.
@@ -65,17 +66,6 @@ class BaseParameters:
     def reduce(self, pi: np.ndarray) -> np.ndarray:
         """Base-parameter values ``H @ pi`` of a physical parameter vector (n,) → (rank,)."""
         return self.H @ np.asarray(pi, dtype=float)
-
-    def to_dict(self) -> dict:
-        return {
-            "rank": self.rank,
-            "n_params": len(self.names),
-            "rtol": self.rtol,
-            "singular_values": self.singular_values.tolist(),
-            "base_parameters": list(self.expressions),
-            "eliminated": list(self.eliminated),
-            "unexcited": list(self.unexcited),
-        }
 
 
 def on_kept(names, kept, values) -> np.ndarray:
