@@ -11,6 +11,7 @@ scaling of the nominal rig, optionally with noise and quantisation (1 mA, encode
 from __future__ import annotations
 
 import math
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,6 +37,15 @@ SWEEP_CAMPAIGN = (
     "  steps: [{name: carriages, trajectories: [sweep],\n"
     "           parameters: [m_c, fv_zeta1, fv_zeta2, fv_zeta3, fc_zeta1, fc_zeta2, fc_zeta3]}]\n"
     "  validation: []\n")
+
+
+def without_draws(config):
+    """``config`` identifying without the encoder draws: they widen sigma and change no estimate
+    (``ident_hw.experiment.encoder``); for tests that check what is decoded, kept out, or named by
+    the verdict, not sigma's width."""
+    return dataclasses.replace(config, identification=dataclasses.replace(config.identification, encoder_draws=0))
+
+
 GEOMETRY = nominal.GEOMETRY
 ROBOT = ThreePRRR(GEOMETRY, coulomb_width=1e-3)
 NAMES = ROBOT.parameter_names

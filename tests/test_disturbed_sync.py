@@ -21,7 +21,7 @@ from ident_hw.config import load_config
 from ident_hw.experiment import runner
 from ident_hw.experiment.session import HostSettings
 from ident_hw.experiment.folders import new_results_folder
-from ident_scenarios import CONFIGS, SWEEP_CAMPAIGN
+from ident_scenarios import CONFIGS, SWEEP_CAMPAIGN, without_draws
 
 log = logging.getLogger(__name__)
 
@@ -63,8 +63,8 @@ def test_a_disturbed_sync_ends_within_5_percent_or_degraded(tmp_path, monkeypatc
     path.write_text(
         f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n"
         f"bus: {{interface: virtual, channel: disturbed-{os.getpid()}-{time.monotonic_ns()}, sync_rate: 250.0, "
-        "sync: periodic}\n" + SWEEP_CAMPAIGN + "  encoder_draws: 0\n")    # the verdict is checked, not sigma's width
-    config = load_config(path)
+        "sync: periodic}\n" + SWEEP_CAMPAIGN)
+    config = without_draws(load_config(path))    # the verdict is checked, not sigma's width
     _disturb_sync(monkeypatch, seed=attempt)
     folder = new_results_folder(config, tmp_path / "res", "run")
     try:

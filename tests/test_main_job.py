@@ -30,7 +30,7 @@ from ident_hw.experiment.session import HostSettings
 from ident_hw.experiment.folders import new_results_folder
 from ident_hw.model.parameters import FRICTION_NAMES, INERTIAL_NAMES
 from ident_hw.results import save_results
-from ident_scenarios import CONFIGS, SWEEP_CAMPAIGN
+from ident_scenarios import CONFIGS, SWEEP_CAMPAIGN, without_draws
 from ident_hw.config.to_drivers import axis_config
 
 #: bias allowed beyond 3 sigma, as a fraction of the true value
@@ -96,13 +96,6 @@ class _Cells(HTMLParser):
     def handle_data(self, data):
         if self._cell is not None:
             self._cell += data
-
-
-def without_draws(config):
-    """``config`` identifying without the encoder draws: they widen sigma and change no estimate
-    (``ident_hw.experiment.encoder``); for the tests below that check what is decoded, kept
-    out, or named by the verdict, not sigma's width."""
-    return dataclasses.replace(config, identification=dataclasses.replace(config.identification, encoder_draws=0))
 
 
 @pytest.fixture(scope="module")
