@@ -41,7 +41,7 @@ def test_reread_reads_the_motion_on_the_moved_count_grid():
     counts_per_unit = np.array([2.0e4, 4.0e5])
     rec, truth = smooth_recording(counts_per_unit)
     shift = np.array([0.3, -0.45])
-    again = reread(rec, smoothed_positions(rec, cutoff_hz=10.0, order=4), counts_per_unit, shift)
+    again = reread(rec, smoothed_positions(rec, RATE, cutoff_hz=10.0, order=4), counts_per_unit, shift)
     ok = rec.position_valid
     counts = again.position * counts_per_unit + shift
     # every valid position lies on the moved grid: a whole number of counts past the shift

@@ -37,19 +37,19 @@ def count_shifts(draws: int, axes: int, seed: int = SEED) -> np.ndarray:
     return np.random.default_rng(seed).uniform(-0.5, 0.5, (draws, axes))
 
 
-def smoothed_positions(rec: Recording, cutoff_hz: float, order: int) -> np.ndarray:
-    """(N, a) the recorded positions low-passed at ``cutoff_hz`` (the identification's own filter,
-    each end extended by its polynomial; rows without a valid position bridged linearly): the
-    motion the draws of :func:`reread` read again, the same for every draw."""
+def smoothed_positions(rec: Recording, sample_rate: float, cutoff_hz: float, order: int) -> np.ndarray:
+    """(N, a) the recorded positions, sampled at ``sample_rate`` (Hz, the recording's SYNC rate),
+    low-passed at ``cutoff_hz`` (the identification's own filter, each end extended by its
+    polynomial; rows without a valid position bridged linearly): the motion the draws of
+    :func:`reread` read again, the same for every draw."""
     valid = identification_valid(rec)
     smooth = np.array(rec.position, dtype=float)
     for j in range(smooth.shape[1]):
         ok = valid[:, j]
         if ok.any() and not ok.all():
             smooth[~ok, j] = np.interp(rec.t[~ok], rec.t[ok], smooth[ok, j])
-    period = float(np.median(np.diff(rec.t))) if len(rec.t) > 1 else 1.0
-    if len(rec.t) > 30 and cutoff_hz < 0.5 / period:
-        smooth = lowpass(smooth, 1.0 / period, cutoff_hz, order, (POLYNOMIAL, POLYNOMIAL))
+    if len(rec.t) > 30 and cutoff_hz < 0.5 * sample_rate:
+        smooth = lowpass(smooth, sample_rate, cutoff_hz, order, (POLYNOMIAL, POLYNOMIAL))
     return smooth
 
 

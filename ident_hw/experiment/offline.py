@@ -301,9 +301,9 @@ def reread_draws(config: Config, robot: RobotModel, recordings: Mapping[str, Rec
     counts_per_unit = np.array([axis_scaling(a).counts_per_unit for a in config.robot.actuators])
     smooth = {}
     for name in names if draws else ():      # the motion the draws read again, once per recording
-        settings = filter_settings(config.identification.filter, 1.0 / recording_period(recordings[name]),
-                                                        motion_bandwidth(config, name))
-        smooth[name] = smoothed_positions(recordings[name], settings.cutoff_hz, settings.order)
+        rate = 1.0 / recording_period(recordings[name])
+        settings = filter_settings(config.identification.filter, rate, motion_bandwidth(config, name))
+        smooth[name] = smoothed_positions(recordings[name], rate, settings.cutoff_hz, settings.order)
     return [{name: prepare(config, robot, name, reread(recordings[name], smooth[name], counts_per_unit, shift))
              for name in names}
             for shift in count_shifts(draws, len(counts_per_unit))]
