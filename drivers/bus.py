@@ -142,6 +142,11 @@ def open_bus(config: BusConfig) -> can.BusABC:
         ) from exc
 
 
+#: s between a canopen notifier thread's checks for a stop request: canopen's default (1 s) makes
+#: every disconnect wait up to a second on an idle bus
+NOTIFIER_CYCLE = 0.1
+
+
 class BusNetwork(canopen.Network):
     """A :class:`canopen.Network` that keeps the :class:`BusConfig` it was opened from.
 
@@ -149,9 +154,7 @@ class BusNetwork(canopen.Network):
     drive layer reads them from ``network.config`` instead of taking them a second time.
     """
 
-    #: s between the notifier thread's checks for a stop request (canopen's default, 1 s, makes
-    #: every disconnect wait up to a second on an idle bus)
-    NOTIFIER_CYCLE = 0.1
+    NOTIFIER_CYCLE = NOTIFIER_CYCLE
 
     def __init__(self, bus: can.BusABC, config: BusConfig):
         super().__init__(bus)

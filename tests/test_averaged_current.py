@@ -13,8 +13,6 @@ import itertools
 import json
 import math
 import os
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -36,6 +34,8 @@ from ident_hw.config import ConfigError, load_config
 from ident_hw.experiment.plan import drive_axes
 from ident_hw.filtering import running_average
 from ident_hw.config.robots import model_of, true_parameters
+from cli_runs import ident_hw
+from drivers.bus import NOTIFIER_CYCLE
 
 ROOT = Path(__file__).resolve().parent.parent
 SIM = ROOT / "configs" / "sim-3prrr.yaml"
@@ -55,6 +55,7 @@ def drive_on_bus():
     def make(profile):
         channel = f"averaged-test-{os.getpid()}-{next(_channels)}"
         bus_side, master = canopen.Network(), canopen.Network()
+        bus_side.NOTIFIER_CYCLE = master.NOTIFIER_CYCLE = NOTIFIER_CYCLE    # a quick disconnect
         bus_side.connect(interface="virtual", channel=channel, ignore_config=True, receive_own_messages=False)
         master.connect(interface="virtual", channel=channel, ignore_config=True)
         opened.extend([bus_side, master])
@@ -205,12 +206,6 @@ def test_filtering_the_regressor_keeps_the_model_exact_for_averaged_forces():
     matched = running_average(Y, [EPOS4.current_averaging.over_period(period)] * Y.shape[1]) @ truth
     np.testing.assert_allclose(matched, by_hand, rtol=0, atol=1e-9 * np.abs(tau).max())
     assert np.abs(by_hand - tau).max() > 0.01 * np.abs(tau).max()     # the average is not the force
-
-
-def ident_hw(*args, cwd, timeout=300):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.run([sys.executable, "-m", "ident_hw.cli", *map(str, args)], capture_output=True,
-                          text=True, cwd=cwd, env=env, timeout=timeout)
 
 
 def _sweep_config(folder: Path, current: str) -> Path:

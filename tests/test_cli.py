@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import json
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -19,19 +17,15 @@ from ident_hw.config import load_config, to_model
 from ident_hw.experiment.offline import identify
 from ident_hw.experiment.plan import plan, robot_model
 from ident_hw.config.to_drivers import axis_scaling
+from cli_runs import ident_hw
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
 
 
-def ident_hw(*args, cwd=None):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.run([sys.executable, "-m", "ident_hw.cli", *map(str, args)], capture_output=True,
-                          text=True, cwd=cwd, env=env, timeout=120)
-
-
 def test_help_lists_the_commands():
-    out = ident_hw("--help")
+    """Through the installed ``ident-hw`` script (the other tests call its ``main`` in-process)."""
+    out = subprocess.run(["ident-hw", "--help"], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0
     for name in ("check", "run", "identify", "report"):
         assert name in out.stdout

@@ -24,6 +24,7 @@ import yaml
 
 from drivers.recording import Recording
 from ident_hw.config import load_config
+from cli_runs import ident_hw
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
@@ -61,12 +62,6 @@ def hardware_config(folder: Path, identification: bool = True) -> Path:
         text += "identification:\n  steps: [{name: links, trajectories: [square], parameters: [m_l2]}]\n"
     path.write_text(text)
     return path
-
-
-def ident_hw(*args, cwd):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.run([sys.executable, "-m", "ident_hw.cli", *map(str, args)], capture_output=True,
-                          text=True, cwd=cwd, env=env, timeout=120)
 
 
 def no_traceback(out) -> None:

@@ -22,6 +22,7 @@ from drivers.units import AxesScaling
 from ident_hw.config import load_config
 from ident_hw.experiment.plan import drive_axes, plan, setpoints
 from ident_hw.config.to_drivers import axis_config
+from cli_runs import ident_hw
 
 ROOT = Path(__file__).resolve().parent.parent
 SIM = ROOT / "configs" / "sim-3prrr.yaml"
@@ -39,12 +40,6 @@ def short_config(folder: Path, cycles: int = 1, extra: str = "") -> Path:
         "  steps: [{name: links, trajectories: [square], parameters: [m_l2, m_ee, I_l1]}]\n"
         "  validation: []\n" + extra)
     return path
-
-
-def ident_hw(*args, cwd, timeout=120):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.run([sys.executable, "-m", "ident_hw.cli", *map(str, args)], capture_output=True,
-                          text=True, cwd=cwd, env=env, timeout=timeout)
 
 
 def rig_states(folder: Path) -> list[str]:
@@ -190,7 +185,7 @@ def test_a_hil_campaign_that_check_accepts_runs_to_its_end(tmp_path, hil):
         "sim": sim, "identification": {"encoder_draws": 0}}, sort_keys=False))
     check = ident_hw("check", config, cwd=tmp_path)
     assert check.returncode == 0 and "everything would run" in check.stdout, check.stdout + check.stderr
-    run = ident_hw("run", config, "--out", tmp_path / "run", "--quiet", "--no-report", cwd=tmp_path, timeout=600)
+    run = ident_hw("run", config, "--out", tmp_path / "run", "--quiet", "--no-report", cwd=tmp_path)
     status = (tmp_path / "run" / "STATUS").read_text()
     assert run.returncode in (0, 6) and not status.startswith("partial"), status   # 6: the quality verdict
     loaded = load_config(config)

@@ -9,6 +9,7 @@ import pytest
 from canopen.profiles.p402 import BaseNode402
 from canopen.sdo import SdoAbortedError
 
+from drivers.bus import NOTIFIER_CYCLE
 from drivers.profiles import make_object_dictionary
 from drivers.sim import SimulatedRig
 import nominal
@@ -26,6 +27,7 @@ class Bench:
         self.rig = SimulatedRig.build(nominal.ROBOT, nominal.TRUE_PARAMS, nodes, interface="virtual",
                                       channel=channel, ignore_config=True, **rig_kwargs)
         self.master = canopen.Network()
+        self.master.NOTIFIER_CYCLE = NOTIFIER_CYCLE     # a quick disconnect
         self.master.connect(interface="virtual", channel=channel, ignore_config=True)
         self.nodes = []
         self.boot_states = {}

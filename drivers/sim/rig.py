@@ -52,7 +52,7 @@ import canopen
 import numpy as np
 
 from drivers.axis import AxisConfig
-from drivers.bus import BusConfig, open_bus
+from drivers.bus import NOTIFIER_CYCLE, BusConfig, open_bus
 from drivers.cia import FAULT, FAULT_REACTION, SYNC_COB_ID
 from drivers.gc_freeze import frozen_gc
 from drivers.sim.lockstep import ANSWER_COB_ID, answer_frame
@@ -78,6 +78,8 @@ class _RigNetwork(canopen.Network):
     a uniform random share of ``jitter`` (s); no frame overtakes an earlier frame of its COB-ID: a drive's frames leave in order, so a long
     delay holds the following ones back and they go out in a burst.
     """
+
+    NOTIFIER_CYCLE = NOTIFIER_CYCLE
 
     def __init__(self, bus=None):
         super().__init__(bus)
