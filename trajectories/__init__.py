@@ -9,32 +9,17 @@ Imports :mod:`ident_hw.model` (kinematics for the checks and the excitation's re
 else of the project.
 """
 
-from .feasibility import InfeasibleTrajectory, Limits, Report, Violation, check_trajectory
-from .files import TrajectoryFileError, load, save
-from .fourier import FourierExcitation, optimise_excitation
-from .paper import carriage_sweep, five_squares, square, validation_triangle
-from .paths import actuator_trajectory, pose_trajectory
-from .redundancy import CarriageSchedule, carriage_schedule
-from .trajectory import Trajectory
+import lazy_loader
 
-__all__ = [
-    "CarriageSchedule",
-    "FourierExcitation",
-    "InfeasibleTrajectory",
-    "Limits",
-    "Report",
-    "Trajectory",
-    "TrajectoryFileError",
-    "Violation",
-    "actuator_trajectory",
-    "carriage_schedule",
-    "carriage_sweep",
-    "check_trajectory",
-    "five_squares",
-    "load",
-    "optimise_excitation",
-    "pose_trajectory",
-    "save",
-    "square",
-    "validation_triangle",
-]
+# Each name is imported from its module on first use (PEP 562, by lazy_loader): the config,
+# which names these modules, and ``ident-hw scan`` or ``sim`` do not pay for SciPy's
+# interpolation and optimiser modules.
+__getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submodules=["delta_paper", "joint_space"], submod_attrs={
+    "feasibility": ["InfeasibleTrajectory", "Limits", "Report", "Violation", "check_trajectory"],
+    "files": ["TrajectoryFileError", "load", "save"],
+    "fourier": ["FourierExcitation", "optimise_excitation"],
+    "paper": ["carriage_sweep", "five_squares", "square", "validation_triangle"],
+    "paths": ["actuator_trajectory", "pose_trajectory"],
+    "redundancy": ["CarriageSchedule", "carriage_schedule"],
+    "trajectory": ["Trajectory"],
+})

@@ -7,7 +7,6 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.interpolate import BPoly
 
 if TYPE_CHECKING:
     from ident_hw.model import ThreePRRR
@@ -144,6 +143,8 @@ class Trajectory:
         n = int(np.floor(self.duration * rate + 1e-9)) + 1
         t = self.t[0] + np.arange(n) / rate
         out = {}
+        from scipy.interpolate import BPoly     # here: a trajectory's users need not import SciPy
+
         for pos, vel, acc in (("X", "Xd", "Xdd"), ("Theta", "Thetad", "Thetadd")):
             stack = np.stack([getattr(self, pos), getattr(self, vel), getattr(self, acc)], axis=1)
             poly = BPoly.from_derivatives(self.t, stack)

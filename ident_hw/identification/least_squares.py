@@ -31,7 +31,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import linalg
 
 #: A parameter whose relative standard deviation exceeds this (in %) is poorly identified.
 POORLY_IDENTIFIED_PERCENT = 10.0
@@ -79,6 +78,7 @@ def output_noise_std(Y: np.ndarray, tau: np.ndarray, coef: np.ndarray | None = N
     residual is at rounding level; each sigma_j is then floored at ``1e-9 × RMS(tau_j)`` so
     that weights stay finite and comparable. An output with no informative row gets 1.
     """
+    from scipy import linalg    # on first use: the config reads this module's constants
     Y, tau = check_regression_data(Y, tau)
     N, k, n = Y.shape
     if coef is None:
@@ -156,6 +156,7 @@ class LeastSquaresResult:
 
 def _fit(Y: np.ndarray, tau: np.ndarray, names, lags: int | None) -> tuple[np.ndarray, np.ndarray, float, float, int]:
     """QR solution of ``min sum_t ||tau_t − Y_t pi||²``; its covariance, sigma², cond(W), lags."""
+    from scipy import linalg    # on first use: the config reads this module's constants
     N, k, n = Y.shape
     W, y = stack(Y, tau)
     r = int(informative_rows(Y).sum())
