@@ -412,10 +412,13 @@ _LABELS = {Exit.CONFIG: "config error", Exit.BUS: "bus error", Exit.DRIVE_FAULT:
            Exit.DATA: "data error", Exit.FAILURE: "error"}
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, process_exits: bool = False) -> int:
+    """Run the command of ``argv`` (default: the process's arguments); its exit code.
+    ``process_exits``: the process ends when this returns (:func:`script`), so the signal
+    handlers stay (a second Ctrl-C while it exits is reported, not a kill)."""
     from ident_hw.experiment.interrupts import signal_name, stop_on_signals
     args = build_parser().parse_args(argv)
-    with stop_on_signals():
+    with stop_on_signals(restore=not process_exits):
         try:
             return int(args.func(args))
         except KeyboardInterrupt as exc:
@@ -432,5 +435,20 @@ def main(argv: list[str] | None = None) -> int:
             return code
 
 
+def script() -> None:
+    """The installed ``ident-hw`` command (and ``python -m ident_hw.cli``): :func:`main`'s exit
+    code is the process's. After a stop by a signal, further signals are ignored while the
+    interpreter exits: it puts the default handlers back on its way out, and a second Ctrl-C
+    then would end the process with that signal's status instead of :attr:`Exit.INTERRUPTED`."""
+    import signal
+
+    from ident_hw.experiment.interrupts import SIGNAL_NAMES
+    code = main(process_exits=True)
+    if code == Exit.INTERRUPTED:
+        for sig in SIGNAL_NAMES:
+            signal.signal(sig, signal.SIG_IGN)
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    script()

@@ -52,9 +52,11 @@ class _State:
 
 
 @contextmanager
-def stop_on_signals(say: Callable[[str], None] = _to_stderr) -> Iterator[None]:
+def stop_on_signals(say: Callable[[str], None] = _to_stderr, restore: bool = True) -> Iterator[None]:
     """Handle :data:`SIGNAL_NAMES` as described in the module docstring while active (main
-    thread only; elsewhere a no-op); the previous handlers come back at the end."""
+    thread only; elsewhere a no-op); the previous handlers come back at the end, unless not
+    ``restore``: a process that exits right after keeps them, so a second signal that comes
+    while it exits is still reported and ignored, and does not kill it with its own exit status."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -75,9 +77,10 @@ def stop_on_signals(say: Callable[[str], None] = _to_stderr) -> Iterator[None]:
     try:
         yield
     finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
-        _State.first, _State.shield, _State.pending = None, 0, None
+        if restore:
+            for sig, old in previous.items():
+                signal.signal(sig, old)
+            _State.first, _State.shield, _State.pending = None, 0, None
 
 
 @contextmanager
