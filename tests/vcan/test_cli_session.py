@@ -4,6 +4,7 @@ CLI as a user runs it, ``ident-hw scan`` and a short ``ident-hw run`` (without t
 host suite checks: matplotlib and eight plots cost minutes in the emulated guest) in other processes."""
 
 import subprocess
+import time
 
 import pytest
 
@@ -52,9 +53,10 @@ def test_cli_run_against_rig_process_matches_candump(vcan_rig, candump, tmp_path
     alone = RunInOneProcess(CONFIG, tmp_path / "alone")
     request.addfinalizer(alone.stop)
 
+    started = time.monotonic()
     scan = subprocess.run(["ident-hw", "scan", CONFIG, "--wait", "3"], capture_output=True, text=True,
                           timeout=CLI_TIMEOUT)
-    print(f"\n$ ident-hw scan\n{scan.stdout}{scan.stderr}")
+    print(f"\n$ ident-hw scan  ({time.monotonic() - started:.0f} s)\n{scan.stdout}{scan.stderr}")
     assert scan.returncode == 0, scan.stderr
     for actuator in actuators:
         assert f"node {actuator.node_id:3d}: EPOS4" in scan.stdout, f"scan did not list node {actuator.node_id}"
@@ -63,7 +65,7 @@ def test_cli_run_against_rig_process_matches_candump(vcan_rig, candump, tmp_path
     out = tmp_path / "results"
     run = subprocess.run(["ident-hw", "run", CONFIG, "--quiet", "--no-report", "--out", out],
                          capture_output=True, text=True, timeout=CLI_TIMEOUT)
-    print(f"$ ident-hw run\n{run.stdout}{run.stderr}")
+    print(f"$ ident-hw run  ({time.monotonic() - started:.0f} s since the scan began)\n{run.stdout}{run.stderr}")
     assert run.returncode == 0, run.stderr
     assert (out / "STATUS").read_text().strip() == "complete"
     (traj,) = config.trajectories
@@ -77,6 +79,7 @@ def test_cli_run_against_rig_process_matches_candump(vcan_rig, candump, tmp_path
     rows = parameter_rows(out)
     assert_step_identified(config, rows)
     assert_same_in_one_process(config, rows, alone.rows(CLI_TIMEOUT))
+    print(f"the same run with the rig in one process had ended {time.monotonic() - started:.0f} s after the scan began")
 
     # candump saw the same frames on the bus: the project's decoder gives the same samples from candump's log,
     # from where the run's own raw log starts (the master records from the start of the stream; the kernel
