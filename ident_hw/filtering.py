@@ -41,17 +41,26 @@ from dataclasses import dataclass
 import numpy as np
 
 
+#: :attr:`FilterSettings.position_margin` for a motion whose spectrum reaches the band edge
+POSITION_MARGIN = 2.0
+
+
 @dataclass(frozen=True)
 class FilterSettings:
     """Filtering and decimation settings (defaults from :meth:`for_sample_rate`).
 
     Attributes:
         sample_rate: input sample rate in Hz.
-        cutoff_hz: cut-off of the zero-phase Butterworth low-pass of the positions, Hz.
+        cutoff_hz: cut-off of the identification's band, Hz: of the parallel filter (at most,
+            :attr:`decimation_cutoff_hz`) and, with ``position_margin`` 1, of the positions'
+            low-pass too.
         order: Butterworth order (the zero-phase filter has twice this order).
         decimation: keep one sample in ``decimation`` after the parallel filter.
         trim: samples dropped at each end (input rate), where the zero-phase filters and
             the one-sided differences at the edges are not trustworthy.
+        position_margin: the positions' low-pass cuts off this many times above the parallel
+            filter (:attr:`position_cutoff_hz`; >= 1): :data:`POSITION_MARGIN` for a motion whose
+            spectrum reaches the band edge.
     """
 
     sample_rate: float
@@ -59,6 +68,7 @@ class FilterSettings:
     order: int = 4
     decimation: int = 1
     trim: int = 0
+    position_margin: float = 1.0
 
     def __post_init__(self) -> None:
         nyquist = 0.5 * self.sample_rate
@@ -68,6 +78,8 @@ class FilterSettings:
             raise ValueError(f"cutoff_hz must lie in (0, {nyquist:g}) Hz (Nyquist), got {self.cutoff_hz}")
         if self.order < 1 or self.decimation < 1 or self.trim < 0:
             raise ValueError(f"order and decimation must be >= 1 and trim >= 0, got {self}")
+        if not self.position_margin >= 1.0:
+            raise ValueError(f"position_margin must be >= 1, got {self.position_margin}")
 
     @classmethod
     def for_sample_rate(cls, sample_rate: float, bandwidth_hz: float = 5.0, order: int = 4) -> "FilterSettings":
@@ -102,6 +114,28 @@ class FilterSettings:
         if self.decimation == 1:
             return self.cutoff_hz
         return min(self.cutoff_hz, 0.8 * 0.5 * self.sample_rate / self.decimation)
+
+    @property
+    def position_cutoff_hz(self) -> float:
+        """Cut-off of the positions' low-pass (:func:`prepare_actuated`), Hz: :attr:`cutoff_hz`, or
+        with a ``position_margin`` above 1 that many times the parallel filter's cut-off
+        (:attr:`decimation_cutoff_hz`), at most a quarter of the sample rate, never below
+        :attr:`cutoff_hz`.
+
+        Why above the parallel filter, for some motions: the forces reach the fit through the
+        parallel filter only, the regressor through the positions' low-pass *and* the parallel
+        filter. A component the parallel filter passes and the positions' low-pass has already
+        attenuated makes the two sides differ by that attenuation times its inertial force: a
+        bias, the whole -3 dB band edge when both cut off at one frequency. A motion whose
+        spectrum ends well inside the band (a Fourier excitation) has no force there; the paper's
+        rest-to-rest paths (a jerk step at every vertex, short segments) have, and the bias shows
+        as the links' friction. Twice the parallel filter's cut-off leaves the positions' low-pass
+        within 0.4 % of unity (``1 / (1 + 2^-8)``) over the band the fit sees; the price is more
+        of the encoder's rounding in the accelerations, which is why it is not used everywhere.
+        """
+        if self.position_margin == 1.0:
+            return self.cutoff_hz
+        return max(self.cutoff_hz, min(self.position_margin * self.decimation_cutoff_hz, 0.25 * self.sample_rate))
 
     @property
     def output_rate(self) -> float:
@@ -400,7 +434,7 @@ def prepare_actuated(
         raise ValueError(f"sample times must be strictly increasing (first bad index {int(np.argmax(dt <= 0)) + 1})")
     if settings is None:
         settings = FilterSettings.for_sample_rate(1.0 / float(np.median(dt)))
-    filtered = lowpass(Theta, settings.sample_rate, settings.cutoff_hz, settings.order,
+    filtered = lowpass(Theta, settings.sample_rate, settings.position_cutoff_hz, settings.order,
                        ends.pick(POLYNOMIAL, ODD))
     Thetad, Thetadd = central_derivatives(filtered, t)
     return ActuatedSamples(t=t, Theta=filtered, Thetad=Thetad, Thetadd=Thetadd, tau=current * force_per_amp)

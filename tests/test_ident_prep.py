@@ -1,5 +1,6 @@
 """Data preparation for the fits: derivatives, rows left out near rest, per-trajectory filter bandwidth."""
 
+import dataclasses
 import numpy as np
 import pytest
 from scipy import linalg
@@ -11,7 +12,7 @@ from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
 from ident_hw.config import load_config, to_model
 from ident_hw.experiment.offline import identify, prepare
 from ident_hw.segments import split, uniform
-from ident_hw.experiment.plan import excitation_of, motion_bandwidth, plan, robot_model
+from ident_hw.experiment.plan import excitation_of, motion_bandwidth, plan, position_margin, robot_model
 from ident_hw.identification.least_squares import ols, output_noise_std, wls
 from ident_hw.filtering import (EVEN, ODD, POLYNOMIAL, Ends, FilterSettings, central_derivatives, lowpass, main_lobe,
                              near, near_rest, runs_at_least)
@@ -338,3 +339,33 @@ identification:
     as_consecutive = worst_error(config, consecutive)
     assert reference < 0.01 and cut < 2 * reference + 0.005 and as_consecutive > 0.2, \
         (reference, cut, as_consecutive)
+
+
+def test_the_positions_low_pass_of_a_rest_to_rest_path_is_flat_over_the_parallel_filters_band():
+    """The regressor goes through the positions' low-pass and the parallel filter, the forces
+    through the parallel filter only: where a motion has force near the band edge (the paper's
+    rest-to-rest paths), the positions' low-pass must be close to unity over the band the parallel
+    filter passes, or that force is biased (the links' friction on the squares at 100 Hz, where both
+    cut off at 15 Hz). Twice the parallel filter's cut-off where a quarter of the sample rate allows
+    it; where it does not (50 Hz), at least the band's own cut-off. A band-limited motion (the
+    Fourier excitation) keeps one cut-off: it has no force there, and a wider low-pass only lets
+    in more of the encoder's rounding."""
+    for rate, bandwidth in ((100.0, 1.5), (100.0, 1.0), (250.0, 1.5), (250.0, 1.0), (1000.0, 5.0)):
+        settings = dataclasses.replace(FilterSettings.for_sample_rate(rate, bandwidth), position_margin=2.0)
+        band = settings.decimation_cutoff_hz
+        assert settings.position_cutoff_hz == pytest.approx(min(2.0 * band, 0.25 * rate)), (rate, bandwidth)
+        sos = sps.butter(settings.order, settings.position_cutoff_hz, fs=rate, output="sos")
+        _, h = sps.sosfreqz(sos, worN=[band], fs=rate)
+        assert np.abs(h[0]) ** 2 > (0.99 if 2.0 * band <= 0.25 * rate else 0.9), (rate, bandwidth)
+        one = FilterSettings.for_sample_rate(rate, bandwidth)
+        assert one.position_cutoff_hz == one.cutoff_hz
+    margin = dataclasses.replace(FilterSettings.for_sample_rate(50.0, 1.5), position_margin=2.0)
+    assert margin.position_cutoff_hz == pytest.approx(12.5)     # fs/4: no room
+    config = load_config(CONFIGS / "sim-3prrr.yaml")
+    kinds = {t.name: t.kind for t in config.trajectories}
+    for name, kind in kinds.items():
+        expected = 2.0 if kind in ("carriage_sweep", "square", "triangle") else 1.0
+        assert position_margin(config, name) == expected, (name, kind)
+    assert {kinds[n] for n in kinds if position_margin(config, n) == 1.0} == {"fourier"}
+    with pytest.raises(ValueError, match="position_margin"):
+        FilterSettings(100.0, 15.0, position_margin=0.5)

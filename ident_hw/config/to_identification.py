@@ -13,13 +13,15 @@ from .identification import FilterConfig, OnlineConfig, PhysicalConfig, StepConf
 from .scales import parameter_scales
 
 
-def filter_settings(filter: FilterConfig, sample_rate: float, bandwidth: float | None = None) -> FilterSettings:
+def filter_settings(filter: FilterConfig, sample_rate: float, bandwidth: float | None = None,
+                    position_margin: float = 1.0) -> FilterSettings:
     """The filter settings for data sampled at ``sample_rate`` (Hz), for a motion of ``bandwidth``
-    Hz (default ``filter.bandwidth``); ``cutoff`` and ``decimation`` override the defaults of
-    :meth:`ident_hw.filtering.FilterSettings.for_sample_rate`."""
+    Hz (default ``filter.bandwidth``) whose positions are low-passed ``position_margin`` times
+    above the band (:attr:`ident_hw.filtering.FilterSettings.position_cutoff_hz`); ``cutoff`` and
+    ``decimation`` override the defaults of :meth:`ident_hw.filtering.FilterSettings.for_sample_rate`."""
     base = FilterSettings.for_sample_rate(sample_rate, bandwidth or filter.bandwidth, filter.order)
     overrides = {k: v for k, v in (("cutoff_hz", filter.cutoff), ("decimation", filter.decimation)) if v is not None}
-    return dataclasses.replace(base, **overrides)
+    return dataclasses.replace(base, position_margin=position_margin, **overrides)
 
 
 def step_parameters(step: StepConfig, names: tuple[str, ...]) -> tuple[str, ...]:

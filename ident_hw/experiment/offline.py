@@ -47,7 +47,7 @@ from ident_hw.segments import Segments, slot_indices, split, uniform
 from ident_hw.filtering import kept_samples, near_rest, parallel_decimate, prepare_actuated, running_average
 
 from .encoder import count_shifts, reread, smoothed_positions, spread_covariance
-from .plan import motion_bandwidth, robot_model
+from .plan import motion_bandwidth, position_margin, robot_model
 from .quality import verdict
 from .recordings import identification_valid, planned_cycles, require_trajectories
 
@@ -167,7 +167,8 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
              for a, ok in zip(config.robot.actuators, identification_valid(rec).any(axis=0)) if not ok]
     if empty:
         raise RecordingError(f"{where}: no valid sample of {', '.join(empty)}")
-    settings = filter_settings(config.identification.filter, 1.0 / recording_period(rec), motion_bandwidth(config, name))
+    settings = filter_settings(config.identification.filter, 1.0 / recording_period(rec), motion_bandwidth(config, name),
+                               position_margin(config, name))
     segments = segments_of(config, rec, settings.trim, MIN_FILTERED, settings.cut_trim)
     if not segments.slices:      # nothing to fit; the quality verdict says why
         a, m = len(robot.actuator_names), len(robot.parameter_names)
@@ -302,7 +303,8 @@ def reread_draws(config: Config, robot: RobotModel, recordings: Mapping[str, Rec
     smooth = {}
     for name in names if draws else ():      # the motion the draws read again, once per recording
         rate = 1.0 / recording_period(recordings[name])
-        settings = filter_settings(config.identification.filter, rate, motion_bandwidth(config, name))
+        settings = filter_settings(config.identification.filter, rate, motion_bandwidth(config, name),
+                                   position_margin(config, name))
         smooth[name] = smoothed_positions(recordings[name], rate, settings.cutoff_hz, settings.order)
     return [{name: prepare(config, robot, name, reread(recordings[name], smooth[name], counts_per_unit, shift))
              for name in names}

@@ -13,6 +13,7 @@ from ident_hw.config import Config, TrajectoryConfig
 from ident_hw.config.robots import kind_of, model_of
 from ident_hw.config.to_drivers import axis_config, axis_scaling
 from ident_hw.config.to_trajectories import excitation_of
+from ident_hw.filtering import POSITION_MARGIN
 from ident_hw.model import KinematicsError
 from ident_hw.model.interface import POSITION_UNITS, RobotModel
 
@@ -90,6 +91,21 @@ def motion_bandwidth(config: Config, name: str) -> float:
     if tcfg is not None and tcfg.kind == "fourier":
         return excitation_of(config, tcfg).bandwidth
     return config.identification.filter.bandwidth
+
+
+#: trajectory kinds whose spectrum reaches the identification filter's band edge: the paper's
+#: rest-to-rest paths (a jerk step at every vertex, short segments near the limits)
+REST_TO_REST_KINDS = frozenset({"carriage_sweep", "square", "triangle"})
+
+
+def position_margin(config: Config, name: str) -> float:
+    """How far above the identification's band the positions of trajectory ``name`` are
+    low-passed (:attr:`ident_hw.filtering.FilterSettings.position_margin`):
+    :data:`ident_hw.filtering.POSITION_MARGIN` for the rest-to-rest kinds, whose force near the
+    band edge would otherwise be biased; 1 (one cut-off) for band-limited motions, which carry
+    no force there, and for a name the config does not list."""
+    tcfg = next((t for t in config.trajectories if t.name == name), None)
+    return POSITION_MARGIN if tcfg is not None and tcfg.kind in REST_TO_REST_KINDS else 1.0
 
 
 def repeat(traj: trajectories.Trajectory, cycles: int) -> trajectories.Trajectory:
