@@ -14,8 +14,10 @@ unless the name ends in ``_percent``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Any, Mapping
+
+from ident_hw.config.identification import QualityConfig
 
 #: the keys of a step record that :class:`StepRecord` reads; the others are the fit's figures
 _STEP_KEYS = frozenset({"name", "trajectories", "skipped", "method", "free", "eliminated", "rows_left_out",
@@ -251,12 +253,26 @@ class TrajectoryVerdict:
                    disagreement_percent=doc.get("disagreement_percent"))
 
 
+def _thresholds_to_json(limits: QualityConfig | None) -> dict:
+    """The JSON form of a verdict's thresholds: ``{field: value}`` in field order, ``{}`` for None."""
+    return {} if limits is None else {f.name: getattr(limits, f.name) for f in fields(QualityConfig)}
+
+
+def _thresholds_from_json(doc: Mapping[str, Any] | None) -> QualityConfig | None:
+    """The thresholds of :func:`_thresholds_to_json`: None for none, a limit not written at its default."""
+    if not doc:
+        return None
+    return QualityConfig(**{f.name: doc[f.name] for f in fields(QualityConfig) if f.name in doc})
+
+
 @dataclass(frozen=True)
 class Verdict:
     """The quality verdict of a result (:func:`ident_hw.experiment.quality.verdict`).
 
     ``passed``: no threshold missed; ``reasons``: one per missed threshold; ``thresholds``: the
-    ``identification.quality`` values judged against, by name. Per trajectory its
+    ``identification.quality`` limits judged against (JSON: one key per field of
+    :class:`ident_hw.config.QualityConfig`; None when the folder holds none, a limit it lacks
+    reads as its default). Per trajectory its
     :class:`TrajectoryVerdict`; per step its scaled condition number ``cond_scaled`` (JSON
     ``steps``); ``well_identified``: the fitted parameters (physical, then base) with %σ at most
     the campaign's threshold. Per judged axis (``axes_judged``): its gain spread (%) and worst
@@ -266,7 +282,7 @@ class Verdict:
 
     passed: bool
     reasons: tuple[str, ...] = ()
-    thresholds: Mapping[str, float] = field(default_factory=dict)
+    thresholds: QualityConfig | None = None
     trajectories: Mapping[str, TrajectoryVerdict] = field(default_factory=dict)
     cond_scaled: Mapping[str, float | None] = field(default_factory=dict)
     well_identified: tuple[str, ...] = ()
@@ -277,7 +293,7 @@ class Verdict:
     axes_judged: tuple[str, ...] = ()
 
     def to_json(self) -> dict:
-        return {"passed": self.passed, "reasons": list(self.reasons), "thresholds": dict(self.thresholds),
+        return {"passed": self.passed, "reasons": list(self.reasons), "thresholds": _thresholds_to_json(self.thresholds),
                 "trajectories": {name: t.to_json() for name, t in self.trajectories.items()},
                 "steps": {name: {"cond_scaled": cond} for name, cond in self.cond_scaled.items()},
                 "well_identified": list(self.well_identified),
@@ -288,7 +304,7 @@ class Verdict:
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> Verdict:
         return cls(passed=bool(doc["passed"]), reasons=tuple(doc.get("reasons") or ()),
-                   thresholds=doc.get("thresholds") or {},
+                   thresholds=_thresholds_from_json(doc.get("thresholds")),
                    trajectories={name: TrajectoryVerdict.from_json(t)
                                  for name, t in (doc.get("trajectories") or {}).items()},
                    cond_scaled={name: s.get("cond_scaled") for name, s in (doc.get("steps") or {}).items()},

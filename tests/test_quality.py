@@ -53,7 +53,7 @@ def test_a_clean_recording_passes_and_the_figures_are_the_data(sweep):
     by_hand = 100 * np.mean(np.linalg.norm(fit.tau - fit.tau_model, axis=1)[norm > 0] / norm[norm > 0])
     assert row.d_tau_percent == pytest.approx(by_hand, rel=1e-12) and by_hand < 10
     assert set(q.well_identified) >= {"m_c", "fv_zeta1", "fc_zeta1"}
-    assert q.thresholds["max_d_tau"] == 10.0 and q.thresholds["min_valid_fraction"] == 0.9
+    assert q.thresholds.max_d_tau == 10.0 and q.thresholds.min_valid_fraction == 0.9
 
 
 def test_thresholds_are_config_keys(sweep, tmp_path):

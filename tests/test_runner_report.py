@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 import scipy.io
 import yaml
 
+from ident_hw.config import QualityConfig
 from ident_hw.model import InertialParams, ThreePRRR
 from ident_hw.records import (BaseAnalysis, RecordingCoverage, StepRecord, TrajectoryVerdict, Verdict)
 from ident_hw.report import build_report, summary_lines
@@ -192,7 +194,7 @@ RECORDS = [
                          "coverage": 10 / 12, "valid_fraction": 0.9, "longest_gap_s": 0.004, "skipped_slots": 1,
                          "unplaced_frames": 0, "samples_used": 5, "rows_left_out": {"edges": 2}, "gaps": 1,
                          "stretches": 2}),
-    (Verdict, {"passed": False, "reasons": ["why"], "thresholds": {"max_d_tau": 10.0},
+    (Verdict, {"passed": False, "reasons": ["why"], "thresholds": dataclasses.asdict(QualityConfig(max_d_tau=5.0)),
                "trajectories": {"sweep": {"recording_status": "complete", "coverage": 1.0, "valid_fraction": 1.0,
                                           "longest_gap_s": 0.0, "unplaced_frames": 0, "role": "identification",
                                           "d_tau_percent": 2.0},
@@ -218,6 +220,9 @@ def test_records_read_folders_written_before_a_key_existed():
         "steps": {}, "well_identified": []})
     assert verdict.passed and verdict.force_lag_s == {} and verdict.trajectories["sweep"] == TrajectoryVerdict(
         recorded=True, recording_status="complete", valid_fraction=1.0, longest_gap_s=0.0)
+    assert verdict.thresholds is None
+    older = Verdict.from_json({"passed": True, "thresholds": {"max_d_tau": 5.0, "min_coverage": 1.0}})
+    assert older.thresholds == QualityConfig(max_d_tau=5.0)
     used = RecordingCoverage.from_json({"file": None, "recording_status": "complete", "cycles": 5,
                                         "cycles_planned": None, "coverage": None, "valid_fraction": 1.0,
                                         "longest_gap_s": 0.0})

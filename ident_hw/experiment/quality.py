@@ -339,7 +339,7 @@ def verdict(results: Results, limits: QualityConfig, actuators: Sequence[Actuato
     lags = {name: lag for name, lag in force_lags(results).items() if name in axes}
     reasons += lag_reasons(lags, limits)
     reasons += prediction_reasons(results, limits, per_traj)
-    return Verdict(passed=not reasons, reasons=tuple(reasons), thresholds=dataclasses.asdict(limits),
+    return Verdict(passed=not reasons, reasons=tuple(reasons), thresholds=limits,
                    trajectories=per_traj, cond_scaled=steps, well_identified=tuple(well),
                    axis_gain_spread_percent=spreads, axis_residual_ratio=ratios,
                    force_lag_s={name: lag.seconds for name, lag in lags.items()},
