@@ -1,7 +1,8 @@
 """The records a results folder stores beside its parameter tables, each with its JSON mapping.
 
 * :class:`RecordingCoverage`: what the recording of one trajectory covered and what the fit used;
-* :class:`StepRecord`: what one identification step did (fitted, skipped, its figures);
+* :class:`StepRecord`: what one identification step did (fitted, skipped), with the figures of its
+  fit (:class:`LeastSquaresFigures` or :class:`MassFitFigures`);
 * :class:`BaseAnalysis`: what all the identification data determine (rank, base parameters);
 * :class:`Verdict` with a :class:`TrajectoryVerdict` per trajectory: the quality verdict;
 * :class:`TrajectoryMetrics`: the force prediction on one trajectory (the report's ``metrics.yaml``).
@@ -18,12 +19,6 @@ from dataclasses import dataclass, field, fields, replace
 from typing import Any, Mapping
 
 from ident_hw.config.identification import QualityConfig
-
-#: the keys of a step record that :class:`StepRecord` reads; the others are the fit's figures
-_STEP_KEYS = frozenset({"name", "trajectories", "skipped", "method", "free", "eliminated", "rows_left_out",
-                        "cond_scaled", "unexcited", "statistics", "encoder_draws", "encoder_sigma", "cond_W",
-                        "consistent"})
-
 
 @dataclass(frozen=True)
 class RecordingCoverage:
@@ -87,14 +82,100 @@ class RecordingCoverage:
 
 
 @dataclass(frozen=True)
+class LeastSquaresFigures:
+    """The figures of a step's least-squares fit of base parameters
+    (:class:`ident_hw.identification.least_squares.LeastSquaresResult`): the residual variance
+    ``sigma2`` of the (weighted) rows, the condition number ``cond`` of the (weighted) regressor,
+    how its ``covariance`` was computed, per actuator the unweighted ``residual_rms`` (its force
+    unit, N or N·m) and the ``output_std`` that weighted it (None: OLS), and the base parameters
+    ``poorly_identified``. In JSON, keys of the step's record."""
+
+    sigma2: float | None = None
+    cond: float | None = None
+    covariance: str | None = None
+    residual_rms: tuple[float, ...] = ()
+    output_std: tuple[float, ...] | None = None
+    poorly_identified: tuple[str, ...] = ()
+
+    @classmethod
+    def of(cls, fit) -> LeastSquaresFigures:
+        """The figures of a :class:`ident_hw.identification.least_squares.LeastSquaresResult`."""
+        return cls(sigma2=float(fit.sigma2), cond=float(fit.cond), covariance=fit.covariance_method,
+                   residual_rms=tuple(fit.residual_rms.tolist()),
+                   output_std=None if fit.output_std is None else tuple(fit.output_std.tolist()),
+                   poorly_identified=tuple(fit.poorly_identified))
+
+    def to_json(self) -> dict:
+        return {"sigma2": self.sigma2, "cond": self.cond, "covariance": self.covariance,
+                "residual_rms": list(self.residual_rms),
+                "output_std": None if self.output_std is None else list(self.output_std),
+                "poorly_identified": list(self.poorly_identified)}
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> LeastSquaresFigures:
+        output_std = doc.get("output_std")
+        return cls(sigma2=doc.get("sigma2"), cond=doc.get("cond"), covariance=doc.get("covariance"),
+                   residual_rms=tuple(doc.get("residual_rms") or ()),
+                   output_std=None if output_std is None else tuple(output_std),
+                   poorly_identified=tuple(doc.get("poorly_identified") or ()))
+
+
+@dataclass(frozen=True)
+class MassFitFigures:
+    """The figures of a step's SQP mass fit (:class:`ident_hw.identification.mass_fit.MassFitResult`):
+    every parameter's value after the fit (``parameters``, the held ones at their given values)
+    and in the ``lsq_linear`` cross-check (``parameters_lsq_linear``), their largest relative
+    difference ``max_rel_difference`` over the free ones, the weighted residual ``cost``, per
+    actuator the unweighted ``residual_rms`` (its force unit, N or N·m) and the ``output_std``
+    that weighted it, the SLSQP ``iterations``, ``success`` and ``message``, and the free
+    parameters ``at_bounds``. In JSON, keys of the step's record."""
+
+    parameters: Mapping[str, float] = field(default_factory=dict)
+    parameters_lsq_linear: Mapping[str, float] = field(default_factory=dict)
+    max_rel_difference: float | None = None
+    cost: float | None = None
+    residual_rms: tuple[float, ...] = ()
+    output_std: tuple[float, ...] = ()
+    iterations: int | None = None
+    success: bool | None = None
+    message: str | None = None
+    at_bounds: tuple[str, ...] = ()
+
+    @classmethod
+    def of(cls, fit) -> MassFitFigures:
+        """The figures of a :class:`ident_hw.identification.mass_fit.MassFitResult`."""
+        return cls(parameters={nm: float(v) for nm, v in zip(fit.names, fit.coef)},
+                   parameters_lsq_linear={nm: float(v) for nm, v in zip(fit.names, fit.coef_lsq)},
+                   max_rel_difference=float(fit.max_rel_difference), cost=float(fit.cost),
+                   residual_rms=tuple(fit.residual_rms.tolist()), output_std=tuple(fit.output_std.tolist()),
+                   iterations=int(fit.iterations), success=bool(fit.success), message=fit.message,
+                   at_bounds=tuple(fit.at_bounds))
+
+    def to_json(self) -> dict:
+        return {"parameters": dict(self.parameters), "parameters_lsq_linear": dict(self.parameters_lsq_linear),
+                "max_rel_difference": self.max_rel_difference, "cost": self.cost,
+                "residual_rms": list(self.residual_rms), "output_std": list(self.output_std),
+                "iterations": self.iterations, "success": self.success, "message": self.message,
+                "at_bounds": list(self.at_bounds)}
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> MassFitFigures:
+        return cls(parameters=doc.get("parameters") or {}, parameters_lsq_linear=doc.get("parameters_lsq_linear") or {},
+                   max_rel_difference=doc.get("max_rel_difference"), cost=doc.get("cost"),
+                   residual_rms=tuple(doc.get("residual_rms") or ()), output_std=tuple(doc.get("output_std") or ()),
+                   iterations=doc.get("iterations"), success=doc.get("success"), message=doc.get("message"),
+                   at_bounds=tuple(doc.get("at_bounds") or ()))
+
+
+@dataclass(frozen=True)
 class StepRecord:
     """What one identification step did.
 
     ``skipped``: why it fitted nothing (None: it fitted). ``method`` and ``free``: the fit's
     method and the parameters it fitted. ``eliminated``: for a least-squares step of base
     parameters, the free parameters regrouped into the others or not excited; None for an SQP
-    mass fit. ``figures``: the fit's own figures, as its ``to_dict()`` gives them
-    (:mod:`ident_hw.identification`; stored, not read). ``rows_left_out``: per trajectory, rows
+    mass fit. ``figures``: the fit's own figures (of a least-squares step or a mass fit; None:
+    skipped, or not in the folder). ``rows_left_out``: per trajectory, rows
     left out per rule (mass fit). ``cond_scaled``: condition number of the step's regressor,
     columns scaled to unit RMS; ``cond_W``: of the weighted one of the statistics (mass fit).
     ``unexcited``: free parameters its data do not excite, held. ``statistics_missing``: why the
@@ -110,7 +191,7 @@ class StepRecord:
     method: str = ""
     free: tuple[str, ...] = ()
     eliminated: tuple[str, ...] | None = None
-    figures: Mapping[str, Any] = field(default_factory=dict)
+    figures: LeastSquaresFigures | MassFitFigures | None = None
     rows_left_out: Mapping[str, Mapping[str, int]] | None = None
     cond_scaled: float | None = None
     unexcited: tuple[str, ...] = ()
@@ -130,15 +211,16 @@ class StepRecord:
         if self.skipped is not None:
             doc["skipped"] = self.skipped
             return doc
+        figures = {} if self.figures is None else self.figures.to_json()
         encoder = ({"encoder_draws": self.encoder_draws, "encoder_sigma": list(self.encoder_sigma)}
                    if self.encoder_draws else {})
         if self.fits_base_parameters:
             doc.update({"free": list(self.free), "method": self.method, "eliminated": list(self.eliminated),
-                        **self.figures, "cond_scaled": self.cond_scaled, **encoder})
+                        **figures, "cond_scaled": self.cond_scaled, **encoder})
             if self.consistency_failure is not None:
                 doc["consistent"] = self.consistency_failure
             return doc
-        doc.update({"method": self.method, "free": list(self.free), **self.figures,
+        doc.update({"method": self.method, "free": list(self.free), **figures,
                     "rows_left_out": self.rows_left_out, "cond_scaled": self.cond_scaled})
         if self.unexcited:
             doc["unexcited"] = list(self.unexcited)
@@ -152,10 +234,13 @@ class StepRecord:
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> StepRecord:
         eliminated = doc.get("eliminated")
+        kind = MassFitFigures if eliminated is None else LeastSquaresFigures
+        figures = None if "skipped" in doc else kind.from_json(doc)
+        figures = None if figures == kind() else figures       # none in the folder
         return cls(name=doc.get("name", ""), trajectories=tuple(doc.get("trajectories") or ()),
                    skipped=doc.get("skipped"), method=doc.get("method", ""), free=tuple(doc.get("free") or ()),
                    eliminated=None if eliminated is None else tuple(eliminated),
-                   figures={k: v for k, v in doc.items() if k not in _STEP_KEYS},
+                   figures=figures,
                    rows_left_out=doc.get("rows_left_out"), cond_scaled=doc.get("cond_scaled"),
                    unexcited=tuple(doc.get("unexcited") or ()), statistics_missing=doc.get("statistics"),
                    encoder_draws=doc.get("encoder_draws") or 0, encoder_sigma=tuple(doc.get("encoder_sigma") or ()),

@@ -85,7 +85,7 @@ def test_fit_base_adds_the_covariance_of_the_draws_estimates():
     alone, _, record_alone = fit_base(step, names, names, Y, tau, coef0, coef0, None, 10.0)
     fit, _, record = fit_base(step, names, names, Y, tau, coef0, coef0, None, 10.0, draws=draws)
     assert np.array_equal(fit.coef, alone.coef)                    # the estimate is the data's own
-    std = np.array(record_alone.figures["output_std"])
+    std = np.array(record_alone.figures.output_std)
     estimates = np.array([_weighted_lstsq(Yk, tk, std) for Yk, tk in draws])
     spread = np.cov(estimates, rowvar=False)
     np.testing.assert_allclose(fit.covariance, alone.covariance + spread, rtol=1e-9, atol=1e-15)

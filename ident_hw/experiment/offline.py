@@ -40,7 +40,7 @@ from ident_hw.identification.physical import ConsistencyError, ConsistentSet, co
 from ident_hw.identification.model_comparison import (ModelComparison, ModelRows, compare_models,
                                                        power_energy_rows)
 from ident_hw.model.interface import RobotModel
-from ident_hw.records import BaseAnalysis, RecordingCoverage, StepRecord
+from ident_hw.records import BaseAnalysis, LeastSquaresFigures, MassFitFigures, RecordingCoverage, StepRecord
 from ident_hw.report import coverage_text
 from ident_hw.results import BaseFit, ParameterTable, Results, TrajectoryFit
 from ident_hw.segments import Segments, slot_indices, split, uniform
@@ -236,10 +236,9 @@ def fit_base(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.nd
                      initial=H @ initial, truth=None if truth is None else H @ truth,
                      held=tuple(names[i] for i in held), unexcited=base.unexcited, threshold=threshold,
                      covariance=covariance)
-    figures = fit.to_dict()
-    del figures["parameters"]           # the estimates are the BaseFit's
-    record = StepRecord(name=step.name, trajectories=tuple(step.trajectories), method=figures.pop("method"),
-                        free=tuple(free_names), eliminated=tuple(base.eliminated), figures=figures,
+    record = StepRecord(name=step.name, trajectories=tuple(step.trajectories), method=fit.method,
+                        free=tuple(free_names), eliminated=tuple(base.eliminated),
+                        figures=LeastSquaresFigures.of(fit),   # the estimates are the BaseFit's
                         cond_scaled=scaled_condition(Y[:, :, kept], tau), **_encoder_fields(draws, encoder))
     return result, equivalent, record
 
@@ -349,8 +348,6 @@ def fit_sqp_step(step, free_names: Sequence[str], names: tuple[str, ...], Y: np.
     estimates.coef = coef = fit.coef
     idx = [names.index(p) for p in excited]
     held = [i for i in range(len(names)) if i not in idx]
-    figures = fit.to_dict()
-    method, free = figures.pop("method"), tuple(figures.pop("free"))
     statistics: dict = {}
     # sigma of the free parameters: WLS statistics of the same weighted problem
     try:
@@ -362,8 +359,9 @@ def fit_sqp_step(step, free_names: Sequence[str], names: tuple[str, ...], Y: np.
                                      for Yk, tauk in draws], len(idx))
         estimates.sigma[idx] = np.sqrt(stats.std ** 2 + np.diag(encoder))
         statistics.update(_encoder_fields(draws, encoder), cond_W=stats.cond)
-    record = StepRecord(name=step.name, trajectories=tuple(step.trajectories), method=method, free=free,
-                        figures=figures, rows_left_out={t: prepared[t].segments.left_out for t in step.trajectories},
+    record = StepRecord(name=step.name, trajectories=tuple(step.trajectories), method=fit.method,
+                        free=tuple(fit.free), figures=MassFitFigures.of(fit),
+                        rows_left_out={t: prepared[t].segments.left_out for t in step.trajectories},
                         cond_scaled=scaled_condition(Y[:, :, idx], tau), unexcited=tuple(unexcited), **statistics)
     for i, p in zip(idx, excited):
         estimates.lower[i], estimates.upper[i] = bounds.get(p, (0.0, np.inf))

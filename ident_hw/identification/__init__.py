@@ -13,8 +13,9 @@ Public API::
 - :func:`power_rows`, :func:`energy_rows`: power and energy models (no accelerations).
 - :func:`validation_metrics`: RMS, NRMS, d_tau and J_RMSE on held-out data.
 
-Every fit's result has ``to_dict()``; the JSON form of :class:`BaseParameters` in a results
-folder is :class:`ident_hw.records.BaseAnalysis`. Imports :mod:`ident_hw.model` and :mod:`ident_hw.filtering`,
+In a results folder, the figures of a least-squares or mass fit are a step's
+:class:`ident_hw.records.LeastSquaresFigures` or :class:`ident_hw.records.MassFitFigures`, and
+:class:`BaseParameters` is :class:`ident_hw.records.BaseAnalysis`. Imports :mod:`ident_hw.model` and :mod:`ident_hw.filtering`,
 nothing of the drivers, trajectories, config or runner.
 """
 

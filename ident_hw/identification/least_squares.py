@@ -138,20 +138,10 @@ class LeastSquaresResult:
         """Names of the parameters with %sigma above the threshold (default 10 %)."""
         return tuple(nm for nm, p in zip(self.names, self.rel_std_percent) if not p <= self.poorly_identified_percent)
 
-    def to_dict(self) -> dict:
-        return {
-            "method": self.method,
-            "parameters": {
-                nm: {"value": float(v), "std": float(s), "rel_std_percent": float(p)}
-                for nm, v, s, p in zip(self.names, self.coef, self.std, self.rel_std_percent)
-            },
-            "sigma2": float(self.sigma2),
-            "cond": float(self.cond),
-            "covariance": f"Newey-West HAC, {self.lags} lags" if self.lags else "sigma2 (W^T W)^-1 (white residuals)",
-            "residual_rms": self.residual_rms.tolist(),
-            "output_std": None if self.output_std is None else self.output_std.tolist(),
-            "poorly_identified": list(self.poorly_identified),
-        }
+    @property
+    def covariance_method(self) -> str:
+        """How :attr:`covariance` was computed, in words."""
+        return f"Newey-West HAC, {self.lags} lags" if self.lags else "sigma2 (W^T W)^-1 (white residuals)"
 
 
 def _fit(Y: np.ndarray, tau: np.ndarray, names, lags: int | None) -> tuple[np.ndarray, np.ndarray, float, float, int]:

@@ -52,21 +52,10 @@ class MassFitResult:
     message: str
     at_bounds: tuple[str, ...]
 
-    def to_dict(self) -> dict:
-        return {
-            "method": "SQP (SLSQP) mass fit, checked by lsq_linear",
-            "free": list(self.free),
-            "parameters": {nm: float(v) for nm, v in zip(self.names, self.coef)},
-            "parameters_lsq_linear": {nm: float(v) for nm, v in zip(self.names, self.coef_lsq)},
-            "max_rel_difference": float(self.max_rel_difference),
-            "cost": float(self.cost),
-            "residual_rms": self.residual_rms.tolist(),
-            "output_std": self.output_std.tolist(),
-            "iterations": int(self.iterations),
-            "success": bool(self.success),
-            "message": self.message,
-            "at_bounds": list(self.at_bounds),
-        }
+    @property
+    def method(self) -> str:
+        """The fit's method, in words."""
+        return "SQP (SLSQP) mass fit, checked by lsq_linear"
 
 
 def sqp_fit(
