@@ -20,6 +20,17 @@ from typing import Any, Mapping
 
 from ident_hw.config.identification import QualityConfig
 
+#: the JSON key of each :class:`RecordingCoverage` field written before the recording is prepared,
+#: in order, and whether the quality verdict shows it (:class:`TrajectoryVerdict`, same field name)
+_COVERAGE_JSON = (("file", "file", False), ("recording_status", "recording_status", True),
+                  ("cycles", "cycles", False), ("cycles_planned", "cycles_planned", False),
+                  ("coverage", "planned_fraction", True), ("valid_fraction", "valid_fraction", True),
+                  ("longest_gap_s", "longest_gap_s", True), ("skipped_slots", "skipped_slots", False),
+                  ("unplaced_frames", "unplaced_frames", True))
+#: the JSON keys and field names the quality verdict shows
+_JUDGED_JSON = tuple((key, name) for key, name, judged in _COVERAGE_JSON if judged)
+
+
 @dataclass(frozen=True)
 class RecordingCoverage:
     """What the recording of one trajectory holds, and how much of it the fit used.
@@ -62,10 +73,7 @@ class RecordingCoverage:
         return replace(self, samples_used=samples_used, rows_left_out=rows_left_out, gaps=gaps, stretches=stretches)
 
     def to_json(self) -> dict:
-        doc = {"file": self.file, "recording_status": self.recording_status, "cycles": self.cycles,
-               "cycles_planned": self.cycles_planned, "coverage": self.planned_fraction,
-               "valid_fraction": self.valid_fraction, "longest_gap_s": self.longest_gap_s,
-               "skipped_slots": self.skipped_slots, "unplaced_frames": self.unplaced_frames}
+        doc = {key: getattr(self, name) for key, name, _ in _COVERAGE_JSON}
         if self.prepared:
             doc.update(samples_used=self.samples_used, rows_left_out=self.rows_left_out, gaps=self.gaps,
                        stretches=self.stretches)
@@ -73,12 +81,12 @@ class RecordingCoverage:
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> RecordingCoverage:
-        return cls(file=doc.get("file"), recording_status=str(doc.get("recording_status", "")),
-                   cycles=doc["cycles"], cycles_planned=doc.get("cycles_planned"),
-                   planned_fraction=doc.get("coverage"), valid_fraction=doc["valid_fraction"],
-                   longest_gap_s=doc.get("longest_gap_s") or 0.0, skipped_slots=doc.get("skipped_slots") or 0,
-                   unplaced_frames=doc.get("unplaced_frames"), samples_used=doc.get("samples_used"),
-                   rows_left_out=doc.get("rows_left_out"), gaps=doc.get("gaps"), stretches=doc.get("stretches"))
+        books = {name: doc.get(key) for key, name, _ in _COVERAGE_JSON}
+        status = books["recording_status"]
+        books.update(recording_status="" if status is None else str(status), cycles=doc["cycles"],
+                     longest_gap_s=books["longest_gap_s"] or 0.0, skipped_slots=books["skipped_slots"] or 0)
+        return cls(**books, samples_used=doc.get("samples_used"), rows_left_out=doc.get("rows_left_out"),
+                   gaps=doc.get("gaps"), stretches=doc.get("stretches"))
 
 
 @dataclass(frozen=True)
@@ -289,10 +297,10 @@ class BaseAnalysis:
 class TrajectoryVerdict:
     """The figures the quality verdict judged on one trajectory.
 
-    Of its recording (``recorded``: it has one; the figures of its :class:`RecordingCoverage`):
-    ``recording_status``, ``planned_fraction`` (JSON ``coverage``), ``valid_fraction``,
-    ``longest_gap_s`` (s) and ``unplaced_frames``. Of the force prediction on it, when it was
-    judged (its ``role``, ``identification`` or ``validation``): ``d_tau_percent`` of the
+    Of its recording (``recorded``: it has one), the fields of its :class:`RecordingCoverage` the
+    verdict judges, with their names and JSON keys: ``recording_status``, ``planned_fraction``,
+    ``valid_fraction``, ``longest_gap_s`` (s) and ``unplaced_frames``. Of the force prediction on
+    it, when it was judged (its ``role``, ``identification`` or ``validation``): ``d_tau_percent`` of the
     step-by-step parameters, ``base_fit_d_tau_percent`` of the base-parameter fit and
     ``disagreement_percent`` between the two predictions (None: not computed).
     """
@@ -311,16 +319,12 @@ class TrajectoryVerdict:
     @classmethod
     def of(cls, coverage: RecordingCoverage) -> TrajectoryVerdict:
         """The recording figures of ``coverage``."""
-        return cls(recorded=True, recording_status=coverage.recording_status,
-                   planned_fraction=coverage.planned_fraction, valid_fraction=coverage.valid_fraction,
-                   longest_gap_s=coverage.longest_gap_s, unplaced_frames=coverage.unplaced_frames)
+        return cls(recorded=True, **{name: getattr(coverage, name) for _, name in _JUDGED_JSON})
 
     def to_json(self) -> dict:
         doc: dict[str, Any] = {}
         if self.recorded:
-            doc.update(recording_status=self.recording_status, coverage=self.planned_fraction,
-                       valid_fraction=self.valid_fraction, longest_gap_s=self.longest_gap_s,
-                       unplaced_frames=self.unplaced_frames)
+            doc.update((key, getattr(self, name)) for key, name in _JUDGED_JSON)
         if self.role is not None:
             doc["role"] = self.role
         for key in ("d_tau_percent", "base_fit_d_tau_percent", "disagreement_percent"):
@@ -330,9 +334,8 @@ class TrajectoryVerdict:
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> TrajectoryVerdict:
-        return cls(recorded="recording_status" in doc, recording_status=doc.get("recording_status"),
-                   planned_fraction=doc.get("coverage"), valid_fraction=doc.get("valid_fraction"),
-                   longest_gap_s=doc.get("longest_gap_s"), unplaced_frames=doc.get("unplaced_frames"),
+        recorded = any(key in doc for key, _ in _JUDGED_JSON)
+        return cls(recorded=recorded, **{name: doc.get(key) for key, name in _JUDGED_JSON},
                    role=doc.get("role"), d_tau_percent=doc.get("d_tau_percent"),
                    base_fit_d_tau_percent=doc.get("base_fit_d_tau_percent"),
                    disagreement_percent=doc.get("disagreement_percent"))
