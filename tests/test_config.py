@@ -250,6 +250,19 @@ def test_a_key_its_trajectory_kind_does_not_read_is_refused(tmp_path, old, new, 
     expect_error(write(tmp_path, "sim.yaml", text), where, line_of(text, new), "does not use", "ignored")
 
 
+def test_the_trajectory_kinds_are_those_of_keys_of_kind(tmp_path):
+    """The kinds are listed once (KEYS_OF_KIND); a kind not there is refused, naming file, line and key."""
+    from typing import get_args, get_type_hints
+
+    from ident_hw.config.trajectory import KEYS_OF_KIND, TrajectoryConfig
+    assert get_args(get_type_hints(TrajectoryConfig)["kind"]) == tuple(KEYS_OF_KIND)
+    write(tmp_path, "robot-3prrr.yaml", ROBOT_TEXT)
+    old = "{name: triangle, kind: triangle}"
+    text = SIM_TEXT.replace(old, "{name: triangle, kind: triangel}", 1)
+    expect_error(write(tmp_path, "sim.yaml", text), "trajectories[7].kind", line_of(text, "triangel"),
+                 "'triangel'", "did you mean 'triangle'")
+
+
 def test_source_and_base_dir_are_given_by_the_loader_not_the_file(tmp_path):
     config = load_config(CONFIGS / "sim-3prrr.yaml")
     assert config.source == str(CONFIGS / "sim-3prrr.yaml") and config.base_dir == CONFIGS

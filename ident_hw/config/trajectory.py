@@ -1,5 +1,5 @@
-"""The ``trajectories`` section: one entry per trajectory of the campaign, and the keys each
-kind of trajectory reads (:data:`KEYS_OF_KIND`)."""
+"""The ``trajectories`` section: one entry per trajectory of the campaign, and the kinds of
+trajectory with the keys each reads (:data:`KEYS_OF_KIND`, the one list of the kinds)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ from .schema import in_range, non_negative, positive, spec
 
 #: the keys every trajectory may have
 COMMON_KEYS = ("name", "kind", "cycles", "bandwidth", "online_only", "payload")
-#: the further keys each kind of trajectory reads: any other is refused (it would be ignored)
+#: the kinds of trajectory, each with the further keys it reads: any other is refused (it would
+#: be ignored). A kind added here is a value of ``trajectories[].kind`` (:data:`TrajectoryKind`)
 KEYS_OF_KIND = {
     "carriage_sweep": ("size", "speed_scale", "dwell"),
     "square": ("size", "rotation", "speed_scale", "dwell"),
@@ -22,6 +23,8 @@ KEYS_OF_KIND = {
     "delta_held_arm": ("duration", "fade", "amplitude"),
     "joint_excitation": ("duration", "fade", "amplitude", "harmonics", "seed"),
 }
+#: the type of :attr:`TrajectoryConfig.kind`: one of the kinds of :data:`KEYS_OF_KIND`
+TrajectoryKind = Literal[tuple(KEYS_OF_KIND)]
 
 
 @dataclass(frozen=True)
@@ -67,8 +70,7 @@ class TrajectoryConfig:
     """
 
     name: str
-    kind: Literal["carriage_sweep", "square", "triangle", "fourier", "file",
-                  "delta_training", "delta_verification", "delta_held_arm", "joint_excitation"]
+    kind: TrajectoryKind
     size: float | None = field(default=None, metadata=spec(positive, unit="m"))
     rotation: float = field(default=0.0, metadata=spec(unit="rad", angle=True))
     speed_scale: float = field(default=1.0, metadata=spec(in_range(0.01, 1.0)))
