@@ -263,6 +263,18 @@ def test_the_trajectory_kinds_are_those_of_keys_of_kind(tmp_path):
                  "'triangel'", "did you mean 'triangle'")
 
 
+def test_the_seed_streams_keep_their_numbers():
+    """A stream's number is part of every simulated result of a seed: the encoder edges draw from
+    ``[seed, 2]``, the perturbed truth from ``[seed, 3]``."""
+    import numpy as np
+
+    from ident_hw.config.robots import perturbed
+    from ident_hw.config.sim import SeedStream
+    assert (SeedStream.ENCODER_EDGES, SeedStream.TRUTH_PERTURBATION) == (2, 3)
+    z = np.random.default_rng([7, 3]).standard_normal(2)
+    assert np.array_equal(perturbed(np.ones(2), ("a", "b"), 0.1, 7), np.exp(0.1 * z))
+
+
 def test_source_and_base_dir_are_given_by_the_loader_not_the_file(tmp_path):
     config = load_config(CONFIGS / "sim-3prrr.yaml")
     assert config.source == str(CONFIGS / "sim-3prrr.yaml") and config.base_dir == CONFIGS

@@ -31,6 +31,7 @@ from trajectories import delta_paper, joint_space
 from . import to_model
 from .robot_described import ParameterSetConfig
 from .schema import FieldError
+from .sim import SeedStream
 from .to_trajectories import actuator_limits, excitation_of, feasibility_limits
 
 if TYPE_CHECKING:  # pinocchio, which described imports, is imported by described robots only
@@ -251,6 +252,6 @@ def perturbed(values: np.ndarray, names: tuple[str, ...], relative_std: float, s
     of its own (the 3PRRR's masses and inertias, friction, rotor inertias). Signs and zeros stay."""
     groups = [name.split(".", 1)[0] if "." in name else name for name in names]
     order = list(dict.fromkeys(groups))
-    z = np.random.default_rng([seed, 3]).standard_normal(len(order))
+    z = SeedStream.TRUTH_PERTURBATION.rng(seed).standard_normal(len(order))
     factor = dict(zip(order, np.exp(relative_std * z)))
     return np.asarray(values, dtype=float) * np.array([factor[g] for g in groups])

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass, field
 from typing import Literal
+
+import numpy as np
 
 from drivers.cia import NODE_ID_MAX, NODE_ID_MIN
 
@@ -27,7 +30,20 @@ class SimFaultConfig:
     code: int = field(default=0x2310, metadata=spec(in_range(0x1000, 0xFFFF), doc="EMCY error code"))
 
 
-#: the keys of ``sim`` that hold some robot kind's true parameters
+class SeedStream(enum.IntEnum):
+    """The random streams the config draws from ``sim.seed``, each its own
+    (``numpy.random.default_rng([seed, stream])``, :meth:`rng`), apart from the rig's noise and
+    frame losses (:class:`drivers.sim.rig.SimulatedRig`'s ``seed``). Their numbers are part of
+    every simulated result: changing one changes the results of the same seed."""
+
+    #: each simulated axis's encoder count-edge shift (``sim.encoder_edges: random``)
+    ENCODER_EDGES = 2
+    #: the factors of the true parameters drawn around the configured ones (``sim.perturb``)
+    TRUTH_PERTURBATION = 3
+
+    def rng(self, seed: int) -> np.random.Generator:
+        """The generator of this stream of ``seed``."""
+        return np.random.default_rng([seed, int(self)])
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ from drivers.units import AxisScaling
 
 from .actuators import ActuatorConfig
 from .bus import BusConfig
-from .sim import SimConfig
+from .sim import SeedStream, SimConfig
 
 
 def axis_scaling(actuator: ActuatorConfig) -> AxisScaling:
@@ -54,4 +54,4 @@ def encoder_edge_counts(sim: SimConfig, axes: int) -> np.ndarray:
     ``fixed``, drawn from ``sim.seed`` when ``random``)."""
     if sim.encoder_edges == "fixed":
         return np.zeros(axes)
-    return np.random.default_rng([sim.seed, 2]).uniform(-0.5, 0.5, axes)
+    return SeedStream.ENCODER_EDGES.rng(sim.seed).uniform(-0.5, 0.5, axes)
