@@ -275,6 +275,18 @@ def test_the_seed_streams_keep_their_numbers():
     assert np.array_equal(perturbed(np.ones(2), ("a", "b"), 0.1, 7), np.exp(0.1 * z))
 
 
+def test_a_bitrate_on_a_virtual_bus_is_refused(tmp_path):
+    """A virtual bus has no bitrate and nothing reads one there: the key is an error naming file,
+    line and key; on a bus that has one (vcan) it stays."""
+    write(tmp_path, "robot-3prrr.yaml", ROBOT_TEXT)
+    old = "  channel: ident-hw-sim"
+    assert old in SIM_TEXT and "bitrate" not in SIM_TEXT
+    text = SIM_TEXT.replace(old, old + "\n  bitrate: 500000", 1)
+    expect_error(write(tmp_path, "sim.yaml", text), "bus.bitrate", line_of(text, "bitrate: 500000"),
+                 "'virtual' bus has no bitrate")
+    assert load_config(CONFIGS / "vcan-3prrr.yaml").bus.bitrate == 1_000_000
+
+
 def test_source_and_base_dir_are_given_by_the_loader_not_the_file(tmp_path):
     config = load_config(CONFIGS / "sim-3prrr.yaml")
     assert config.source == str(CONFIGS / "sim-3prrr.yaml") and config.base_dir == CONFIGS
