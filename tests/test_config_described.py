@@ -58,6 +58,23 @@ def test_the_2r_config_is_its_description_with_the_config_s_actuators(tmp_path):
     assert kind_of(cfg.robot) is KINDS["described"]
 
 
+def test_a_perturbed_truth_is_drawn_on_the_model_given(tmp_path, monkeypatch):
+    """``true_parameters`` with the robot's model (the runner has it) builds no other; without it,
+    one, the same: a described robot's model is read from its file."""
+    import ident_hw.config.robots as robots
+    setup(tmp_path)
+    (tmp_path / "perturbed.yaml").write_text("extends: sim-2r.yaml\nsim: {perturb: 0.1, seed: 4}\n")
+    cfg = load_config(tmp_path / "perturbed.yaml")
+    model, built = model_of(cfg.robot), true_parameters(cfg)
+    assert not np.array_equal(built, true_parameters(load_config(tmp_path / "sim-2r.yaml")))
+
+    def no_second_model(robot):
+        raise AssertionError("a second model built")
+    monkeypatch.setattr(robots, "model_of", no_second_model)
+    monkeypatch.setattr(robots, "described_model", no_second_model)
+    assert np.array_equal(true_parameters(cfg, model), built)
+
+
 def test_a_path_in_a_base_config_holds_in_the_config_extending_it(tmp_path):
     sub = tmp_path / "runs"
     setup(tmp_path)

@@ -47,8 +47,8 @@ if TYPE_CHECKING:  # pinocchio, which described imports, is imported by describe
 @dataclass(frozen=True)
 class RobotKind:
     """One robot kind (see the module docstring). Its functions take the config's ``robot``
-    section (``truth`` also ``sim``; ``build`` and ``check`` the whole config) and never look at
-    ``robot.kind``.
+    section (``truth`` also ``sim`` and the robot's model; ``build`` and ``check`` the whole
+    config) and never look at ``robot.kind``.
 
     Attributes:
         name: the value of ``robot.kind``.
@@ -57,7 +57,7 @@ class RobotKind:
         trajectory_kinds: the generated trajectory kinds of this robot (``file`` is any robot's).
         model: ``robot -> RobotModel``.
         initial: ``robot -> (P,)`` the CAD parameters in the model's order.
-        truth: ``(robot, sim) -> (P,)`` the true parameters in the model's order.
+        truth: ``(robot, sim, robot model) -> (P,)`` the true parameters in the model's order.
         actuators: ``robot -> (names, kinds)`` the actuators the robot expects, in order.
         build: ``(config, trajectory, robot model, rate) -> Trajectory`` one generated trajectory.
         check: ``(config, trajectory, robot model) -> Report`` its feasibility.
@@ -70,7 +70,7 @@ class RobotKind:
     trajectory_kinds: tuple[str, ...]
     model: Callable[[Any], RobotModel]
     initial: Callable[[Any], np.ndarray]
-    truth: Callable[[Any, Any], np.ndarray]
+    truth: Callable[[Any, Any, RobotModel], np.ndarray]
     actuators: Callable[[Any], tuple[tuple[str, ...], tuple[str, ...]]]
     build: Callable[[Any, Any, RobotModel, float], trajectories.Trajectory]
     check: Callable[[Any, trajectories.Trajectory, RobotModel], trajectories.Report]
@@ -110,7 +110,7 @@ THREE_PRRR = RobotKind(
     trajectory_kinds=("carriage_sweep", "square", "triangle", "fourier"),
     model=lambda robot: ThreePRRR(to_model.geometry(robot.geometry), coulomb_width=robot.coulomb_width),
     initial=lambda robot: to_model.inertial_params(robot.cad).as_vector(),
-    truth=lambda robot, sim: to_model.inertial_params(sim.truth).as_vector(),
+    truth=lambda robot, sim, model: to_model.inertial_params(sim.truth).as_vector(),
     actuators=lambda robot: (ThreePRRR.actuator_names, ThreePRRR.actuator_kinds),
     build=_threeprrr_build,
     check=lambda config, traj, robot: trajectories.check_trajectory(traj, robot, feasibility_limits(config.robot)),
@@ -134,7 +134,7 @@ DELTA = RobotKind(
     trajectory_kinds=("delta_training", "delta_verification", "delta_held_arm"),
     model=lambda robot: Delta(to_model.delta_geometry(robot.delta.geometry), coulomb_width=robot.coulomb_width),
     initial=lambda robot: to_model.delta_parameters(robot.delta.cad, to_model.delta_geometry(robot.delta.geometry)),
-    truth=lambda robot, sim: to_model.delta_parameters(sim.delta_truth, to_model.delta_geometry(robot.delta.geometry)),
+    truth=lambda robot, sim, model: to_model.delta_parameters(sim.delta_truth, to_model.delta_geometry(robot.delta.geometry)),
     actuators=lambda robot: (Delta.actuator_names, Delta.actuator_kinds),
     build=lambda config, tcfg, robot, rate: delta_paper.delta_trajectory(
         robot, tcfg.kind, tcfg.duration, rate, tcfg.fade, name=tcfg.name, amplitude=tcfg.amplitude),
@@ -204,7 +204,7 @@ DESCRIBED = RobotKind(
     name="described", sections=("described",), truth_key="parameters", trajectory_kinds=("joint_excitation",),
     model=described_model,
     initial=lambda robot: to_model.described_parameters(robot.described.cad, described_model(robot)),
-    truth=lambda robot, sim: to_model.described_parameters(sim.parameters, described_model(robot)),
+    truth=lambda robot, sim, model: to_model.described_parameters(sim.parameters, model),
     actuators=lambda robot: (tuple(a.name for a in robot.actuators), tuple(a.kind for a in robot.actuators)),
     build=_described_build,
     check=lambda config, traj, robot: joint_space.check_described_trajectory(
@@ -233,14 +233,16 @@ def initial_parameters(robot: RobotConfig) -> np.ndarray:
     return kind_of(robot).initial(robot)
 
 
-def true_parameters(config: Config) -> np.ndarray | None:
-    """The simulated rig's true parameters (P,) in the model's order, drawn around the configured
-    ones when ``sim.perturb`` is set (:func:`perturbed`); None without ``sim``."""
+def true_parameters(config: Config, model: RobotModel | None = None) -> np.ndarray | None:
+    """The simulated rig's true parameters (P,) in the order of ``model`` (the config robot's,
+    :func:`model_of`; built when not given), drawn around the configured ones when
+    ``sim.perturb`` is set (:func:`perturbed`); None without ``sim``."""
     if config.sim is None:
         return None
-    values = kind_of(config.robot).truth(config.robot, config.sim)
+    model = model_of(config.robot) if model is None else model
+    values = kind_of(config.robot).truth(config.robot, config.sim, model)
     if config.sim.perturb:
-        values = perturbed(values, model_of(config.robot).parameter_names, config.sim.perturb, config.sim.seed)
+        values = perturbed(values, model.parameter_names, config.sim.perturb, config.sim.seed)
     return values
 
 

@@ -88,7 +88,7 @@ class CampaignEstimator:
 
     def _truth_at(self, name: str, t: np.ndarray) -> np.ndarray | None:
         """(M, n) the simulated truth at the trajectory's times ``t`` (s from its start)."""
-        true = true_parameters(self.config)
+        true = true_parameters(self.config, self.robot)
         if true is None:
             return None
         truth = np.tile(true, (len(t), 1))

@@ -399,7 +399,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
 
     initial = initial_parameters(config.robot)
     estimates = _Estimates.initial(initial)
-    truth = true_parameters(config)
+    truth = true_parameters(config, robot)
     steps, base_fit, base_equivalent, model_comparison, fitted = _run_steps(
         ident, robot, prepared, compared, estimates, initial, truth, progress, draws)
 

@@ -52,7 +52,8 @@ def simulated_rig(config: Config) -> SimulatedRig:
     sim, robot = config.sim, config.robot
     lockstep = config.sync_mode == "lockstep"
     axes = [(a.node_id, a.profile, axis_scaling(a)) for a in robot.actuators]
-    return SimulatedRig.build(robot_model(config), true_parameters(config), axes,
+    model = robot_model(config)
+    return SimulatedRig.build(model, true_parameters(config, model), axes,
                               bandwidth_hz=sim.bandwidth, damping=sim.damping,
                               **({"max_substep": sim.max_substep} if sim.max_substep else {}),
                               sync_period=sync_period(config) if lockstep else None,
