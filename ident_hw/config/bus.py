@@ -30,7 +30,8 @@ class BusConfig:
     channel: str
     bitrate: int = field(default=1_000_000, metadata=spec(
         positive, unit="bit/s", doc="the bus's nominal bitrate, the budget of the bus-load check of the SYNC rate "
-                                    "(drivers.bus.check_bus_load); a 'virtual' bus has none: refused there"))
+                                    "(drivers.bus.check_bus_load); a 'virtual' bus has none and ignores it (a lab's "
+                                    "config extended onto a virtual bus inherits its hardware's)"))
     sync_rate: float = field(default=250.0, metadata=spec(in_range(1.0, 2000.0), unit="Hz"))
     sdo_timeout: float = field(default=0.5, metadata=spec(positive, unit="s"))
     heartbeat: float = field(default=0.1, metadata=spec(positive, unit="s"))

@@ -19,7 +19,6 @@ from ident_hw.model.delta import BODIES, BODY_PARAMS
 from ident_hw.model.interface import RobotModel
 
 from .actuators import ActuatorConfig
-from .bus import BusConfig
 from .file import Config
 from .identification import IdentificationConfig, OnlineConfig, PhysicalConfig
 from .robot import RobotConfig
@@ -53,14 +52,6 @@ def check_actuator(a: ActuatorConfig, written: frozenset = frozenset()) -> None:
         raise FieldError("screw_lead", "missing key: a prismatic actuator needs screw_lead (m per motor turn)")
     if a.kind == REVOLUTE and a.screw_lead is not None:
         raise FieldError("screw_lead", "a revolute actuator has no screw_lead")
-
-
-def check_bus(bus: BusConfig, written: frozenset = frozenset()) -> None:
-    """No bitrate on a ``virtual`` bus: it has none, and nothing would read it (the bus-load check
-    of the SYNC rate runs on a bus with a bitrate only)."""
-    if bus.interface == "virtual" and "bitrate" in written:
-        raise FieldError("bitrate", "a 'virtual' bus has no bitrate (it would be ignored: no bus-load check "
-                                    "runs on it); remove the key")
 
 
 def check_robot(robot: RobotConfig, written: frozenset = frozenset()) -> None:
@@ -251,7 +242,6 @@ CHECKS: dict[type, Callable[[object, frozenset], None]] = {
     GeometryConfig: check_geometry,
     DeltaParametersConfig: check_delta_parameters,
     ActuatorConfig: check_actuator,
-    BusConfig: check_bus,
     RobotConfig: check_robot,
     TrajectoryConfig: check_trajectory,
     OnlineConfig: check_scales_of,
