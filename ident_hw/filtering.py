@@ -117,10 +117,9 @@ class FilterSettings:
 
     @property
     def position_cutoff_hz(self) -> float:
-        """Cut-off of the positions' low-pass (:func:`prepare_actuated`), Hz: :attr:`cutoff_hz`, or
-        with a ``position_margin`` above 1 that many times the parallel filter's cut-off
-        (:attr:`decimation_cutoff_hz`), at most a quarter of the sample rate, never below
-        :attr:`cutoff_hz`.
+        """Cut-off of the positions' low-pass (:func:`prepare_actuated`), Hz: ``position_margin``
+        times the parallel filter's cut-off (:attr:`decimation_cutoff_hz`), at most a quarter of
+        the sample rate, never below :attr:`cutoff_hz` (which it is with a margin of 1).
 
         Why above the parallel filter, for some motions: the forces reach the fit through the
         parallel filter only, the regressor through the positions' low-pass *and* the parallel
@@ -133,8 +132,6 @@ class FilterSettings:
         within 0.4 % of unity (``1 / (1 + 2^-8)``) over the band the fit sees; the price is more
         of the encoder's rounding in the accelerations, which is why it is not used everywhere.
         """
-        if self.position_margin == 1.0:
-            return self.cutoff_hz
         return max(self.cutoff_hz, min(self.position_margin * self.decimation_cutoff_hz, 0.25 * self.sample_rate))
 
     @property

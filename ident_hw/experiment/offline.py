@@ -44,7 +44,8 @@ from ident_hw.records import BaseAnalysis, LeastSquaresFigures, MassFitFigures, 
 from ident_hw.report import coverage_text
 from ident_hw.results import BaseFit, ParameterTable, Results, TrajectoryFit
 from ident_hw.segments import Segments, slot_indices, split, uniform
-from ident_hw.filtering import kept_samples, near_rest, parallel_decimate, prepare_actuated, running_average
+from ident_hw.filtering import (FilterSettings, kept_samples, near_rest, parallel_decimate, prepare_actuated,
+                               running_average)
 
 from .encoder import count_shifts, reread, smoothed_positions, spread_covariance
 from .plan import motion_bandwidth, position_margin, robot_model
@@ -151,6 +152,13 @@ def _bridged(t: np.ndarray, values: np.ndarray) -> np.ndarray:
     return out
 
 
+def trajectory_filter(config: Config, name: str, sample_rate: float) -> FilterSettings:
+    """The identification filter of trajectory ``name``'s recording sampled at ``sample_rate`` (Hz):
+    its motion's bandwidth (:func:`motion_bandwidth`) and position margin (:func:`position_margin`)."""
+    return filter_settings(config.identification.filter, sample_rate, motion_bandwidth(config, name),
+                           position_margin(config, name))
+
+
 def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar_models: bool = False) -> Prepared:
     """Recording → filtered motion, regressor and forces, decimated in parallel, stretch by
     stretch (:func:`segments_of`: cut at gaps and at rows left out, each stretch filtered on
@@ -167,8 +175,7 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
              for a, ok in zip(config.robot.actuators, identification_valid(rec).any(axis=0)) if not ok]
     if empty:
         raise RecordingError(f"{where}: no valid sample of {', '.join(empty)}")
-    settings = filter_settings(config.identification.filter, 1.0 / recording_period(rec), motion_bandwidth(config, name),
-                               position_margin(config, name))
+    settings = trajectory_filter(config, name, 1.0 / recording_period(rec))
     segments = segments_of(config, rec, settings.trim, MIN_FILTERED, settings.cut_trim)
     if not segments.slices:      # nothing to fit; the quality verdict says why
         a, m = len(robot.actuator_names), len(robot.parameter_names)
@@ -302,8 +309,7 @@ def reread_draws(config: Config, robot: RobotModel, recordings: Mapping[str, Rec
     smooth = {}
     for name in names if draws else ():      # the motion the draws read again, once per recording
         rate = 1.0 / recording_period(recordings[name])
-        settings = filter_settings(config.identification.filter, rate, motion_bandwidth(config, name),
-                                   position_margin(config, name))
+        settings = trajectory_filter(config, name, rate)
         smooth[name] = smoothed_positions(recordings[name], rate, settings.cutoff_hz, settings.order)
     return [{name: prepare(config, robot, name, reread(recordings[name], smooth[name], counts_per_unit, shift))
              for name in names}
