@@ -181,7 +181,7 @@ def test_a_hil_campaign_that_check_accepts_runs_to_its_end(tmp_path, hil):
     config = tmp_path / "hil-sim.yaml"
     config.write_text(yaml.safe_dump({
         "extends": str(ROOT / "configs" / hil),
-        "bus": {"interface": "virtual", "channel": f"test-{os.getpid()}-{time.monotonic_ns()}", "sync_rate": 250.0},
+        "bus": {"interface": "virtual", "channel": f"test-{os.getpid()}-{time.monotonic_ns()}", "sync_rate": 100.0},
         "sim": sim, "identification": {"encoder_draws": 0}}, sort_keys=False))
     check = ident_hw("check", config, cwd=tmp_path)
     assert check.returncode == 0 and "everything would run" in check.stdout, check.stdout + check.stderr

@@ -159,7 +159,22 @@ def trajectory_filter(config: Config, name: str, sample_rate: float) -> FilterSe
                            position_margin(config, name))
 
 
-def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar_models: bool = False) -> Prepared:
+def usable_segments(config: Config, name: str, rec: Recording) -> tuple[FilterSettings, Segments]:
+    """Trajectory ``name``'s filter at its recording's rate, and the stretches of the recording
+    it filters (:func:`segments_of`, trimmed as the filter needs)."""
+    settings = trajectory_filter(config, name, 1.0 / recording_period(rec))
+    return settings, segments_of(config, rec, settings.trim, MIN_FILTERED, settings.cut_trim)
+
+
+def kinematics_starts(robot: RobotModel, rec: Recording, segments: Segments) -> np.ndarray:
+    """Start poses (len(segments.t), pose_size) for the kinematics of the usable rows: a
+    continuation from the home pose along the whole recording, across its gaps (a Newton start
+    only, never data: it picks the assembly mode)."""
+    return robot.pose_series(_bridged(segments.t, rec.position), np.zeros(robot.pose_size))
+
+
+def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar_models: bool = False,
+            starts: np.ndarray | None = None) -> Prepared:
     """Recording → filtered motion, regressor and forces, decimated in parallel, stretch by
     stretch (:func:`segments_of`: cut at gaps and at rows left out, each stretch filtered on
     its own and trimmed at both ends: ``trim`` rows at the recording's own ends, ``cut_trim``
@@ -167,7 +182,9 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
     regressor goes through the drives' running average too. ``scalar_models``: also the power
     and energy models' rows of every stretch, from the same filtered motion and forces
     (:func:`ident_hw.identification.model_comparison.power_energy_rows`; not matched to averaged
-    currents, whose average does not commute with the product of force and velocity)."""
+    currents, whose average does not commute with the product of force and velocity).
+    ``starts``: the kinematics' start poses of the usable rows (:func:`kinematics_starts`), when
+    the caller has them (the encoder draws start from the recording's own poses)."""
     where = f"{rec.metadata.file or 'recording'} (trajectory {name!r})"
     if len(rec.t) < 3:
         raise RecordingError(f"{where}: {len(rec.t)} samples, too few to identify from")
@@ -175,17 +192,14 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
              for a, ok in zip(config.robot.actuators, identification_valid(rec).any(axis=0)) if not ok]
     if empty:
         raise RecordingError(f"{where}: no valid sample of {', '.join(empty)}")
-    settings = trajectory_filter(config, name, 1.0 / recording_period(rec))
-    segments = segments_of(config, rec, settings.trim, MIN_FILTERED, settings.cut_trim)
+    settings, segments = usable_segments(config, name, rec)
     if not segments.slices:      # nothing to fit; the quality verdict says why
         a, m = len(robot.actuator_names), len(robot.parameter_names)
         return Prepared(name, np.zeros(0), np.zeros((0, a)), np.zeros((0, robot.pose_size)), np.zeros((0, a, m)),
                         np.zeros((0, a)), np.zeros((0, a), bool), segments=segments)
     force_per_amp = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])
     speed_limit = np.array([a.limits.velocity for a in config.robot.actuators])
-    # start poses for the forward kinematics of each stretch: a continuation from the home pose
-    # along the whole recording, across its gaps (a Newton start only, never data)
-    guess = robot.pose_series(_bridged(segments.t, rec.position), np.zeros(robot.pose_size))
+    guess = kinematics_starts(robot, rec, segments) if starts is None else starts
     averaging = current_averaging(config, rec)
     parts, scalar = [], []
     for stretch in segments.stretches:
@@ -306,12 +320,14 @@ def reread_draws(config: Config, robot: RobotModel, recordings: Mapping[str, Rec
     moved (:mod:`ident_hw.experiment.encoder`), each prepared as the recording was: one dict
     (trajectory name -> :class:`Prepared`) per draw."""
     counts_per_unit = np.array([axis_scaling(a).counts_per_unit for a in config.robot.actuators])
-    smooth = {}
-    for name in names if draws else ():      # the motion the draws read again, once per recording
-        rate = 1.0 / recording_period(recordings[name])
-        settings = trajectory_filter(config, name, rate)
-        smooth[name] = smoothed_positions(recordings[name], rate, settings.cutoff_hz, settings.order)
-    return [{name: prepare(config, robot, name, reread(recordings[name], smooth[name], counts_per_unit, shift))
+    smooth, starts = {}, {}
+    for name in names if draws else ():  # once per recording: the motion the draws read again, and
+        rec = recordings[name]           # the poses their kinematics start from (a count away at most)
+        settings, segments = usable_segments(config, name, rec)
+        smooth[name] = smoothed_positions(rec, settings.sample_rate, settings.cutoff_hz, settings.order)
+        starts[name] = kinematics_starts(robot, rec, segments)
+    return [{name: prepare(config, robot, name, reread(recordings[name], smooth[name], counts_per_unit, shift),
+                           starts=starts[name])
              for name in names}
             for shift in count_shifts(draws, len(counts_per_unit))]
 
