@@ -272,9 +272,22 @@ def parallel_decimate(settings: FilterSettings, *arrays: np.ndarray, ends: Ends 
         raise ValueError(f"{n} samples are too few for trimming {head} and {tail} samples at the ends")
     window = kept_samples(settings, n, ends)
     pads = ends.pick(EVEN, ODD)
-    return tuple(
-        lowpass(a, settings.sample_rate, settings.decimation_cutoff_hz, settings.order, pads)[window] for a in arrays
-    )
+    return tuple(_lowpass_live(a, settings, pads)[window] for a in arrays)
+
+
+def _lowpass_live(a: np.ndarray, settings: FilterSettings, pads: tuple[str, str]) -> np.ndarray:
+    """:func:`lowpass` of ``a`` (N, ...) at the decimation cut-off, filtering only the columns that
+    are not zero throughout (a regressor's columns are often structurally zero: another axis's
+    parameters, a parameter the motion does not excite); a zero column's low-pass is zero."""
+    flat = np.asarray(a, dtype=float).reshape(len(a), -1)
+    live = np.flatnonzero(np.any(flat != 0.0, axis=0))
+    if len(live) == flat.shape[1]:
+        return lowpass(a, settings.sample_rate, settings.decimation_cutoff_hz, settings.order, pads)
+    out = np.zeros(flat.shape)
+    if len(live):
+        out[:, live] = lowpass(flat[:, live], settings.sample_rate, settings.decimation_cutoff_hz, settings.order,
+                               pads)
+    return out.reshape(np.shape(a))
 
 
 @functools.lru_cache(maxsize=None)

@@ -185,8 +185,8 @@ def test_forward_dynamics_inverts_the_inverse_dynamics():
 
 
 def test_plant_dynamics_equals_the_regressor():
-    """The compiled one-state path (ident_hw.model.delta_single) against the regressor: ``M`` with
-    ``Jm``, the bias ``tau(q, qd, 0)`` without ``fv``, ``fc``, and the pose."""
+    """The compiled one-state path (ident_hw.model.delta_single) against the vectorised regressor:
+    ``M`` with ``Jm``, the bias ``tau(q, qd, 0)`` without ``fv``, ``fc``, and the pose."""
     pi = truth()
     frictionless = pi.copy()
     frictionless[N_BODY_PARAMS:N_BODY_PARAMS + 6] = 0.0
@@ -194,11 +194,25 @@ def test_plant_dynamics_equals_the_regressor():
     for _ in range(20):
         q, qd = rng.uniform(-0.8, 0.8, 3), rng.uniform(-3.0, 3.0, 3)
         M, bias, pose = ROBOT.plant_dynamics(q, qd, pi)
-        M_ref = ROBOT.mass_matrix(q, pi)
-        bias_ref = ROBOT.regressor(q, qd, np.zeros(3)) @ frictionless
+        static = ROBOT.vectorised_regressor(q, np.zeros(3), np.zeros(3)) @ frictionless
+        M_ref = np.stack([ROBOT.vectorised_regressor(q, np.zeros(3), np.eye(3)[j]) @ frictionless - static
+                          for j in range(3)], axis=1)
+        bias_ref = ROBOT.vectorised_regressor(q, qd, np.zeros(3)) @ frictionless
         np.testing.assert_allclose(M, M_ref, rtol=1e-12, atol=1e-12 * np.abs(M_ref).max())
         np.testing.assert_allclose(bias, bias_ref, rtol=1e-12, atol=1e-12 * np.abs(bias_ref).max())
         np.testing.assert_allclose(pose, ROBOT.fk(q), rtol=0, atol=1e-15)
+
+
+def test_the_compiled_regressor_equals_the_vectorised_one():
+    """:meth:`Delta.regressor` (the compiled sample loop) against :meth:`Delta.vectorised_regressor`
+    (batched NumPy) over the workspace, every column, accelerations included; one sample alone too."""
+    rng = np.random.default_rng(11)
+    q, qd, qdd = rng.uniform(-0.8, 0.8, (200, 3)), rng.uniform(-3.0, 3.0, (200, 3)), rng.uniform(-30, 30, (200, 3))
+    Y, Y_ref = ROBOT.regressor(q, qd, qdd), ROBOT.vectorised_regressor(q, qd, qdd)
+    assert Y.shape == Y_ref.shape == (200, 3, N_PARAMS)
+    np.testing.assert_allclose(Y, Y_ref, rtol=1e-12, atol=1e-12 * np.abs(Y_ref).max())
+    np.testing.assert_allclose(ROBOT.regressor(q[7], qd[7], qdd[7]), Y_ref[7], rtol=1e-12,
+                               atol=1e-12 * np.abs(Y_ref).max())
 
 
 def test_plant_dynamics_raises_as_the_regressor():

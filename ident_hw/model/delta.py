@@ -359,7 +359,34 @@ class Delta:
 
     # ------------------------------------------------------------------ dynamics
     def regressor(self, q, qd, qdd) -> np.ndarray:
-        """``Y`` (N, 3, 79): ``tau = Y @ pi`` (virtual work of the seven bodies, then the drive terms)."""
+        """``Y`` (N, 3, 79): ``tau = Y @ pi`` (virtual work of the seven bodies, then the drive terms).
+
+        The bodies' columns by the compiled sample loop (:func:`.delta_single.body_regressor`,
+        held equal to :meth:`vectorised_regressor`); where a sample's motion fails there (no
+        assembly, a singularity), the whole batch goes the vectorised way, which raises the error."""
+        q = np.asarray(q, float)
+        single = q.ndim == 1
+        c = np.ascontiguousarray
+        q, qd, qdd = (c(np.atleast_2d(np.asarray(x, float))) for x in (q, qd, qdd))
+        if not q.shape == qd.shape == qdd.shape or q.shape[1] != 3:
+            raise ValueError(f"q, qd, qdd must each be (N, 3), got {q.shape}, {qd.shape}, {qdd.shape}")
+        from . import delta_single  # compiled code
+        Y = np.zeros((len(q), 3, N_PARAMS))
+        if delta_single.body_regressor(q, qd, qdd, self._single_geo, self._e, self._y, self.g, Y) >= 0:
+            return self.vectorised_regressor(q[0] if single else q, qd[0] if single else qd,
+                                             qdd[0] if single else qdd)
+        self._drive_columns(Y, qd, qdd)
+        return Y[0] if single else Y
+
+    def _drive_columns(self, Y, qd, qdd) -> None:
+        """The drive terms' columns of ``Y`` (N, 3, 79): viscous and Coulomb friction, rotor inertia."""
+        idx = np.arange(3)
+        Y[:, idx, N_BODY_PARAMS + idx] = qd
+        Y[:, idx, N_BODY_PARAMS + 3 + idx] = smooth_sign(qd, self.coulomb_width)
+        Y[:, idx, N_BODY_PARAMS + 6 + idx] = qdd
+
+    def vectorised_regressor(self, q, qd, qdd) -> np.ndarray:
+        """:meth:`regressor` in NumPy over the batch (the reference of the compiled path)."""
         q = np.asarray(q, float)
         single = q.ndim == 1
         q, qd, qdd = (np.atleast_2d(np.asarray(x, float)) for x in (q, qd, qdd))
@@ -380,10 +407,7 @@ class Delta:
             phi[:, 3:, 4:] = _inertia_map(albar) + Sw @ Lw
             world = np.concatenate([bodies.Q[k] @ phi[:, :3], bodies.Q[k] @ phi[:, 3:]], axis=1)
             Y[:, :, 10 * k:10 * k + 10] = np.swapaxes(bodies.J[k], 1, 2) @ world
-        idx = np.arange(3)
-        Y[:, idx, N_BODY_PARAMS + idx] = qd
-        Y[:, idx, N_BODY_PARAMS + 3 + idx] = smooth_sign(qd, self.coulomb_width)
-        Y[:, idx, N_BODY_PARAMS + 6 + idx] = qdd
+        self._drive_columns(Y, qd, qdd)
         return Y[0] if single else Y
 
     def inverse_dynamics(self, q, qd, qdd, pi) -> np.ndarray:
@@ -452,7 +476,7 @@ class Delta:
         c = np.ascontiguousarray
         pi = c(params, dtype=float)
         M, bias, p = np.empty((3, 3)), np.empty(3), np.empty(3)
-        from . import delta_single  # compiled code, loaded by the simulated rig only
+        from . import delta_single  # compiled code
         outcome = delta_single.one_state(c(Theta, dtype=float), c(Thetad, dtype=float), pi, pi[N_BODY_PARAMS + 6:],
                                          self._single_geo, self._e, self._y, self.g, M, bias, p)
         if outcome != delta_single.OK:

@@ -106,13 +106,14 @@ def _add_body(M, bias, body, Q, am, omega, alpha, Jv, Jw):
                         + Jw[0, r] * n[0] + Jw[1, r] * n[1] + Jw[2, r] * n[2])
 
 
-@numba.njit((_V, _V, _V, _V, _V, _M, _M, _V, _M, _V, _V), cache=True, nogil=True)
-def one_state(q, qd, pi, Jm, geo, e, y, g, M, bias, p):
-    """``M`` (3, 3), ``bias`` (3,) and the platform position ``p`` (3,) at ``(q, qd)``.
-
-    ``pi`` (79,): the model's parameters (the bodies' are read), ``Jm`` (3,) kg·m²: the reflected
-    rotor inertias; ``geo`` = ``[L1, L2, R, r]`` (m); ``e``, ``y`` (3 limbs, 3): radial and motor axes; ``g`` (3,)
-    gravity (m/s²). Returns :data:`OK`, or the first failure met (outputs then undefined).
+@numba.njit(cache=True, nogil=True)
+def _bodies(q, qd, geo, e, y, g, Qs, ams, omegas, alphas, Jvs, Jws, p):
+    """The seven bodies' motion at ``(q, qd)`` and zero actuated acceleration, body ``k`` in the
+    order of ``pi`` (arms 1-3, rods 1-3, platform): its axes ``Qs[k]`` (3, 3) in world, its
+    origin's acceleration minus gravity ``ams[k]`` (3,), ``omegas[k]``, ``alphas[k]`` (3,), and
+    ``Jvs[k]``, ``Jws[k]`` (3, 3): origin velocity and angular velocity per actuated rate (an
+    actuated acceleration ``qdd`` adds ``Jvs[k] @ qdd`` and ``Jws[k] @ qdd``); the platform
+    position ``p`` (3,). Returns :data:`OK`, or the first failure met (outputs then undefined).
     """
     L1, L2, Rb, rp = geo[0], geo[1], geo[2], geo[3]
     ez = np.array([0.0, 0.0, 1.0])
@@ -244,46 +245,130 @@ def one_state(q, qd, pi, Jm, geo, e, y, g, M, bias, p):
             beta[i, j] = -(sb[i] * W[0, j] + cb[i] * W[2, j]) / cc[i]
             gamma[i, j] = W[1, j] / cc[i]
     # the seven bodies
-    for r in range(3):
-        bias[r] = 0.0
-        for j in range(3):
-            M[r, j] = 0.0
-    Ri, Q, Q1, Q2, Rot = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
-    Jv, Jw = np.zeros((3, 3)), np.empty((3, 3))
-    am, omega, alpha = np.empty(3), np.empty(3), np.empty(3)
+    Ri, Q1, Q2, Rot = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
     for i in range(3):                                                   # arms
         for k in range(3):
             Ri[k, 0], Ri[k, 1], Ri[k, 2] = e[i, k], y[i, k], ez[k]
-            am[k] = -g[k]
-            omega[k] = qd[i] * y[i, k]
-            alpha[k] = 0.0
+            ams[i, k] = -g[k]
+            omegas[i, k] = qd[i] * y[i, k]
+            alphas[i, k] = 0.0
             for j in range(3):
-                Jw[k, j] = y[i, k] if j == i else 0.0
+                Jvs[i, k, j] = 0.0
+                Jws[i, k, j] = y[i, k] if j == i else 0.0
         _rot(1, q[i], Rot)
-        _mul(Ri, Rot, Q)
-        _add_body(M, bias, pi[10 * i:10 * i + 10], Q, am, omega, alpha, Jv, Jw)
-    for k in range(3):
-        am[k] = pdd[k] - g[k]
+        _mul(Ri, Rot, Qs[i])
     for i in range(3):                                                   # rods
         for k in range(3):
             Ri[k, 0], Ri[k, 1], Ri[k, 2] = e[i, k], y[i, k], ez[k]
-            omega[k] = omega_rod[i, k]
-            alpha[k] = alpha_rod[i, k]
+            ams[3 + i, k] = pdd[k] - g[k]
+            omegas[3 + i, k] = omega_rod[i, k]
+            alphas[3 + i, k] = alpha_rod[i, k]
             for j in range(3):
-                Jw[k, j] = y[i, k] * beta[i, j] + nvec[i, k] * gamma[i, j]
+                Jvs[3 + i, k, j] = J[k, j]
+                Jws[3 + i, k, j] = y[i, k] * beta[i, j] + nvec[i, k] * gamma[i, j]
         _rot(1, b[i], Rot)
         _mul(Ri, Rot, Q1)
         _rot(2, cr[i], Rot)
         _mul(Q1, Rot, Q2)
         _rot(0, -PI / 2, Rot)
-        _mul(Q2, Rot, Q)
-        _add_body(M, bias, pi[30 + 10 * i:40 + 10 * i], Q, am, omega, alpha, J, Jw)
+        _mul(Q2, Rot, Qs[3 + i])
     for k in range(3):                                                   # platform
-        omega[k], alpha[k] = 0.0, 0.0
+        ams[6, k] = pdd[k] - g[k]
+        omegas[6, k], alphas[6, k] = 0.0, 0.0
         for j in range(3):
-            Q[k, j] = 1.0 if k == j else 0.0
-            Jw[k, j] = 0.0
-    _add_body(M, bias, pi[60:70], Q, am, omega, alpha, J, Jw)
+            Qs[6, k, j] = 1.0 if k == j else 0.0
+            Jvs[6, k, j] = J[k, j]
+            Jws[6, k, j] = 0.0
+    return OK
+
+
+@numba.njit((_V, _V, _V, _V, _V, _M, _M, _V, _M, _V, _V), cache=True, nogil=True)
+def one_state(q, qd, pi, Jm, geo, e, y, g, M, bias, p):
+    """``M`` (3, 3), ``bias`` (3,) and the platform position ``p`` (3,) at ``(q, qd)``.
+
+    ``pi`` (79,): the model's parameters (the bodies' are read), ``Jm`` (3,) kg·m²: the reflected
+    rotor inertias; ``geo`` = ``[L1, L2, R, r]`` (m); ``e``, ``y`` (3 limbs, 3): radial and motor axes; ``g`` (3,)
+    gravity (m/s²). Returns :data:`OK`, or the first failure met (outputs then undefined).
+    """
+    Qs, Jvs, Jws = np.empty((7, 3, 3)), np.empty((7, 3, 3)), np.empty((7, 3, 3))
+    ams, omegas, alphas = np.empty((7, 3)), np.empty((7, 3)), np.empty((7, 3))
+    outcome = _bodies(q, qd, geo, e, y, g, Qs, ams, omegas, alphas, Jvs, Jws, p)
+    if outcome != OK:
+        return outcome
+    for r in range(3):
+        bias[r] = 0.0
+        for j in range(3):
+            M[r, j] = 0.0
+    for k in range(7):
+        _add_body(M, bias, pi[10 * k:10 * k + 10], Qs[k], ams[k], omegas[k], alphas[k], Jvs[k], Jws[k])
     for j in range(3):                                                   # reflected rotor inertia
         M[j, j] += Jm[j]
     return OK
+
+
+@numba.njit(cache=True, nogil=True)
+def _add_body_rows(Y, col, Q, am, omega, alpha, Jv, Jw, qdd, phi, world):
+    """Add one body's columns ``col .. col + 9`` of the regressor row block ``Y`` (3, n):
+    the actuated forces of its ten parameters ``m, m c (body axes), I (about its origin, body
+    axes: xx, xy, xz, yy, yz, zz)`` at actuated acceleration ``qdd`` (3,), as
+    :meth:`.delta.Delta.regressor` (its body-axes map ``phi`` (6, 10), then ``Q`` and ``J``ᵀ).
+    The motion arguments as :func:`_bodies` gives them; ``phi``, ``world`` (6, 10): scratch."""
+    a0 = am[0] + Jv[0, 0] * qdd[0] + Jv[0, 1] * qdd[1] + Jv[0, 2] * qdd[2]
+    a1 = am[1] + Jv[1, 0] * qdd[0] + Jv[1, 1] * qdd[1] + Jv[1, 2] * qdd[2]
+    a2 = am[2] + Jv[2, 0] * qdd[0] + Jv[2, 1] * qdd[1] + Jv[2, 2] * qdd[2]
+    l0 = alpha[0] + Jw[0, 0] * qdd[0] + Jw[0, 1] * qdd[1] + Jw[0, 2] * qdd[2]
+    l1 = alpha[1] + Jw[1, 0] * qdd[0] + Jw[1, 1] * qdd[1] + Jw[1, 2] * qdd[2]
+    l2 = alpha[2] + Jw[2, 0] * qdd[0] + Jw[2, 1] * qdd[1] + Jw[2, 2] * qdd[2]
+    # body axes: acceleration minus gravity (ax..), angular velocity (wx..), angular acceleration (lx..)
+    ax = Q[0, 0] * a0 + Q[1, 0] * a1 + Q[2, 0] * a2
+    ay = Q[0, 1] * a0 + Q[1, 1] * a1 + Q[2, 1] * a2
+    az = Q[0, 2] * a0 + Q[1, 2] * a1 + Q[2, 2] * a2
+    wx = Q[0, 0] * omega[0] + Q[1, 0] * omega[1] + Q[2, 0] * omega[2]
+    wy = Q[0, 1] * omega[0] + Q[1, 1] * omega[1] + Q[2, 1] * omega[2]
+    wz = Q[0, 2] * omega[0] + Q[1, 2] * omega[1] + Q[2, 2] * omega[2]
+    lx = Q[0, 0] * l0 + Q[1, 0] * l1 + Q[2, 0] * l2
+    ly = Q[0, 1] * l0 + Q[1, 1] * l1 + Q[2, 1] * l2
+    lz = Q[0, 2] * l0 + Q[1, 2] * l1 + Q[2, 2] * l2
+    # force rows: m a + alpha x c + omega x (omega x c); moment rows: c x a + I alpha + omega x I omega
+    phi[0, 0], phi[1, 0], phi[2, 0] = ax, ay, az
+    phi[0, 1], phi[0, 2], phi[0, 3] = -wy * wy - wz * wz, wx * wy - lz, wx * wz + ly
+    phi[1, 1], phi[1, 2], phi[1, 3] = wx * wy + lz, -wx * wx - wz * wz, wy * wz - lx
+    phi[2, 1], phi[2, 2], phi[2, 3] = wx * wz - ly, wy * wz + lx, -wx * wx - wy * wy
+    for r in range(3):
+        for c in range(4, 10):
+            phi[r, c] = 0.0
+        phi[3 + r, 0] = 0.0
+    phi[3, 1], phi[3, 2], phi[3, 3] = 0.0, az, -ay
+    phi[4, 1], phi[4, 2], phi[4, 3] = -az, 0.0, ax
+    phi[5, 1], phi[5, 2], phi[5, 3] = ay, -ax, 0.0
+    # I alpha + omega x (I omega) over [Ixx, Ixy, Ixz, Iyy, Iyz, Izz]
+    phi[3, 4], phi[3, 5], phi[3, 6] = lx, ly - wx * wz, lz + wx * wy
+    phi[3, 7], phi[3, 8], phi[3, 9] = -wy * wz, wy * wy - wz * wz, wy * wz
+    phi[4, 4], phi[4, 5], phi[4, 6] = wx * wz, lx + wy * wz, wz * wz - wx * wx
+    phi[4, 7], phi[4, 8], phi[4, 9] = ly, lz - wx * wy, -wx * wz
+    phi[5, 4], phi[5, 5], phi[5, 6] = -wx * wy, wx * wx - wy * wy, lx - wy * wz
+    phi[5, 7], phi[5, 8], phi[5, 9] = wx * wy, ly + wx * wz, lz
+    for r in range(3):                                                  # world axes
+        for c in range(10):
+            world[r, c] = Q[r, 0] * phi[0, c] + Q[r, 1] * phi[1, c] + Q[r, 2] * phi[2, c]
+            world[3 + r, c] = Q[r, 0] * phi[3, c] + Q[r, 1] * phi[4, c] + Q[r, 2] * phi[5, c]
+    for j in range(3):
+        for c in range(10):
+            Y[j, col + c] += (Jv[0, j] * world[0, c] + Jv[1, j] * world[1, c] + Jv[2, j] * world[2, c]
+                              + Jw[0, j] * world[3, c] + Jw[1, j] * world[4, c] + Jw[2, j] * world[5, c])
+
+
+@numba.njit((_M, _M, _M, _V, _M, _M, _V, numba.float64[:, :, ::1]), cache=True, nogil=True)
+def body_regressor(q, qd, qdd, geo, e, y, g, Y):
+    """The bodies' columns ``Y[:, :, :70]`` (N, 3, 70 of 79) of the regressor at the samples
+    ``q, qd, qdd`` (N, 3): added to ``Y`` (zeros there on entry). Returns -1, or the first sample
+    whose motion :func:`_bodies` refused (``Y`` then incomplete)."""
+    Qs, Jvs, Jws = np.empty((7, 3, 3)), np.empty((7, 3, 3)), np.empty((7, 3, 3))
+    ams, omegas, alphas = np.empty((7, 3)), np.empty((7, 3)), np.empty((7, 3))
+    p, phi, world = np.empty(3), np.empty((6, 10)), np.empty((6, 10))
+    for n in range(q.shape[0]):
+        if _bodies(q[n], qd[n], geo, e, y, g, Qs, ams, omegas, alphas, Jvs, Jws, p) != OK:
+            return n
+        for k in range(7):
+            _add_body_rows(Y[n], 10 * k, Qs[k], ams[k], omegas[k], alphas[k], Jvs[k], Jws[k], qdd[n], phi, world)
+    return -1
