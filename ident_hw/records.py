@@ -189,6 +189,10 @@ class StepRecord:
     ``unexcited``: free parameters its data do not excite, held. ``statistics_missing``: why the
     mass fit has no covariance. ``encoder_draws`` and ``encoder_sigma`` (one per estimate, in
     its unit): the encoders read again (:mod:`ident_hw.experiment.encoder`), 0 and () without.
+    ``held_sigma`` (one per estimate of a mass fit, in its unit, () when none applies): how far
+    the estimate moves when the parameters its step holds go from the values it was given to the
+    step-by-step fixed point (:func:`ident_hw.experiment.offline.held_value_shift`), a part of
+    its sigma.
     ``consistency_failure``: why no physically consistent parameters reproduce the step's base
     parameters (None: there are some, or none were asked for).
     """
@@ -206,6 +210,7 @@ class StepRecord:
     statistics_missing: str | None = None
     encoder_draws: int = 0
     encoder_sigma: tuple[float, ...] = ()
+    held_sigma: tuple[float, ...] = ()
     cond_W: float | None = None
     consistency_failure: str | None = None
 
@@ -235,6 +240,8 @@ class StepRecord:
         if self.statistics_missing is not None:
             doc["statistics"] = self.statistics_missing
         doc.update(encoder)
+        if self.held_sigma:
+            doc["held_sigma"] = list(self.held_sigma)
         if self.cond_W is not None:
             doc["cond_W"] = self.cond_W
         return doc
@@ -252,7 +259,7 @@ class StepRecord:
                    rows_left_out=doc.get("rows_left_out"), cond_scaled=doc.get("cond_scaled"),
                    unexcited=tuple(doc.get("unexcited") or ()), statistics_missing=doc.get("statistics"),
                    encoder_draws=doc.get("encoder_draws") or 0, encoder_sigma=tuple(doc.get("encoder_sigma") or ()),
-                   cond_W=doc.get("cond_W"), consistency_failure=doc.get("consistent"))
+                   held_sigma=tuple(doc.get("held_sigma") or ()), cond_W=doc.get("cond_W"), consistency_failure=doc.get("consistent"))
 
 
 @dataclass(frozen=True)
