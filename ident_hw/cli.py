@@ -289,8 +289,9 @@ def _logger(args):
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ident-hw",
-        description="Dynamic parameter identification of a 3PRRR planar parallel robot "
-                    "(Maxon EPOS2/EPOS4 drives over CANopen), from one YAML config.",
+        description="Dynamic parameter identification of a robot (the 3PRRR, the Delta, or any from its "
+                    "description file) straight from its Maxon EPOS2/EPOS4 drives over CANopen, from one YAML "
+                    "config.",
         epilog="Start with: ident-hw check configs/sim-3prrr.yaml; then ident-hw run configs/sim-3prrr.yaml")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
