@@ -31,7 +31,10 @@ class MassFitResult:
         free: names of the fitted parameters.
         coef: SLSQP estimate, full vector (n,) (held parameters at their given values).
         coef_lsq: ``lsq_linear`` estimate of the same problem, full vector (n,).
-        max_rel_difference: ``max |coef − coef_lsq| / max(|coef_lsq|, tiny)`` over the free ones.
+        max_rel_difference: ``max |z − z_lsq| / max(|z_lsq|, 1)`` over the free ones, in the
+            scaled variables ``z`` (module docstring): the relative difference of ``coef`` and
+            ``coef_lsq`` where ``|z_lsq| >= 1``, the absolute one in ``z`` below (no division by a
+            value on a bound at zero).
         cost: weighted residual ``sum ||(tau − Y pi)/sigma||²`` at the SLSQP estimate.
         residual_rms: unweighted residual RMS of each output (k,).
         output_std: per-output weights used (k,).
@@ -106,7 +109,9 @@ def sqp_fit(
     coef[idx] = res.x / scale
     coef_lsq = initial.copy()
     coef_lsq[idx] = z_lsq / scale
-    diff = np.abs(coef[idx] - coef_lsq[idx]) / np.maximum(np.abs(coef_lsq[idx]), np.finfo(float).tiny)
+    # in the scaled variables (of order one where a parameter carries its share of the fit): a
+    # parameter the reference puts on a bound at zero has no relative difference
+    diff = np.abs(res.x - z_lsq) / np.maximum(np.abs(z_lsq), 1.0)
     r = y - W @ coef
     at_bounds = tuple(f for f, active in zip(free, ref.active_mask) if active != 0)
     return MassFitResult(
