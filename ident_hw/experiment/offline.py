@@ -475,11 +475,9 @@ def settle_sqp_steps(ident: IdentificationConfig, names: tuple[str, ...], prepar
     """Runs the SQP steps in their order again and again, each with the parameters of the others
     held at their latest estimates (``estimates.coef``, updated in place), until a pass moves no
     estimate by more than :data:`SETTLED` of its value (at most :data:`MAX_SETTLING_PASSES`
-    passes): the fixed point of the step-by-step method. Values only: the recorded pass
-    (:func:`fit_sqp_step`) starts from there. A single pass holds what a later step
-    fits at its CAD value in every earlier step: the carriage sweep's ``m_c`` then carries the
-    links' and end-effector's mass errors (they move with the carriages), a bias of 1.5 sigma
-    in studies. Returns the passes run (0 with fewer than two SQP steps: nothing to settle)."""
+    passes): the fixed point of the step-by-step method. Values only (no records, no sigma): see
+    :func:`held_value_shift`. Returns the passes run (0 with fewer than two SQP steps that have
+    something to fit: nothing to settle)."""
     sqp = [s for s in ident.steps if s.method == "sqp"]
     if len(sqp) < 2:
         return 0
@@ -490,6 +488,8 @@ def settle_sqp_steps(ident: IdentificationConfig, names: tuple[str, ...], prepar
         excited = excited_parameters(step_parameters(step, names), names, Y, tau) if len(Y) else []
         if excited:
             data.append((Y, tau, excited, {p: ident.bounds[p] for p in excited if p in ident.bounds}))
+    if len(data) < 2:
+        return 0
     for passes in range(1, MAX_SETTLING_PASSES + 1):
         before = estimates.coef.copy()
         for Y, tau, excited, bounds in data:
