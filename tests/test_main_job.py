@@ -115,6 +115,14 @@ def test_the_main_job_identifies_the_simulated_truth(main_job):
     assert doc["quality"]["passed"] and (folder / "STATUS").read_text().startswith("complete")
     for name, used in doc["trajectories"].items():
         assert used["valid_fraction"] == 1.0 and used["cycles"] == used["cycles_planned"], name
+    # each mass fit's estimates carry the shift of their held values, a part of their sigma
+    sigma = {row["name"]: row["sigma"] for row in doc["parameters"]}
+    mass_fits = [step for step in doc["steps"] if "eliminated" not in step and "skipped" not in step]
+    assert [step["name"] for step in mass_fits] == ["carriages", "links", "platform"]
+    for step in mass_fits:
+        assert len(step["held_sigma"]) == len(step["free"]), step["name"]
+        assert all(0.0 <= h <= sigma[p] for p, h in zip(step["free"], step["held_sigma"])), step["name"]
+    assert dict(zip(mass_fits[0]["free"], mass_fits[0]["held_sigma"]))["m_c"] > 0.0
 
 
 

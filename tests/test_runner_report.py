@@ -185,7 +185,7 @@ RECORDS = [
                   "max_rel_difference": 1e-9, "cost": 1.5, "residual_rms": [0.1], "output_std": [0.2],
                   "iterations": 7, "success": True, "message": "Optimization terminated successfully",
                   "at_bounds": [], "rows_left_out": {"sweep": {"incomplete": 3}}, "cond_scaled": 12.0, "unexcited": ["fv_zeta3"],
-                  "encoder_draws": 4, "encoder_sigma": [0.1], "cond_W": 20.0}),
+                  "encoder_draws": 4, "encoder_sigma": [0.1], "held_sigma": [0.05], "cond_W": 20.0}),
     (StepRecord, {"name": "links", "trajectories": ["square1"], "method": "SQP", "free": ["m_l2"],
                   "parameters": {"m_l2": 0.0}, "parameters_lsq_linear": {"m_l2": 0.0}, "max_rel_difference": 0.0,
                   "cost": 3.0, "residual_rms": [0.1, 0.2], "output_std": [0.2, 0.2], "iterations": 1, "success": False,

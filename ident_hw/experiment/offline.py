@@ -572,7 +572,7 @@ def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping
                      f"others' estimates held, at their fixed point after {passes} passes; the shifts join sigma")
         estimates.sigma = np.where(shift > 0, np.hypot(estimates.sigma, shift), estimates.sigma)
         steps = [replace(r, held_sigma=tuple(float(shift[names.index(p)]) for p in r.free))
-                 if r.method == "sqp" and r.free else r for r in steps]
+                 if s.method == "sqp" and r.free else r for s, r in zip(ident.steps, steps)]
     return steps, base_fit, base_equivalent, model_comparison, fitted
 
 
