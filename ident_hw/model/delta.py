@@ -373,9 +373,9 @@ class Delta:
         from . import delta_single  # compiled code
         Y = np.zeros((len(q), 3, N_PARAMS))
         if delta_single.body_regressor(q, qd, qdd, self._single_geo, self._e, self._y, self.g, Y) >= 0:
-            return self.vectorised_regressor(q[0] if single else q, qd[0] if single else qd,
-                                             qdd[0] if single else qdd)
-        self._drive_columns(Y, qd, qdd)
+            Y = self.vectorised_regressor(q, qd, qdd)
+        else:
+            self._drive_columns(Y, qd, qdd)
         return Y[0] if single else Y
 
     def _drive_columns(self, Y, qd, qdd) -> None:

@@ -1,5 +1,7 @@
-"""The Delta's dynamics at ONE state, compiled by numba, for a simulator's inner loop.
+"""The Delta's dynamics state by state, compiled by numba: for a simulator's inner loop, and the
+regressor of a recording's every sample.
 
+Both start from the seven bodies' motion at one state (:func:`_bodies`).
 :meth:`.delta.Delta.plant_dynamics` is called once per SYNC period; the vectorised regressor costs
 about a millisecond for one state. :func:`one_state` computes the same ``M(q)``, bias
 ``tau(q, qd, 0)`` (gravity and velocity terms, with ``Jm`` but without ``fv``, ``fc``) and
@@ -7,7 +9,9 @@ platform position in scalar loops: the kinematics term for term those of
 :meth:`.delta.Delta.fk` and :meth:`.delta.Delta.bodies`, each body's wrench that of
 :meth:`.delta.Delta.regressor` written in world axes (first moment ``c = Q m c_body``, inertia
 ``Q I Qᵀ`` about the body origin), ``M = sum_k J_kᵀ M_k J_k + diag(Jm)``. The compiled function
-releases the GIL. ``tests/test_model_delta.py`` holds it equal to the regressor.
+releases the GIL. :func:`body_regressor` fills the bodies' regressor columns sample by sample.
+``tests/test_model_delta.py`` holds both equal to
+:meth:`.delta.Delta.vectorised_regressor`.
 
 Shapes: ``q`` (3,) rad, ``qd`` (3,) rad/s, ``pi`` (79,) as :mod:`.delta`; ``M`` (3, 3) kg·m²,
 ``bias`` (3,) N·m, ``p`` (3,) m.
