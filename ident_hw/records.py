@@ -189,10 +189,9 @@ class StepRecord:
     ``unexcited``: free parameters its data do not excite, held. ``statistics_missing``: why the
     mass fit has no covariance. ``encoder_draws`` and ``encoder_sigma`` (one per estimate, in
     its unit): the encoders read again (:mod:`ident_hw.experiment.encoder`), 0 and () without.
-    ``held_sigma`` (one per estimate of a mass fit, in its unit, () when none applies): how far
-    the estimate moves when the parameters its step holds go from the values it was given to the
-    step-by-step fixed point (:func:`ident_hw.experiment.offline.held_value_shift`), a part of
-    its sigma.
+    ``held_sigma`` (one per estimate of a mass fit, in its unit, () when none applies): what
+    the values its step holds are worth in the estimate (an earlier step's sigma, else the CAD
+    prior; :func:`ident_hw.experiment.offline.held_value_sigma`), a part of its sigma.
     ``consistency_failure``: why no physically consistent parameters reproduce the step's base
     parameters (None: there are some, or none were asked for).
     """

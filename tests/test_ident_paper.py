@@ -53,44 +53,57 @@ def test_whole_campaign_has_only_the_structural_deficiency(campaign):
     assert base.rank == len(NAMES) - 1 and base.unexcited == ()
 
 
-def test_the_step_by_step_fits_settle_where_no_step_carries_anothers_cad_error(campaign):
-    """The shipped config's SQP steps (carriages on the sweep, links on the squares, platform on
-    the sweep) from the CAD values, on exact forces. One pass fits ``m_c`` with the links and the
-    end-effector at their CAD values, which move with the carriages on the sweep: ``m_c`` is off.
-    Settled (each step again with the others' latest estimates held), every parameter the steps
-    fit is the truth, and the shift from one pass to the other is what joins each sigma."""
+def test_a_held_values_error_moves_a_mass_fit_as_its_held_sigma_says(campaign):
+    """The shipped config's carriage step (``m_c`` and the carriages' friction on the sweep) on
+    exact forces, with one held value at a time moved from the truth to its CAD value: the
+    sweep cannot tell ``m_c`` from the masses that move with the carriages, so ``m_c`` takes on
+    their error. The step's held sigma, given that error as the held value's uncertainty, is
+    the move of every estimate the mass fit (SLSQP, an independent solver) makes, to 1e-6. With
+    the config's CAD prior for every held value at once, the one-pass error of ``m_c`` from
+    the CAD values (0.011 %, more than the data's own sigma) is within its sigma."""
     from ident_hw.config import load_config
-    from ident_hw.config.to_identification import step_parameters
-    from ident_hw.experiment.offline import Prepared, _Estimates, held_value_shift, settle_sqp_steps
-    from ident_hw.identification import sqp_fit
+    from ident_hw.config.to_identification import physical_scales, step_parameters
+    from ident_hw.experiment.offline import Prepared, _Estimates, fit_sqp_step, held_value_std
+    from ident_hw.segments import Segments
 
     ident = load_config(CONFIGS / "sim-3prrr.yaml").identification
-    renamed = {"sweep": "carriage-sweep", **{f"square{i}": f"square-{i}" for i in range(1, 6)}}
-    prepared = {}
-    for name, source in renamed.items():
-        Y, tau = campaign[source]
-        n = len(Y)
-        prepared[name] = Prepared(name, np.zeros(n), np.zeros((n, 6)), np.zeros((n, 3)), Y, tau, np.ones((n, 6), bool))
-    initial = CAD.as_vector()
-    initial[NAMES.index("m_l1")] = TRUTH[NAMES.index("m_l1")]   # held by every step (not separable from I_l1)
-    sqp_steps = [s for s in ident.steps if s.method == "sqp"]
-    fitted = [NAMES.index(p) for s in sqp_steps for p in step_parameters(s, NAMES)]
+    step = ident.steps[0]
+    assert step.name == "carriages" and step.trajectories == ("sweep",)
+    Y, tau = campaign["carriage-sweep"]
+    n = len(Y)
+    prepared = {"sweep": Prepared("sweep", np.zeros(n), np.zeros((n, 6)), np.zeros((n, 3)), Y, tau,
+                                  np.ones((n, 6), bool), Segments(np.zeros(n), [], 0, 0))}
+    free = step_parameters(step, NAMES)
+    idx = [NAMES.index(p) for p in free]
+    cad = CAD.as_vector()
 
-    once = initial.copy()
-    for step in sqp_steps:
-        Y = np.concatenate([prepared[t].Y for t in step.trajectories])
-        tau = np.concatenate([prepared[t].tau_fit for t in step.trajectories])
-        once = sqp_fit(Y, tau, NAMES, once, free=step_parameters(step, NAMES),
-                       bounds={p: ident.bounds[p] for p in step_parameters(step, NAMES) if p in ident.bounds}).coef
+    def fit(start, held_std):
+        estimates = _Estimates.initial(start)
+        record, fitted = fit_sqp_step(step, free, NAMES, Y, tau, estimates, ident.bounds, prepared,
+                                      held_std=held_std)
+        assert list(fitted) == list(free)
+        return estimates.coef[idx], np.array(record.held_sigma)
+
+    exact, none = fit(TRUTH, np.zeros(len(NAMES)))
+    np.testing.assert_allclose(exact, TRUTH[idx], rtol=1e-9, atol=1e-9)
+    assert np.all(none == 0.0)
+    moved = 0
+    for j, name in enumerate(NAMES):
+        if name in free or cad[j] == TRUTH[j]:
+            continue
+        start = TRUTH.copy()
+        start[j] = cad[j]
+        std = np.zeros(len(NAMES))
+        std[j] = abs(cad[j] - TRUTH[j])
+        coef, held = fit(start, std)
+        moved_by = np.abs(coef - TRUTH[idx])
+        assert np.all(np.abs(held - moved_by) <= 1e-6 * moved_by + 1e-9 * np.abs(TRUTH[idx])), (name, held, moved_by)
+        moved += bool(held[0] > 1e-6 * TRUTH[NAMES.index("m_c")])
+    assert moved == 4                      # m_l2, I_l2, m_ee, I_ee (m_l1, I_l1: CAD = truth)
+
+    prior = ident.physical.prior * np.array(physical_scales(ident.physical, NAMES, cad))
+    once, held = fit(cad, held_value_std(_Estimates.initial(cad), prior))
     m_c = NAMES.index("m_c")
-    assert abs(once[m_c] - TRUTH[m_c]) > 1e-4 * TRUTH[m_c]       # one pass: off by more than its sigma
-
-    estimates = _Estimates.initial(initial)
-    passes = settle_sqp_steps(ident, NAMES, prepared, estimates)
-    assert 2 <= passes < 20
-    np.testing.assert_allclose(estimates.coef[fitted], TRUTH[fitted], rtol=1e-6)
-    # the shift that joins each mass-fit sigma: from the single pass to that fixed point
-    shift, _ = held_value_shift(ident, NAMES, prepared, _Estimates.initial(once))
-    error = np.abs(TRUTH - once)[fitted]
-    assert np.all(np.abs(shift[fitted] - error) <= 1e-3 * error + 1e-6 * np.abs(TRUTH[fitted]))
-    assert shift[NAMES.index("m_l1")] == 0.0                     # fitted by no step
+    error = once[0] - TRUTH[m_c]
+    assert abs(error) > 1e-4 * TRUTH[m_c]  # beyond what the main job's data alone say (0.04 kg)
+    assert 0.1 * held[0] < abs(error) < held[0]      # 0.067 kg against 0.52 kg: the CAD known to its size

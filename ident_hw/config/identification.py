@@ -122,7 +122,8 @@ class PhysicalConfig:
             "pseudo-inertias (needs CAD bodies with positive-definite pseudo-inertias; others keep the squares)"))
     prior: float = field(default=1.0, metadata=spec(
         positive, doc="standard deviation of the CAD prior, in parameter scales: 1 = the CAD value is known to "
-                      "about its own size; smaller trusts the CAD values more"))
+                      "about its own size; smaller trusts the CAD values more. Also what a CAD value a mass-fit "
+                      "step holds is worth in its estimates' sigma"))
     scales: dict[str, float] = field(default_factory=dict)
 
 

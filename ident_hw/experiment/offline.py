@@ -359,13 +359,16 @@ def excited_parameters(free_names: Sequence[str], names: tuple[str, ...], Y: np.
 
 def fit_sqp_step(step, free_names: Sequence[str], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
                  estimates: _Estimates, all_bounds: Mapping[str, tuple[float, float]],
-                 prepared: Mapping[str, Prepared], draws: Sequence[tuple[np.ndarray, np.ndarray]] = ()
-                 ) -> tuple[StepRecord, list[str]]:
+                 prepared: Mapping[str, Prepared], draws: Sequence[tuple[np.ndarray, np.ndarray]] = (),
+                 held_std: np.ndarray | None = None) -> tuple[StepRecord, list[str]]:
     """The paper's bounded SQP mass fit of one step's parameters on its data (``Y`` (N, a, n),
     ``tau`` (N, a)), the others held at their current values; ``estimates`` updated in place.
     ``draws``: the step's data with the encoders read again (:func:`fit_base`); the spread of
-    their estimates joins each sigma. A parameter its rows do not excite at all (a carriage whose every stretch was left out) is
-    held, and the record says so. Returns the step's record and the parameters it fitted."""
+    their estimates joins each sigma. ``held_std`` (n,): what each value the step holds is worth
+    (:func:`held_value_std`); what they are worth in each estimate (:func:`held_value_sigma`)
+    joins its sigma too. A parameter its rows do not excite at all (a carriage whose every
+    stretch was left out) is held, and the record says so. Returns the step's record and the
+    parameters it fitted."""
     excited = excited_parameters(free_names, names, Y, tau)
     unexcited = [p for p in free_names if p not in excited]
     if not excited:
@@ -385,8 +388,12 @@ def fit_sqp_step(step, free_names: Sequence[str], names: tuple[str, ...], Y: np.
     else:
         encoder = spread_covariance([_refit(stats, Yk[:, :, idx], tauk - Yk[:, :, held] @ coef[held])
                                      for Yk, tauk in draws], len(idx))
-        estimates.sigma[idx] = np.sqrt(stats.std ** 2 + np.diag(encoder))
+        from_held = (held_value_sigma(stats, Y, tau, idx, held, held_std[held]) if held_std is not None
+                     else np.zeros(len(idx)))
+        estimates.sigma[idx] = np.sqrt(stats.std ** 2 + np.diag(encoder) + from_held ** 2)
         statistics.update(_encoder_fields(draws, encoder), cond_W=stats.cond)
+        if held_std is not None:
+            statistics["held_sigma"] = tuple(from_held.tolist())
     record = StepRecord(name=step.name, trajectories=tuple(step.trajectories), method=fit.method,
                         free=tuple(fit.free), figures=MassFitFigures.of(fit),
                         rows_left_out={t: prepared[t].segments.left_out for t in step.trajectories},
@@ -463,61 +470,38 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     return results
 
 
-#: most passes :func:`settle_sqp_steps` runs over the step-by-step fits
-MAX_SETTLING_PASSES = 20
-#: a pass that moves no estimate by more than this share of its value ends the settling (the
-#: best-known parameter, m_c, has a relative sigma near 1e-4)
-SETTLED = 1e-9
+def held_value_sensitivity(fit, Y: np.ndarray, tau: np.ndarray, free: Sequence[int], held: Sequence[int]
+                           ) -> np.ndarray:
+    """(len(free), len(held)) how a mass-fit step's estimates move per unit of each value it
+    holds: ``d z_i / d h_j``, for the step's weighted least squares (``fit``'s output weights)
+    on ``Y`` (N, a, n) and the rows ``tau`` (N, a) leaves in (NaN: an axis left out).
+
+    With ``A`` the free columns, ``B`` the held ones and ``Wt`` the weights, the estimate is
+    ``z = (A' Wt A)^-1 A' Wt (tau - B h)``: column j is minus the fit of ``A`` to ``B_j`` (0 for a
+    column that acts on no row). Exact for a fit whose bounds are not active: the model is
+    linear in its parameters and the mass fit's weights do not depend on the held values."""
+    out = np.zeros((len(free), len(held)))
+    for k, j in enumerate(held):
+        column = np.where(np.isnan(tau), np.nan, Y[:, :, j])
+        if np.any(np.nan_to_num(column) != 0):
+            out[:, k] = -_refit(fit, Y[:, :, list(free)], column)
+    return out
 
 
-def settle_sqp_steps(ident: IdentificationConfig, names: tuple[str, ...], prepared: Mapping[str, Prepared],
-                     estimates: _Estimates) -> int:
-    """Runs the SQP steps in their order again and again, each with the parameters of the others
-    held at their latest estimates (``estimates.coef``, updated in place), until a pass moves no
-    estimate by more than :data:`SETTLED` of its value (at most :data:`MAX_SETTLING_PASSES`
-    passes): the fixed point of the step-by-step method. Values only (no records, no sigma): see
-    :func:`held_value_shift`. Returns the passes run (0 with fewer than two SQP steps that have
-    something to fit: nothing to settle)."""
-    sqp = [s for s in ident.steps if s.method == "sqp"]
-    if len(sqp) < 2:
-        return 0
-    data = []
-    for step in sqp:
-        Y = np.concatenate([prepared[t].Y for t in step.trajectories])
-        tau = np.concatenate([prepared[t].tau_fit for t in step.trajectories])
-        excited = excited_parameters(step_parameters(step, names), names, Y, tau) if len(Y) else []
-        if excited:
-            data.append((Y, tau, excited, {p: ident.bounds[p] for p in excited if p in ident.bounds}))
-    if len(data) < 2:
-        return 0
-    for passes in range(1, MAX_SETTLING_PASSES + 1):
-        before = estimates.coef.copy()
-        for Y, tau, excited, bounds in data:
-            estimates.coef = sqp_fit(Y, tau, names, estimates.coef, free=excited, bounds=bounds).coef
-        if passes > 1 and np.all(np.abs(estimates.coef - before) <= SETTLED * np.abs(before)):
-            break
-    return passes
+def held_value_sigma(fit, Y: np.ndarray, tau: np.ndarray, free: Sequence[int], held: Sequence[int],
+                     held_std: np.ndarray) -> np.ndarray:
+    """(len(free),) what the values a mass-fit step holds are worth in each of its estimates, in
+    their units: their uncertainties ``held_std`` (len(held),) through
+    :func:`held_value_sensitivity`, taken as independent: ``sigma_i^2 = sum_j (S_ij std_j)^2``."""
+    return np.sqrt(((held_value_sensitivity(fit, Y, tau, free, held) * np.asarray(held_std)) ** 2).sum(axis=1))
 
 
-def held_value_shift(ident: IdentificationConfig, names: tuple[str, ...], prepared: Mapping[str, Prepared],
-                     estimates: _Estimates) -> tuple[np.ndarray, int]:
-    """How far each mass-fit estimate (``estimates.coef``, the steps run once in their order)
-    moves at the step-by-step fixed point (:func:`settle_sqp_steps` on a copy): (n,), 0 for the
-    parameters no mass fit fits; and the passes that took (0: fewer than two mass-fit steps).
-
-    Each step holds the parameters it does not fit at the values it was given: the CAD values of
-    those a later step fits. The carriage sweep cannot tell ``m_c`` from the masses that move
-    with the carriages (links, end-effector), so ``m_c`` carries their CAD error (+0.011 % on
-    exact data: 1.7 sigma; 1.7 sigma in a 12-run study). At the fixed point it carries instead
-    the error of what the squares found for them, which is no better determined (four of them
-    poorly identified, one on its bound). Neither value is the truth; the shift between them is
-    what the held values are worth in that estimate, and joins its sigma."""
-    copy = replace(estimates, coef=estimates.coef.copy())
-    passes = settle_sqp_steps(ident, names, prepared, copy)
-    fitted = [i for s in ident.steps if s.method == "sqp" for i in map(names.index, step_parameters(s, names))]
-    shift = np.zeros(len(names))
-    shift[fitted] = np.abs(copy.coef[fitted] - estimates.coef[fitted])
-    return shift, passes
+def held_value_std(estimates: _Estimates, prior_std: np.ndarray) -> np.ndarray:
+    """(n,) what each parameter is worth as a value a mass-fit step holds: the sigma of the step
+    that fitted it, else (its initial, CAD value, still) ``prior_std`` (n,), the CAD prior of
+    the config (``identification.physical.prior`` scales)."""
+    fitted = np.array([bool(s) for s in estimates.step_of]) & np.isfinite(estimates.sigma)
+    return np.where(fitted, estimates.sigma, prior_std)
 
 
 def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping[str, Prepared],
@@ -526,7 +510,9 @@ def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping
     """Runs the identification steps in their order, each on the parameters the ones before left
     in ``estimates`` (updated in place), and the model comparison on the base step's data when
     ``compared`` names its trajectories; ``draws``: the recordings with the encoders read again
-    (:func:`reread_draws`), whose spread joins each step's sigma.
+    (:func:`reread_draws`), whose spread joins each step's sigma. A mass-fit step's sigma has
+    also what the values it holds are worth: an earlier step's sigma, else the CAD prior
+    (``identification.physical.prior`` scales of each parameter, :func:`held_value_std`).
 
     Returns the steps' records, the last base step's :class:`BaseFit` and its equivalent physical
     parameters (n,) (None, None without a base step), the model comparison (or None) and the set
@@ -536,6 +522,9 @@ def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping
     steps: list[StepRecord] = []
     base_fit, base_equivalent, model_comparison = None, None, None
     fitted: set[str] = set()            # every parameter some step fitted
+    prior_std = None
+    if any(s.method == "sqp" for s in ident.steps):
+        prior_std = ident.physical.prior * np.array(physical_scales(ident.physical, names, initial))
     for step in ident.steps:
         free_names = step_parameters(step, names)
         if progress:
@@ -552,7 +541,7 @@ def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping
                        np.concatenate([d[t].tau_fit for t in step.trajectories])) for d in draws]
         if step.method == "sqp":
             record, excited = fit_sqp_step(step, free_names, names, Y, tau, estimates, ident.bounds, prepared,
-                                           step_draws)
+                                           step_draws, held_value_std(estimates, prior_std))
             steps.append(record)
             fitted.update(excited)
             continue
@@ -565,14 +554,6 @@ def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping
                 progress(f"step {step.name}: the dynamic, power and energy models' base parameters")
             model_comparison = comparison(step, free_names, names, Y, tau, prepared, estimates.coef, truth,
                                           step.method == "wls", ident.rel_sigma_threshold, robot.readable_base())
-    shift, passes = held_value_shift(ident, names, prepared, estimates)
-    if passes:
-        if progress:
-            progress(f"steps {', '.join(s.name for s in ident.steps if s.method == 'sqp')}: each again with the "
-                     f"others' estimates held, at their fixed point after {passes} passes; the shifts join sigma")
-        estimates.sigma = np.where(shift > 0, np.hypot(estimates.sigma, shift), estimates.sigma)
-        steps = [replace(r, held_sigma=tuple(float(shift[names.index(p)]) for p in r.free))
-                 if s.method == "sqp" and r.free else r for s, r in zip(ident.steps, steps)]
     return steps, base_fit, base_equivalent, model_comparison, fitted
 
 
