@@ -8,10 +8,12 @@ The chain used by :func:`ident_hw.experiment.offline.prepare` (stretch by stretc
 1. ``lowpass`` of the measured positions (zero phase, Butterworth, ``sosfiltfilt``);
 2. ``central_derivatives`` of the filtered positions (velocities, accelerations);
 3. the regressor is built sample by sample from these;
-4. ``parallel_decimate`` applies one and the same zero-phase low-pass and decimation to the
+4. ``through_position_lowpass``: the torques and the Coulomb columns through the low-pass of
+   step 1 too (the rest of the regressor passed it with the positions);
+5. ``parallel_decimate`` applies one and the same zero-phase low-pass and decimation to the
    torques and to every regressor column, and trims the filter edges.
 
-Because the filter of step 4 is linear and identical for both sides, ``tau = Y pi`` still
+Because the filter of step 5 is linear and identical for both sides, ``tau = Y pi`` still
 holds exactly after it: parallel filtering removes noise without biasing the estimate.
 
 A recording is filtered stretch by stretch (:mod:`ident_hw.segments`), and a stretch ends
@@ -29,13 +31,14 @@ extensions are linear in the data and built from the stretch's own rows only: no
 across the cut.
 
 Forces from the drives' averaged currents have been through a filter already, the drives'
-running average; :func:`running_average` puts the regressor through the same one before step 4.
+running average; :func:`running_average` puts the regressor through the same one before steps 4 and 5.
 """
 
 from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -121,16 +124,14 @@ class FilterSettings:
         times the parallel filter's cut-off (:attr:`decimation_cutoff_hz`), at most a quarter of
         the sample rate, never below :attr:`cutoff_hz` (which it is with a margin of 1).
 
-        Why above the parallel filter, for some motions: the forces reach the fit through the
-        parallel filter only, the regressor through the positions' low-pass *and* the parallel
-        filter. A component the parallel filter passes and the positions' low-pass has already
-        attenuated makes the two sides differ by that attenuation times its inertial force: a
-        bias, the whole -3 dB band edge when both cut off at one frequency. A motion whose
-        spectrum ends well inside the band (a Fourier excitation) has no force there; the paper's
-        rest-to-rest paths (a jerk step at every vertex, short segments) have, and the bias shows
-        as the links' friction. Twice the parallel filter's cut-off leaves the positions' low-pass
-        within 0.4 % of unity (``1 / (1 + 2^-8)``) over the band the fit sees; the price is more
-        of the encoder's rounding in the accelerations, which is why it is not used everywhere.
+        Why above the parallel filter, for some motions: the regressor passes the positions'
+        low-pass with the positions, the forces (and the Coulomb columns) pass it by
+        :func:`through_position_lowpass`; the two agree where the regressor is linear in the
+        motion, and differ by its curvature where it is not, most at the band's edge, where the
+        paper's rest-to-rest paths (a jerk step at every vertex, short segments) have force. Twice
+        the parallel filter's cut-off leaves the positions' low-pass within 0.4 % of unity
+        (``1 / (1 + 2^-8)``) over the band the fit sees; the price is more of the encoder's
+        rounding in the accelerations, which is why it is not used everywhere.
         """
         return max(self.cutoff_hz, min(self.position_margin * self.decimation_cutoff_hz, 0.25 * self.sample_rate))
 
@@ -273,6 +274,32 @@ def parallel_decimate(settings: FilterSettings, *arrays: np.ndarray, ends: Ends 
     window = kept_samples(settings, n, ends)
     pads = ends.pick(EVEN, ODD)
     return tuple(_lowpass_live(a, settings, pads)[window] for a in arrays)
+
+
+def through_position_lowpass(settings: FilterSettings, tau: np.ndarray, regressor: np.ndarray,
+                             columns: Sequence[int], ends: Ends = WHOLE) -> tuple[np.ndarray, np.ndarray]:
+    """The forces ``tau`` (N, a) and the regressor's ``columns`` (of ``regressor`` (N, a, n))
+    through the positions' low-pass (:func:`prepare_actuated`: ``position_cutoff_hz``, the same
+    order), before the parallel filter: returns the regressor (a copy) and the forces.
+
+    The rest of the regressor is computed from the low-passed positions, so it has passed that
+    filter already (the inertial and viscous terms are smooth functions of the motion, linear in
+    its acceleration and rate). The forces have not, and neither has a Coulomb column: the sign
+    of a low-passed rate switches as sharply as the sign of the rate. Without this, the force
+    a motion has where the positions' low-pass attenuates and the parallel filter still passes
+    (the links' reversals, about the band's edge) reaches the fit on the force side only: a bias
+    of the inertial terms (docs/identification.md, *Where the forces and the regressor part*)."""
+    pads = ends.pick(POLYNOMIAL, ODD)      # past a cut as the positions are
+    tau = lowpass(tau, settings.sample_rate, settings.position_cutoff_hz, settings.order, pads)
+    regressor = np.array(regressor, dtype=float)
+    columns = list(columns)
+    live = [c for c in columns if np.any(regressor[:, :, c] != 0.0)]
+    if live:
+        N, a, _ = regressor.shape
+        block = regressor[:, :, live].reshape(N, a * len(live))
+        regressor[:, :, live] = lowpass(block, settings.sample_rate, settings.position_cutoff_hz, settings.order,
+                                        pads).reshape(N, a, len(live))
+    return regressor, tau
 
 
 def _lowpass_live(a: np.ndarray, settings: FilterSettings, pads: tuple[str, str]) -> np.ndarray:

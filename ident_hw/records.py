@@ -188,7 +188,10 @@ class StepRecord:
     columns scaled to unit RMS; ``cond_W``: of the weighted one of the statistics (mass fit).
     ``unexcited``: free parameters its data do not excite, held. ``statistics_missing``: why the
     mass fit has no covariance. ``encoder_draws`` and ``encoder_sigma`` (one per estimate, in
-    its unit): the encoders read again (:mod:`ident_hw.experiment.encoder`), 0 and () without.
+    its unit): the encoders read again (:mod:`ident_hw.experiment.encoder`), 0 and () without;
+    ``encoder_shift`` (a least-squares step, one per base parameter): how far the correction for
+    the encoders' noise in the regressor moved each estimate
+    (:func:`ident_hw.identification.least_squares.compensated`), () without.
     ``held_sigma`` (one per estimate of a mass fit, in its unit, () when none applies): what
     the values its step holds are worth in the estimate (an earlier step's sigma, else the CAD
     prior; :func:`ident_hw.experiment.offline.held_value_sigma`), a part of its sigma.
@@ -209,6 +212,7 @@ class StepRecord:
     statistics_missing: str | None = None
     encoder_draws: int = 0
     encoder_sigma: tuple[float, ...] = ()
+    encoder_shift: tuple[float, ...] = ()
     held_sigma: tuple[float, ...] = ()
     cond_W: float | None = None
     consistency_failure: str | None = None
@@ -226,6 +230,8 @@ class StepRecord:
         figures = {} if self.figures is None else self.figures.to_json()
         encoder = ({"encoder_draws": self.encoder_draws, "encoder_sigma": list(self.encoder_sigma)}
                    if self.encoder_draws else {})
+        if self.encoder_shift:
+            encoder["encoder_shift"] = list(self.encoder_shift)
         if self.fits_base_parameters:
             doc.update({"free": list(self.free), "method": self.method, "eliminated": list(self.eliminated),
                         **figures, "cond_scaled": self.cond_scaled, **encoder})
@@ -258,6 +264,7 @@ class StepRecord:
                    rows_left_out=doc.get("rows_left_out"), cond_scaled=doc.get("cond_scaled"),
                    unexcited=tuple(doc.get("unexcited") or ()), statistics_missing=doc.get("statistics"),
                    encoder_draws=doc.get("encoder_draws") or 0, encoder_sigma=tuple(doc.get("encoder_sigma") or ()),
+                   encoder_shift=tuple(doc.get("encoder_shift") or ()),
                    held_sigma=tuple(doc.get("held_sigma") or ()), cond_W=doc.get("cond_W"), consistency_failure=doc.get("consistent"))
 
 

@@ -315,6 +315,7 @@ identification:
   steps:
     - {{name: base, trajectories: [excitation], method: wls, parameters: [{names}]}}
   validation: []
+  encoder_draws: 0        # exact positions: no encoder rounding to read again or to correct for
 """
     path = tmp_path / "hardware.yaml"
     path.write_text(f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n"
@@ -342,14 +343,13 @@ identification:
 
 
 def test_the_positions_low_pass_of_a_rest_to_rest_path_is_flat_over_the_parallel_filters_band():
-    """The regressor goes through the positions' low-pass and the parallel filter, the forces
-    through the parallel filter only: where a motion has force near the band edge (the paper's
-    rest-to-rest paths), the positions' low-pass must be close to unity over the band the parallel
-    filter passes, or that force is biased (the links' friction on the squares at 100 Hz, where both
-    cut off at 15 Hz). Twice the parallel filter's cut-off where a quarter of the sample rate allows
-    it; where it does not (50 Hz), at least the band's own cut-off. A band-limited motion (the
-    Fourier excitation) keeps one cut-off: it has no force there, and a wider low-pass only lets
-    in more of the encoder's rounding."""
+    """Where a motion has force near the band edge (the paper's rest-to-rest paths), the
+    positions' low-pass is close to unity over the band the parallel filter passes: the regressor
+    passes it with the positions, the forces by ``through_position_lowpass``, and the two differ
+    where the regressor is not linear in the motion. Twice the parallel filter's cut-off where a
+    quarter of the sample rate allows it; where it does not (50 Hz), at least the band's own
+    cut-off. A band-limited motion (the Fourier excitation) keeps one cut-off: a wider low-pass
+    only lets in more of the encoder's rounding."""
     for rate, bandwidth in ((100.0, 1.5), (100.0, 1.0), (250.0, 1.5), (250.0, 1.0), (1000.0, 5.0)):
         settings = dataclasses.replace(FilterSettings.for_sample_rate(rate, bandwidth), position_margin=2.0)
         band = settings.decimation_cutoff_hz

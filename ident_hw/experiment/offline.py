@@ -29,12 +29,13 @@ from drivers.recording import Recording
 from ident_hw.config import Config
 from ident_hw.config.identification import IdentificationConfig
 from ident_hw.config.robots import initial_parameters, true_parameters
+from ident_hw.config.scales import drive_term
 from ident_hw.config.schema import FieldError
 from ident_hw.config.to_drivers import axis_scaling
 from ident_hw.config.to_identification import filter_settings, physical_scales, step_parameters
 from ident_hw.identification.base_params import (base_parameters, column_scale, identify_base, on_kept,
                                                   scaled_condition)
-from ident_hw.identification.least_squares import check_regression_data, ols, stack, wls
+from ident_hw.identification.least_squares import check_regression_data, compensated, ols, stack, wls
 from ident_hw.identification.mass_fit import sqp_fit
 from ident_hw.identification.physical import ConsistencyError, ConsistentSet, consistent_parameters
 from ident_hw.identification.model_comparison import (ModelComparison, ModelRows, compare_models,
@@ -45,7 +46,7 @@ from ident_hw.report import coverage_text
 from ident_hw.results import BaseFit, ParameterTable, Results, TrajectoryFit
 from ident_hw.segments import Segments, slot_indices, split, uniform
 from ident_hw.filtering import (FilterSettings, kept_samples, near_rest, parallel_decimate, prepare_actuated,
-                               running_average)
+                               running_average, through_position_lowpass)
 
 from .encoder import count_shifts, reread, smoothed_positions, spread_covariance
 from .plan import motion_bandwidth, position_margin, robot_model
@@ -201,6 +202,7 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
     speed_limit = np.array([a.limits.velocity for a in config.robot.actuators])
     guess = kinematics_starts(robot, rec, segments) if starts is None else starts
     averaging = current_averaging(config, rec)
+    coulomb = [i for i, p in enumerate(robot.parameter_names) if drive_term(p) == "fc"]
     parts, scalar = [], []
     for stretch in segments.stretches:
         rows, ends = stretch.rows, stretch.ends
@@ -210,7 +212,8 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
         if averaging is not None:   # forces from averaged currents: the regressor through the same average
             period = (t[-1] - t[0]) / (len(t) - 1)
             regressor = running_average(regressor, [f.over_period(period) for f in averaging])
-        Y, tau = parallel_decimate(settings, regressor, samples.tau, ends=ends)
+        regressor, tau = through_position_lowpass(settings, samples.tau, regressor, coulomb, ends)
+        Y, tau = parallel_decimate(settings, regressor, tau, ends=ends)
         kept = kept_samples(settings, len(t), ends)
         slow = np.abs(samples.Thetad) < config.identification.min_speed * speed_limit
         parts.append((t[kept], samples.Theta[kept], X[kept], Y, tau, ~near_rest(slow, settings)[kept]))
@@ -233,7 +236,10 @@ def fit_base(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.nd
     ``basis``: the model's readable base parameters (``RobotModel.readable_base``), used when
     every parameter is free and the data identifies them all. ``draws``: the same data with the
     encoders read again (:mod:`ident_hw.experiment.encoder`), each fitted on the same columns
-    with the same weights; the covariance of their estimates joins the least-squares one.
+    with the same weights; the covariance of their estimates joins the least-squares one, and
+    the spread of their regressors corrects the estimate for the encoders' noise in the
+    regressor (:func:`ident_hw.identification.least_squares.compensated`; the record's
+    ``encoder_shift``).
 
     Returns the :class:`BaseFit`, the physical vector (n,) that predicts the same forces (each
     kept parameter carries its base value, the eliminated ones 0, the held ones ``coef``) and the
@@ -246,9 +252,11 @@ def fit_base(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.nd
                               weighted=step.method == "wls", basis=None if held else basis)
     H = np.zeros((base.rank, len(names)))
     H[:, free] = np.where(np.abs(base.H) > 1e-10, base.H, 0.0)   # rounding of N1 N2^-1, not a coefficient
+    kept = [free[list(free_names).index(k)] for k in base.kept]
+    plain = fit.coef
+    fit = compensated(fit, Y[:, :, kept], tau - Y[:, :, held] @ coef[held], [Yk[:, :, kept] for Yk, _ in draws])
     equivalent = coef.copy()
     equivalent[free] = on_kept(free_names, base.kept, fit.coef)
-    kept = [free[list(free_names).index(k)] for k in base.kept]
     encoder = spread_covariance([_refit(fit, Yk[:, :, kept], tauk - Yk[:, :, held] @ coef[held])
                                  for Yk, tauk in draws], len(kept))
     covariance = fit.covariance + encoder
@@ -260,7 +268,8 @@ def fit_base(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.nd
     record = StepRecord(name=step.name, trajectories=tuple(step.trajectories), method=fit.method,
                         free=tuple(free_names), eliminated=tuple(base.eliminated),
                         figures=LeastSquaresFigures.of(fit),   # the estimates are the BaseFit's
-                        cond_scaled=scaled_condition(Y[:, :, kept], tau), **_encoder_fields(draws, encoder))
+                        cond_scaled=scaled_condition(Y[:, :, kept], tau), **_encoder_fields(draws, encoder),
+                        encoder_shift=tuple((fit.coef - plain).tolist()) if len(draws) > 1 else ())
     return result, equivalent, record
 
 

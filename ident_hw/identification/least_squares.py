@@ -28,7 +28,8 @@ gives back the white-residual formula of the power-model paper.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -229,6 +230,40 @@ def wls(Y: np.ndarray, tau: np.ndarray, names, output_std: np.ndarray | None = N
         names=tuple(names), coef=coef, covariance=cov, sigma2=sigma2, cond=cond,
         residual_rms=residual_rms(Y, tau, coef), output_std=1.0 / w, method="WLS", lags=used_lags,
     )
+
+
+def compensated(fit: LeastSquaresResult, Y: np.ndarray, tau: np.ndarray, draws: Sequence[np.ndarray]
+                ) -> LeastSquaresResult:
+    """``fit`` (of ``Y`` (N, k, n), ``tau`` (N, k), with its output weights) with its estimate
+    corrected for the noise in the regressor: bias-compensated least squares,
+
+        pi = (WᵀW − D)⁻¹ Wᵀy,   D = Σ_rows cov(W row),
+
+    the covariance of each (weighted) row of the regressor estimated from ``draws`` (each
+    (N, k, n)): the same motion read again by other instruments of the same kind (the encoders
+    with their count edges moved), whose regressors differ from each other by that noise only.
+    Noise in the regressor adds ``D`` to ``WᵀW`` on average and shrinks the plain estimate
+    towards zero in the directions it excites (errors in variables): the encoders' rounding,
+    differentiated twice, does so to the inertial terms. The covariance is the fit's (``D`` is
+    small against ``WᵀW``; the draws' spread, which the caller adds, is the noise's own part).
+    Fewer than two draws, or a ``WᵀW − D`` that is not positive definite: ``fit`` unchanged."""
+    if len(draws) < 2:
+        return fit
+    from scipy import linalg    # on first use: the config reads this module's constants
+    Y, tau = check_regression_data(Y, tau)
+    kept = informative_rows(Y)[..., None]      # the rows the fit counts; the draws keep only those
+    w = np.ones(Y.shape[1]) if fit.output_std is None else 1.0 / np.asarray(fit.output_std)
+    W, y = stack(Y * w[None, :, None], tau * w)
+    rows = np.array([stack(np.where(kept, Yk, 0.0) * w[None, :, None], tau)[0] for Yk in draws])
+    spread = rows - rows.mean(axis=0)
+    D = np.einsum("drn,drm->nm", spread, spread) / (len(draws) - 1)
+    s = 1.0 / np.sqrt(np.maximum(np.einsum("rn,rn->n", W, W), np.finfo(float).tiny))
+    try:
+        factor = linalg.cho_factor(s[:, None] * (W.T @ W - D) * s[None, :])
+    except linalg.LinAlgError:
+        return fit
+    coef = s * linalg.cho_solve(factor, s * (W.T @ y))
+    return replace(fit, coef=coef, residual_rms=residual_rms(Y, tau, coef))
 
 
 def residual_rms(Y: np.ndarray, tau: np.ndarray, coef: np.ndarray) -> np.ndarray:
