@@ -40,6 +40,7 @@ identification:
   steps:
     - {{name: base, trajectories: [excitation], method: wls, parameters: [{", ".join(NAMES)}]}}
   validation: []
+  encoder_draws: 0        # exact positions: no encoder rounding to read again or to correct for
 """)
     config = load_config(path)
     (planned,) = plan(config, ["excitation"])
@@ -59,7 +60,7 @@ def test_delta_base_parameters_from_exact_plant_samples_match_the_truth(tmp_path
 bus: {{interface: virtual, channel: unused}}
 trajectories:
   - {{name: training, kind: delta_training, duration: 60.0, amplitude: {list(training.amplitude)}, bandwidth: 2.0}}
-identification: {{validation: [], online: {{in_run: false}}}}
+identification: {{validation: [], online: {{in_run: false}}, encoder_draws: 0}}   # exact positions
 """)
     config = load_config(path)
     (planned,) = plan(config, ["training"])
