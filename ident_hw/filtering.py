@@ -273,7 +273,7 @@ def parallel_decimate(settings: FilterSettings, *arrays: np.ndarray, ends: Ends 
         raise ValueError(f"{n} samples are too few for trimming {head} and {tail} samples at the ends")
     window = kept_samples(settings, n, ends)
     pads = ends.pick(EVEN, ODD)
-    return tuple(_lowpass_live(a, settings, pads)[window] for a in arrays)
+    return tuple(_lowpass_live(a, settings, settings.decimation_cutoff_hz, pads)[window] for a in arrays)
 
 
 def through_position_lowpass(settings: FilterSettings, tau: np.ndarray, regressor: np.ndarray,
@@ -293,27 +293,22 @@ def through_position_lowpass(settings: FilterSettings, tau: np.ndarray, regresso
     tau = lowpass(tau, settings.sample_rate, settings.position_cutoff_hz, settings.order, pads)
     regressor = np.array(regressor, dtype=float)
     columns = list(columns)
-    live = [c for c in columns if np.any(regressor[:, :, c] != 0.0)]
-    if live:
-        N, a, _ = regressor.shape
-        block = regressor[:, :, live].reshape(N, a * len(live))
-        regressor[:, :, live] = lowpass(block, settings.sample_rate, settings.position_cutoff_hz, settings.order,
-                                        pads).reshape(N, a, len(live))
+    regressor[:, :, columns] = _lowpass_live(regressor[:, :, columns], settings, settings.position_cutoff_hz, pads)
     return regressor, tau
 
 
-def _lowpass_live(a: np.ndarray, settings: FilterSettings, pads: tuple[str, str]) -> np.ndarray:
-    """:func:`lowpass` of ``a`` (N, ...) at the decimation cut-off, filtering only the columns that
-    are not zero throughout (a regressor's columns are often structurally zero: another axis's
-    parameters, a parameter the motion does not excite); a zero column's low-pass is zero."""
+def _lowpass_live(a: np.ndarray, settings: FilterSettings, cutoff_hz: float, pads: tuple[str, str]) -> np.ndarray:
+    """:func:`lowpass` of ``a`` (N, ...) at ``cutoff_hz`` (``settings``' rate and order), filtering
+    only the columns that are not zero throughout (a regressor's columns are often structurally
+    zero: another axis's parameters, a parameter the motion does not excite); a zero column's
+    low-pass is zero."""
     flat = np.asarray(a, dtype=float).reshape(len(a), -1)
     live = np.flatnonzero(np.any(flat != 0.0, axis=0))
     if len(live) == flat.shape[1]:
-        return lowpass(a, settings.sample_rate, settings.decimation_cutoff_hz, settings.order, pads)
+        return lowpass(a, settings.sample_rate, cutoff_hz, settings.order, pads)
     out = np.zeros(flat.shape)
     if len(live):
-        out[:, live] = lowpass(flat[:, live], settings.sample_rate, settings.decimation_cutoff_hz, settings.order,
-                               pads)
+        out[:, live] = lowpass(flat[:, live], settings.sample_rate, cutoff_hz, settings.order, pads)
     return out.reshape(np.shape(a))
 
 

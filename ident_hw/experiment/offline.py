@@ -248,13 +248,14 @@ def fit_base(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.nd
     free = [names.index(p) for p in free_names]
     held = [i for i in range(len(names)) if i not in free]
     Yf = Y[:, :, free]
-    base, fit = identify_base(Yf, tau - Y[:, :, held] @ coef[held], free_names, scale=column_scale(Yf),
+    tau_free = tau - Y[:, :, held] @ coef[held]       # the forces the free parameters must explain
+    base, fit = identify_base(Yf, tau_free, free_names, scale=column_scale(Yf),
                               weighted=step.method == "wls", basis=None if held else basis)
     H = np.zeros((base.rank, len(names)))
     H[:, free] = np.where(np.abs(base.H) > 1e-10, base.H, 0.0)   # rounding of N1 N2^-1, not a coefficient
     kept = [free[list(free_names).index(k)] for k in base.kept]
     plain = fit.coef
-    fit = compensated(fit, Y[:, :, kept], tau - Y[:, :, held] @ coef[held], [Yk[:, :, kept] for Yk, _ in draws])
+    fit = compensated(fit, Y[:, :, kept], tau_free, [Yk[:, :, kept] for Yk, _ in draws])
     equivalent = coef.copy()
     equivalent[free] = on_kept(free_names, base.kept, fit.coef)
     encoder = spread_covariance([_refit(fit, Yk[:, :, kept], tauk - Yk[:, :, held] @ coef[held])
@@ -490,10 +491,11 @@ def held_value_sensitivity(fit, Y: np.ndarray, tau: np.ndarray, free: Sequence[i
     column that acts on no row). Exact for a fit whose bounds are not active: the model is
     linear in its parameters and the mass fit's weights do not depend on the held values."""
     out = np.zeros((len(free), len(held)))
+    A, left_out = Y[:, :, list(free)], np.isnan(tau)
     for k, j in enumerate(held):
-        column = np.where(np.isnan(tau), np.nan, Y[:, :, j])
+        column = np.where(left_out, np.nan, Y[:, :, j])
         if np.any(np.nan_to_num(column) != 0):
-            out[:, k] = -_refit(fit, Y[:, :, list(free)], column)
+            out[:, k] = -_refit(fit, A, column)
     return out
 
 
