@@ -9,7 +9,7 @@ from scipy import signal as sps
 from drivers.recording import Recording
 from drivers.recording_metadata import RecordingMetadata
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
-from ident_hw.config import load_config, to_model
+from ident_hw.config import ConfigError, load_config, to_model
 from ident_hw.experiment.offline import identify, prepare
 from ident_hw.segments import split, uniform
 from ident_hw.experiment.plan import excitation_of, motion_bandwidth, plan, position_margin, robot_model
@@ -369,3 +369,26 @@ def test_the_positions_low_pass_of_a_rest_to_rest_path_is_flat_over_the_parallel
     assert {kinds[n] for n in kinds if position_margin(config, n) == 1.0} == {"fourier"}
     with pytest.raises(ValueError, match="position_margin"):
         FilterSettings(100.0, 15.0, position_margin=0.5)
+
+
+def test_a_configs_position_margin_sets_every_trajectorys_positions_low_pass(tmp_path):
+    """``identification.filter.position_margin`` (the Delta's configs) overrides the margin of every
+    trajectory, rest-to-rest or not; the positions' low-pass then cuts off that many times above
+    the parallel filter, at most at a quarter of the sample rate; below 1 the config is refused,
+    naming the key."""
+    path = tmp_path / "wide.yaml"
+    path.write_text(f"extends: {CONFIGS / 'sim-3prrr.yaml'}\nidentification: {{filter: {{position_margin: 3}}}}\n")
+    config = load_config(path)
+    assert {position_margin(config, t.name) for t in config.trajectories} == {3.0}
+    rate = config.bus.sync_rate
+    for t in config.trajectories:
+        settings = filter_settings(config.identification.filter, rate, motion_bandwidth(config, t.name),
+                                   position_margin(config, t.name))
+        assert settings.position_cutoff_hz == pytest.approx(min(3.0 * settings.decimation_cutoff_hz, rate / 4))
+    path.write_text(f"extends: {CONFIGS / 'sim-3prrr.yaml'}\nidentification: {{filter: {{position_margin: 0.5}}}}\n")
+    with pytest.raises(ConfigError, match="identification.filter.position_margin"):
+        load_config(path)
+    delta = load_config(CONFIGS / "sim-delta.yaml")
+    training = filter_settings(delta.identification.filter, delta.bus.sync_rate, motion_bandwidth(delta, "training"),
+                               position_margin(delta, "training"))
+    assert training.position_cutoff_hz == pytest.approx(delta.bus.sync_rate / 4)

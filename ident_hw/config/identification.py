@@ -17,13 +17,22 @@ class FilterConfig:
 
     Defaults follow the sample rate and the motion ``bandwidth``
     (:meth:`ident_hw.filtering.FilterSettings.for_sample_rate`); ``cutoff`` and ``decimation``
-    override them.
+    override them. ``position_margin``: the positions' low-pass, before they are differentiated,
+    cuts off this many times above the band (at most a quarter of the sample rate,
+    :attr:`ident_hw.filtering.FilterSettings.position_cutoff_hz`); default 2 for the paper's
+    rest-to-rest paths and 1 for band-limited motions. The regressor, not linear in the motion,
+    is computed from the low-passed positions, while the forces pass the same low-pass linearly:
+    the two disagree where the forces have content near its cut-off. A robot whose forces reach
+    the band's edge on any path (strongly non-linear kinematics, a drive's position loop near the
+    band: the Delta) needs the positions low-passed well above it; the price is more of the
+    encoders' rounding in the velocities and accelerations.
     """
 
     bandwidth: float = field(default=5.0, metadata=spec(positive, unit="Hz"))
     order: int = field(default=4, metadata=spec(in_range(1, 12)))
     cutoff: float | None = field(default=None, metadata=spec(positive, unit="Hz"))
     decimation: int | None = field(default=None, metadata=spec(in_range(1, 100)))
+    position_margin: float | None = field(default=None, metadata=spec(in_range(1.0, 100.0)))
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,10 @@ KEYS_OF_KIND = {
     "delta_held_arm": ("duration", "fade", "amplitude"),
     "joint_excitation": ("duration", "fade", "amplitude", "harmonics", "seed"),
 }
+#: the kinds whose spectrum reaches the identification filter's band edge: the paper's
+#: rest-to-rest paths (a jerk step at every vertex, short segments near the limits); their
+#: positions are low-passed above the band by default (``ident_hw.experiment.plan.position_margin``)
+REST_TO_REST_KINDS = frozenset({"carriage_sweep", "square", "triangle"})
 #: the type of :attr:`TrajectoryConfig.kind`: one of the kinds of :data:`KEYS_OF_KIND`
 TrajectoryKind = Literal[tuple(KEYS_OF_KIND)]
 

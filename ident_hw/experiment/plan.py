@@ -13,6 +13,7 @@ from ident_hw.config import Config, TrajectoryConfig
 from ident_hw.config.robots import kind_of, model_of
 from ident_hw.config.to_drivers import axis_config, axis_scaling
 from ident_hw.config.to_trajectories import excitation_of
+from ident_hw.config.trajectory import REST_TO_REST_KINDS
 from ident_hw.filtering import POSITION_MARGIN
 from ident_hw.model import KinematicsError
 from ident_hw.model.interface import POSITION_UNITS, RobotModel
@@ -93,17 +94,16 @@ def motion_bandwidth(config: Config, name: str) -> float:
     return config.identification.filter.bandwidth
 
 
-#: trajectory kinds whose spectrum reaches the identification filter's band edge: the paper's
-#: rest-to-rest paths (a jerk step at every vertex, short segments near the limits)
-REST_TO_REST_KINDS = frozenset({"carriage_sweep", "square", "triangle"})
-
-
 def position_margin(config: Config, name: str) -> float:
     """How far above the identification's band the positions of trajectory ``name`` are
-    low-passed (:attr:`ident_hw.filtering.FilterSettings.position_margin`):
-    :data:`ident_hw.filtering.POSITION_MARGIN` for the rest-to-rest kinds, whose force near the
-    band edge would otherwise be biased; 1 (one cut-off) for band-limited motions, which carry
-    no force there, and for a name the config does not list."""
+    low-passed (:attr:`ident_hw.filtering.FilterSettings.position_margin`): the config's
+    ``identification.filter.position_margin`` where it gives one, else
+    :data:`ident_hw.filtering.POSITION_MARGIN` for the rest-to-rest kinds
+    (:data:`ident_hw.config.trajectory.REST_TO_REST_KINDS`), whose force near the band edge would
+    otherwise be biased, and 1 (one cut-off) for band-limited motions and for a name the config
+    does not list."""
+    if config.identification.filter.position_margin is not None:
+        return config.identification.filter.position_margin
     tcfg = next((t for t in config.trajectories if t.name == name), None)
     return POSITION_MARGIN if tcfg is not None and tcfg.kind in REST_TO_REST_KINDS else 1.0
 
