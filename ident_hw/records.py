@@ -45,7 +45,10 @@ class RecordingCoverage:
 
     Once the recording is prepared (:meth:`with_use`): ``samples_used`` after decimation,
     ``rows_left_out`` per rule (rows at the input rate, :class:`ident_hw.segments.Segments`),
-    ``gaps`` the recording is cut at and the ``stretches`` filtered; None before.
+    ``gaps`` the recording is cut at and the ``stretches`` filtered; None before;
+    ``uncounted_axes``: the actuators of an identification trajectory whose positions are not
+    whole encoder counts (:func:`ident_hw.experiment.encoder.uncounted_axes`: no encoder draws
+    were taken, for any step), JSON ``positions_not_in_counts`` when there are any.
     """
 
     file: str | None
@@ -61,6 +64,7 @@ class RecordingCoverage:
     rows_left_out: Mapping[str, int] | None = None
     gaps: int | None = None
     stretches: int | None = None
+    uncounted_axes: tuple[str, ...] = ()
 
     @property
     def prepared(self) -> bool:
@@ -68,15 +72,18 @@ class RecordingCoverage:
         return self.samples_used is not None
 
     def with_use(self, samples_used: int, rows_left_out: Mapping[str, int], gaps: int,
-                 stretches: int) -> RecordingCoverage:
+                 stretches: int, uncounted_axes: tuple[str, ...] = ()) -> RecordingCoverage:
         """This coverage with what the fit used of the recording."""
-        return replace(self, samples_used=samples_used, rows_left_out=rows_left_out, gaps=gaps, stretches=stretches)
+        return replace(self, samples_used=samples_used, rows_left_out=rows_left_out, gaps=gaps, stretches=stretches,
+                       uncounted_axes=tuple(uncounted_axes))
 
     def to_json(self) -> dict:
         doc = {key: getattr(self, name) for key, name, _ in _COVERAGE_JSON}
         if self.prepared:
             doc.update(samples_used=self.samples_used, rows_left_out=self.rows_left_out, gaps=self.gaps,
                        stretches=self.stretches)
+        if self.uncounted_axes:
+            doc["positions_not_in_counts"] = list(self.uncounted_axes)
         return doc
 
     @classmethod
@@ -86,7 +93,8 @@ class RecordingCoverage:
         books.update(recording_status="" if status is None else str(status), cycles=doc["cycles"],
                      longest_gap_s=books["longest_gap_s"] or 0.0, skipped_slots=books["skipped_slots"] or 0)
         return cls(**books, samples_used=doc.get("samples_used"), rows_left_out=doc.get("rows_left_out"),
-                   gaps=doc.get("gaps"), stretches=doc.get("stretches"))
+                   gaps=doc.get("gaps"), stretches=doc.get("stretches"),
+                   uncounted_axes=tuple(doc.get("positions_not_in_counts") or ()))
 
 
 @dataclass(frozen=True)

@@ -3,6 +3,8 @@ edges moved (ident_hw.experiment.encoder), the spread of those draws' estimates 
 least-squares covariance (offline.fit_base, fit_sqp_step), and where the simulated rig's and the
 study's encoders count (sim.encoder_edges)."""
 
+import dataclasses
+import json
 from types import SimpleNamespace
 
 import numpy as np
@@ -12,11 +14,14 @@ from drivers.recording import Recording
 from drivers.recording_metadata import RecordingMetadata
 from ident_hw.config import load_config
 from ident_hw.config.schema import ConfigError
-from ident_hw.experiment.encoder import count_shifts, reread, smoothed_positions, spread_covariance
-from ident_hw.experiment.offline import fit_base
+from ident_hw.experiment.encoder import count_shifts, reread, smoothed_positions, spread_covariance, uncounted_axes
+from ident_hw.experiment.offline import fit_base, identify
+from ident_hw.experiment.plan import plan
+from ident_hw.records import RecordingCoverage
+from ident_hw.report import coverage_text
 from ident_hw.identification.least_squares import compensated, wls
 
-from ident_scenarios import CONFIGS
+from ident_scenarios import CONFIGS, exact_recording, without_draws
 from ident_hw.config.to_drivers import encoder_edge_counts
 
 RATE = 250.0
@@ -157,3 +162,45 @@ def test_compensation_needs_two_draws():
     tau = Y @ np.ones(3)
     fit = wls(Y, tau, ("a", "b", "c"), output_std=np.ones(2))
     assert compensated(fit, Y, tau, [Y + 0.1]) is fit and compensated(fit, Y, tau, []) is fit
+
+
+def test_positions_off_the_count_grid_are_found_per_axis():
+    """Whole counts pass, on a grid offset by a constant too (a home between two counts); exact
+    positions (a simulation's truth, a resampled file) do not."""
+    counts = np.array([4096 / (2 * np.pi), 2e5])
+    rec, truth = smooth_recording(counts)
+    assert uncounted_axes(rec, counts) == ()
+    shifted = rec.position + np.array([0.0, 0.3]) / counts
+    assert uncounted_axes(dataclasses.replace(rec, position=shifted), counts) == ()
+    exact = rec.position.copy()
+    exact[:, 1] = truth[:, 1]
+    assert uncounted_axes(dataclasses.replace(rec, position=exact), counts) == (1,)
+
+
+def test_a_recording_not_in_whole_counts_is_identified_without_draws(tmp_path):
+    """The plant's exact positions under a config that asks for draws: none are taken (they would
+    round what was never rounded, and the compensation would remove noise that is not there), the
+    estimates and sigma are those of the same config without draws, and the recording's coverage
+    names the axes, in the terminal text and through parameters.json."""
+    path = tmp_path / "exact.yaml"
+    path.write_text(f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n"
+                    "bus: {interface: virtual, channel: unused, sync_rate: 100.0}\n"
+                    "trajectories:\n  - {name: square, kind: square, size: 0.06, speed_scale: 0.6}\n"
+                    "identification:\n  steps: [{name: links, trajectories: [square], parameters: [m_l2, m_ee, I_l1]}]\n"
+                    "  validation: []\n")
+    config = load_config(path)
+    assert config.identification.encoder_draws > 1
+    (planned,) = plan(config, ["square"])
+    rec = exact_recording(config, planned.trajectory, None)
+    said = []
+    results = identify(config, {"square": rec}, progress=said.append)
+    plain = identify(without_draws(config), {"square": rec})
+    np.testing.assert_array_equal(results.parameters.identified, plain.parameters.identified)
+    np.testing.assert_array_equal(results.parameters.sigma, plain.parameters.sigma)
+    assert [step.skipped for step in results.steps] == [None] and results.steps[0].encoder_draws == 0
+    actuators = tuple(a.name for a in config.robot.actuators)
+    used = results.trajectories["square"]
+    assert used.uncounted_axes == actuators
+    assert any("no encoder draws" in line and "not whole encoder counts" in line for line in said), said
+    assert "not in whole encoder counts" in coverage_text(used)
+    assert RecordingCoverage.from_json(json.loads(json.dumps(used.to_json()))) == used

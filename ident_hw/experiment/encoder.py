@@ -62,6 +62,28 @@ def reread(rec: Recording, smooth: np.ndarray, counts_per_unit: np.ndarray, shif
                                                       rec.position))
 
 
+#: the mean resultant length of the count phases above which an axis's positions lie on one grid
+#: of whole counts (1 on the grid, whatever its offset; about ``1/sqrt(N)`` for positions that are not)
+ON_COUNT_GRID = 0.999
+
+
+def uncounted_axes(rec: Recording, counts_per_unit: np.ndarray) -> tuple[int, ...]:
+    """The axes of ``rec`` whose valid positions are not whole counts of encoders of
+    ``counts_per_unit`` (a,): a recording made elsewhere (positions resampled, converted, or
+    exact, as a simulation's truth), which the draws of :func:`reread` cannot stand for: they
+    would round positions that were never rounded, and the correction for the encoders' noise
+    (:func:`ident_hw.identification.least_squares.compensated`) would remove noise that is not
+    there. An axis is on its grid when ``|mean(exp(2 pi i x))| >= ON_COUNT_GRID`` over its
+    positions ``x`` in counts (a grid offset by a constant, a home between two counts, passes)."""
+    valid = identification_valid(rec)
+    off = []
+    for j, per_unit in enumerate(np.asarray(counts_per_unit, dtype=float)):
+        counts = rec.position[valid[:, j], j] * per_unit
+        if counts.size and abs(np.mean(np.exp(2j * np.pi * counts))) < ON_COUNT_GRID:
+            off.append(j)
+    return tuple(off)
+
+
 def spread_covariance(estimates: Sequence[np.ndarray], m: int) -> np.ndarray:
     """(m, m) sample covariance of the draws' estimates (each (m,)); zeros with fewer than two."""
     if len(estimates) < 2:

@@ -48,7 +48,7 @@ from ident_hw.segments import Segments, slot_indices, split, uniform
 from ident_hw.filtering import (FilterSettings, kept_samples, near_rest, parallel_decimate, prepare_actuated,
                                running_average, through_position_lowpass)
 
-from .encoder import count_shifts, reread, smoothed_positions, spread_covariance
+from .encoder import count_shifts, reread, smoothed_positions, spread_covariance, uncounted_axes
 from .plan import motion_bandwidth, position_margin, robot_model
 from .quality import verdict
 from .recordings import identification_valid, planned_cycles, require_trajectories
@@ -324,12 +324,17 @@ class _Estimates:
         return cls(values.copy(), np.full(n, np.nan), np.full(n, -np.inf), np.full(n, np.inf), [""] * n, [""] * n)
 
 
+def encoder_resolution(config: Config) -> np.ndarray:
+    """(a,) each actuator's encoder counts per position unit (per rad or per m)."""
+    return np.array([axis_scaling(a).counts_per_unit for a in config.robot.actuators])
+
+
 def reread_draws(config: Config, robot: RobotModel, recordings: Mapping[str, Recording], names: Sequence[str],
                  draws: int) -> list[dict[str, Prepared]]:
     """``draws`` versions of the recordings ``names`` read again by encoders whose count edges are
     moved (:mod:`ident_hw.experiment.encoder`), each prepared as the recording was: one dict
     (trajectory name -> :class:`Prepared`) per draw."""
-    counts_per_unit = np.array([axis_scaling(a).counts_per_unit for a in config.robot.actuators])
+    counts_per_unit = encoder_resolution(config)
     smooth, starts = {}, {}
     for name in names if draws else ():  # once per recording: the motion the draws read again, and
         rec = recordings[name]           # the poses their kinematics start from (a count away at most)
@@ -438,9 +443,15 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     require_trajectories(config, recordings)
     used, prepared = prepare_all(config, robot, recordings, needed, compared, progress)
     id_names = list(dict.fromkeys(t for s in ident.steps for t in s.trajectories))
+    uncounted = {name: tuple(robot.actuator_names[j] for j in uncounted_axes(recordings[name], encoder_resolution(config)))
+                 for name in id_names}
+    draws_taken = ident.encoder_draws if not any(uncounted.values()) else 0
     if progress and ident.encoder_draws:
-        progress(f"the encoders read again, count edges moved: {ident.encoder_draws} draws")
-    draws = reread_draws(config, robot, recordings, id_names, ident.encoder_draws)
+        progress(f"the encoders read again, count edges moved: {draws_taken} draws" if draws_taken else
+                 "no encoder draws: the positions of " + "; ".join(
+                     f"{name} ({', '.join(axes)})" for name, axes in uncounted.items() if axes)
+                 + " are not whole encoder counts")
+    draws = reread_draws(config, robot, recordings, id_names, draws_taken)
 
     initial = initial_parameters(config.robot)
     estimates = _Estimates.initial(initial)
@@ -463,7 +474,8 @@ def identify(config: Config, recordings: Mapping[str, Recording],
                            step=tuple(estimates.step_of), method=tuple(estimates.method_of), truth=truth)
     for name, p in prepared.items():
         used[name] = used[name].with_use(samples_used=len(p.t), rows_left_out=p.segments.left_out,
-                                         gaps=p.segments.gaps, stretches=len(p.segments.slices))
+                                         gaps=p.segments.gaps, stretches=len(p.segments.slices),
+                                         uncounted_axes=uncounted.get(name, ()))
     results = Results(parameters=table, actuators=robot.actuator_names, actuator_kinds=robot.actuator_kinds,
                       fits=fits, steps=steps, base_analysis=analysis, base_fit=base_fit,
                       rel_sigma_threshold=ident.rel_sigma_threshold, trajectories=used,

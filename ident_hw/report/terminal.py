@@ -78,6 +78,9 @@ def coverage_text(used: RecordingCoverage) -> str:
         out = [f"{n} {rule.replace('_', ' ')}" for rule, n in (used.rows_left_out or {}).items() if n]
         if out:
             text += f" (rows left out: {', '.join(out)})"
+        if used.uncounted_axes:
+            text += (f"; positions of {', '.join(used.uncounted_axes)} not in whole encoder counts: no encoder "
+                     "draws, sigma without the encoders' resolution")
     status = used.recording_status
     if status.startswith("stopped"):
         text += f"; partial recording ({status})"
