@@ -385,7 +385,8 @@ class Verdict:
     :class:`TrajectoryVerdict`; per step its scaled condition number ``cond_scaled`` (JSON
     ``steps``); ``well_identified``: the fitted parameters (physical, then base) with %σ at most
     the campaign's threshold. Per judged axis (``axes_judged``): its gain spread (%) and worst
-    residual ratio against the axes of the same drive, and the lag of its measured forces
+    residual ratio against the axes of the same drive, its worst residual over its current noise at
+    standstill (``axis_residual_over_floor``, JSON only when a standstill was recorded), and the lag of its measured forces
     behind the model's with its standard error (s).
     """
 
@@ -397,6 +398,7 @@ class Verdict:
     well_identified: tuple[str, ...] = ()
     axis_gain_spread_percent: Mapping[str, float] = field(default_factory=dict)
     axis_residual_ratio: Mapping[str, float] = field(default_factory=dict)
+    axis_residual_over_floor: Mapping[str, float] = field(default_factory=dict)
     force_lag_s: Mapping[str, float] = field(default_factory=dict)
     force_lag_sigma_s: Mapping[str, float] = field(default_factory=dict)
     axes_judged: tuple[str, ...] = ()
@@ -408,6 +410,8 @@ class Verdict:
                 "well_identified": list(self.well_identified),
                 "axis_gain_spread_percent": dict(self.axis_gain_spread_percent),
                 "axis_residual_ratio": dict(self.axis_residual_ratio), "force_lag_s": dict(self.force_lag_s),
+                **({"axis_residual_over_floor": dict(self.axis_residual_over_floor)}
+                   if self.axis_residual_over_floor else {}),
                 "force_lag_sigma_s": dict(self.force_lag_sigma_s), "axes_judged": list(self.axes_judged)}
 
     @classmethod
@@ -420,6 +424,7 @@ class Verdict:
                    well_identified=tuple(doc.get("well_identified") or ()),
                    axis_gain_spread_percent=doc.get("axis_gain_spread_percent") or {},
                    axis_residual_ratio=doc.get("axis_residual_ratio") or {},
+                   axis_residual_over_floor=doc.get("axis_residual_over_floor") or {},
                    force_lag_s=doc.get("force_lag_s") or {}, force_lag_sigma_s=doc.get("force_lag_sigma_s") or {},
                    axes_judged=tuple(doc.get("axes_judged") or ()))
 

@@ -235,12 +235,12 @@ def test_fourier_trajectory_defaults_to_the_shipped_excitation(tmp_path):
 
 @pytest.mark.parametrize("old, new, where", [
     ("{name: sweep, kind: carriage_sweep, size: 0.06}",
-     "{name: sweep, kind: carriage_sweep, size: 0.06, rotation_deg: 10}", "trajectories[0].rotation"),
+     "{name: sweep, kind: carriage_sweep, size: 0.06, rotation_deg: 10}", "trajectories[1].rotation"),
     ("{name: square1, kind: square, size: 0.12,", "{name: square1, kind: square, harmonics: 3, size: 0.12,",
-     "trajectories[1].harmonics"),
+     "trajectories[2].harmonics"),
     ("{name: excitation, kind: fourier, cycles: 10}", "{name: excitation, kind: fourier, cycles: 10, speed_scale: 0.5}",
-     "trajectories[6].speed_scale"),
-    ("{name: triangle, kind: triangle}", "{name: triangle, kind: triangle, seed: 3}", "trajectories[7].seed"),
+     "trajectories[7].speed_scale"),
+    ("{name: triangle, kind: triangle}", "{name: triangle, kind: triangle, seed: 3}", "trajectories[8].seed"),
 ])
 def test_a_key_its_trajectory_kind_does_not_read_is_refused(tmp_path, old, new, where):
     """A key that the trajectory's kind would silently ignore is an error naming file, line and key."""
@@ -259,7 +259,7 @@ def test_the_trajectory_kinds_are_those_of_keys_of_kind(tmp_path):
     write(tmp_path, "robot-3prrr.yaml", ROBOT_TEXT)
     old = "{name: triangle, kind: triangle}"
     text = SIM_TEXT.replace(old, "{name: triangle, kind: triangel}", 1)
-    expect_error(write(tmp_path, "sim.yaml", text), "trajectories[7].kind", line_of(text, "triangel"),
+    expect_error(write(tmp_path, "sim.yaml", text), "trajectories[8].kind", line_of(text, "triangel"),
                  "'triangel'", "did you mean 'triangle'")
 
 
@@ -295,7 +295,7 @@ def test_path_only_for_file_and_fourier_trajectories(tmp_path):
     write(tmp_path, "robot-3prrr.yaml", ROBOT_TEXT)
     old = "{name: square1, kind: square, size: 0.12,"
     text = SIM_TEXT.replace(old, "{name: square1, kind: square, path: a.json, size: 0.12,")
-    expect_error(write(tmp_path, "sim.yaml", text), "trajectories[1].path", line_of(text, "a.json"),
+    expect_error(write(tmp_path, "sim.yaml", text), "trajectories[2].path", line_of(text, "a.json"),
                  "a 'square' trajectory does not use path", "ignored")
     text = SIM_TEXT.replace("kind: fourier, cycles: 10}", "kind: fourier, path: missing.json}")
     config = load_config(write(tmp_path, "sim.yaml", text))

@@ -108,10 +108,10 @@ def test_robot_mistakes_name_file_key_and_line(tmp_path, old, new, key, needle, 
      ("unknown key",)),
     # (without the excitation's keys: those a square does not read are refused first, each by its key)
     ("kind: joint_excitation, duration: 60.0, bandwidth: 1.5, seed: 1", "kind: square, size: 0.1, bandwidth: 1.5",
-     "trajectories[0].kind",
+     "trajectories[1].kind",
      "square", ("not one of the described's", "joint_excitation")),
     ("duration: 20.0, bandwidth: 1.5, seed: 2}", "duration: 20.0, bandwidth: 1.5, seed: 2, amplitude: [1, 1, 1]}",
-     "trajectories[1].amplitude", "amplitude", ("one amplitude per actuator (2)",)),
+     "trajectories[2].amplitude", "amplitude", ("one amplitude per actuator (2)",)),
 ])
 def test_sim_and_trajectory_mistakes_name_file_key_and_line(tmp_path, old, new, key, needle, words):
     assert old in SIM_2R

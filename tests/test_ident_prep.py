@@ -366,7 +366,7 @@ def test_the_positions_low_pass_of_a_rest_to_rest_path_is_flat_over_the_parallel
     for name, kind in kinds.items():
         expected = 2.0 if kind in ("carriage_sweep", "square", "triangle") else 1.0
         assert position_margin(config, name) == expected, (name, kind)
-    assert {kinds[n] for n in kinds if position_margin(config, n) == 1.0} == {"fourier"}
+    assert {kinds[n] for n in kinds if position_margin(config, n) == 1.0} == {"fourier", "standstill"}
     with pytest.raises(ValueError, match="position_margin"):
         FilterSettings(100.0, 15.0, position_margin=0.5)
 

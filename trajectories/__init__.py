@@ -21,5 +21,6 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submodules=["delta_
     "paper": ["carriage_sweep", "five_squares", "square", "validation_triangle"],
     "paths": ["actuator_trajectory", "pose_trajectory"],
     "redundancy": ["CarriageSchedule", "carriage_schedule"],
+    "standstill": ["standstill"],
     "trajectory": ["Trajectory"],
 })

@@ -115,6 +115,10 @@ class QualityConfig:
         positive, doc="an axis's force residual (RMS, on any fitted trajectory) over the median of those of "
                       "the other axes with the same drive: above it the data contradict the model on that "
                       "axis (its torque constant, gear, lead or friction model)"))
+    max_residual_over_floor: float = field(default=5.0, metadata=spec(
+        positive, doc="an axis's force residual (RMS, on any fitted trajectory, in the drive's current) over its "
+                      "current noise at standstill in the same band (a 'standstill' trajectory of the campaign; "
+                      "without one, not judged): above it the data contradict the model on that axis, twins or not"))
 
 
 @dataclass(frozen=True)

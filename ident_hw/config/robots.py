@@ -215,7 +215,7 @@ DESCRIBED = RobotKind(
 #: every robot kind by its ``robot.kind``
 KINDS: dict[str, RobotKind] = {k.name: k for k in (THREE_PRRR, DELTA, DESCRIBED)}
 #: trajectory kinds any robot can run
-COMMON_TRAJECTORY_KINDS = ("file",)
+COMMON_TRAJECTORY_KINDS = ("file", "standstill")
 
 
 def kind_of(robot) -> RobotKind:

@@ -22,11 +22,15 @@ KEYS_OF_KIND = {
     "delta_verification": ("duration", "fade", "amplitude"),
     "delta_held_arm": ("duration", "fade", "amplitude"),
     "joint_excitation": ("duration", "fade", "amplitude", "harmonics", "seed"),
+    "standstill": ("duration",),
 }
 #: the kinds whose spectrum reaches the identification filter's band edge: the paper's
 #: rest-to-rest paths (a jerk step at every vertex, short segments near the limits); their
 #: positions are low-passed above the band by default (``ident_hw.experiment.plan.position_margin``)
 REST_TO_REST_KINDS = frozenset({"carriage_sweep", "square", "triangle"})
+#: s, a ``standstill`` trajectory's default duration: some 60 independent samples of the current
+#: noise in a 15 Hz band, its RMS known to about 10 %
+STANDSTILL_S = 2.0
 #: the type of :attr:`TrajectoryConfig.kind`: one of the kinds of :data:`KEYS_OF_KIND`
 TrajectoryKind = Literal[tuple(KEYS_OF_KIND)]
 
@@ -66,6 +70,9 @@ class TrajectoryConfig:
     ``joint_excitation``, ``duration`` s of ``harmonics`` sines per actuator up to ``bandwidth``
     Hz (default: ``identification.filter.bandwidth``) about home, phases and frequencies drawn from ``seed``, fitted to 0.8 of
     each actuator's limits and scaled by ``amplitude`` (one factor, or one per actuator).
+    Any robot's ``standstill``: ``duration`` s (default :data:`STANDSTILL_S`) held at the home
+    pose, the drives enabled: their currents at rest, the noise floor the quality verdict holds
+    each axis's residual against (``identification.quality.max_residual_over_floor``).
     ``online_only``: streamed only for the online estimators (``ident-hw online``, or ``run``
     with ``identification.online.in_run``), after the others; otherwise ``run`` leaves it out. ``payload``: on the in-process simulated rig, a payload added during this trajectory
     (:class:`PayloadConfig`), e.g. on an ``online_only`` one for the online estimators to track.

@@ -324,6 +324,59 @@ class _Estimates:
         return cls(values.copy(), np.full(n, np.nan), np.full(n, -np.inf), np.full(n, np.inf), [""] * n, [""] * n)
 
 
+def noise_floors(config: Config, recordings: Mapping[str, Recording], fitted: Sequence[str],
+                 draws: Sequence[Mapping[str, Prepared]] = (), coef: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Per fitted trajectory (``fitted``), the residual (a,) that noise alone leaves each axis, in
+    the drive's current (A): the current's noise at rest and, with ``draws``, the encoders'.
+
+    The current's: the RMS about its mean of the current of the config's ``standstill``
+    recordings, through that trajectory's parallel filter
+    (:func:`ident_hw.filtering.parallel_decimate` with its band, not decimated: the same
+    variance, more samples), as its fitted forces are; the longest stretch of complete rows of
+    each standstill counts, one shorter than the filter's two trims gives nothing. The
+    encoders': the positions' rounding, differentiated twice, moves the regressor and so the
+    predicted forces: the RMS over the rows of their spread over the draws (the recordings read
+    again, :func:`reread_draws`) at the parameters ``coef``. The two add in squares. ``{}``
+    without a standstill recording, or without draws (on a fine trajectory the encoders' part
+    can be most of the floor): the verdict then has no floor."""
+    stills = [recordings[t.name] for t in config.trajectories if t.kind == "standstill" and t.name in recordings]
+    if len(draws) < 2 or coef is None:
+        return {}
+    floors = {}
+    per_amp = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])
+    for name in fitted:
+        squares, count = np.zeros(len(config.robot.actuators)), 0
+        for rec in stills:
+            settings = trajectory_filter(config, name, 1.0 / recording_period(rec))
+            band = replace(settings, cutoff_hz=settings.decimation_cutoff_hz, decimation=1)
+            rows = _longest_run(identification_valid(rec).all(axis=1))
+            if rows.stop - rows.start <= 2 * band.trim + 1:
+                continue
+            current = rec.current[rows] - rec.current[rows].mean(axis=0)
+            (filtered,) = parallel_decimate(band, current)
+            squares, count = squares + np.sum(filtered ** 2, axis=0), count + len(filtered)
+        if count:
+            floors[name] = np.sqrt(squares / count + _encoder_spread(draws, name, coef) ** 2 / per_amp ** 2)
+    return floors
+
+
+def _encoder_spread(draws: Sequence[Mapping[str, Prepared]], name: str, coef: np.ndarray) -> np.ndarray:
+    """(a,) RMS over the rows of trajectory ``name`` of the spread over ``draws`` (at least two)
+    of the forces predicted at ``coef`` (force units)."""
+    predicted = np.array([d[name].Y @ coef for d in draws])          # (draws, rows, a)
+    return np.sqrt(np.mean(np.var(predicted, axis=0, ddof=1), axis=0))
+
+
+def _longest_run(mask: np.ndarray) -> slice:
+    """The longest stretch of consecutive True in ``mask`` (N,), as a slice (empty: none)."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    if not len(edges):
+        return slice(0, 0)
+    starts, stops = edges[::2], edges[1::2]
+    k = int(np.argmax(stops - starts))
+    return slice(int(starts[k]), int(stops[k]))
+
+
 def encoder_resolution(config: Config) -> np.ndarray:
     """(a,) each actuator's encoder counts per position unit (per rad or per m)."""
     return np.array([axis_scaling(a).counts_per_unit for a in config.robot.actuators])
@@ -488,7 +541,9 @@ def identify(config: Config, recordings: Mapping[str, Recording],
             results.steps = [replace(s, consistency_failure=failure) if s.name == base_fit.step else s
                              for s in results.steps]
     results.quality = verdict(results, ident.quality, config.robot.actuators,
-                              acting_axes(robot, prepared, id_names, fitted))
+                              acting_axes(robot, prepared, id_names, fitted),
+                              noise_floors(config, recordings, id_names, draws,
+                                           coef if base_fit is None else base_equivalent))
     return results
 
 

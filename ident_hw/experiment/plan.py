@@ -13,7 +13,7 @@ from ident_hw.config import Config, TrajectoryConfig
 from ident_hw.config.robots import kind_of, model_of
 from ident_hw.config.to_drivers import axis_config, axis_scaling
 from ident_hw.config.to_trajectories import excitation_of
-from ident_hw.config.trajectory import REST_TO_REST_KINDS
+from ident_hw.config.trajectory import REST_TO_REST_KINDS, STANDSTILL_S
 from ident_hw.filtering import POSITION_MARGIN
 from ident_hw.model import KinematicsError
 from ident_hw.model.interface import POSITION_UNITS, RobotModel
@@ -75,6 +75,8 @@ def build(config: Config, tcfg: TrajectoryConfig, robot: RobotModel) -> trajecto
     rate = sample_rate(config)
     if tcfg.kind == "file":
         traj = trajectories.load(Path(config.base_dir or "") / tcfg.path).resample(rate)
+    elif tcfg.kind == "standstill":
+        traj = trajectories.standstill(robot, tcfg.duration or STANDSTILL_S, rate, tcfg.name)
     else:
         traj = kind_of(config.robot).build(config, tcfg, robot, rate)
     traj = repeat(traj, tcfg.cycles)

@@ -11,7 +11,8 @@ thresholds of ``identification.quality`` (:class:`ident_hw.config.QualityConfig`
   covariance (:func:`consistency_reasons`);
 * the parameters: how many fitted ones are well identified (%σ at most ``rel_sigma_threshold``);
 * per axis, against the axes with the same drive (:func:`axis_reasons`): the gain between its
-  measured and predicted forces, and its residual. A model the data contradict on one axis (its
+  measured and predicted forces, and its residual; and against its own current noise at
+  standstill, where the campaign recorded one (:func:`floor_reasons`). A model the data contradict on one axis (its
   torque constant, say) shows there, whatever the parameters' sigma say; and the delay of its
   measured forces behind the predicted ones (:func:`force_lags`);
 * per validation trajectory (each identification one when there is none): the force prediction
@@ -30,7 +31,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -119,6 +120,54 @@ def axis_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits: 
     return spreads, {name: w[0] for name, w in worst.items()}, reasons
 
 
+def floor_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits: QualityConfig,
+                  floors: Mapping[str, np.ndarray], judged: Sequence[str] | None = None
+                  ) -> tuple[dict[str, float], list[str]]:
+    """Each axis's residual against its own noise floor: the RMS of what the fit leaves of its
+    measured forces (as :func:`axis_reasons`), in the drive's current, over the RMS current at
+    rest through the same filter (``floors``: per fitted trajectory, (a,) A,
+    :func:`ident_hw.experiment.offline.noise_floors`). Unlike the comparison with the axes of the
+    same drive, this needs no twin: a model wrong on an axis leaves a residual far above what
+    its drive's noise and its encoders can make. Which axis it shows on is the fit's doing: on
+    the 2R arm a torque constant 5 % off on the shoulder or on the elbow leaves the elbow 70-77
+    times its floor and the shoulder 1.1 times (the shoulder's forces are all the parameters',
+    the elbow's a part of them), so the reason names where it shows, and says so. Only the axes in ``judged``
+    (None: all). Returns ``({axis: worst ratio over the fitted trajectories}, reasons)``, a
+    reason for each axis beyond ``limits.max_residual_over_floor``; of the axes with the same
+    drive (:func:`same_drive_groups`) beyond it, only the one furthest above its floor: the fit
+    spreads one axis's error over the twins that share its parameters (a 5 % torque constant on
+    the 3PRRR's third link leaves the first 5.7 times its floor, the third 5.9)."""
+    judged = results.actuators if judged is None else tuple(judged)
+    per_amp = np.array([axis_scaling(a).force_per_amp for a in actuators])
+    worst: dict[str, tuple[float, str, float, float]] = {}
+    for fit in results.fits:
+        floor = floors.get(fit.name)
+        if floor is None or not len(fit.t):
+            continue
+        rms = _residual_rms(fit) / per_amp
+        for i, name in enumerate(results.actuators):
+            if name in judged and floor[i] > 0 and (name not in worst or rms[i] / floor[i] > worst[name][0]):
+                worst[name] = (float(rms[i] / floor[i]), fit.name, float(rms[i]), float(floor[i]))
+    beyond = {name for name, w in worst.items() if w[0] > limits.max_residual_over_floor}
+    for group in same_drive_groups(actuators):
+        names = [results.actuators[i] for i in group if results.actuators[i] in beyond]
+        beyond -= set(sorted(names, key=lambda n: worst[n][0])[:-1])
+    reasons = [f"{name}: residual {1e3 * own:.3g} mA on {trajectory}, {ratio:.1f} times its current noise at "
+               f"standstill and encoders ({1e3 * floor:.3g} mA in that trajectory's band; > "
+               f"{limits.max_residual_over_floor:g}): the model does not fit {name}; check its torque constant, gear "
+               f"ratio or screw lead and its friction, and those of the axes whose parameters it shares (a serial "
+               f"arm's shoulder error shows on its elbow)"
+               for name, (ratio, trajectory, own, floor) in worst.items() if name in beyond]
+    return {name: w[0] for name, w in worst.items()}, reasons
+
+
+def _residual_rms(fit) -> np.ndarray:
+    """(a,) RMS of the measured forces of ``fit`` (a TrajectoryFit) minus the base-parameter
+    fit's prediction (the step-by-step values' where there is none), force units."""
+    predicted = fit.tau_base if fit.tau_base is not None else fit.tau_model
+    return np.sqrt(np.mean((fit.tau - predicted) ** 2, axis=0))
+
+
 def _gains_and_residuals(results: Results, actuators: Sequence[ActuatorConfig], groups: list[tuple[int, ...]]
                          ) -> tuple[np.ndarray, dict[str, tuple[float, str, float, float]]]:
     """The figures :func:`axis_reasons` judges, over the fitted trajectories: each axis's gain
@@ -133,7 +182,7 @@ def _gains_and_residuals(results: Results, actuators: Sequence[ActuatorConfig], 
         predicted = fit.tau_base if fit.tau_base is not None else fit.tau_model
         along += np.sum((fit.tau - predicted) * predicted, axis=0)
         power += np.sum(predicted ** 2, axis=0)
-        rms = np.sqrt(np.mean((fit.tau - predicted) ** 2, axis=0)) / per_amp
+        rms = _residual_rms(fit) / per_amp
         for group in groups:
             for i in group:
                 others = float(np.median([rms[j] for j in group if j != i]))
@@ -321,11 +370,12 @@ def prediction_reasons(results: Results, limits: QualityConfig,
 
 
 def verdict(results: Results, limits: QualityConfig, actuators: Sequence[ActuatorConfig] = (),
-            judged_axes: Sequence[str] | None = None) -> Verdict:
+            judged_axes: Sequence[str] | None = None, floors: Mapping[str, np.ndarray] | None = None) -> Verdict:
     """The quality verdict of ``results`` (its ``trajectories`` coverage included); ``actuators``:
     the config's, whose drives say which axes :func:`axis_reasons` compares (none: no comparison);
     ``judged_axes``: the axes whose forces the fitted parameters act on, which the axis checks and
-    :func:`force_lags` judge (None: every axis).
+    :func:`force_lags` judge (None: every axis); ``floors``: per fitted trajectory, each axis's
+    current noise at standstill (:func:`floor_reasons`; None or empty: no such check).
     """
     per_traj, reasons = recording_reasons(results, limits)
     steps, more = step_reasons(results, limits)
@@ -336,11 +386,13 @@ def verdict(results: Results, limits: QualityConfig, actuators: Sequence[Actuato
     axes = results.actuators if judged_axes is None else tuple(judged_axes)
     spreads, ratios, more = axis_reasons(results, actuators, limits, axes)
     reasons += more
+    over_floor, more = floor_reasons(results, actuators, limits, floors or {}, axes) if actuators else ({}, [])
+    reasons += more
     lags = {name: lag for name, lag in force_lags(results).items() if name in axes}
     reasons += lag_reasons(lags, limits)
     reasons += prediction_reasons(results, limits, per_traj)
     return Verdict(passed=not reasons, reasons=tuple(reasons), thresholds=limits,
                    trajectories=per_traj, cond_scaled=steps, well_identified=tuple(well),
-                   axis_gain_spread_percent=spreads, axis_residual_ratio=ratios,
+                   axis_gain_spread_percent=spreads, axis_residual_ratio=ratios, axis_residual_over_floor=over_floor,
                    force_lag_s={name: lag.seconds for name, lag in lags.items()},
                    force_lag_sigma_s={name: lag.sigma for name, lag in lags.items()}, axes_judged=tuple(axes))
