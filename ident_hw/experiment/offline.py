@@ -382,6 +382,24 @@ def encoder_resolution(config: Config) -> np.ndarray:
     return np.array([axis_scaling(a).counts_per_unit for a in config.robot.actuators])
 
 
+def encoder_draws(config: Config, robot: RobotModel, recordings: Mapping[str, Recording], names: Sequence[str],
+                  progress: Callable[[str], None] | None = None
+                  ) -> tuple[list[dict[str, Prepared]], dict[str, tuple[str, ...]]]:
+    """The config's ``identification.encoder_draws`` of the recordings ``names``
+    (:func:`reread_draws`), none if an axis of one of them is not in whole encoder counts
+    (:func:`ident_hw.experiment.encoder.uncounted_axes`); and per recording those axes' names."""
+    wanted = config.identification.encoder_draws
+    uncounted = {name: tuple(robot.actuator_names[j] for j in uncounted_axes(recordings[name], encoder_resolution(config)))
+                 for name in names}
+    taken = wanted if not any(uncounted.values()) else 0
+    if progress and wanted:
+        progress(f"the encoders read again, count edges moved: {taken} draws" if taken else
+                 "no encoder draws: the positions of " + "; ".join(
+                     f"{name} ({', '.join(axes)})" for name, axes in uncounted.items() if axes)
+                 + " are not whole encoder counts")
+    return reread_draws(config, robot, recordings, names, taken), uncounted
+
+
 def reread_draws(config: Config, robot: RobotModel, recordings: Mapping[str, Recording], names: Sequence[str],
                  draws: int) -> list[dict[str, Prepared]]:
     """``draws`` versions of the recordings ``names`` read again by encoders whose count edges are
@@ -496,15 +514,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     require_trajectories(config, recordings)
     used, prepared = prepare_all(config, robot, recordings, needed, compared, progress)
     id_names = list(dict.fromkeys(t for s in ident.steps for t in s.trajectories))
-    uncounted = {name: tuple(robot.actuator_names[j] for j in uncounted_axes(recordings[name], encoder_resolution(config)))
-                 for name in id_names}
-    draws_taken = ident.encoder_draws if not any(uncounted.values()) else 0
-    if progress and ident.encoder_draws:
-        progress(f"the encoders read again, count edges moved: {draws_taken} draws" if draws_taken else
-                 "no encoder draws: the positions of " + "; ".join(
-                     f"{name} ({', '.join(axes)})" for name, axes in uncounted.items() if axes)
-                 + " are not whole encoder counts")
-    draws = reread_draws(config, robot, recordings, id_names, draws_taken)
+    draws, uncounted = encoder_draws(config, robot, recordings, id_names, progress)
 
     initial = initial_parameters(config.robot)
     estimates = _Estimates.initial(initial)
