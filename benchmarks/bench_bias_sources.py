@@ -50,7 +50,7 @@ from ident_hw.experiment.plan import plan, robot_model  # noqa: E402
 from ident_hw.identification.base_params import column_scale, identify_base  # noqa: E402
 from ident_scenarios import follow_targets  # noqa: E402
 from ident_hw.config.robots import true_parameters
-from ident_hw.config.to_drivers import axis_scaling
+from ident_hw.config.to_drivers import axes_scaling
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "sim-3prrr.yaml"
 SOURCES = ("exact", "setpoints", "rig", "phase")
@@ -119,8 +119,8 @@ def summary(label: str, expressions, errors: np.ndarray, sigmas: np.ndarray, tru
 def sensed(config, source: str, truth_log: dict, targets: np.ndarray, run: int) -> Recording:
     """What run ``run`` records of the plant's ``truth_log`` under ``source`` (module docstring):
     currents with the config's noise in whole mA, positions exact or in whole counts."""
-    counts = np.array([axis_scaling(a).counts_per_unit for a in config.robot.actuators])
-    force_per_amp = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])
+    scaling = axes_scaling(config.robot.actuators)
+    counts, force_per_amp = scaling.counts_per_unit, scaling.force_per_amp
     t, n, axes = truth_log["t"], len(truth_log["t"]), counts.size
     rng = np.random.default_rng(run)
     phase = rng.uniform(-0.5, 0.5, axes) if source == "phase" else 0.0
@@ -176,7 +176,7 @@ def main() -> None:
         config = base_only_config(args.config, args.trajectory, args.cutoff, args.order, Path(tmp), args.encoder_draws)
     (planned,) = plan(config, [args.trajectory])
     traj = planned.trajectory
-    counts = np.array([axis_scaling(a).counts_per_unit for a in config.robot.actuators])
+    counts = axes_scaling(config.robot.actuators).counts_per_unit
     print(f"{args.config.name}, {args.trajectory}: {len(traj.t)} cycles at {config.bus.sync_rate:g} Hz, "
           f"current noise {1000 * config.sim.current_noise:g} mA, filter {config.identification.filter}, "
           f"encoder draws {config.identification.encoder_draws}")

@@ -10,7 +10,9 @@ import numpy as np
 
 import drivers.axis
 import drivers.bus
-from drivers.units import AxisScaling
+from collections.abc import Sequence
+
+from drivers.units import AxesScaling, AxisScaling
 
 from .actuators import ActuatorConfig
 from .bus import BusConfig
@@ -22,6 +24,12 @@ def axis_scaling(actuator: ActuatorConfig) -> AxisScaling:
     return AxisScaling(kind=actuator.kind, counts_per_turn=actuator.counts_per_turn,
                        torque_constant=actuator.torque_constant, gear_ratio=actuator.gear_ratio,
                        screw_lead=actuator.screw_lead)
+
+
+def axes_scaling(actuators: Sequence[ActuatorConfig]) -> AxesScaling:
+    """The scalings of ``actuators`` as arrays over them (``counts_per_unit``, ``force_per_amp``,
+    each (a,)), in their order."""
+    return AxesScaling([axis_scaling(a) for a in actuators])
 
 
 def axis_config(actuator: ActuatorConfig, base_dir: Path | None = None,

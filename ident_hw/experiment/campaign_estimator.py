@@ -26,7 +26,7 @@ import numpy as np
 from drivers.recording import Recording
 from ident_hw.config import Config
 from ident_hw.config.robots import initial_parameters, true_parameters
-from ident_hw.config.to_drivers import axis_scaling
+from ident_hw.config.to_drivers import axes_scaling
 from ident_hw.config.to_identification import online_scales
 from ident_hw.identification import RLS, SVDDLS, DampedRLS, base_parameters
 from ident_hw.identification.base_params import on_kept
@@ -63,8 +63,7 @@ class CampaignEstimator:
             self.names = tuple(format_combination(h, physical) for h in self._H)
             self.units = tuple(map(self.robot.parameter_unit, self._kept))
             self.cad, self.scale = self._H @ cad, np.abs(self._H) @ scale
-        force_per_amp = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])
-        self.output_std = online.output_noise * force_per_amp
+        self.output_std = online.output_noise * axes_scaling(config.robot.actuators).force_per_amp
         n = len(self.names)
         common = {"forgetting": online.forgetting, "scale": self.scale, "output_std": self.output_std}
         self.estimators = {

@@ -31,7 +31,7 @@ from ident_hw.config.identification import IdentificationConfig
 from ident_hw.config.robots import initial_parameters, true_parameters
 from ident_hw.config.scales import drive_term
 from ident_hw.config.schema import FieldError
-from ident_hw.config.to_drivers import axis_scaling
+from ident_hw.config.to_drivers import axes_scaling
 from ident_hw.config.to_identification import filter_settings, physical_scales, step_parameters
 from ident_hw.identification.base_params import (base_parameters, column_scale, identify_base, on_kept,
                                                   scaled_condition)
@@ -109,7 +109,7 @@ def segments_of(config: Config, rec: Recording, trim: int = 0, min_kept: int = 1
     return split(rec.t, recording_period(rec), identification_valid(rec), rec.current, rec.target,
                  current_limit=np.array([a.limits.current for a in acts]),
                  acceleration_limit=np.array([a.limits.acceleration for a in acts]),
-                 counts_per_unit=np.array([axis_scaling(a).counts_per_unit for a in acts]),
+                 counts_per_unit=axes_scaling(acts).counts_per_unit,
                  trim=trim, min_kept=min_kept, cut_trim=cut_trim)
 
 
@@ -198,7 +198,7 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
         a, m = len(robot.actuator_names), len(robot.parameter_names)
         return Prepared(name, np.zeros(0), np.zeros((0, a)), np.zeros((0, robot.pose_size)), np.zeros((0, a, m)),
                         np.zeros((0, a)), np.zeros((0, a), bool), segments=segments)
-    force_per_amp = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])
+    force_per_amp = axes_scaling(config.robot.actuators).force_per_amp
     speed_limit = np.array([a.limits.velocity for a in config.robot.actuators])
     guess = kinematics_starts(robot, rec, segments) if starts is None else starts
     averaging = current_averaging(config, rec)
@@ -339,20 +339,24 @@ def noise_floors(config: Config, recordings: Mapping[str, Recording], fitted: Se
     again, :func:`reread_draws`) at the parameters ``coef``. The two add in squares. ``{}``
     without a standstill recording, or without draws (on a fine trajectory the encoders' part
     can be most of the floor): the verdict then has no floor."""
-    stills = [recordings[t.name] for t in config.trajectories if t.kind == "standstill" and t.name in recordings]
     if len(draws) < 2 or coef is None:
         return {}
-    floors = {}
-    per_amp = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])
-    for name in fitted:
-        squares, count = np.zeros(len(config.robot.actuators)), 0
-        for rec in stills:
-            settings = trajectory_filter(config, name, 1.0 / recording_period(rec))
-            band = replace(settings, cutoff_hz=settings.decimation_cutoff_hz, decimation=1)
+    stills = []                 # (sample rate, the current about its mean over the longest complete stretch)
+    for t in config.trajectories:
+        if t.kind == "standstill" and t.name in recordings:
+            rec = recordings[t.name]
             rows = _longest_run(identification_valid(rec).all(axis=1))
-            if rows.stop - rows.start <= 2 * band.trim + 1:
+            if rows.stop > rows.start:
+                stills.append((1.0 / recording_period(rec), rec.current[rows] - rec.current[rows].mean(axis=0)))
+    floors = {}
+    per_amp = axes_scaling(config.robot.actuators).force_per_amp
+    for name in fitted:
+        squares, count = np.zeros(len(per_amp)), 0
+        for rate, current in stills:
+            settings = trajectory_filter(config, name, rate)
+            band = replace(settings, cutoff_hz=settings.decimation_cutoff_hz, decimation=1)
+            if len(current) <= 2 * band.trim + 1:
                 continue
-            current = rec.current[rows] - rec.current[rows].mean(axis=0)
             (filtered,) = parallel_decimate(band, current)
             squares, count = squares + np.sum(filtered ** 2, axis=0), count + len(filtered)
         if count:
@@ -377,11 +381,6 @@ def _longest_run(mask: np.ndarray) -> slice:
     return slice(int(starts[k]), int(stops[k]))
 
 
-def encoder_resolution(config: Config) -> np.ndarray:
-    """(a,) each actuator's encoder counts per position unit (per rad or per m)."""
-    return np.array([axis_scaling(a).counts_per_unit for a in config.robot.actuators])
-
-
 def encoder_draws(config: Config, robot: RobotModel, recordings: Mapping[str, Recording], names: Sequence[str],
                   progress: Callable[[str], None] | None = None
                   ) -> tuple[list[dict[str, Prepared]], dict[str, tuple[str, ...]]]:
@@ -389,7 +388,8 @@ def encoder_draws(config: Config, robot: RobotModel, recordings: Mapping[str, Re
     (:func:`reread_draws`), none if an axis of one of them is not in whole encoder counts
     (:func:`ident_hw.experiment.encoder.uncounted_axes`); and per recording those axes' names."""
     wanted = config.identification.encoder_draws
-    uncounted = {name: tuple(robot.actuator_names[j] for j in uncounted_axes(recordings[name], encoder_resolution(config)))
+    counts_per_unit = axes_scaling(config.robot.actuators).counts_per_unit
+    uncounted = {name: tuple(robot.actuator_names[j] for j in uncounted_axes(recordings[name], counts_per_unit))
                  for name in names}
     taken = wanted if not any(uncounted.values()) else 0
     if progress and wanted:
@@ -405,7 +405,7 @@ def reread_draws(config: Config, robot: RobotModel, recordings: Mapping[str, Rec
     """``draws`` versions of the recordings ``names`` read again by encoders whose count edges are
     moved (:mod:`ident_hw.experiment.encoder`), each prepared as the recording was: one dict
     (trajectory name -> :class:`Prepared`) per draw."""
-    counts_per_unit = encoder_resolution(config)
+    counts_per_unit = axes_scaling(config.robot.actuators).counts_per_unit
     smooth, starts = {}, {}
     for name in names if draws else ():  # once per recording: the motion the draws read again, and
         rec = recordings[name]           # the poses their kinematics start from (a count away at most)

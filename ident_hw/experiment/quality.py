@@ -36,7 +36,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ident_hw.config import ActuatorConfig, QualityConfig
-from ident_hw.config.to_drivers import axis_scaling
+from ident_hw.config.to_drivers import axes_scaling
 from ident_hw.identification.metrics import validation_metrics
 from ident_hw.records import TrajectoryVerdict, Verdict
 from ident_hw.results import Results
@@ -138,7 +138,7 @@ def floor_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits:
     spreads one axis's error over the twins that share its parameters (a 5 % torque constant on
     the 3PRRR's third link leaves the first 5.7 times its floor, the third 5.9)."""
     judged = results.actuators if judged is None else tuple(judged)
-    per_amp = np.array([axis_scaling(a).force_per_amp for a in actuators])
+    per_amp = axes_scaling(actuators).force_per_amp
     worst: dict[str, tuple[float, str, float, float]] = {}
     for fit in results.fits:
         floor = floors.get(fit.name)
@@ -173,7 +173,7 @@ def _gains_and_residuals(results: Results, actuators: Sequence[ActuatorConfig], 
     """The figures :func:`axis_reasons` judges, over the fitted trajectories: each axis's gain
     (n_axes,), %, and, per axis of ``groups``, its worst residual against its twins as ``(ratio,
     trajectory, its RMS residual in A, the median of the twins' in A)``."""
-    per_amp = np.array([axis_scaling(a).force_per_amp for a in actuators])
+    per_amp = axes_scaling(actuators).force_per_amp
     worst: dict[str, tuple[float, str, float, float]] = {}
     along, power = np.zeros(len(actuators)), np.zeros(len(actuators))
     for fit in results.fits:
