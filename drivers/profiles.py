@@ -62,6 +62,7 @@ import dataclasses
 import math
 import os
 from dataclasses import dataclass
+from functools import cached_property
 from types import MappingProxyType
 from typing import Mapping, Optional
 
@@ -100,17 +101,22 @@ class ObjectRef:
         if not isinstance(getattr(datatypes, self.data_type, None), int):
             raise ValueError(f"unknown CANopen data type {self.data_type!r} for 0x{self.index:04X}")
 
-    @property
+    @cached_property
     def type_code(self) -> int:
         """The CANopen data type code (``canopen.objectdictionary.datatypes``)."""
         return getattr(datatypes, self.data_type)
 
-    @property
+    @cached_property
     def bits(self) -> int:
         """Size in bits (the length used in a PDO mapping entry)."""
         return ODVariable.STRUCT_TYPES[self.type_code].size * 8
 
-    @property
+    @cached_property
+    def key(self) -> tuple[int, int]:
+        """``(index, subindex)``."""
+        return self.index, self.subindex
+
+    @cached_property
     def value_range(self) -> tuple[int, int]:
         """The smallest and largest value of the (integer) data type."""
         if self.type_code in datatypes.SIGNED_TYPES:

@@ -26,10 +26,13 @@ class ObjectStore:
 
     def __getitem__(self, ref: ObjectRef):
         """The value of a profile object (``store[profile.statusword]``)."""
-        return self.get(ref.index, ref.subindex)
+        try:
+            return self.values[ref.key]
+        except KeyError:
+            return self.get(ref.index, ref.subindex)
 
     def __setitem__(self, ref: ObjectRef, value) -> None:
-        self.values[(ref.index, ref.subindex)] = value
+        self.values[ref.key] = value
 
     def optional(self, index: int, subindex: int = 0, default=0):
         """Value of an object this drive may lack (e.g. the PDO event timer, sub-index 5 of the
