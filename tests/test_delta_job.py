@@ -24,16 +24,23 @@ from ident_hw.config.robots import true_parameters
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "sim-delta.yaml"
 #: the accuracy claimed where the estimate's own statistics support it (%sigma at most 1 %)
 ACCURATE = 2.0
+#: s of the training path this test runs
+TRAINING = 120.0
 
 
 @pytest.mark.slow
 def test_the_delta_job_identifies_the_specs_base_parameters(tmp_path):
     """The shipped config's campaign and identification, without what this test does not check:
-    the online estimators' paths after the campaign (the next test runs them) and the report."""
+    the online estimators' paths after the campaign (the next test runs them) and the report;
+    its training path cut to :data:`TRAINING` s (half: the same path over fewer periods of its
+    lowest harmonics, every base parameter still known to 1 % at most; the whole 240 s is the
+    Delta study's of benchmarks/README.md)."""
+    trajectories = [t for t in yaml.safe_load(CONFIG.read_text())["trajectories"] if not t.get("online_only")]
+    assert trajectories[0]["name"] == "training" and trajectories[0]["duration"] > TRAINING
+    trajectories[0]["duration"] = TRAINING
     config = tmp_path / "delta.yaml"
     config.write_text(f"extends: {CONFIG}\n"
-                      "trajectories: " + json.dumps([t for t in yaml.safe_load(CONFIG.read_text())["trajectories"]
-                                                     if not t.get("online_only")]) + "\n"
+                      "trajectories: " + json.dumps(trajectories) + "\n"
                       "identification: {online: {in_run: false}}\n")
     out = tmp_path / "delta"
     run = subprocess.run(["ident-hw", "run", str(config), "--quiet", "--no-report", "--out", str(out)],
@@ -55,7 +62,7 @@ def test_the_delta_job_identifies_the_specs_base_parameters(tmp_path):
             accurate += 1
             error = 100 * (row["identified"] - true) / abs(true)
             assert abs(error) <= ACCURATE, (row["base_parameter"], row["identified"], true)
-    assert accurate >= 15
+    assert accurate >= 25
     # every parameter the spec's regressor leaves out is reported as not excited
     assert set(doc["base_fit"]["unexcited"]) == {PARAM_NAMES[j] for j in np.flatnonzero(~spec.H.any(axis=0))}
     # the physically consistent set: every body realisable, and through the spec's H it gives the

@@ -8,6 +8,7 @@
 """
 
 import ast
+import functools
 from pathlib import Path
 
 import pytest
@@ -47,8 +48,13 @@ def project_imports(path: Path) -> set[str]:
 
 
 MODULES = {module_name(p): p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py")}
-IMPORTS = {name: {i for i in project_imports(path) if i in MODULES or i.rpartition(".")[0] in MODULES}
-           for name, path in MODULES.items()}
+
+
+@functools.cache
+def imports() -> dict[str, set[str]]:
+    """Each module's project imports (parsed once, when a test first asks: not at collection)."""
+    return {name: {i for i in project_imports(path) if i in MODULES or i.rpartition(".")[0] in MODULES}
+            for name, path in MODULES.items()}
 
 
 def within(name: str, package: str) -> bool:
@@ -56,7 +62,7 @@ def within(name: str, package: str) -> bool:
 
 
 def offenders(source: str, forbidden, allowed=()):
-    return sorted((m, i) for m, imports in IMPORTS.items() if within(m, source)
+    return sorted((m, i) for m, imports in imports().items() if within(m, source)
                   for i in imports
                   if any(within(i, f) for f in forbidden) and not any(within(i, a) for a in allowed))
 
@@ -87,7 +93,7 @@ def test_only_the_runner_and_cli_wire_drivers_and_trajectories():
 
 
 def test_nothing_imports_the_cli():
-    assert [m for m, imports in IMPORTS.items() if any(within(i, "ident_hw.cli") for i in imports)
+    assert [m for m, imports in imports().items() if any(within(i, "ident_hw.cli") for i in imports)
             and not within(m, "ident_hw.cli")] == []
 
 
@@ -96,7 +102,7 @@ def to_module(name: str) -> str:
 
 
 def test_no_import_cycles():
-    graph = {m: {to_module(i) for i in imports} - {m} for m, imports in IMPORTS.items()}
+    graph = {m: {to_module(i) for i in imports} - {m} for m, imports in imports().items()}
     # a package's __init__ re-exporting its submodules is not a cycle of logic: drop parent -> child edges
     graph = {m: {i for i in deps if not within(i, m)} for m, deps in graph.items()}
     state, stack = {}, []

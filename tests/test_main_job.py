@@ -13,10 +13,12 @@ about 1 % that σ does not cover.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import logging
 import re
 from html.parser import HTMLParser
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -296,6 +298,15 @@ def test_svd_dls_tracks_a_payload_added_mid_run(tmp_path):
     assert (folder / "plots" / "online.png").is_file()
 
 
+@functools.cache
+def raw_log(path: Path) -> tuple:
+    """The frames of a raw CAN log, read once for the tests that disturb them (never changed)."""
+    import can
+
+    with can.LogReader(path) as reader:
+        return tuple(reader)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("rate", [0.0002, 0.002])
 def test_identify_from_raw_logs_with_late_and_lost_frames_is_right_or_degraded(main_job, tmp_path, rate):
@@ -313,8 +324,7 @@ def test_identify_from_raw_logs_with_late_and_lost_frames_is_right_or_degraded(m
     recordings = {}
     disturbed = {"lost": 0, "late": 0}
     for name in ("sweep", "square1", "square2", "square3", "square4", "square5", "excitation", "triangle"):
-        with can.LogReader(folder / "data" / f"{name}.log") as reader:
-            messages = list(reader)
+        messages = raw_log(folder / "data" / f"{name}.log")
         out, held = [], []
         for msg in messages:
             if msg.arbitration_id == 0x80:            # a SYNC: the held frames go out after it
