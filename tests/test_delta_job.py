@@ -36,8 +36,9 @@ def test_the_delta_job_identifies_the_specs_base_parameters(tmp_path):
     lowest harmonics, every base parameter still known to 1 % at most; the whole 240 s is the
     Delta study's of benchmarks/README.md)."""
     trajectories = [t for t in yaml.safe_load(CONFIG.read_text())["trajectories"] if not t.get("online_only")]
-    assert trajectories[0]["name"] == "training" and trajectories[0]["duration"] > TRAINING
-    trajectories[0]["duration"] = TRAINING
+    training = next(t for t in trajectories if t["name"] == "training")
+    assert training["duration"] > TRAINING
+    training["duration"] = TRAINING
     config = tmp_path / "delta.yaml"
     config.write_text(f"extends: {CONFIG}\n"
                       "trajectories: " + json.dumps(trajectories) + "\n"
@@ -76,6 +77,9 @@ def test_the_delta_job_identifies_the_specs_base_parameters(tmp_path):
     for row, implied in zip(rows, spec.H @ values):
         assert abs(implied - row["identified"]) <= 0.1 * row["sigma"], row["base_parameter"]
     assert consistent["reproduces_base"] and consistent["chi2"] <= consistent["chi2_limit_95"]
+    # each arm's residual within the verdict's limit of its noise floor (the standstill's)
+    over = doc["quality"]["axis_residual_over_floor"]
+    assert set(over) == {"q1", "q2", "q3"} and max(over.values()) <= doc["quality"]["thresholds"]["max_residual_over_floor"]
 
 
 @pytest.mark.slow

@@ -324,13 +324,19 @@ class _Estimates:
         return cls(values.copy(), np.full(n, np.nan), np.full(n, -np.inf), np.full(n, np.inf), [""] * n, [""] * n)
 
 
+#: s at the start of a standstill left out of the noise floor: the drives taking the load (a
+#: robot that carries its weight sags onto its position loops as the brakes let go: the Delta's
+#: currents swing by 0.6 A over its first 0.1 s, then hold within their 2 mA of noise)
+STANDSTILL_SETTLE = 0.5
+
+
 def noise_floors(config: Config, recordings: Mapping[str, Recording], fitted: Sequence[str],
                  draws: Sequence[Mapping[str, Prepared]] = (), coef: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Per fitted trajectory (``fitted``), the residual (a,) that noise alone leaves each axis, in
     the drive's current (A): the current's noise at rest and, with ``draws``, the encoders'.
 
     The current's: the RMS about its mean of the current of the config's ``standstill``
-    recordings, through that trajectory's parallel filter
+    recordings after their first :data:`STANDSTILL_SETTLE` s, through that trajectory's parallel filter
     (:func:`ident_hw.filtering.parallel_decimate` with its band, not decimated: the same
     variance, more samples), as its fitted forces are; the longest stretch of complete rows of
     each standstill counts, one shorter than the filter's two trims gives nothing. The
@@ -345,7 +351,8 @@ def noise_floors(config: Config, recordings: Mapping[str, Recording], fitted: Se
     for t in config.trajectories:
         if t.kind == "standstill" and t.name in recordings:
             rec = recordings[t.name]
-            rows = _longest_run(identification_valid(rec).all(axis=1))
+            settled = rec.t >= rec.t[0] + STANDSTILL_SETTLE if len(rec.t) else np.zeros(0, bool)
+            rows = _longest_run(identification_valid(rec).all(axis=1) & settled)
             if rows.stop > rows.start:
                 stills.append((1.0 / recording_period(rec), rec.current[rows] - rec.current[rows].mean(axis=0)))
     floors = {}
