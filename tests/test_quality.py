@@ -213,6 +213,35 @@ def test_axis_gains_against_the_same_drives_by_hand():
     assert gains[0].startswith("theta3: forces +5.00 % off what the model predicts, against +1.00 %")
 
 
+def test_the_floor_names_one_axis_of_a_group_and_defers_to_the_same_drives_comparison():
+    """floor_reasons on residuals of known RMS against a floor of 1 mA (limit 5): the links 6.1, 1
+    and 5.9 mA, the carriages 1, 8 and 1 mA. Of the links beyond (theta1, theta3) only the one
+    furthest above is named; where the comparison with the same drives named theta3 (its gain),
+    the floor names theta3, not the twin the fit spread its error onto; where it named theta2,
+    within its floor, no link. The carriages are another group: zeta2 named each time."""
+    from ident_hw.experiment.quality import floor_reasons
+    from ident_hw.results import TrajectoryFit
+    config = load_config(CONFIGS / "sim-3prrr.yaml")
+    actuators, limits = config.robot.actuators, config.identification.quality
+    assert limits.max_residual_over_floor == 5
+    per_amp = np.array([axis_scaling(a).force_per_amp for a in actuators])
+    n = 400
+    signs = np.where(np.arange(n) % 2 == 0, 1.0, -1.0)[:, None]      # RMS of +-r is r
+    tau = np.ones((n, 6))
+    residual = signs * np.array([6.1, 1.0, 5.9, 1.0, 8.0, 1.0]) * 1e-3 * per_amp
+    fit = TrajectoryFit(name="a", role="identification", t=np.arange(n) * 0.01, tau=tau + residual,
+                        tau_model=tau, Theta=np.zeros((n, 6)), tau_base=tau)
+    results, floors = _results_of(actuators, [fit]), {"a": np.full(6, 1e-3)}
+    ratios, reasons = floor_reasons(results, actuators, limits, floors)
+    assert ratios == pytest.approx({"theta1": 6.1, "theta2": 1.0, "theta3": 5.9, "zeta1": 1.0, "zeta2": 8.0,
+                                    "zeta3": 1.0})
+    for named, expected in ((frozenset(), ["theta1", "zeta2"]), (frozenset({"theta3"}), ["theta3", "zeta2"]),
+                            (frozenset({"theta2"}), ["zeta2"])):
+        _, reasons = floor_reasons(results, actuators, limits, floors, named=named)
+        assert [r.split(":")[0] for r in reasons] == expected, named
+    assert reasons[0].startswith("zeta2: residual 8 mA on a, 8.0 times its current noise at standstill")
+
+
 def test_force_lags_by_hand():
     """force_lags: measured forces that are the predicted ones T later (tau(t) = p(t - T)), on
     trajectories with a gap in their sample times, give back T per axis (to first order in

@@ -121,8 +121,8 @@ def axis_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits: 
 
 
 def floor_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits: QualityConfig,
-                  floors: Mapping[str, np.ndarray], judged: Sequence[str] | None = None
-                  ) -> tuple[dict[str, float], list[str]]:
+                  floors: Mapping[str, np.ndarray], judged: Sequence[str] | None = None,
+                  named: frozenset[str] = frozenset()) -> tuple[dict[str, float], list[str]]:
     """Each axis's residual against its own noise floor: the RMS of what the fit leaves of its
     measured forces (as :func:`axis_reasons`), in the drive's current, over the RMS current at
     rest through the same filter (``floors``: per fitted trajectory, (a,) A,
@@ -136,7 +136,10 @@ def floor_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits:
     reason for each axis beyond ``limits.max_residual_over_floor``; of the axes with the same
     drive (:func:`same_drive_groups`) beyond it, only the one furthest above its floor: the fit
     spreads one axis's error over the twins that share its parameters (a 5 % torque constant on
-    the 3PRRR's third link leaves the first 5.7 times its floor, the third 5.9)."""
+    the 3PRRR's third link leaves the first 6.1 times its floor, the third 5.9). Where the
+    comparison with the same drives already ``named`` an axis of the group (its gain or residual
+    off its twins': the more specific diagnosis), only those of its named axes beyond their floor
+    are, not a twin it spread the error onto."""
     judged = results.actuators if judged is None else tuple(judged)
     per_amp = axes_scaling(actuators).force_per_amp
     worst: dict[str, tuple[float, str, float, float]] = {}
@@ -150,8 +153,11 @@ def floor_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits:
                 worst[name] = (float(rms[i] / floor[i]), fit.name, float(rms[i]), float(floor[i]))
     beyond = {name for name, w in worst.items() if w[0] > limits.max_residual_over_floor}
     for group in same_drive_groups(actuators):
-        names = [results.actuators[i] for i in group if results.actuators[i] in beyond]
-        beyond -= set(sorted(names, key=lambda n: worst[n][0])[:-1])
+        names = [results.actuators[i] for i in group]
+        over = [n for n in names if n in beyond]
+        keep = ({n for n in over if n in named} if named.intersection(names)
+                else set(sorted(over, key=lambda n: worst[n][0])[-1:]))
+        beyond -= set(over) - keep
     reasons = [f"{name}: residual {1e3 * own:.3g} mA on {trajectory}, {ratio:.1f} times its current noise at "
                f"standstill and encoders ({1e3 * floor:.3g} mA in that trajectory's band; > "
                f"{limits.max_residual_over_floor:g}): the model does not fit {name}; check its torque constant, gear "
@@ -386,7 +392,10 @@ def verdict(results: Results, limits: QualityConfig, actuators: Sequence[Actuato
     axes = results.actuators if judged_axes is None else tuple(judged_axes)
     spreads, ratios, more = axis_reasons(results, actuators, limits, axes)
     reasons += more
-    over_floor, more = floor_reasons(results, actuators, limits, floors or {}, axes) if actuators else ({}, [])
+    named = frozenset(n for n, spread in spreads.items() if abs(spread) > limits.max_axis_gain_spread).union(
+        n for n, ratio in ratios.items() if ratio > limits.max_axis_residual_ratio)
+    over_floor, more = (floor_reasons(results, actuators, limits, floors or {}, axes, named) if actuators
+                        else ({}, []))
     reasons += more
     lags = {name: lag for name, lag in force_lags(results).items() if name in axes}
     reasons += lag_reasons(lags, limits)
