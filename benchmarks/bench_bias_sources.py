@@ -23,9 +23,15 @@ of the +-1.96 sigma interval. ``--instruments``: also the instrumental-variable 
 with the regressor of the sent set-points (delayed by ``--delay`` s) as instruments, a candidate
 against the encoder's errors in the regressor (not the production estimator).
 
+``--draws-motion``: the motion the encoder draws read again (:mod:`ident_hw.experiment.encoder`):
+``recorded`` (production: the recording smoothed at the filter's cutoff), ``exact`` (the plant's
+own motion at the SYNC instants), ``lowpassed-exact`` (that motion smoothed as production smooths
+the recording). A diagnostic: at 100 Hz the draws of ``exact`` give the encoders' part of sigma
+that the runs show, those of the other two about two thirds of it (benchmarks/README.md).
+
     python benchmarks/bench_bias_sources.py [--runs 20] [--sources exact,setpoints,rig,phase]
         [--config configs/sim-3prrr.yaml] [--trajectory excitation] [--cutoff HZ] [--order N]
-        [--encoder-draws N] [--instruments] [--delay 0.02]
+        [--encoder-draws N] [--instruments] [--delay 0.02] [--draws-motion recorded|exact|lowpassed-exact]
 """
 
 from __future__ import annotations
@@ -133,6 +139,19 @@ def sensed(config, source: str, truth_log: dict, targets: np.ndarray, run: int) 
                      valid=np.ones((n, axes), bool), metadata=RecordingMetadata(sync_period=1.0 / config.bus.sync_rate))
 
 
+def draws_read(config, args, truth_log: dict, targets: np.ndarray) -> None:
+    """Make the encoder draws read ``args.draws_motion`` (module docstring) instead of the smoothed
+    recording: replaces :func:`ident_hw.experiment.offline.smoothed_positions` for this process."""
+    from ident_hw.experiment import encoder, offline
+
+    exact = sensed(config, "exact", truth_log, targets, 0)
+    motion = exact.position
+    if args.draws_motion == "lowpassed-exact":
+        settings = offline.trajectory_filter(config, args.trajectory, config.bus.sync_rate)
+        motion = encoder.smoothed_positions(exact, settings.sample_rate, settings.cutoff_hz, settings.order)
+    offline.smoothed_positions = lambda rec, *_: motion.copy()
+
+
 def run_source(config, args, source: str, traj, motion: tuple) -> None:
     """``args.runs`` runs of ``source`` on the plant's ``motion`` (targets, truth log), and their summary."""
     targets, truth_log = motion
@@ -142,6 +161,8 @@ def run_source(config, args, source: str, traj, motion: tuple) -> None:
     robot = robot_model(config)
     rows = {"wls": ([], []), "iv": ([], [])}
     started = time.perf_counter()
+    if args.draws_motion != "recorded":
+        draws_read(config, args, truth_log, targets)
     for run in range(args.runs):
         rec = sensed(config, source, truth_log, targets, run)
         fit = identify(config, {args.trajectory: rec}).base_fit
@@ -168,6 +189,8 @@ def main() -> None:
     ap.add_argument("--encoder-draws", type=int, help="identification.encoder_draws (default: the config's)")
     ap.add_argument("--instruments", action="store_true")
     ap.add_argument("--delay", type=float, default=0.02, help="s, instruments' set-point delay")
+    ap.add_argument("--draws-motion", choices=("recorded", "exact", "lowpassed-exact"), default="recorded",
+                    help="the motion the encoder draws read again (a diagnostic)")
     args = ap.parse_args()
     sources = args.sources.split(",")
     if unknown := set(sources) - set(SOURCES):
