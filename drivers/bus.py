@@ -89,11 +89,9 @@ class VirtualBus(can.interfaces.virtual.VirtualBus):
     ten frames a cycle.
     """
 
-    def __init__(self, channel: Any = "channel-0", receive_own_messages: bool = False, rx_queue_size: int = 0,
-                 **kwargs: Any) -> None:
-        super().__init__(channel=channel, receive_own_messages=receive_own_messages, rx_queue_size=rx_queue_size,
-                         **kwargs)
-        if rx_queue_size == 0:
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        if self.queue.maxsize == 0:
             with can.interfaces.virtual.channels_lock:
                 fast: queue.SimpleQueue = queue.SimpleQueue()
                 self.channel[self.channel.index(self.queue)] = fast

@@ -4,14 +4,13 @@ side of the drivers never reads the config."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 import drivers.axis
 import drivers.bus
-from collections.abc import Sequence
-
 from drivers.units import AxesScaling, AxisScaling
 
 from .actuators import ActuatorConfig

@@ -325,8 +325,8 @@ class _Estimates:
 
 
 #: s at the start of a standstill left out of the noise floor: the drives taking the load (a
-#: robot that carries its weight sags onto its position loops as the brakes let go: the Delta's
-#: currents swing by 0.6 A over its first 0.1 s, then hold within their 2 mA of noise)
+#: robot that carries its weight sags onto its position loops as the brakes let go; its currents
+#: swing by far more than their noise until the loops settle: docs/identification.md)
 STANDSTILL_SETTLE = 0.5
 
 

@@ -129,14 +129,13 @@ def floor_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits:
     :func:`ident_hw.experiment.offline.noise_floors`). Unlike the comparison with the axes of the
     same drive, this needs no twin: a model wrong on an axis leaves a residual far above what
     its drive's noise and its encoders can make. Which axis it shows on is the fit's doing: on
-    the 2R arm a torque constant 5 % off on the shoulder or on the elbow leaves the elbow 70-77
-    times its floor and the shoulder 1.1 times (the shoulder's forces are all the parameters',
-    the elbow's a part of them), so the reason names where it shows, and says so. Only the axes in ``judged``
-    (None: all). Returns ``({axis: worst ratio over the fitted trajectories}, reasons)``, a
+    the 2R arm a torque constant off on the shoulder shows on the elbow (the shoulder's forces
+    are all the parameters', the elbow's a part of them; docs/identification.md), so the reason
+    names where it shows, and says so. Only the axes in ``judged`` (None: all). Returns ``({axis: worst ratio over the fitted trajectories}, reasons)``, a
     reason for each axis beyond ``limits.max_residual_over_floor``; of the axes with the same
     drive (:func:`same_drive_groups`) beyond it, only the one furthest above its floor: the fit
-    spreads one axis's error over the twins that share its parameters (a 5 % torque constant on
-    the 3PRRR's third link leaves the first 6.1 times its floor, the third 5.9). Where the
+    spreads one axis's error over the twins that share its parameters (the 3PRRR's third link's
+    error can leave the first further above its floor than the third). Where the
     comparison with the same drives already ``named`` an axis of the group (its gain or residual
     off its twins': the more specific diagnosis), only those of its named axes beyond their floor
     are, not a twin it spread the error onto."""
@@ -201,6 +200,23 @@ def _gains_and_residuals(results: Results, actuators: Sequence[ActuatorConfig], 
     return gain, worst
 
 
+def _gain_off(spread: float, limits: QualityConfig) -> bool:
+    """An axis's gain ``spread`` (%) from its group's beyond the limit: :func:`axis_reasons` names it."""
+    return abs(spread) > limits.max_axis_gain_spread
+
+
+def _residual_off(ratio: float, limits: QualityConfig) -> bool:
+    """An axis's residual ``ratio`` to its twins' beyond the limit: :func:`axis_reasons` names it."""
+    return ratio > limits.max_axis_residual_ratio
+
+
+def _named_against_twins(spreads: Mapping[str, float], ratios: Mapping[str, float],
+                        limits: QualityConfig) -> frozenset[str]:
+    """The axes :func:`axis_reasons` named, from its ``spreads`` and ``ratios``."""
+    return frozenset(n for n, spread in spreads.items() if _gain_off(spread, limits)).union(
+        n for n, ratio in ratios.items() if _residual_off(ratio, limits))
+
+
 def _axis_texts(name: str, names: list[str], gain: float, typical: float, spread: float,
                 worst: tuple[float, str, float, float], limits: QualityConfig) -> list[str]:
     """The reasons against one axis of a group ``names``: its gain (%) ``spread`` from the
@@ -208,13 +224,13 @@ def _axis_texts(name: str, names: list[str], gain: float, typical: float, spread
     (as in :func:`_gains_and_residuals`) beyond ``limits.max_axis_residual_ratio``."""
     reasons = []
     twins = ", ".join(n for n in names if n != name)
-    if abs(spread) > limits.max_axis_gain_spread:
+    if _gain_off(spread, limits):
         reasons.append(
             f"{name}: forces {gain:+.2f} % off what the model predicts, against {typical:+.2f} % on the "
             f"same drives ({twins}; {spread:+.2f} % apart, > {limits.max_axis_gain_spread:g} %): check "
             f"{name}'s torque constant, gear ratio or screw lead (off by about {spread:+.1f} %)")
     ratio, trajectory, own, twins_rms = worst
-    if ratio > limits.max_axis_residual_ratio:
+    if _residual_off(ratio, limits):
         reasons.append(
             f"{name}: residual {1e3 * own:.3g} mA on {trajectory}, {ratio:.1f} times that of the same "
             f"drives ({twins}: {1e3 * twins_rms:.3g} mA; > {limits.max_axis_residual_ratio:g}): the model "
@@ -392,8 +408,7 @@ def verdict(results: Results, limits: QualityConfig, actuators: Sequence[Actuato
     axes = results.actuators if judged_axes is None else tuple(judged_axes)
     spreads, ratios, more = axis_reasons(results, actuators, limits, axes)
     reasons += more
-    named = frozenset(n for n, spread in spreads.items() if abs(spread) > limits.max_axis_gain_spread).union(
-        n for n, ratio in ratios.items() if ratio > limits.max_axis_residual_ratio)
+    named = _named_against_twins(spreads, ratios, limits)
     over_floor, more = (floor_reasons(results, actuators, limits, floors or {}, axes, named) if actuators
                         else ({}, []))
     reasons += more
