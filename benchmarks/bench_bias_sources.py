@@ -26,12 +26,14 @@ against the encoder's errors in the regressor (not the production estimator).
 ``--draws-motion``: the motion the encoder draws read again (:mod:`ident_hw.experiment.encoder`):
 ``recorded`` (production: the recording smoothed at the filter's cutoff), ``exact`` (the plant's
 own motion at the SYNC instants), ``lowpassed-exact`` (that motion smoothed as production smooths
-the recording). A diagnostic: at 100 Hz the draws of ``exact`` give the encoders' part of sigma
-that the runs show, those of the other two about two thirds of it (benchmarks/README.md).
+the recording), ``setpoint-response`` (the smoothed recording plus the loops' response to the
+set-points above the cutoff, estimated from the recording: :func:`setpoint_response`). A
+diagnostic: at 100 Hz the draws of ``exact`` give the encoders' part of sigma that the runs show,
+those of the others do not (benchmarks/README.md).
 
     python benchmarks/bench_bias_sources.py [--runs 20] [--sources exact,setpoints,rig,phase]
         [--config configs/sim-3prrr.yaml] [--trajectory excitation] [--cutoff HZ] [--order N]
-        [--encoder-draws N] [--instruments] [--delay 0.02] [--draws-motion recorded|exact|lowpassed-exact]
+        [--encoder-draws N] [--instruments] [--delay 0.02] [--draws-motion recorded|exact|lowpassed-exact|setpoint-response]
 """
 
 from __future__ import annotations
@@ -139,6 +141,32 @@ def sensed(config, source: str, truth_log: dict, targets: np.ndarray, run: int) 
                      valid=np.ones((n, axes), bool), metadata=RecordingMetadata(sync_period=1.0 / config.bus.sync_rate))
 
 
+#: samples of set-point history the loops' response of :func:`setpoint_response` spans (0.16 s at 100 Hz)
+RESPONSE_LAGS = 16
+
+
+def setpoint_response(rec: Recording, smooth, exact: np.ndarray | None = None) -> np.ndarray:
+    """(N, a) the recorded motion above the cutoff as the position loops' response to the
+    set-points' (the whole-count steps the drives follow): per axis, the recording's part above
+    the cutoff (``rec.position - smooth(rec.position)``) fitted by least squares on the last
+    :data:`RESPONSE_LAGS` samples of the set-points' part (``rec.target - smooth(rec.target)``);
+    ``smooth`` (positions (N, a) -> (N, a)) the identification's smoothing. With the plant's
+    ``exact`` positions (N, a), prints per axis how that estimate compares with the truth's part
+    (the ratio of their RMS, their correlation)."""
+    part = rec.position - smooth(rec.position)
+    steps = rec.target - smooth(rec.target)
+    response = np.zeros_like(part)
+    for j in range(part.shape[1]):
+        lagged = np.column_stack([np.roll(steps[:, j], d) for d in range(RESPONSE_LAGS)])[RESPONSE_LAGS:]
+        gains, *_ = np.linalg.lstsq(lagged, part[RESPONSE_LAGS:, j], rcond=None)
+        response[RESPONSE_LAGS:, j] = lagged @ gains
+        if exact is not None:
+            truth = (exact - smooth(exact))[RESPONSE_LAGS:, j]
+            print(f"  axis {j}: estimated/true RMS above the cutoff {response[:, j].std() / truth.std():.2f}, "
+                  f"correlation {np.corrcoef(response[RESPONSE_LAGS:, j], truth)[0, 1]:.2f}")
+    return response
+
+
 def draws_read(config, args, truth_log: dict, targets: np.ndarray) -> None:
     """Make the encoder draws read ``args.draws_motion`` (module docstring) instead of the smoothed
     recording: replaces :func:`ident_hw.experiment.offline.smoothed_positions` for this process."""
@@ -149,6 +177,16 @@ def draws_read(config, args, truth_log: dict, targets: np.ndarray) -> None:
     if args.draws_motion == "lowpassed-exact":
         settings = offline.trajectory_filter(config, args.trajectory, config.bus.sync_rate)
         motion = encoder.smoothed_positions(exact, settings.sample_rate, settings.cutoff_hz, settings.order)
+    if args.draws_motion == "setpoint-response":
+        original, shown = encoder.smoothed_positions, []
+
+        def smoothed_with_response(rec, *settings):
+            def smooth(position):
+                return original(dataclasses.replace(rec, position=position), *settings)
+            shown.append(True)
+            return smooth(rec.position) + setpoint_response(rec, smooth, None if len(shown) > 1 else exact.position)
+        offline.smoothed_positions = smoothed_with_response
+        return
     offline.smoothed_positions = lambda rec, *_: motion.copy()
 
 
@@ -189,7 +227,7 @@ def main() -> None:
     ap.add_argument("--encoder-draws", type=int, help="identification.encoder_draws (default: the config's)")
     ap.add_argument("--instruments", action="store_true")
     ap.add_argument("--delay", type=float, default=0.02, help="s, instruments' set-point delay")
-    ap.add_argument("--draws-motion", choices=("recorded", "exact", "lowpassed-exact"), default="recorded",
+    ap.add_argument("--draws-motion", choices=("recorded", "exact", "lowpassed-exact", "setpoint-response"), default="recorded",
                     help="the motion the encoder draws read again (a diagnostic)")
     args = ap.parse_args()
     sources = args.sources.split(",")
