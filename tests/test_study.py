@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 from ident_hw.config import load_config
-from ident_hw.experiment.study import (Estimate, RunOutcome, RunTask, StudyError, run_file, run_study, run_yaml,
-                                        summarize)
-from ident_hw.report.study import study_lines, write_study_report
+from ident_hw.experiment.study import (Estimate, ParameterSummary, RunOutcome, RunTask, Study, StudyError, run_file,
+                                        run_study, run_yaml, summarize)
+from ident_hw.report.study import study_lines, verdict_line, write_study_report
 from ident_hw.config.to_drivers import encoder_edge_counts
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -129,6 +129,34 @@ def test_the_summary_against_statistics_computed_by_hand():
     # b: claimed by one run only; the 0.5 error (25 sigma) is outside
     assert not summary["b"].claimed and summary["b"].coverage == 0.8
     assert np.isclose(summary["b"].bias_sigmas, np.mean(errors["b"]) / 0.02)
+
+
+def _summary(name: str, covered: int, runs: int, bias_sigmas: float = 0.0) -> ParameterSummary:
+    """A claimed parameter of ``runs`` runs whose interval held the truth ``covered`` times."""
+    return ParameterSummary(kind="base", name=name, truth=1.0, runs=runs, claimed_share=1.0,
+                            mean_error=bias_sigmas * 0.01, std_error=0.01, mean_sigma=0.01,
+                            coverage=covered / runs, mean_z=bias_sigmas)
+
+
+def test_coverage_chance_is_the_binomial_tail_and_the_verdict_tells_chance_from_a_narrow_sigma(tmp_path):
+    """``coverage_chance``: P(at most k of n intervals hold the truth) for intervals that hold it
+    with probability 0.95, summed here term by term. With 30 claimed parameters the verdict calls a
+    coverage within chance when that tail is at least 0.05 / 30 (and its mean error within 0.5 σ)."""
+    def tail(k, n):
+        return sum(math.comb(n, j) * 0.95 ** j * 0.05 ** (n - j) for j in range(k + 1))
+    for covered, runs in ((35, 40), (34, 40), (32, 40), (40, 40), (105, 120)):
+        assert _summary("p", covered, runs).coverage_chance == pytest.approx(tail(covered, runs), rel=1e-9)
+    honest = [_summary(f"h{i}", 38, 40) for i in range(26)]
+    study = Study(tmp_path, "x.yaml", 40, (), tuple(honest + [
+        _summary("by chance", 34, 40),             # tail 0.0139 >= 0.05 / 30
+        _summary("narrow", 32, 40),                # tail 0.00071 < 0.05 / 30
+        _summary("biased", 35, 40, bias_sigmas=0.8),
+        _summary("fine", 37, 40), _summary("fine too", 36, 40)]))
+    line = verdict_line(study)
+    assert line.startswith("3 of 31 claimed parameters have a σ that does not tell the truth")
+    assert line.split(": ")[1].startswith("by chance, narrow, biased;")
+    within = line.split("within chance for calibrated σs (P cover ≥ 0.05/31): ")[1]
+    assert within == "by chance (85.0 % of 40 runs, P cover 0.014)"
 
 
 def test_every_run_but_the_first_draws_where_its_encoders_count(tmp_path):

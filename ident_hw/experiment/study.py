@@ -43,6 +43,7 @@ from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
 import numpy as np
+from scipy import special
 
 from ident_hw.config import Config, load_config, resolved_yaml
 from ident_hw.results import Results, read_status, write_atomically
@@ -57,6 +58,12 @@ COVERAGE_TARGET = 0.90
 BIAS_TARGET = 0.5
 #: a parameter the campaigns call well identified in at least this share of the runs is a claim
 CLAIMED_SHARE = 0.5
+#: the 95 % interval's coverage where the σ is calibrated (what ``coverage_chance`` assumes)
+CALIBRATED_COVERAGE = 0.95
+#: a coverage below :data:`COVERAGE_TARGET` that calibrated σs would give somewhere among a study's
+#: claimed parameters in at least this share of studies is reported as within chance (it still fails
+#: the target): each parameter's ``coverage_chance`` against this level over their number
+CHANCE_LEVEL = 0.05
 
 STUDY_FILE = "study.json"
 RUNS_DIR = "runs"
@@ -154,6 +161,16 @@ class ParameterSummary:
         return self.claimed_share >= CLAIMED_SHARE
 
     @property
+    def coverage_chance(self) -> float:
+        """The probability that a calibrated σ (each run's ±1.96σ interval holding the truth with
+        probability :data:`CALIBRATED_COVERAGE`, the runs independent) covers the truth in at most
+        as many of :attr:`runs` runs as this parameter's did: the binomial distribution's lower tail.
+        A 40-run study of a calibrated σ falls below 90 % coverage in about 5 % of studies; among
+        thirty parameters, one or two do by chance alone."""
+        covered = round(self.coverage * self.runs)
+        return float(special.bdtr(covered, self.runs, CALIBRATED_COVERAGE))
+
+    @property
     def honest(self) -> bool:
         """Its σ tells the truth: coverage at least :data:`COVERAGE_TARGET`, ``|mean error|`` at most
         :data:`BIAS_TARGET` mean σ."""
@@ -161,7 +178,7 @@ class ParameterSummary:
 
     def to_dict(self) -> dict:
         return dict(asdict(self), sigma_ratio=self.sigma_ratio, bias_sigmas=self.bias_sigmas,
-                    claimed=self.claimed, honest=self.honest)
+                    claimed=self.claimed, honest=self.honest, coverage_chance=self.coverage_chance)
 
 
 @dataclass(frozen=True)
