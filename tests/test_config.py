@@ -312,6 +312,12 @@ def test_one_least_squares_step_only(tmp_path):
         load_config(path)
 
 
+def test_an_empty_list_of_steps_is_refused_where_it_is_written(tmp_path):
+    """``steps: []`` once passed ``check`` and failed ``run`` after the whole campaign was recorded."""
+    path = write(tmp_path, "empty.yaml", f"extends: {CONFIGS / 'sim-3prrr.yaml'}\nidentification:\n  steps: []\n")
+    expect_error(path, "identification.steps", 3, "at least one step")
+
+
 @pytest.mark.parametrize("interface, channel, local", [
     ("virtual", "anything", True),
     ("socketcan", "vcan0", True),

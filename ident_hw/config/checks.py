@@ -101,7 +101,10 @@ def check_scales_of(section: OnlineConfig | PhysicalConfig, written: frozenset =
 
 
 def check_identification(ident: IdentificationConfig, written: frozenset = frozenset()) -> None:
-    """At most one least-squares step; every bound ``[min, max]`` ordered."""
+    """At least one step, at most one of them least squares; every bound ``[min, max]`` ordered."""
+    if not ident.steps:
+        raise FieldError("steps", "at least one step is needed: the identification has nothing to fit "
+                                  "(an empty list would record the campaign and then fail)")
     least_squares = [i for i, s in enumerate(ident.steps) if s.method != "sqp"]
     if len(least_squares) > 1:
         raise FieldError(f"steps[{least_squares[1]}].method",
