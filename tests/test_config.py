@@ -312,10 +312,21 @@ def test_one_least_squares_step_only(tmp_path):
         load_config(path)
 
 
-def test_an_empty_list_of_steps_is_refused_where_it_is_written(tmp_path):
-    """``steps: []`` once passed ``check`` and failed ``run`` after the whole campaign was recorded."""
-    path = write(tmp_path, "empty.yaml", f"extends: {CONFIGS / 'sim-3prrr.yaml'}\nidentification:\n  steps: []\n")
-    expect_error(path, "identification.steps", 3, "at least one step")
+@pytest.mark.parametrize("identification, key, line, words", [
+    ("  steps: []", "identification.steps", 3, ["at least one step"]),
+    ("  steps:\n    - {name: base, trajectories: [excitation], parameters: [], method: wls}",
+     "identification.steps[0].parameters", 4, ["step 'base' needs at least one parameter"]),
+    ("  steps:\n    - {name: base, trajectories: [], parameters: [all], method: wls}",
+     "identification.steps[0].trajectories", 4, ["step 'base' needs at least one trajectory"]),
+    ("  filter: {cutoff: 125.0}", "identification.filter.cutoff", 3, ["below half the SYNC rate (125 Hz"]),
+    ("  bounds: {m_c: [600.0, 600.0]}", "identification.bounds.m_c", 3, ["min < max", "leave it out of the steps"]),
+])
+def test_what_run_could_not_identify_is_refused_where_it_is_written(tmp_path, identification, key, line, words):
+    """Each of these once passed ``check``, and ``run`` failed after recording the whole campaign
+    (the main job's SYNC at 250 Hz: a cut-off must lie below 125 Hz)."""
+    text = f"extends: {CONFIGS / 'sim-3prrr.yaml'}\nidentification:\n{identification}\n"
+    path = write(tmp_path, "bad.yaml", text)
+    expect_error(path, key, line, *words)
 
 
 @pytest.mark.parametrize("interface, channel, local", [

@@ -26,7 +26,7 @@ from .robot_3prrr import GeometryConfig
 from .robot_delta import DeltaParametersConfig
 from .robots import COMMON_TRAJECTORY_KINDS, RobotKind, check_parameter_set, kind_of, model_of
 from .scales import check_scales, drive_term, parameter_kind
-from .schema import FieldError
+from .schema import FieldError, ordered_pair
 from .sim import TRUTH_KEYS
 from .trajectory import COMMON_KEYS, KEYS_OF_KIND, TrajectoryConfig
 
@@ -101,18 +101,25 @@ def check_scales_of(section: OnlineConfig | PhysicalConfig, written: frozenset =
 
 
 def check_identification(ident: IdentificationConfig, written: frozenset = frozenset()) -> None:
-    """At least one step, at most one of them least squares; every bound ``[min, max]`` ordered."""
+    """At least one step, each with trajectories and parameters, at most one of them least squares;
+    every bound ``[min, max]`` with ``min < max``. (An empty list passed ``check`` once, and ``run`` failed
+    after recording the whole campaign.)"""
     if not ident.steps:
-        raise FieldError("steps", "at least one step is needed: the identification has nothing to fit "
-                                  "(an empty list would record the campaign and then fail)")
+        raise FieldError("steps", "at least one step is needed: the identification has nothing to fit")
+    for i, step in enumerate(ident.steps):
+        for key, what in (("trajectories", "trajectory"), ("parameters", "parameter (or [all])")):
+            if not getattr(step, key):
+                raise FieldError(f"steps[{i}].{key}", f"step {step.name!r} needs at least one {what}")
     least_squares = [i for i, s in enumerate(ident.steps) if s.method != "sqp"]
     if len(least_squares) > 1:
         raise FieldError(f"steps[{least_squares[1]}].method",
                          f"only one step may fit base parameters by least squares (steps "
                          f"{[ident.steps[i].name for i in least_squares]} are 'wls'/'ols')")
     for name, pair in ident.bounds.items():
-        if not pair[0] <= pair[1]:
-            raise FieldError(f"bounds.{name}", f"expected [min, max] with min <= max, got {list(pair)}")
+        try:
+            ordered_pair(pair)
+        except ValueError as exc:    # an equal pair made SciPy's bounded fit fail after the campaign
+            raise FieldError(f"bounds.{name}", f"{exc} (to hold {name} at a value, leave it out of the steps)") from exc
 
 
 # ----------------------------------------------------------------------------- the whole file
@@ -129,12 +136,25 @@ def check_config(config: Config, written: frozenset = frozenset()) -> None:
                          f"{bus.interface}:{bus.channel} may carry real drives, which "
                          f"need 'periodic'" + ("" if config.sim is not None else " (no sim: section)"))
     _check_fault(config, names)
+    _check_filter(config)
     _check_trajectory_kinds(config, kind)
     _check_compare_models(config.identification, model)
     for i, t in enumerate(config.trajectories):
         if t.payload is not None and (config.sim is None or not config.sim.in_process):
             raise FieldError(f"trajectories[{i}].payload", "a payload is put on by the in-process simulated "
                              "rig (sim.in_process: true)")
+
+
+def _check_filter(config: Config) -> None:
+    """A cut-off the identification's filter is given must lie below half the SYNC rate at which
+    the campaign is recorded (the filter's Nyquist frequency)."""
+    ident, bus = config.identification, config.bus
+    if ident is None or bus is None or ident.filter.cutoff is None:
+        return
+    if not ident.filter.cutoff < 0.5 * bus.sync_rate:
+        raise FieldError("identification.filter.cutoff",
+                         f"{ident.filter.cutoff:g} Hz: must lie below half the SYNC rate ({0.5 * bus.sync_rate:g} Hz "
+                         f"of bus.sync_rate {bus.sync_rate:g} Hz), the rate the campaign is recorded at")
 
 
 def _check_compare_models(ident: IdentificationConfig | None, model: RobotModel) -> None:

@@ -155,9 +155,15 @@ def _bridged(t: np.ndarray, values: np.ndarray) -> np.ndarray:
 
 def trajectory_filter(config: Config, name: str, sample_rate: float) -> FilterSettings:
     """The identification filter of trajectory ``name``'s recording sampled at ``sample_rate`` (Hz):
-    its motion's bandwidth (:func:`motion_bandwidth`) and position margin (:func:`position_margin`)."""
-    return filter_settings(config.identification.filter, sample_rate, motion_bandwidth(config, name),
-                           position_margin(config, name))
+    its motion's bandwidth (:func:`motion_bandwidth`) and position margin (:func:`position_margin`).
+    Raises :class:`RecordingError` naming the trajectory, its rate and the config's filter where
+    they do not fit (a cut-off above the recording's Nyquist frequency: recorded at another rate
+    than the config's ``bus.sync_rate``, which the config check holds the cut-off to)."""
+    try:
+        return filter_settings(config.identification.filter, sample_rate, motion_bandwidth(config, name),
+                               position_margin(config, name))
+    except ValueError as exc:
+        raise RecordingError(f"trajectory {name!r} recorded at {sample_rate:g} Hz: identification.filter: {exc}") from exc
 
 
 def usable_segments(config: Config, name: str, rec: Recording) -> tuple[FilterSettings, Segments]:
