@@ -329,6 +329,17 @@ def test_what_run_could_not_identify_is_refused_where_it_is_written(tmp_path, id
     expect_error(path, key, line, *words)
 
 
+def test_a_standstill_too_short_for_a_noise_floor_is_refused(tmp_path):
+    """Its first 0.5 s are left out of the floor and the filter trims its ends: below 1 s the
+    floor was silently missing from the verdict."""
+    text = (f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n"
+            "trajectories: [{name: still, kind: standstill, duration: 0.9}, {name: s, kind: carriage_sweep, size: 0.03}]\n"
+            "identification: {steps: [{name: a, trajectories: [s], parameters: [m_c]}], validation: []}\n")
+    expect_error(write(tmp_path, "still.yaml", text), "trajectories[0].duration", 2,
+                 "a standstill of 0.9 s gives no noise floor", "at least 1 s")
+    load_config(write(tmp_path, "still.yaml", text.replace("duration: 0.9", "duration: 1.0")))
+
+
 @pytest.mark.parametrize("interface, channel, local", [
     ("virtual", "anything", True),
     ("socketcan", "vcan0", True),

@@ -28,7 +28,7 @@ from .robots import COMMON_TRAJECTORY_KINDS, RobotKind, check_parameter_set, kin
 from .scales import check_scales, drive_term, parameter_kind
 from .schema import FieldError, ordered_pair
 from .sim import TRUTH_KEYS
-from .trajectory import COMMON_KEYS, KEYS_OF_KIND, TrajectoryConfig
+from .trajectory import COMMON_KEYS, KEYS_OF_KIND, STANDSTILL_MIN_S, STANDSTILL_SETTLE, TrajectoryConfig
 
 
 # ----------------------------------------------------------------------------- sections
@@ -94,6 +94,10 @@ def check_trajectory(t: TrajectoryConfig, written: frozenset = frozenset()) -> N
                                       f"{len(t.amplitude)} for a {t.kind!r} trajectory")
     if t.kind in ("carriage_sweep", "square") and t.size is None:
         raise FieldError("size", f"missing key: a {t.kind!r} trajectory needs size (m)")
+    if t.kind == "standstill" and t.duration is not None and t.duration < STANDSTILL_MIN_S:
+        raise FieldError("duration", f"a standstill of {t.duration:g} s gives no noise floor: its first "
+                                     f"{STANDSTILL_SETTLE:g} s are left out (the drives taking the load) and the "
+                                     f"filter trims its ends; at least {STANDSTILL_MIN_S:g} s")
 
 
 def check_scales_of(section: OnlineConfig | PhysicalConfig, written: frozenset = frozenset()) -> None:

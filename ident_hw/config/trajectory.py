@@ -31,6 +31,13 @@ REST_TO_REST_KINDS = frozenset({"carriage_sweep", "square", "triangle"})
 #: s, a ``standstill`` trajectory's default duration: some 60 independent samples of the current
 #: noise in a 15 Hz band, its RMS known to about 10 %
 STANDSTILL_S = 2.0
+#: s at the start of a standstill left out of the noise floor: the drives taking the load (a
+#: robot that carries its weight sags onto its position loops as the brakes let go; its currents
+#: swing by far more than their noise until the loops settle: docs/identification.md)
+STANDSTILL_SETTLE = 0.5
+#: s, the shortest standstill: as long again at rest after :data:`STANDSTILL_SETTLE`, of which the
+#: identification filter's two ends (a quarter second each in a 15 Hz band) leave a little
+STANDSTILL_MIN_S = 2 * STANDSTILL_SETTLE
 #: the type of :attr:`TrajectoryConfig.kind`: one of the kinds of :data:`KEYS_OF_KIND`
 TrajectoryKind = Literal[tuple(KEYS_OF_KIND)]
 

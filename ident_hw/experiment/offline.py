@@ -32,6 +32,7 @@ from ident_hw.config.robots import initial_parameters, true_parameters
 from ident_hw.config.scales import drive_term
 from ident_hw.config.schema import FieldError
 from ident_hw.config.to_drivers import axes_scaling
+from ident_hw.config.trajectory import STANDSTILL_SETTLE
 from ident_hw.config.to_identification import filter_settings, physical_scales, step_parameters
 from ident_hw.identification.base_params import (base_parameters, column_scale, identify_base, on_kept,
                                                   scaled_condition)
@@ -330,19 +331,13 @@ class _Estimates:
         return cls(values.copy(), np.full(n, np.nan), np.full(n, -np.inf), np.full(n, np.inf), [""] * n, [""] * n)
 
 
-#: s at the start of a standstill left out of the noise floor: the drives taking the load (a
-#: robot that carries its weight sags onto its position loops as the brakes let go; its currents
-#: swing by far more than their noise until the loops settle: docs/identification.md)
-STANDSTILL_SETTLE = 0.5
-
-
 def noise_floors(config: Config, recordings: Mapping[str, Recording], fitted: Sequence[str],
                  draws: Sequence[Mapping[str, Prepared]] = (), coef: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Per fitted trajectory (``fitted``), the residual (a,) that noise alone leaves each axis, in
     the drive's current (A): the current's noise at rest and, with ``draws``, the encoders'.
 
     The current's: the RMS about its mean of the current of the config's ``standstill``
-    recordings after their first :data:`STANDSTILL_SETTLE` s, through that trajectory's parallel filter
+    recordings after their first :data:`~ident_hw.config.trajectory.STANDSTILL_SETTLE` s, through that trajectory's parallel filter
     (:func:`ident_hw.filtering.parallel_decimate` with its band, not decimated: the same
     variance, more samples), as its fitted forces are; the longest stretch of complete rows of
     each standstill counts, one shorter than the filter's two trims gives nothing. The
