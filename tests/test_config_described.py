@@ -86,8 +86,13 @@ def test_a_path_in_a_base_config_holds_in_the_config_extending_it(tmp_path):
 @pytest.mark.parametrize("old, new, key, needle, words", [
     ("description: robots/2r.urdf", "description: robots/3r.urdf", "robot.described.description",
      "description:", ("no such description file",)),
-    ("joint: joint2", "joint: joint3", "robot.described.description", "description:",
+    ("joint: joint2", "joint: joint3", "robot.actuators[1].joint", "joint: joint3",
      ("no joint 'joint3' to actuate", "joint1")),
+    # the description's own errors point at the key that does not fit it (they all named the file's key)
+    ("home: {joint1: 0.0, joint2: 1.2}", "home: {joint1: 0.0, elbow: 1.2}", "robot.described.home", "home:",
+     ("home names no joint 'elbow'", "joint2")),
+    ("end_effector: tool", "end_effector: hand", "robot.described.end_effector", "end_effector:",
+     ("no body or site 'hand' to carry a payload",)),
     ("      kind: revolute\n", "      kind: prismatic\n      screw_lead: 0.005\n", "robot.actuators[0].kind", "kind: prismatic",
      ("joint 'joint1' of 2r.urdf is revolute",)),
     ("cad: {Jm: [0.002, 0.001]}", "cad: {Jm: [0.002, 0.001, 0.003]}", "robot.described.cad.Jm", "cad:",

@@ -178,7 +178,7 @@ def _described_validate(robot) -> None:
     try:
         model = described_model(robot)
     except DescriptionError as exc:
-        raise FieldError("described.description", str(exc)) from None
+        raise FieldError(_described_key(exc, robot), str(exc)) from None
     model_kinds = dict(zip(model.actuated_joints, model.actuator_kinds))
     for i, act in enumerate(robot.actuators):
         joint = act.joint or act.name
@@ -189,6 +189,20 @@ def _described_validate(robot) -> None:
         check_parameter_set(robot.described.cad, model)
     except FieldError as exc:
         raise FieldError(f"described.cad.{exc.key}", exc.message) from None
+
+
+#: the config key (relative to ``robot``) of each :class:`~ident_hw.model.described.DescribedRobot`
+#: argument a description error names (:attr:`~ident_hw.model.described.DescriptionError.argument`)
+_DESCRIBED_KEYS = {None: "described.description", "home": "described.home", "home_actuated": "described.home_actuated",
+                   "end_effector": "described.end_effector"}
+
+
+def _described_key(exc, robot) -> str:
+    """Where in the ``robot`` section the description error ``exc`` points: the key its argument
+    came from; for an actuated joint, that actuator's ``joint`` (its ``name`` where it names none)."""
+    if exc.argument == "actuated":
+        return f"actuators[{exc.index}].{'joint' if robot.actuators[exc.index].joint else 'name'}"
+    return _DESCRIBED_KEYS[exc.argument]
 
 
 def _described_build(config, tcfg, robot, rate):

@@ -57,7 +57,15 @@ _UNITS = {"m": "kg", "mx": "kg·m", "my": "kg·m", "mz": "kg·m"}
 
 
 class DescriptionError(ValueError):
-    """A description file the tool cannot use (names the file and what is wrong in it)."""
+    """A description file the tool cannot use (names the file and what is wrong in it).
+
+    ``argument``: the :class:`DescribedRobot` argument the file does not fit (``home``,
+    ``home_actuated``, ``end_effector``, ``actuated``), None for the file itself; ``index``:
+    which of ``actuated``. A caller that took them from a config names its key with them."""
+
+    def __init__(self, message: str, argument: str | None = None, index: int | None = None):
+        super().__init__(message)
+        self.argument, self.index = argument, index
 
 
 @dataclass(frozen=True)
@@ -174,7 +182,7 @@ class DescribedRobot:
         self._set_home(home, home_actuated, kinds, where, n)
         self.end_effector = end_effector
         if end_effector is not None and not model.existFrame(end_effector):
-            raise DescriptionError(f"{where}: no body or site {end_effector!r} to carry a payload")
+            raise DescriptionError(f"{where}: no body or site {end_effector!r} to carry a payload", "end_effector")
         self._pi_cache: np.ndarray | None = None
         self._last_jacobian: tuple[np.ndarray, np.ndarray] = (np.full(model.nq, np.nan), np.zeros((0, model.nv)))
         self._act_columns = np.zeros((model.nv, n))         # W's actuated rows: v[act] = Thetad
@@ -190,11 +198,12 @@ class DescribedRobot:
         their names and kinds, the actuators' names, and the indices of the actuated coordinates
         in ``q`` and ``v`` (n,) and of the passive ones (nv − n,)."""
         model = self.model
-        for name in actuated:
+        for i, name in enumerate(actuated):
             if name not in kinds:
-                raise DescriptionError(f"{where}: no joint {name!r} to actuate; joints: {list(self.joint_names)}")
-        if len(set(actuated)) != len(actuated):
-            raise DescriptionError(f"{where}: a joint is actuated twice: {list(actuated)}")
+                raise DescriptionError(f"{where}: no joint {name!r} to actuate; joints: {list(self.joint_names)}",
+                                       "actuated", i)
+            if name in actuated[:i]:
+                raise DescriptionError(f"{where}: a joint is actuated twice: {list(actuated)}", "actuated", i)
         self.actuated_joints = actuated
         self.actuator_names = tuple(actuator_names) if actuator_names is not None else actuated
         if len(self.actuator_names) != len(actuated):
@@ -226,12 +235,14 @@ class DescribedRobot:
         self._home_q = pin.neutral(model)
         for name, value in (home or {}).items():
             if name not in kinds:
-                raise DescriptionError(f"{where}: home names no joint {name!r}; joints: {list(self.joint_names)}")
+                raise DescriptionError(f"{where}: home names no joint {name!r}; joints: {list(self.joint_names)}",
+                                       "home")
             self._home_q[model.joints[model.getJointId(name)].idx_q] = float(value)
         self._home_actuated = (self._home_q[self._act_q].copy() if home_actuated is None
                                else np.asarray(home_actuated, dtype=float))
         if self._home_actuated.shape != (n,):
-            raise DescriptionError(f"{where}: home_actuated needs {n} values, got {self._home_actuated.shape}")
+            raise DescriptionError(f"{where}: home_actuated needs {n} values, got {self._home_actuated.shape}",
+                                   "home_actuated")
 
     # ------------------------------------------------------------------ description
     @property
@@ -265,7 +276,7 @@ class DescribedRobot:
             q = self.tree_configuration(self._home_actuated, self._home_q)
         except KinematicsError as exc:
             raise DescriptionError(f"{self.path}: home does not assemble ({exc}); give robot.described.home, "
-                                   "the tree joint values of a configuration near it") from None
+                                   "the tree joint values of a configuration near it", "home") from None
         J, _ = self._closure_jacobian(q)
         rank = np.linalg.matrix_rank(J, tol=1e-9 * max(1.0, np.abs(J).max())) if J.size else 0
         if self.model.nv - rank != n:
