@@ -147,6 +147,20 @@ def test_a_fault_injection_on_an_unknown_trajectory_is_a_config_error(tmp_path):
     assert "sim.fault.trajectory" in out.stderr and "'nope'" in out.stderr
 
 
+def test_a_fault_or_payload_set_past_its_trajectorys_end_is_refused_before_any_motion(tmp_path):
+    """A fault 10 s into the 2.6 s square would never happen, and the run would read as one where it
+    did: ``check`` says so and ``run`` moves nothing; so for a payload."""
+    config = short_config(tmp_path, extra="sim:\n  fault: {trajectory: square, after: 10.0, node_id: 5}\n")
+    check = ident_hw("check", config, cwd=tmp_path)
+    assert check.returncode == 2 and "square: cannot build: sim.fault.after 10 s is at or past its end (2." in check.stdout
+    run = ident_hw("run", config, "--out", tmp_path / "run", "--quiet", cwd=tmp_path)
+    assert run.returncode == 2 and not (tmp_path / "run" / "data").exists()
+    text = config.read_text().replace("speed_scale: 0.6}", "speed_scale: 0.6, payload: {after: 2.7, mass: 0.1}}")
+    config.write_text(text.replace("sim:\n  fault: {trajectory: square, after: 10.0, node_id: 5}\n", ""))
+    check = ident_hw("check", config, cwd=tmp_path)
+    assert check.returncode == 2 and "payload.after 2.7 s is at or past its end (2." in check.stdout
+
+
 @pytest.mark.slow
 def test_scan_monitor_home_and_online_on_the_simulated_rig(tmp_path):
     config = short_config(tmp_path)

@@ -140,8 +140,25 @@ def plan(config: Config, names: list[str] | None = None, online: bool = False) -
         except (ValueError, KinematicsError, trajectories.TrajectoryFileError, OSError) as exc:
             out.append(PlannedTrajectory(tcfg, None, None, error=str(exc)))
             continue
+        if late := events_past_the_end(config, tcfg, traj.duration):
+            out.append(PlannedTrajectory(tcfg, None, None, error=late))
+            continue
         out.append(PlannedTrajectory(tcfg, traj, report, notes=quantisation_notes(config, traj)))
     return out
+
+
+def events_past_the_end(config: Config, tcfg: TrajectoryConfig, duration: float) -> str:
+    """What the config sets to happen during trajectory ``tcfg`` (its ``payload``, the simulated
+    rig's ``sim.fault``) at or after its end (``duration`` s): it would never happen, and the run
+    would look like one where it did. Empty if nothing."""
+    events = []
+    if tcfg.payload is not None:
+        events.append(("payload.after", tcfg.payload.after))
+    fault = config.sim.fault if config.sim is not None else None
+    if fault is not None and fault.trajectory == tcfg.name:
+        events.append(("sim.fault.after", fault.after))
+    return "; ".join(f"{key} {after:g} s is at or past its end ({duration:.3g} s): it would never happen"
+                     for key, after in events if after >= duration)
 
 
 def check(config: Config, traj: trajectories.Trajectory, robot: RobotModel) -> trajectories.Report:
