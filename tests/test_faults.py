@@ -30,8 +30,11 @@ ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
 SIM = CONFIGS / "sim-3prrr.yaml"
 CYCLE = 266   # samples of one cycle of the short config's square (6 cm, speed_scale 0.6, 100 Hz)
-LONG = 30     # cycles of the runs interrupted by a signal: 80 s of simulated time, seconds of wall
-              # time even in lockstep, so that the signal comes mid-trajectory
+LONG = 120    # cycles of the runs interrupted by a signal: 320 s of simulated time, 20 s of wall time in
+              # lockstep, killed once a checkpoint exists (~1.5 s in). With 30 cycles (~5 s) the run
+              # sometimes wrote no checkpoint before it ended (its first recording 'complete', all its
+              # rows: the recorder thread, which checkpoints every 1 s, did not run meanwhile), and
+              # start_run took the final recording for a checkpoint
 
 CONFIG_ERROR, BUS_ERROR, DRIVE_FAULT, DATA_ERROR, DEGRADED, INTERRUPTED = 2, 3, 4, 5, 6, 130
 
@@ -91,12 +94,18 @@ def start_run(config: Path, res: Path, trajectory: str = "square") -> subprocess
     proc = subprocess.Popen([sys.executable, "-m", "ident_hw.cli", "run", str(config), "--out", str(res), "--quiet"],
                             cwd=config.parent, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 60
-    while not (res / "data" / f"{trajectory}.npz").exists():   # first checkpoint: streaming for ~1 s
+    path = res / "data" / f"{trajectory}.npz"
+    while not path.exists():   # first checkpoint: streaming for ~1 s
         if proc.poll() is not None or time.monotonic() > deadline:
             proc.kill()
             raise AssertionError(proc.communicate())
         time.sleep(0.05)
     time.sleep(0.5)
+    first = Recording.load(path)
+    if first.metadata.status != "running (checkpoint)":     # the test's premise, not what it checks
+        proc.kill()
+        raise AssertionError(f"the run's first recording is {first.metadata.status!r} with {len(first.t)} rows: "
+                             "no checkpoint came before it (a faster host, or the recorder thread not scheduled)")
     return proc
 
 
