@@ -7,6 +7,7 @@ adapter, or the in-process ``virtual`` bus).
 
 from __future__ import annotations
 
+import errno
 import ipaddress
 import logging
 import math
@@ -162,7 +163,20 @@ def open_bus(config: BusConfig) -> can.BusABC:
     except (can.CanError, OSError, ValueError, ImportError) as exc:
         raise BusOpenError(
             f"cannot open CAN bus interface={config.interface!r} channel={config.channel!r}: {exc}"
-        ) from exc
+            + _socketcan_hint(config, exc)) from exc
+
+
+def _socketcan_hint(config: BusConfig, exc: BaseException) -> str:
+    """What a SocketCAN error number means on the rig's PC, in words (empty for anything else)."""
+    code = getattr(exc, "errno", None) or getattr(exc.__context__, "errno", None)
+    if config.interface != "socketcan":
+        return ""
+    if code == errno.EAFNOSUPPORT:
+        return " (this kernel has no SocketCAN: load its modules, `sudo modprobe can_raw`, or use another interface)"
+    if code == errno.ENODEV:
+        return (f" (no network interface {config.channel!r}: `ip link show` lists them; a USB adapter's appears "
+                f"when plugged in, then `sudo ip link set {config.channel} up type can bitrate …`)")
+    return ""
 
 
 #: s between a canopen notifier thread's checks for a stop request: canopen's default (1 s) makes
