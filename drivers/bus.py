@@ -168,9 +168,9 @@ def open_bus(config: BusConfig) -> can.BusABC:
 
 def _socketcan_hint(config: BusConfig, exc: BaseException) -> str:
     """What a SocketCAN error number means on the rig's PC, in words (empty for anything else)."""
-    code = getattr(exc, "errno", None) or getattr(exc.__context__, "errno", None)
     if config.interface != "socketcan":
         return ""
+    code = getattr(exc, "errno", None) or getattr(exc.__context__, "errno", None)
     if code == errno.EAFNOSUPPORT:
         return " (this kernel has no SocketCAN: load its modules, `sudo modprobe can_raw`, or use another interface)"
     if code == errno.ENODEV:

@@ -28,6 +28,7 @@ from .robots import COMMON_TRAJECTORY_KINDS, RobotKind, check_parameter_set, kin
 from .scales import check_scales, drive_term, parameter_kind
 from .schema import FieldError, ordered_pair
 from .sim import TRUTH_KEYS
+from .to_identification import filter_settings
 from .trajectory import COMMON_KEYS, KEYS_OF_KIND, STANDSTILL_MIN_S, STANDSTILL_SETTLE, TrajectoryConfig
 
 
@@ -150,15 +151,18 @@ def check_config(config: Config, written: frozenset = frozenset()) -> None:
 
 
 def _check_filter(config: Config) -> None:
-    """A cut-off the identification's filter is given must lie below half the SYNC rate at which
-    the campaign is recorded (the filter's Nyquist frequency)."""
+    """The cut-off the identification's filter is given, held to the filter's own rule
+    (:class:`ident_hw.filtering.FilterSettings`: below its Nyquist frequency) at the SYNC rate the
+    campaign is recorded at. The defaults always pass (at most a quarter of the rate)."""
     ident, bus = config.identification, config.bus
     if ident is None or bus is None or ident.filter.cutoff is None:
         return
-    if not ident.filter.cutoff < 0.5 * bus.sync_rate:
+    try:
+        filter_settings(ident.filter, bus.sync_rate)
+    except ValueError as exc:
         raise FieldError("identification.filter.cutoff",
                          f"{ident.filter.cutoff:g} Hz: must lie below half the SYNC rate ({0.5 * bus.sync_rate:g} Hz "
-                         f"of bus.sync_rate {bus.sync_rate:g} Hz), the rate the campaign is recorded at")
+                         f"of bus.sync_rate {bus.sync_rate:g} Hz), the rate the campaign is recorded at ({exc})") from None
 
 
 def _check_compare_models(ident: IdentificationConfig | None, model: RobotModel) -> None:

@@ -171,10 +171,14 @@ class ParameterSummary:
         return float(special.bdtr(covered, self.runs, CALIBRATED_COVERAGE))
 
     @property
+    def unbiased(self) -> bool:
+        """``|mean error|`` at most :data:`BIAS_TARGET` mean σ."""
+        return abs(self.bias_sigmas) <= BIAS_TARGET
+
+    @property
     def honest(self) -> bool:
-        """Its σ tells the truth: coverage at least :data:`COVERAGE_TARGET`, ``|mean error|`` at most
-        :data:`BIAS_TARGET` mean σ."""
-        return self.coverage >= COVERAGE_TARGET and abs(self.bias_sigmas) <= BIAS_TARGET
+        """Its σ tells the truth: coverage at least :data:`COVERAGE_TARGET`, and :attr:`unbiased`."""
+        return self.coverage >= COVERAGE_TARGET and self.unbiased
 
     def to_dict(self) -> dict:
         return dict(asdict(self), sigma_ratio=self.sigma_ratio, bias_sigmas=self.bias_sigmas,

@@ -71,8 +71,7 @@ def _chance_note(claimed: list[ParameterSummary]) -> str:
     (Bonferroni: with thirty of them, a 40-run study of calibrated σs has one or two coverages below
     90 % more often than not); or nothing."""
     level = CHANCE_LEVEL / len(claimed)
-    chance = [s for s in claimed if not s.honest and abs(s.bias_sigmas) <= BIAS_TARGET
-              and s.coverage_chance >= level]
+    chance = [s for s in claimed if not s.honest and s.unbiased and s.coverage_chance >= level]
     if not chance:
         return ""
     return (f"; within chance for calibrated σs (P cover ≥ {CHANCE_LEVEL:g}/{len(claimed)}): "
