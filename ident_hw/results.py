@@ -29,12 +29,13 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import yaml
 
+from ident_hw.identification.intervals import coverage_factor, effective_dof
 from ident_hw.identification.least_squares import POORLY_IDENTIFIED_PERCENT
 from ident_hw.identification.metrics import validation_metrics
 from ident_hw.identification.model_comparison import ModelComparison
@@ -73,7 +74,9 @@ class ParameterRow:
 
     ``step`` names the identification step that estimated it ("" = held at ``initial``);
     ``truth``/``error_percent`` exist in simulation only; ``well_identified``: fitted with a %σ
-    at most the campaign's threshold.
+    at most the campaign's threshold. ``dof``: the effective degrees of freedom of ``sigma``
+    (:mod:`ident_hw.identification.intervals`; inf: the normal interval), which
+    :attr:`interval_95` follows.
     """
 
     name: str
@@ -88,6 +91,12 @@ class ParameterRow:
     well_identified: bool
     truth: float | None = None
     error_percent: float | None = None
+    dof: float = math.inf
+
+    @property
+    def interval_95(self) -> float | None:
+        """Half-width of the 95 % interval, ``k sigma`` (None without a sigma)."""
+        return None if self.sigma is None else float(coverage_factor(self.dof)) * self.sigma
 
     @property
     def fitted(self) -> bool:
@@ -116,7 +125,8 @@ class ParameterRow:
 @dataclass(frozen=True)
 class BaseRow:
     """One base parameter of a :class:`BaseFit`: a readable combination ``expression`` of the
-    physical parameters, its estimate and statistics (``truth``/``error_percent`` in simulation)."""
+    physical parameters, its estimate and statistics (``truth``/``error_percent`` in simulation;
+    ``dof`` as :class:`ParameterRow`'s)."""
 
     expression: str
     initial: float
@@ -126,6 +136,12 @@ class BaseRow:
     well_identified: bool
     truth: float | None = None
     error_percent: float | None = None
+    dof: float = math.inf
+
+    @property
+    def interval_95(self) -> float:
+        """Half-width of the 95 % interval, ``k sigma``."""
+        return float(coverage_factor(self.dof)) * self.sigma
 
     @property
     def error_sigmas(self) -> float | None:
@@ -439,8 +455,34 @@ class Results:
         return self.quality is None or self.quality.passed
 
     def parameter_rows(self) -> list[ParameterRow]:
-        """The physical parameters, judged by this campaign's %σ threshold."""
-        return self.parameters.rows(self.rel_sigma_threshold)
+        """The physical parameters, judged by this campaign's %σ threshold, each σ with its
+        degrees of freedom from the step that fitted it (:func:`_draws_dof`)."""
+        records = {s.name: s for s in self.steps}
+        return [replace(r, dof=_draws_dof(records.get(r.step), r.sigma, r.name)) if r.fitted else r
+                for r in self.parameters.rows(self.rel_sigma_threshold)]
+
+    def base_rows(self) -> list[BaseRow]:
+        """The base fit's rows (none without one), each σ with its degrees of freedom from the
+        encoder draws of the base step's record."""
+        if self.base_fit is None:
+            return []
+        record = next((s for s in self.steps if s.name == self.base_fit.step), None)
+        rows = self.base_fit.rows()
+        if record is None or len(record.encoder_sigma) != len(rows):
+            return rows
+        dof = effective_dof(self.base_fit.sigma, np.array(record.encoder_sigma), record.encoder_draws)
+        return [replace(r, dof=float(d)) for r, d in zip(rows, dof)]
+
+
+def _draws_dof(record: StepRecord | None, sigma: float | None, name: str) -> float:
+    """The effective degrees of freedom of ``sigma``, the σ of parameter ``name`` of a mass-fit
+    step (``record``): its encoder draws' part (``record.encoder_sigma``, in ``record.free``'s
+    order) is a sample of ``record.encoder_draws``; the rest (least squares, held values) is
+    counted exact. inf without draws."""
+    if (record is None or record.fits_base_parameters or sigma is None or name not in record.free
+            or len(record.encoder_sigma) != len(record.free)):
+        return math.inf
+    return float(effective_dof(sigma, record.encoder_sigma[record.free.index(name)], record.encoder_draws))
 
 
 # ----------------------------------------------------------------------------- status

@@ -21,6 +21,7 @@ from html.parser import HTMLParser
 from pathlib import Path
 
 import numpy as np
+from scipy import stats
 import pytest
 
 from drivers.recording import Recording
@@ -187,7 +188,9 @@ def test_the_report_shows_the_numbers_of_parameters_json(main_job):
     cells = _Cells()
     cells.feed((folder / "report.html").read_text())
     by_name = {r["name"]: r for r in doc["parameters"]}
-    z_column = next(row for row in cells.rows if row and row[0] == "parameter").index("error / σ")
+    header = next(row for row in cells.rows if row and row[0] == "parameter")
+    z_column, interval_column = header.index("error / σ"), header.index("95 % ±")
+    widened = []
     shown = {}
     for row in cells.rows:           # the first table naming them: the physical parameters
         if row and row[0] in by_name and len(row) > 3:
@@ -204,6 +207,15 @@ def test_the_report_shows_the_numbers_of_parameters_json(main_job):
         # the error in units of its own sigma, from parameters.json's numbers
         z = (r["identified"] - r["truth"]) / r["sigma"]
         assert float(row[z_column]) == pytest.approx(z, abs=0.0051), (name, row[z_column], z)
+        # the 95 % interval: Student's t of the Welch-Satterthwaite degrees of freedom of a sigma
+        # whose encoder part is the spread of the step's draws (the rest exact)
+        step = next(s for s in doc["steps"] if s["name"] == r["step"])
+        part = step["encoder_sigma"][step["free"].index(name)]
+        dof = r["sigma"] ** 4 * (step["encoder_draws"] - 1) / part ** 4
+        half = stats.t.ppf(0.975, dof) * r["sigma"]
+        assert float(row[interval_column]) == pytest.approx(half, rel=0.01), (name, row[interval_column], half)
+        widened.append(half / r["sigma"])
+    assert max(widened) > 2.0 and min(widened) < 1.97     # a σ mostly of draws, one mostly of least squares
 
 
 @pytest.mark.slow

@@ -131,6 +131,19 @@ def test_the_summary_against_statistics_computed_by_hand():
     assert np.isclose(summary["b"].bias_sigmas, np.mean(errors["b"]) / 0.02)
 
 
+def test_a_sigma_of_few_draws_covers_with_students_t():
+    """An error of 2.2 σ is outside the normal 95 % interval (1.96σ) but inside Student's t of 7
+    degrees of freedom (2.36σ: a σ wholly from 8 encoder draws), and a run file keeps the
+    degrees of freedom (None: infinite)."""
+    normal = Estimate("base", "x", 1.22, 0.1, 1.0, True)
+    few = Estimate("base", "x", 1.22, 0.1, 1.0, True, dof=7.0)
+    assert not normal.covered and few.covered
+    assert not Estimate("base", "x", 1.24, 0.1, 1.0, True, dof=7.0).covered
+    outcome = RunOutcome(0, 0, "complete", 1.0, "here", (normal, few))
+    assert RunOutcome.from_dict(json.loads(json.dumps(outcome.to_dict()))) == outcome
+    assert summarize([outcome])[0].coverage == 0.5
+
+
 def _summary(name: str, covered: int, runs: int, bias_sigmas: float = 0.0) -> ParameterSummary:
     """A claimed parameter of ``runs`` runs whose interval held the truth ``covered`` times."""
     return ParameterSummary(kind="base", name=name, truth=1.0, runs=runs, claimed_share=1.0,

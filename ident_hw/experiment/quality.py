@@ -340,10 +340,9 @@ def well_identified_reasons(results: Results, limits: QualityConfig) -> tuple[li
     and a reason when fewer than ``limits.min_well_identified`` are."""
     fitted: list = [r for r in results.parameter_rows() if r.fitted]
     well = [r.name for r in fitted if r.well_identified]
-    if results.base_fit is not None:
-        base_rows = results.base_fit.rows()
-        fitted += base_rows
-        well += [r.expression for r in base_rows if r.well_identified]
+    base_rows = results.base_rows()
+    fitted += base_rows
+    well += [r.expression for r in base_rows if r.well_identified]
     if fitted and len(well) < limits.min_well_identified:
         return well, [f"{len(well)} of {len(fitted)} fitted parameters well identified "
                       f"(%sigma <= {results.rel_sigma_threshold:g}; at least {limits.min_well_identified} needed)"]

@@ -40,7 +40,7 @@ def render_html(folder: Path, results: Results, table: dict[str, TrajectoryMetri
     rows = results.parameter_rows()
     analysis = results.base_analysis
     return _ENV.get_template("report.html").render(
-        status=read_status(folder), results=results, rows=rows,
+        status=read_status(folder), results=results, rows=rows, base_rows=results.base_rows(),
         poor=[r.name for r in rows if r.poorly_identified],
         has_truth=results.parameters.truth is not None,
         accuracy=accuracy_line(rows, results.base_fit) if results.parameters.truth is not None else None,

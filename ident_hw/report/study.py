@@ -3,7 +3,7 @@ and two plots: each claimed parameter's z-score histogram ((estimate - truth) / 
 against the standard normal an honest σ gives) and every run's ``|error|`` against its %σ.
 
 The table's marks: ``claimed`` parameters are those the campaigns call well identified; among
-them ``!`` marks one whose σ does not tell the truth (coverage of the ±1.96σ interval below
+them ``!`` marks one whose σ does not tell the truth (coverage of each run's 95 % interval below
 90 %, or a mean error beyond 0.5 mean σ: :attr:`ParameterSummary.honest`). ``P cover`` is the
 chance that a calibrated σ covers the truth that rarely or less in as many runs
 (:attr:`ParameterSummary.coverage_chance`): a 90 % target fails now and then by chance alone, and the
@@ -143,7 +143,8 @@ td,th{{border:1px solid #ccc;padding:2px 6px;text-align:right}} td:nth-child(2){
 <h1>Monte-Carlo study of {html.escape(study.config_name)}</h1>
 <p>{len(study.outcomes)} of {study.runs_asked} runs finished; run i has the noise seed <code>sim.seed + i</code>.
 Per parameter over the runs: the mean and the standard deviation of the error (estimate − truth, SI units),
-the mean σ the runs reported, their ratio, the coverage of the ±1.96σ interval and the mean error in mean σ.
+the mean σ the runs reported, their ratio, the coverage of each run's 95 % interval (±1.96σ, wider where
+a few encoder draws make much of σ) and the mean error in mean σ.
 <em>claimed</em>: the share of the runs that call the parameter well identified.</p>
 <p><strong>{html.escape(verdict_line(study))}</strong></p>
 <table><tr>{''.join(f'<th>{html.escape(h)}</th>' for h in HEADER)}</tr>
