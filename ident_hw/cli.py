@@ -77,9 +77,9 @@ def cmd_identify(args) -> int:
         recordings[name], files[name] = rec, path
     require_trajectories(config, recordings)
     folder = new_results_folder(config, args.out, "identify")
-    results = identify_recordings(config, recordings, folder, log=_logger(args))
+    results = identify_recordings(config, recordings, folder, log=_logger(args), report=not args.no_report)
     print("\n".join(summary_lines(folder)))
-    print(f"results: {folder}  (report: {folder / 'report.html'})")
+    print(f"results: {folder}" + ("" if args.no_report else f"  (report: {folder / 'report.html'})"))
     return Exit.OK if results.passed else Exit.DEGRADED
 
 
@@ -352,6 +352,8 @@ def _add_offline_commands(command) -> None:
     p.add_argument("data", nargs="+", help="recording files; the file stem names the trajectory")
     p.add_argument("--out", metavar="DIR", help="results folder (default: output.dir/identify-<time>)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
+    p.add_argument("--no-report", action="store_true", help="no plots and no report.html (`ident-hw report DIR` "
+                   "builds them later)")
 
 
 def _add_rig_commands(command) -> None:

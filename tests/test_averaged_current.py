@@ -240,7 +240,8 @@ def test_a_campaign_on_averaged_currents_records_the_average_and_identifies_the_
     3 ms, looks like a force in phase with their velocity."""
     runs = {}
     for current in ("instantaneous", "averaged"):
-        out = ident_hw("run", _sweep_config(tmp_path, current), "--out", tmp_path / current, "--quiet", cwd=tmp_path)
+        out = ident_hw("run", _sweep_config(tmp_path, current), "--out", tmp_path / current, "--quiet",
+                       "--no-report", cwd=tmp_path)
         assert out.returncode == 0, out.stderr                     # the quality verdict passed
         runs[current] = Recording.load(tmp_path / current / "data" / "sweep.npz")
     plain, averaged = runs["instantaneous"], runs["averaged"]
@@ -266,7 +267,7 @@ def test_a_campaign_on_averaged_currents_records_the_average_and_identifies_the_
     (tmp_path / "unmatched").mkdir()
     averaged.save(tmp_path / "unmatched" / "sweep.npz")
     out = ident_hw("identify", tmp_path / "averaged" / "config.yaml", tmp_path / "unmatched" / "sweep.npz",
-                   "--out", tmp_path / "unmatched-result", "--quiet", cwd=tmp_path)
+                   "--out", tmp_path / "unmatched-result", "--quiet", "--no-report", cwd=tmp_path)
     assert out.returncode in (0, 6), out.stderr
     unmatched = _rows(tmp_path / "unmatched-result")
     for name in ("fv_zeta1", "fv_zeta2", "fv_zeta3"):

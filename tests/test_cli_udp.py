@@ -46,7 +46,7 @@ def test_run_against_the_rig_in_another_process_over_udp_gives_the_in_process_an
     config = load_config(config_path)
     assert config.simulated and config.sync_mode == "lockstep"
     start_process(["ident-hw", "sim", config_path], ready="simulated rig:")
-    run = subprocess.run(["ident-hw", "run", config_path, "--quiet", "--out", tmp_path / "udp"],
+    run = subprocess.run(["ident-hw", "run", config_path, "--quiet", "--no-report", "--out", tmp_path / "udp"],
                          capture_output=True, text=True, timeout=RUN_TIMEOUT)
     print(f"$ ident-hw run (rig in another process, udp_multicast)\n{run.stdout}{run.stderr}")
     assert run.returncode == 0, run.stderr

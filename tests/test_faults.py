@@ -83,7 +83,7 @@ def edited_config(run_folder: Path, target: Path, edit) -> Path:
 def recorded(tmp_path_factory) -> Path:
     """The results folder of one complete short run on the simulated rig."""
     folder = tmp_path_factory.mktemp("recorded")
-    out = ident_hw("run", short_config(folder), "--out", folder / "run", "--quiet", cwd=folder)
+    out = ident_hw("run", short_config(folder), "--out", folder / "run", "--no-report", "--quiet", cwd=folder)
     assert out.returncode in (0, DEGRADED), out.stderr
     return folder / "run"
 
@@ -119,7 +119,8 @@ def test_identify_refuses_a_recording_made_with_another_drive_scaling(recorded, 
     def edit(doc):
         doc["robot"]["actuators"][3][key] *= factor
     config = edited_config(recorded, tmp_path / "other-scaling.yaml", edit)
-    out = ident_hw("identify", config, recorded / "data" / "square.npz", "--out", tmp_path / "res", cwd=tmp_path)
+    out = ident_hw("identify", config, recorded / "data" / "square.npz", "--out", tmp_path / "res", "--no-report",
+                   cwd=tmp_path)
     no_traceback(out)
     assert out.returncode == DATA_ERROR, out.stderr
     assert "square.npz" in out.stderr and "other-scaling.yaml" in out.stderr
@@ -133,7 +134,7 @@ def test_identify_on_a_truncated_raw_log_says_how_much_was_used(recorded, tmp_pa
     (tmp_path / "square.log").write_bytes(cut)
     syncs = sum(1 for line in cut.decode().splitlines() if re.search(r"\s080#([0-9A-F]{2})?(\s+[RT])?\s*$", line))
     out = ident_hw("identify", recorded / "config.yaml", tmp_path / "square.log", "--out", tmp_path / "res",
-                   cwd=tmp_path)
+                   "--no-report", cwd=tmp_path)
     no_traceback(out)
     used = re.search(r"square: (\d+) of (\d+) cycles", out.stdout + out.stderr)
     assert used, out.stdout + out.stderr
@@ -153,7 +154,7 @@ def test_identify_on_an_empty_or_truncated_npz_names_the_file(recorded, tmp_path
         content = (recorded / "data" / "square.npz").read_bytes()[:3000]
     (tmp_path / "square.npz").write_bytes(content)
     out = ident_hw("identify", recorded / "config.yaml", tmp_path / "square.npz", "--out", tmp_path / "res",
-                   cwd=tmp_path)
+                   "--no-report", cwd=tmp_path)
     no_traceback(out)
     assert out.returncode == DATA_ERROR
     assert "square.npz" in out.stderr
@@ -166,7 +167,8 @@ def test_identify_with_other_node_ids_names_file_and_node(recorded, tmp_path, fi
         for act in doc["robot"]["actuators"]:
             act["node_id"] += 10
     config = edited_config(recorded, tmp_path / "other-nodes.yaml", edit)
-    out = ident_hw("identify", config, recorded / "data" / file, "--out", tmp_path / "res", cwd=tmp_path)
+    out = ident_hw("identify", config, recorded / "data" / file, "--out", tmp_path / "res", "--no-report",
+                   cwd=tmp_path)
     no_traceback(out)
     assert out.returncode == DATA_ERROR, out.stderr
     assert file in out.stderr and "node 11" in out.stderr and "theta1" in out.stderr
@@ -240,7 +242,7 @@ def test_identify_after_an_interrupted_run_reports_the_partial_recording(termina
     res, _ = terminated
     rec = Recording.load(res / "data" / "square.npz")
     out = ident_hw("identify", res / "config.yaml", res / "data" / "square.npz", "--out", tmp_path / "res",
-                   cwd=tmp_path)
+                   "--no-report", cwd=tmp_path)
     no_traceback(out)
     text = out.stdout + out.stderr
     assert "partial" in text and "interrupted (SIGTERM)" in text
@@ -250,6 +252,8 @@ def test_identify_after_an_interrupted_run_reports_the_partial_recording(termina
     assert status.startswith("degraded") and "square" in status
     doc = json.loads((tmp_path / "res" / "parameters.json").read_text())
     assert doc["trajectories"]["square"]["recording_status"].startswith("stopped")
+    # --no-report: the results without plots or report.html (`ident-hw report` builds them later)
+    assert not (tmp_path / "res" / "report.html").exists() and "report:" not in out.stdout
 
 
 def test_identify_recognises_the_checkpoint_of_a_killed_run(tmp_path):
@@ -260,7 +264,7 @@ def test_identify_recognises_the_checkpoint_of_a_killed_run(tmp_path):
     rec = Recording.load(res / "data" / "square.npz")
     assert rec.metadata.status == "running (checkpoint)"
     out = ident_hw("identify", res / "config.yaml", res / "data" / "square.npz", "--out", tmp_path / "res",
-                   cwd=tmp_path)
+                   "--no-report", cwd=tmp_path)
     no_traceback(out)
     assert "checkpoint" in out.stdout + out.stderr
     assert f"square: {len(rec.t)} of {LONG * CYCLE} cycles" in out.stdout + out.stderr
@@ -282,7 +286,7 @@ def test_a_config_without_identification_is_refused_by_check_and_by_run(tmp_path
     assert check.returncode == CONFIG_ERROR and "identification" in check.stdout + check.stderr
     assert "everything would run" not in check.stdout
     started = time.monotonic()
-    run = ident_hw("run", base, "--out", tmp_path / "res", cwd=tmp_path)
+    run = ident_hw("run", base, "--out", tmp_path / "res", "--no-report", cwd=tmp_path)
     no_traceback(run)
     assert run.returncode == CONFIG_ERROR and "identification" in run.stderr and "nothing moved" in run.stderr
     assert time.monotonic() - started < 20 and not (tmp_path / "res").exists()
@@ -308,7 +312,7 @@ def test_check_refuses_an_interface_python_can_does_not_have(tmp_path):
 
 def test_a_bus_that_cannot_open_is_named_and_leaves_no_results_folder(tmp_path):
     config = hardware_config(tmp_path)
-    out = ident_hw("run", config, "--arm", "--out", tmp_path / "res", cwd=tmp_path)
+    out = ident_hw("run", config, "--arm", "--out", tmp_path / "res", "--no-report", cwd=tmp_path)
     no_traceback(out)
     assert out.returncode == BUS_ERROR, out.stderr
     assert "socketcan" in out.stderr and "nosuchcan9" in out.stderr
@@ -323,7 +327,7 @@ def test_the_simulated_rig_on_a_missing_vcan_names_the_bus(tmp_path):
                              config.read_text()))
     if Path("/sys/class/net/vcan9").exists():
         pytest.skip("this host has a vcan9")
-    out = ident_hw("run", config, "--out", tmp_path / "res", cwd=tmp_path)
+    out = ident_hw("run", config, "--out", tmp_path / "res", "--no-report", cwd=tmp_path)
     no_traceback(out)
     assert out.returncode == BUS_ERROR, out.stderr
     assert "socketcan" in out.stderr and "vcan9" in out.stderr

@@ -234,8 +234,8 @@ def test_an_epos2_rig_identifies_the_carriages(tmp_path):
     config = load_config(path)
     assert {a.profile for a in config.robot.actuators} == {"epos2"}
     folder = new_results_folder(config, tmp_path / "res", "run")
-    runner.run_campaign(config, folder, show_progress=False,
-                                host=HostSettings.for_command(config))
+    runner.run_campaign(config, folder, show_progress=False, report=False,
+                        host=HostSettings.for_command(config))
     doc = json.loads((folder / "parameters.json").read_text())
     truth = dict(zip(to_model.inertial_params(config.sim.truth).NAMES, to_model.inertial_params(config.sim.truth).as_vector()))
     rows = {r["name"]: r for r in doc["parameters"] if r["step"]}

@@ -84,7 +84,7 @@ def test_run_then_identify_from_its_raw_can_log_gives_the_same_result(tmp_path):
 
     # identification from the raw log, with the run's copy of the config, gives the run's numbers
     again = ident_hw("identify", res / "config.yaml", res / "data" / "square.log", "--out", tmp_path / "again",
-                     "--quiet", cwd=tmp_path)
+                     "--quiet", "--no-report", cwd=tmp_path)
     assert again.returncode == 6, again.stderr
     assert (tmp_path / "again" / "STATUS").read_text() == status
     first, second = (json.loads((tmp_path / d / "parameters.json").read_text())["parameters"]

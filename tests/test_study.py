@@ -66,7 +66,7 @@ def test_run_zero_is_the_configs_own_campaign_and_a_study_continues_where_it_sto
     run_study(config, folder, runs=2, workers=0)
     # `ident-hw run` of the same config: the values of run 0 (the config's seed)
     out = tmp_path / "run"
-    done = subprocess.run([sys.executable, "-m", "ident_hw.cli", "run", str(config), "--quiet", "--out", str(out)],
+    done = subprocess.run([sys.executable, "-m", "ident_hw.cli", "run", str(config), "--quiet", "--no-report", "--out", str(out)],
                           capture_output=True, text=True, cwd=tmp_path)
     assert done.returncode in (0, 6), done.stderr          # 6: degraded (the short square's verdict)
     rows = {r["name"]: r for r in json.loads((out / "parameters.json").read_text())["parameters"]}
