@@ -229,55 +229,67 @@ def optimise_excitation(robot: ThreePRRR, limits: Limits, base_frequency: float 
         base: base columns and column scale of the criterion (default :func:`base_scaling`).
     """
     duration = duration or 1.0 / base_frequency
-    base = base or base_scaling(robot)
-    t = np.linspace(0.0, duration, samples)
-    rng = np.random.default_rng(seed)
-    shape = (6, harmonics)
+    problem = _Problem(robot, limits, base or base_scaling(robot), np.linspace(0.0, duration, samples),
+                       base_frequency, duration, ramp, harmonics)
+    # Seeded random start, shrunk until every limited quantity is within PENALTY_START of its limit.
+    v0 = np.concatenate([np.random.default_rng(seed).normal(0.0, 0.5, 12 * harmonics), np.zeros(6)])
+    for _ in range(20):
+        worst = np.max(problem.evaluate(v0)[1])
+        if worst <= PENALTY_START:
+            break
+        v0 *= 0.5 if not np.isfinite(worst) else min(0.98, PENALTY_START / worst)
+    result = minimize(problem.cost, v0, jac=problem.gradient, method="L-BFGS-B", options={"maxiter": max_iter})
+    return ExcitationResult(problem.unpack(result.x), problem.base, problem.evaluate(v0)[0],
+                            problem.evaluate(result.x)[0], int(result.nit))
 
-    def unpack(v: np.ndarray) -> FourierExcitation:
-        a = v[:6 * harmonics].reshape(shape) * VELOCITY_SCALE[:, None]
-        b = v[6 * harmonics:12 * harmonics].reshape(shape) * VELOCITY_SCALE[:, None]
-        offset = v[12 * harmonics:] * VELOCITY_SCALE / (2 * np.pi * base_frequency)
-        return FourierExcitation(base_frequency, duration, ramp, offset, a, b)
 
-    def evaluate(v: np.ndarray) -> tuple[float, np.ndarray]:
+class _Problem:
+    """The criterion of :func:`optimise_excitation` on its variables ``v`` (12 H + 6,): the
+    velocity amplitudes and offsets scaled by :data:`VELOCITY_SCALE`; the excitation sampled at
+    ``t`` (s)."""
+
+    def __init__(self, robot: ThreePRRR, limits: Limits, base: BaseScaling, t: np.ndarray,
+                 base_frequency: float, duration: float, ramp: float, harmonics: int) -> None:
+        self.robot, self.limits, self.base, self.t = robot, limits, base, t
+        self.base_frequency, self.duration, self.ramp, self.harmonics = base_frequency, duration, ramp, harmonics
+        # q, qd, qdd are affine in the variables: their response to each unit variable, once
+        size = 12 * harmonics + 6
+        self.home = self.unpack(np.zeros(size)).evaluate(t)
+        self.unit = [np.stack([self.unpack(e).evaluate(t)[k] - self.home[k] for e in np.eye(size)]) for k in range(3)]
+
+    def unpack(self, v: np.ndarray) -> FourierExcitation:
+        shape, h = (6, self.harmonics), self.harmonics
+        a = v[:6 * h].reshape(shape) * VELOCITY_SCALE[:, None]
+        b = v[6 * h:12 * h].reshape(shape) * VELOCITY_SCALE[:, None]
+        offset = v[12 * h:] * VELOCITY_SCALE / (2 * np.pi * self.base_frequency)
+        return FourierExcitation(self.base_frequency, self.duration, self.ramp, offset, a, b)
+
+    def evaluate(self, v: np.ndarray) -> tuple[float, np.ndarray]:
         """Criterion and the ratio of each limited quantity to its limit (``inf`` out of reach)."""
-        conds, ratios = _criterion(robot, limits, base, *unpack(v).evaluate(t))
+        conds, ratios = _criterion(self.robot, self.limits, self.base, *self.unpack(v).evaluate(self.t))
         return float(conds[0]), ratios[0]
 
+    @staticmethod
     def cost_of(cond, ratios) -> np.ndarray:
         """The cost of each (batched) criterion and its limit ratios (1e3 out of reach)."""
         penalty = PENALTY_WEIGHT * np.sum(np.maximum(ratios - PENALTY_START, 0.0) ** 2, axis=-1)
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(np.isfinite(cond), np.log(cond) + penalty, 1e3)
 
-    def cost(v: np.ndarray) -> float:
-        return float(cost_of(*evaluate(v)))
+    def cost(self, v: np.ndarray) -> float:
+        return float(self.cost_of(*self.evaluate(v)))
 
-    # q, qd, qdd are affine in the variables: their response to each unit variable, once
-    home = unpack(np.zeros(12 * harmonics + 6)).evaluate(t)
-    unit = [np.stack([unpack(e).evaluate(t)[k] - home[k] for e in np.eye(12 * harmonics + 6)]) for k in range(3)]
-
-    def gradient(v: np.ndarray) -> np.ndarray:
-        """Forward differences of ``cost`` (scipy's '2-point' steps), every perturbed excitation
-        evaluated in one batch of samples: the same numbers as scipy's own differences at a
-        fraction of the time (one call of the model's vectorised kinematics instead of 67)."""
+    def gradient(self, v: np.ndarray) -> np.ndarray:
+        """Forward differences of :meth:`cost` (SciPy's '2-point' steps), every perturbed
+        excitation evaluated in one batch of samples: SciPy's own differences to ~1e-5 at two
+        thirds of the time (one call of the model's vectorised kinematics instead of 67)."""
         step = np.sqrt(np.finfo(float).eps) * np.where(v >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(v))
         step = (v + step) - v
         V = np.vstack([v, v + np.diag(step)])                               # (1 + p, p)
-        motions = [home[k] + np.einsum("vp,pnj->vnj", V, unit[k]) for k in range(3)]
+        motions = [self.home[k] + np.einsum("vp,pnj->vnj", V, self.unit[k]) for k in range(3)]
         try:
-            costs = cost_of(*_criterion(robot, limits, base, *(m.reshape(-1, 6) for m in motions), len(V)))
+            costs = self.cost_of(*_criterion(self.robot, self.limits, self.base,
+                                             *(m.reshape(-1, 6) for m in motions), len(V)))
         except KinematicsError:                   # some perturbed excitation out of reach: one by one
-            costs = np.array([cost(x) for x in V])
+            costs = np.array([self.cost(x) for x in V])
         return (costs[1:] - costs[0]) / step
-
-    # Seeded random start, shrunk until every limited quantity is within PENALTY_START of its limit.
-    v0 = np.concatenate([rng.normal(0.0, 0.5, 12 * harmonics), np.zeros(6)])
-    for _ in range(20):
-        worst = np.max(evaluate(v0)[1])
-        if worst <= PENALTY_START:
-            break
-        v0 *= 0.5 if not np.isfinite(worst) else min(0.98, PENALTY_START / worst)
-    result = minimize(cost, v0, jac=gradient, method="L-BFGS-B", options={"maxiter": max_iter})
-    return ExcitationResult(unpack(result.x), base, evaluate(v0)[0], evaluate(result.x)[0], int(result.nit))
