@@ -307,6 +307,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _at_least(lowest: int):
+    """An argparse type: a whole number of at least ``lowest`` (refused on the command line, before
+    anything is printed or made)."""
+    def whole(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+        if value < lowest:
+            raise argparse.ArgumentTypeError(f"must be at least {lowest}, got {value}")
+        return value
+    return whole
+
+
 def _add_campaign_commands(command) -> None:
     """The commands that check a config or run campaigns (on the rig or simulated): ``check``, ``run``,
     ``online``, ``study``. ``command(name, func, help)`` adds a subparser and returns it."""
@@ -332,10 +346,11 @@ def _add_campaign_commands(command) -> None:
     p = command("study", cmd_study, "a Monte-Carlo study: --runs campaigns of a simulated config, each with "
                 "its own noise seed; per parameter the errors against the reported sigma (coverage, bias)")
     p.add_argument("config", help="YAML config of a simulated rig (in process, lockstep)")
-    p.add_argument("--runs", type=int, required=True, metavar="N", help="campaigns in the study (run i: seed sim.seed + i)")
+    p.add_argument("--runs", type=_at_least(1), required=True, metavar="N",
+                   help="campaigns in the study (run i: seed sim.seed + i)")
     p.add_argument("--out", metavar="DIR", help="study folder (default: output.dir/study-<config name>); "
                    "a folder holding this config's study is continued")
-    p.add_argument("--workers", type=int, metavar="K", help="worker processes of a local Dask cluster "
+    p.add_argument("--workers", type=_at_least(0), metavar="K", help="worker processes of a local Dask cluster "
                    "(default: this machine's CPUs); 0: every run in this process")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on the workers of this Dask scheduler instead")
     p.add_argument("--perturb", type=float, default=0.0, metavar="REL",

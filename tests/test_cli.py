@@ -32,6 +32,17 @@ def test_help_lists_the_commands():
     assert "--arm" in ident_hw("run", "--help").stdout
 
 
+@pytest.mark.parametrize("option, value, message", [("--runs", "0", "--runs: must be at least 1, got 0"),
+                                                    ("--workers", "-1", "--workers: must be at least 0, got -1"),
+                                                    ("--runs", "two", "--runs: not a whole number: 'two'")])
+def test_study_refuses_a_count_out_of_range_before_anything_is_made(tmp_path, option, value, message):
+    argv = {"--runs": "2", option: value}
+    out = ident_hw("study", CONFIGS / "sim-3prrr.yaml", *[x for kv in argv.items() for x in kv],
+                   "--out", tmp_path / "study")
+    assert out.returncode == 2 and message in out.stderr
+    assert "study folder" not in out.stderr and not (tmp_path / "study").exists()
+
+
 def test_check_accepts_the_sim_campaign():
     out = ident_hw("check", CONFIGS / "sim-3prrr.yaml")
     assert out.returncode == 0, out.stdout + out.stderr
