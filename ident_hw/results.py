@@ -258,6 +258,8 @@ class BaseFit:
         return self.rel_sigma_percent <= self.threshold
 
     def rows(self) -> list[BaseRow]:
+        """The rows, their ``dof`` infinite: the degrees of freedom of each σ follow from the base
+        step's record of encoder draws, which :meth:`Results.base_rows` reads (use it for intervals)."""
         out = []
         for i, expr in enumerate(self.expressions):
             rel = float(self.rel_sigma_percent[i])

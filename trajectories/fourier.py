@@ -180,16 +180,17 @@ def base_scaling(robot: ThreePRRR, samples: int = 400, seed: int = 0, tol: float
 def _criterion(robot: ThreePRRR, limits: Limits, base: BaseScaling, q: np.ndarray, qd: np.ndarray,
                qdd: np.ndarray, blocks: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """``cond`` of the base regressor (``blocks``,) and the ratio of each limited quantity to its
-    limit (``blocks``, 20) of ``blocks`` excitations whose samples ``q, qd, qdd`` (each
-    (blocks x N, 6)) are stacked: one call of the model's vectorised kinematics for all.
-    ``inf`` where a pose is out of reach (raises :class:`KinematicsError` for ``blocks`` > 1)."""
+    limit (``blocks``, 17: six speeds, six accelerations, three strokes, the serial and parallel
+    margins) of ``blocks`` excitations whose samples ``q, qd, qdd`` (each (blocks x N, 6)) are
+    stacked: one call of the model's vectorised kinematics for all. ``inf`` where a pose is out
+    of reach (raises :class:`KinematicsError` for ``blocks`` > 1)."""
     try:
         motion = robot.motion(q[:, :3], qd[:, :3], qdd[:, :3], q[:, 3:], qd[:, 3:], qdd[:, 3:])
         margins = robot.singularity_margins(q[:, :3], q[:, 3:])
     except KinematicsError:
         if blocks > 1:
             raise
-        return np.array([np.inf]), np.full((1, 20), np.inf)
+        return np.array([np.inf]), np.full((1, 17), np.inf)
     W = robot.regressor_of(motion).reshape(blocks, -1, robot.n_params)
     ratios = np.concatenate([
         np.abs(motion.Thetad).reshape(blocks, -1, 6).max(axis=1) / limits.max_speed,

@@ -118,9 +118,9 @@ def accuracy_line(rows: list[ParameterRow], base_fit: BaseFit | None) -> str:
     judged = [(r.name, r) for r in rows if r.well_identified and r.error_percent is not None]
     parts = [_largest_errors(judged, "physical parameters")]
     if base_fit is not None:
-        parts.append(_largest_errors([(r.expression, r) for r in base_fit.rows()
-                                      if r.well_identified and r.error_percent is not None], "base parameters"))
-        judged += [(r.expression, r) for r in base_fit.rows() if r.well_identified and r.error_percent is not None]
+        base = [(r.expression, r) for r in base_fit.rows() if r.well_identified and r.error_percent is not None]
+        parts.append(_largest_errors(base, "base parameters"))
+        judged += base
     text = "accuracy vs truth, well identified only: " + ", ".join(parts)
     beyond = [name for name, r in judged if r.error_sigmas is not None and abs(r.error_sigmas) > 2]
     if beyond:
