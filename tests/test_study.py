@@ -172,6 +172,32 @@ def test_coverage_chance_is_the_binomial_tail_and_the_verdict_tells_chance_from_
     assert within == "by chance (85.0 % of 40 runs, P cover 0.014)"
 
 
+def test_how_often_calibrated_sigmas_fail_the_bar_against_the_binomial_by_hand(tmp_path):
+    """A study's bar is one test per claimed parameter. For independent parameters the chance that
+    calibrated σs fail it somewhere is ``1 - (1 - p)^m``, ``p`` one parameter's chance: fewer than
+    36 of 40 intervals holding the truth (binomial, summed by hand) or a mean z beyond 0.5 (normal
+    tail); for parameters whose errors move together it is ``p``. The simulated figure matches
+    both; a study's own figure comes from the correlation of its runs' z-scores."""
+    from ident_hw.experiment.study import calibrated_failure_rate
+    runs = 40
+    coverage_tail = sum(math.comb(runs, j) * 0.95 ** j * 0.05 ** (runs - j) for j in range(36))
+    bias_tail = math.erfc(0.5 * math.sqrt(runs) / math.sqrt(2.0))
+    p = 1.0 - (1.0 - coverage_tail) * (1.0 - bias_tail)          # 0.0496
+    assert calibrated_failure_rate(np.eye(31), runs) == pytest.approx(1.0 - (1.0 - p) ** 31, abs=0.03)
+    assert calibrated_failure_rate(np.ones((5, 5)), runs) == pytest.approx(p, abs=0.012)
+    assert calibrated_failure_rate(np.eye(31), 160) < 0.1 < calibrated_failure_rate(np.eye(31), 40)
+
+    rng = np.random.default_rng(5)
+    z = rng.standard_normal((40, 3))
+    z[:, 1] = z[:, 0]                                              # two parameters that move together
+    outcomes = tuple(RunOutcome(i, i, "complete", 1.0, "here", tuple(
+        Estimate("base", f"p{j}", 1.0 + 0.01 * z[i, j], 0.01, 1.0, True) for j in range(3))) for i in range(40))
+    study = Study(tmp_path, "x.yaml", 40, outcomes, summarize(outcomes))
+    rate = study.chance_of_failing()
+    assert rate == pytest.approx(1.0 - (1.0 - p) ** 2, abs=0.02)
+    assert f"in {100 * rate:.0f} % of 40-run studies" in verdict_line(study)
+
+
 def test_every_run_but_the_first_draws_where_its_encoders_count(tmp_path):
     """Run 0 is the config's own campaign; the others draw their count edges from their seed (what
     differs between two homings of a rig), else every run would read the same rounded positions."""

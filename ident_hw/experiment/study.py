@@ -65,6 +65,9 @@ CALIBRATED_COVERAGE = 0.95
 #: claimed parameters in at least this share of studies is reported as within chance (it still fails
 #: the target): each parameter's ``coverage_chance`` against this level over their number
 CHANCE_LEVEL = 0.05
+#: simulated studies behind :func:`calibrated_failure_rate`, and their seed (the same figure on any host)
+CHANCE_STUDIES = 4000
+CHANCE_SEED = 20261127
 
 STUDY_FILE = "study.json"
 RUNS_DIR = "runs"
@@ -209,6 +212,54 @@ class Study:
     @property
     def failed(self) -> tuple[RunOutcome, ...]:
         return tuple(o for o in self.outcomes if o.error is not None)
+
+    @property
+    def estimated_runs(self) -> int:
+        """The runs that gave estimates (finished, not failed)."""
+        return len(self.outcomes) - len(self.failed)
+
+    def chance_of_failing(self) -> float | None:
+        """How often σs that are exactly calibrated would fail this study's bar for at least one of
+        its claimed parameters (:func:`calibrated_failure_rate`, with as many runs as this study
+        finished and the correlation of the claimed parameters' z-scores over the runs that
+        estimated them all); None without a claimed parameter or a finished run."""
+        claimed = [(s.kind, s.name) for s in self.summary if s.claimed]
+        runs = self.estimated_runs
+        if not claimed or runs < 1:
+            return None
+        z = []
+        for outcome in self.outcomes:
+            by_key = {(e.kind, e.name): e for e in outcome.estimates if e.sigma}
+            if all(k in by_key for k in claimed):
+                z.append([(by_key[k].value - by_key[k].truth) / by_key[k].sigma for k in claimed])
+        correlation = np.eye(len(claimed))
+        if len(z) > 2:
+            with np.errstate(invalid="ignore", divide="ignore"):
+                sample = np.corrcoef(np.array(z), rowvar=False)
+            correlation = np.where(np.isfinite(sample), sample, correlation)
+        return calibrated_failure_rate(np.atleast_2d(correlation), runs)
+
+
+def calibrated_failure_rate(correlation: np.ndarray, runs: int, studies: int = CHANCE_STUDIES,
+                            seed: int = CHANCE_SEED) -> float:
+    """The share of ``runs``-run studies in which calibrated σs fail the bar (coverage of the 95 %
+    interval below :data:`COVERAGE_TARGET`, or a mean error beyond :data:`BIAS_TARGET` σ) for at
+    least one of ``len(correlation)`` parameters whose errors in one run are correlated as
+    ``correlation`` (m, m) says: ``studies`` studies simulated, each run's z-scores normal with
+    that correlation (its nearest positive semi-definite matrix). A study's bar is a family of
+    tests: with thirty parameters, exactly calibrated σs fail it somewhere in most 40-run studies;
+    this figure says how often, so a study's misses can be told from chance."""
+    values, vectors = np.linalg.eigh(0.5 * (correlation + correlation.T))
+    root = vectors * np.sqrt(np.clip(values, 0.0, None))                 # root @ root.T = correlation
+    rng = np.random.default_rng(seed)
+    failing, chunk = 0, max(1, 200_000 // max(1, runs * len(correlation)))
+    for start in range(0, studies, chunk):
+        n = min(chunk, studies - start)
+        z = rng.standard_normal((n, runs, len(correlation))) @ root.T    # (studies, runs, m)
+        coverage = np.mean(np.abs(z) <= Z95, axis=1)
+        biased = np.abs(z.mean(axis=1)) > BIAS_TARGET
+        failing += int(np.sum(np.any((coverage < COVERAGE_TARGET) | biased, axis=1)))
+    return failing / studies
 
 
 # ----------------------------------------------------------------------------- one run
@@ -401,6 +452,7 @@ def run_study(config_path: str | Path, folder: str | Path, runs: int, *, workers
     data = json.loads((folder / STUDY_FILE).read_text())
     data["summary"] = [s.to_dict() for s in study.summary]
     data["runs_finished"], data["runs_failed"] = len(outcomes), len(study.failed)
+    data["calibrated_failure_rate"] = study.chance_of_failing()
     _write_json(folder / STUDY_FILE, data)
     return study
 

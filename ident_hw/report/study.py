@@ -7,7 +7,9 @@ them ``!`` marks one whose σ does not tell the truth (coverage of each run's 95
 90 %, or a mean error beyond 0.5 mean σ: :attr:`ParameterSummary.honest`). ``P cover`` is the
 chance that a calibrated σ covers the truth that rarely or less in as many runs
 (:attr:`ParameterSummary.coverage_chance`): a 90 % target fails now and then by chance alone, and the
-verdict says which of the coverages that fail are within it for as many claimed parameters.
+verdict says which of the coverages that fail are within it for as many claimed parameters, and how
+often exactly calibrated σs fail the bar for at least one of them in a study of as many runs
+(:meth:`Study.chance_of_failing`).
 """
 
 from __future__ import annotations
@@ -60,9 +62,19 @@ def verdict_line(study: Study) -> str:
     if dishonest:
         return (f"{len(dishonest)} of {len(claimed)} claimed parameters have a σ that does not tell the truth "
                 f"(coverage < {100 * COVERAGE_TARGET:.0f} % or |mean error| > {BIAS_TARGET} σ): "
-                + ", ".join(dishonest) + _chance_note(claimed))
+                + ", ".join(dishonest) + _chance_note(claimed) + _family_note(study))
     return (f"all {len(claimed)} claimed parameters: coverage ≥ {100 * COVERAGE_TARGET:.0f} %, "
-            f"|mean error| ≤ {BIAS_TARGET} σ")
+            f"|mean error| ≤ {BIAS_TARGET} σ" + _family_note(study))
+
+
+def _family_note(study: Study) -> str:
+    """How often exactly calibrated σs fail the bar somewhere in a study like this one
+    (:meth:`Study.chance_of_failing`): the bar is one test per claimed parameter."""
+    rate = study.chance_of_failing()
+    if rate is None:
+        return ""
+    return (f"; exactly calibrated σs fail this bar for at least one of them in {100 * rate:.0f} % of "
+            f"{study.estimated_runs}-run studies (their errors correlated as these runs show)")
 
 
 def _chance_note(claimed: list[ParameterSummary]) -> str:
