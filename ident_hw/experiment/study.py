@@ -27,7 +27,8 @@ The study folder::
     study.html, plots/   the report (:mod:`ident_hw.report.study`)
 
 Running a study into a folder that holds one of the same config continues it: finished runs
-are kept, the missing ones and those that raised run.
+are kept, the missing ones and those that raised run. A run that raised leaves its folder (what it
+recorded, its partial results) on the machine it ran on; its error says which and where.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import shutil
 import socket
 import tempfile
 import time
@@ -292,30 +294,41 @@ def run_one(task: RunTask) -> RunOutcome:
     """One campaign of the study, identified as ``ident-hw run`` does (without its report), in a
     temporary folder of the machine it runs on; a pure function of ``task``. The linear algebra
     runs on one thread (``threadpoolctl``): a BLAS splits its sums by its thread count, and a
-    worker process (Dask starts them with one) must give the bits this process gives."""
+    worker process (Dask starts them with one) must give the bits this process gives. The folder
+    goes when the run gave its estimates; a run that raised keeps it (its recordings, its partial
+    results), and its error says on which host and where."""
     from threadpoolctl import threadpool_limits
 
-    from .runner import run_campaign
-    from .session import HostSettings
     started = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix=f"ident-hw-study-{task.index:04d}-") as tmp, \
-            threadpool_limits(limits=1):
-        tmp = Path(tmp)
-        for relative, data in task.files:
-            (tmp / relative).parent.mkdir(parents=True, exist_ok=True)
-            (tmp / relative).write_bytes(data)
-        (tmp / "config.yaml").write_text(task.config_yaml)
-        (tmp / "run.yaml").write_text(run_yaml(task))
-        try:
-            config = load_config(tmp / "run.yaml")
-            folder = new_results_folder(config, tmp / "results", "study")
-            results = run_campaign(config, folder, show_progress=False, report=False,
-                                   host=HostSettings.for_command(config))
-            estimates, status, error = estimates_of(results), read_status(folder), None
-        except Exception as exc:  # noqa: BLE001 - a failed run is a result of the study, not its end
-            estimates, status, error = (), "failed", f"{type(exc).__name__}: {exc}"
+    tmp = Path(tempfile.mkdtemp(prefix=f"ident-hw-study-{task.index:04d}-"))
+    with threadpool_limits(limits=1):
+        estimates, status, error = _campaign(task, tmp)
+    if error is None:
+        shutil.rmtree(tmp, ignore_errors=True)
+    else:
+        error += f" (the run's folder is kept on {socket.gethostname()}: {tmp})"
     return RunOutcome(task.index, task.seed, status, time.perf_counter() - started, socket.gethostname(),
                       estimates, error)
+
+
+def _campaign(task: RunTask, tmp: Path) -> tuple[tuple[Estimate, ...], str, str | None]:
+    """The estimates, STATUS and error (None: it finished) of ``task``'s campaign in ``tmp``."""
+    from .runner import run_campaign
+    from .session import HostSettings
+    for relative, data in task.files:
+        (tmp / relative).parent.mkdir(parents=True, exist_ok=True)
+        (tmp / relative).write_bytes(data)
+    (tmp / "config.yaml").write_text(task.config_yaml)
+    (tmp / "run.yaml").write_text(run_yaml(task))
+    try:
+        config = load_config(tmp / "run.yaml")
+        folder = new_results_folder(config, tmp / "results", "study")
+        results = run_campaign(config, folder, show_progress=False, report=False,
+                               host=HostSettings.for_command(config))
+        estimates, status, error = estimates_of(results), read_status(folder), None
+    except Exception as exc:  # noqa: BLE001 - a failed run is a result of the study, not its end
+        estimates, status, error = (), "failed", f"{type(exc).__name__}: {exc}"
+    return estimates, status, error
 
 
 # ----------------------------------------------------------------------------- the summary
