@@ -217,7 +217,7 @@ def test_how_often_calibrated_sigmas_fail_the_bar_against_the_binomial_by_hand(t
     outcomes = tuple(RunOutcome(i, i, "complete", 1.0, "here", tuple(
         Estimate("base", f"p{j}", 1.0 + 0.01 * z[i, j], 0.01, 1.0, True) for j in range(3))) for i in range(40))
     study = Study(tmp_path, "x.yaml", 40, outcomes, summarize(outcomes))
-    rate = study.chance_of_failing()
+    rate = study.chance_of_failing
     assert rate == pytest.approx(1.0 - (1.0 - p) ** 2, abs=0.02)
     assert f"in {100 * rate:.0f} % of 40-run studies" in verdict_line(study)
 

@@ -33,6 +33,7 @@ recorded, its partial results) on the machine it ran on; its error says which an
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -220,18 +221,20 @@ class Study:
         """The runs that gave estimates (finished, not failed)."""
         return len(self.outcomes) - len(self.failed)
 
+    @functools.cached_property
     def chance_of_failing(self) -> float | None:
         """How often σs that are exactly calibrated would fail this study's bar for at least one of
         its claimed parameters (:func:`calibrated_failure_rate`, with as many runs as this study
         finished and the correlation of the claimed parameters' z-scores over the runs that
-        estimated them all); None without a claimed parameter or a finished run."""
+        estimated them all); None without a claimed parameter or a finished run. Simulated once
+        per study (``study.json``, the terminal and ``study.html`` all show it)."""
         claimed = [(s.kind, s.name) for s in self.summary if s.claimed]
         runs = self.estimated_runs
         if not claimed or runs < 1:
             return None
         z = []
         for outcome in self.outcomes:
-            by_key = {(e.kind, e.name): e for e in outcome.estimates if e.sigma}
+            by_key = {(e.kind, e.name): e for e in outcome.estimates if _has_sigma(e)}
             if all(k in by_key for k in claimed):
                 z.append([(by_key[k].value - by_key[k].truth) / by_key[k].sigma for k in claimed])
         correlation = np.eye(len(claimed))
@@ -303,12 +306,12 @@ def run_one(task: RunTask) -> RunOutcome:
     tmp = Path(tempfile.mkdtemp(prefix=f"ident-hw-study-{task.index:04d}-"))
     with threadpool_limits(limits=1):
         estimates, status, error = _campaign(task, tmp)
+    host = socket.gethostname()
     if error is None:
         shutil.rmtree(tmp, ignore_errors=True)
     else:
-        error += f" (the run's folder is kept on {socket.gethostname()}: {tmp})"
-    return RunOutcome(task.index, task.seed, status, time.perf_counter() - started, socket.gethostname(),
-                      estimates, error)
+        error += f" (the run's folder is kept on {host}: {tmp})"
+    return RunOutcome(task.index, task.seed, status, time.perf_counter() - started, host, estimates, error)
 
 
 def _campaign(task: RunTask, tmp: Path) -> tuple[tuple[Estimate, ...], str, str | None]:
@@ -332,13 +335,18 @@ def _campaign(task: RunTask, tmp: Path) -> tuple[tuple[Estimate, ...], str, str 
 
 
 # ----------------------------------------------------------------------------- the summary
+def _has_sigma(e: Estimate) -> bool:
+    """``e`` has a σ a study can judge: finite and positive."""
+    return e.sigma is not None and math.isfinite(e.sigma) and e.sigma > 0
+
+
 def summarize(outcomes: Iterable[RunOutcome]) -> tuple[ParameterSummary, ...]:
     """Per parameter (in the order the first run lists them), over the runs that estimated it
     with a finite σ: see :class:`ParameterSummary`."""
     by_key: dict[tuple[str, str], list[Estimate]] = {}
     for outcome in outcomes:
         for e in outcome.estimates:
-            if e.sigma is not None and math.isfinite(e.sigma) and e.sigma > 0:
+            if _has_sigma(e):
                 by_key.setdefault((e.kind, e.name), []).append(e)
     out = []
     for (kind, name), estimates in by_key.items():
@@ -465,7 +473,7 @@ def run_study(config_path: str | Path, folder: str | Path, runs: int, *, workers
     data = json.loads((folder / STUDY_FILE).read_text())
     data["summary"] = [s.to_dict() for s in study.summary]
     data["runs_finished"], data["runs_failed"] = len(outcomes), len(study.failed)
-    data["calibrated_failure_rate"] = study.chance_of_failing()
+    data["calibrated_failure_rate"] = study.chance_of_failing
     _write_json(folder / STUDY_FILE, data)
     return study
 

@@ -9,7 +9,7 @@ chance that a calibrated σ covers the truth that rarely or less in as many runs
 (:attr:`ParameterSummary.coverage_chance`): a 90 % target fails now and then by chance alone, and the
 verdict says which of the coverages that fail are within it for as many claimed parameters, and how
 often exactly calibrated σs fail the bar for at least one of them in a study of as many runs
-(:meth:`Study.chance_of_failing`).
+(:attr:`Study.chance_of_failing`).
 """
 
 from __future__ import annotations
@@ -69,8 +69,8 @@ def verdict_line(study: Study) -> str:
 
 def _family_note(study: Study) -> str:
     """How often exactly calibrated σs fail the bar somewhere in a study like this one
-    (:meth:`Study.chance_of_failing`): the bar is one test per claimed parameter."""
-    rate = study.chance_of_failing()
+    (:attr:`Study.chance_of_failing`): the bar is one test per claimed parameter."""
+    rate = study.chance_of_failing
     if rate is None:
         return ""
     return (f"; exactly calibrated σs fail this bar for at least one of them in {100 * rate:.0f} % of "
