@@ -59,25 +59,20 @@ def cmd_identify(args) -> int:
 
     Every recording is read and checked against the config before the folder is made; the
     folder's STATUS ends ``complete``, ``degraded: <reasons>`` or ``failed: <why>``."""
-    from drivers.errors import RecordingError
     from ident_hw.config import ConfigError
     from ident_hw.experiment.folders import new_results_folder
-    from ident_hw.experiment.recordings import load_recording, require_trajectories
+    from ident_hw.experiment.recordings import gather_recordings, require_trajectories
     from ident_hw.experiment.runner import identify_recordings
     from ident_hw.report import summary_lines
     config = _load(args.config)
     if config.identification is None:
         raise ConfigError("identification: missing section (the steps to run on the recordings)",
                           file=config.source)
-    recordings, files = {}, {}
-    for path in args.data:
-        name, rec = load_recording(path, config)
-        if name in recordings:
-            raise RecordingError(f"{files[name]} and {path} are both recordings of trajectory {name!r}: give one")
-        recordings[name], files[name] = rec, path
+    recordings, imported = gather_recordings(config, args.data)
     require_trajectories(config, recordings)
     folder = new_results_folder(config, args.out, "identify")
-    results = identify_recordings(config, recordings, folder, log=_logger(args), report=not args.no_report)
+    results = identify_recordings(config, recordings, folder, log=_logger(args), report=not args.no_report,
+                                  imported=imported)
     print("\n".join(summary_lines(folder)))
     print(f"results: {folder}" + ("" if args.no_report else f"  (report: {folder / 'report.html'})"))
     return Exit.OK if results.passed else Exit.DEGRADED
@@ -364,7 +359,9 @@ def _add_offline_commands(command) -> None:
     :func:`_add_campaign_commands`)."""
     p = command("identify", cmd_identify, "identify offline from recordings (decoded .npz or raw .log/.asc/.blf)")
     p.add_argument("config", help="YAML config of the recorded run")
-    p.add_argument("data", nargs="+", help="recording files; the file stem names the trajectory")
+    p.add_argument("data", nargs="*", help="recording files (the file stem names the trajectory), or NAME=PATH: "
+                   "PATH in the place of trajectory NAME; the config's recorded trajectories not given are read "
+                   "from their own files")
     p.add_argument("--out", metavar="DIR", help="results folder (default: output.dir/identify-<time>)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.add_argument("--no-report", action="store_true", help="no plots and no report.html (`ident-hw report DIR` "

@@ -31,6 +31,92 @@ _COVERAGE_JSON = (("file", "file", False), ("recording_status", "recording_statu
 _JUDGED_JSON = tuple((key, name) for key, name, judged in _COVERAGE_JSON if judged)
 
 
+#: the reasons a row of a file made elsewhere is left out (:mod:`ident_hw.experiment.external`), with
+#: what each says in the report
+CUT_REASONS = {
+    "fields": "wrong number of fields",
+    "number": "a field that is no finite number",
+    "absurd": "a value beyond anything the robot can reach",
+    "time_back": "time not going forward",
+}
+
+
+@dataclass(frozen=True)
+class CutRows:
+    """The rows of a file left out for one reason (:data:`CUT_REASONS`): how many, and the first
+    few line numbers (1-based, as an editor counts, header included)."""
+
+    reason: str
+    count: int
+    lines: tuple[int, ...]
+
+    def describe(self) -> str:
+        more = f" and {self.count - len(self.lines)} more" if self.count > len(self.lines) else ""
+        return (f"{self.count} row{'s' if self.count > 1 else ''} with {CUT_REASONS[self.reason]} "
+                f"(line{'s' if len(self.lines) > 1 else ''} {', '.join(map(str, self.lines))}{more})")
+
+    def to_json(self) -> dict:
+        return {"reason": self.reason, "count": self.count, "lines": list(self.lines)}
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> CutRows:
+        return cls(reason=doc["reason"], count=int(doc["count"]), lines=tuple(doc.get("lines") or ()))
+
+
+@dataclass(frozen=True)
+class ImportSummary:
+    """How a recording made elsewhere (a CSV file) was read: what the report says of it.
+
+    ``data_rows``: the file's data rows; ``window``: the part asked for (``rows 635..3510``,
+    ``12.0..48.5 s``, None: all); ``cut``: rows left out, per reason; ``idle_head_s``,
+    ``idle_tail_s``: s of the idle head and tail left out (nothing moved there); ``step_min_s``,
+    ``step_median_s``, ``step_max_s``: the file's time steps; ``period_s``: the even step its rows
+    were resampled to (positions by a cubic spline, the other values linearly; nothing across a
+    gap); ``gaps``: steps longer than the config's ``recordings.gap`` × the median, where the
+    recording is cut; ``velocity``: ``recorded`` or ``differentiated``; ``force``: the column the
+    forces come from, ``current`` or ``torque``."""
+
+    data_rows: int
+    window: str | None
+    rows_used: int
+    cut: tuple[CutRows, ...] = ()
+    idle_head_s: float = 0.0
+    idle_tail_s: float = 0.0
+    step_min_s: float | None = None
+    step_median_s: float | None = None
+    step_max_s: float | None = None
+    period_s: float | None = None
+    gaps: int = 0
+    velocity: str = "recorded"
+    force: str = "current"
+
+    def describe(self) -> list[str]:
+        """The summary as lines for the terminal and the report."""
+        lines = [f"{self.rows_used} of {self.data_rows} data rows used" + (f" ({self.window})" if self.window else "")]
+        if self.idle_head_s or self.idle_tail_s:
+            lines.append(f"idle head {self.idle_head_s:.2f} s and tail {self.idle_tail_s:.2f} s left out "
+                         "(no actuator moved)")
+        lines += [f"cut: {c.describe()}" for c in self.cut]
+        if self.step_median_s:
+            lines.append(f"time steps {1e3 * self.step_min_s:.3g}-{1e3 * self.step_max_s:.3g} ms (median "
+                         f"{1e3 * self.step_median_s:.3g} ms), resampled to an even {1e3 * self.period_s:.4g} ms"
+                         + (f"; cut at {self.gaps} gap{'s' if self.gaps > 1 else ''}" if self.gaps else ""))
+        lines.append(f"forces from the {self.force} column; velocities {self.velocity}")
+        return lines
+
+    def to_json(self) -> dict:
+        doc = {f.name: getattr(self, f.name) for f in fields(self)}
+        doc["cut"] = [c.to_json() for c in self.cut]
+        return doc
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> ImportSummary:
+        known = {f.name for f in fields(cls)}
+        values = {k: v for k, v in doc.items() if k in known}
+        values["cut"] = tuple(CutRows.from_json(c) for c in doc.get("cut") or ())
+        return cls(**values)
+
+
 @dataclass(frozen=True)
 class RecordingCoverage:
     """What the recording of one trajectory holds, and how much of it the fit used.
@@ -48,7 +134,9 @@ class RecordingCoverage:
     ``gaps`` the recording is cut at and the ``stretches`` filtered; None before;
     ``uncounted_axes``: the actuators of an identification trajectory whose positions are not
     whole encoder counts (:func:`ident_hw.experiment.encoder.uncounted_axes`: no encoder draws
-    were taken, for any step), JSON ``positions_not_in_counts`` when there are any.
+    were taken, for any step), JSON ``positions_not_in_counts`` when there are any;
+    ``imported``: how a recording made elsewhere was read (:class:`ImportSummary`), JSON
+    ``imported`` (absent for the tool's own recordings).
     """
 
     file: str | None
@@ -65,6 +153,7 @@ class RecordingCoverage:
     gaps: int | None = None
     stretches: int | None = None
     uncounted_axes: tuple[str, ...] = ()
+    imported: ImportSummary | None = None
 
     @property
     def prepared(self) -> bool:
@@ -84,6 +173,8 @@ class RecordingCoverage:
                        stretches=self.stretches)
         if self.uncounted_axes:
             doc["positions_not_in_counts"] = list(self.uncounted_axes)
+        if self.imported is not None:
+            doc["imported"] = self.imported.to_json()
         return doc
 
     @classmethod
@@ -94,7 +185,8 @@ class RecordingCoverage:
                      longest_gap_s=books["longest_gap_s"] or 0.0, skipped_slots=books["skipped_slots"] or 0)
         return cls(**books, samples_used=doc.get("samples_used"), rows_left_out=doc.get("rows_left_out"),
                    gaps=doc.get("gaps"), stretches=doc.get("stretches"),
-                   uncounted_axes=tuple(doc.get("positions_not_in_counts") or ()))
+                   uncounted_axes=tuple(doc.get("positions_not_in_counts") or ()),
+                   imported=ImportSummary.from_json(doc["imported"]) if doc.get("imported") else None)
 
 
 @dataclass(frozen=True)
@@ -184,6 +276,35 @@ class MassFitFigures:
 
 
 @dataclass(frozen=True)
+class DriveGainsFigures:
+    """What a ``gains`` step found (:mod:`ident_hw.identification.drive_gains`), per actuator in
+    actuator order: the identified ``gains`` (N·m/A | N/A) and their jackknife ``sigma``, the
+    config's gains ``configured`` (torque constant × gear), the currents' residual ``residual_rms``
+    (A) at the identified gains and ``residual_rms_configured`` with the configured ones (every
+    other parameter fitted again); the payload's ``payload_mass`` (kg) and the trajectories that
+    carry it; ``rank``: the base parameters fitted with the gains; ``blocks``: the jackknife's."""
+
+    gains: tuple[float, ...]
+    sigma: tuple[float, ...]
+    configured: tuple[float, ...]
+    residual_rms: tuple[float, ...]
+    residual_rms_configured: tuple[float, ...]
+    payload_mass: float
+    payload_trajectories: tuple[str, ...]
+    rank: int
+    blocks: int
+
+    def to_json(self) -> dict:
+        return {f.name: (list(getattr(self, f.name)) if isinstance(getattr(self, f.name), tuple) else getattr(self, f.name))
+                for f in fields(self)}
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> DriveGainsFigures:
+        return cls(**{f.name: (tuple(doc[f.name]) if isinstance(doc[f.name], list) else doc[f.name])
+                      for f in fields(cls)})
+
+
+@dataclass(frozen=True)
 class StepRecord:
     """What one identification step did.
 
@@ -204,7 +325,8 @@ class StepRecord:
     the values its step holds are worth in the estimate (an earlier step's sigma, else the CAD
     prior; :func:`ident_hw.experiment.offline.held_value_sigma`), a part of its sigma.
     ``consistency_failure``: why no physically consistent parameters reproduce the step's base
-    parameters (None: there are some, or none were asked for).
+    parameters (None: there are some, or none were asked for). ``drive_gains``: a ``gains``
+    step's figures (:class:`DriveGainsFigures`; JSON ``drive_gains``), None for the others.
     """
 
     name: str
@@ -224,6 +346,7 @@ class StepRecord:
     held_sigma: tuple[float, ...] = ()
     cond_W: float | None = None
     consistency_failure: str | None = None
+    drive_gains: DriveGainsFigures | None = None
 
     @property
     def fits_base_parameters(self) -> bool:
@@ -234,6 +357,9 @@ class StepRecord:
         doc: dict[str, Any] = {"name": self.name, "trajectories": list(self.trajectories)}
         if self.skipped is not None:
             doc["skipped"] = self.skipped
+            return doc
+        if self.drive_gains is not None:
+            doc.update(method=self.method, free=list(self.free), drive_gains=self.drive_gains.to_json())
             return doc
         figures = {} if self.figures is None else self.figures.to_json()
         encoder = ({"encoder_draws": self.encoder_draws, "encoder_sigma": list(self.encoder_sigma)}
@@ -261,6 +387,10 @@ class StepRecord:
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> StepRecord:
+        if doc.get("drive_gains"):
+            return cls(name=doc.get("name", ""), trajectories=tuple(doc.get("trajectories") or ()),
+                       method=doc.get("method", ""), free=tuple(doc.get("free") or ()),
+                       drive_gains=DriveGainsFigures.from_json(doc["drive_gains"]))
         eliminated = doc.get("eliminated")
         kind = MassFitFigures if eliminated is None else LeastSquaresFigures
         figures = None if "skipped" in doc else kind.from_json(doc)
@@ -464,3 +594,54 @@ class TrajectoryMetrics:
         if self.base_fit is not None:
             doc["base_fit"] = self.base_fit.to_json()
         return doc
+
+
+@dataclass(frozen=True)
+class FrictionChoice:
+    """The friction model identified with (:mod:`ident_hw.experiment.friction_choice`): its
+    Coulomb term's ``model``, whether each actuator has an ``offset``, its ``presliding`` distance
+    (rad | m; None: not a Dahl model) and ``stribeck`` velocity (rad/s | m/s; None: no Stribeck
+    term); ``tried``: for each constant chosen on the data (``presliding``, ``stribeck``), the
+    values tried and the residual each left (the sum of the actuators' squared relative
+    residuals), on ``trajectories``."""
+
+    model: str
+    offset: bool
+    presliding: tuple[float, ...] | None = None
+    stribeck: tuple[float, ...] | None = None
+    tried: Mapping[str, tuple[tuple[float, ...], tuple[tuple[float, ...], ...]]] = field(default_factory=dict)
+    trajectories: tuple[str, ...] = ()
+
+    def describe(self) -> str:
+        parts = [f"friction: {self.model} Coulomb term, viscous"]
+        if self.stribeck is not None:
+            parts.append("Stribeck velocities " + ", ".join(f"{v:.3g}" for v in self.stribeck))
+        if self.offset:
+            parts.append("an offset per actuator")
+        text = ", ".join(parts)
+        if self.presliding is not None:
+            text += "; presliding " + ", ".join(f"{v:.3g}" for v in self.presliding)
+        if self.tried:
+            text += (f" ({' and '.join(dict.fromkeys(self.tried))} chosen per actuator on "
+                     f"{', '.join(self.trajectories)}: the least residual of a grid)")
+        return text
+
+    def to_json(self) -> dict:
+        doc = {"model": self.model, "offset": self.offset,
+               "presliding": None if self.presliding is None else list(self.presliding),
+               "stribeck": None if self.stribeck is None else list(self.stribeck)}
+        if self.tried:
+            doc["tried"] = {k: {"values": list(v), "relative_residual": [list(x) for x in r]}
+                            for k, (v, r) in self.tried.items()}
+            doc["trajectories"] = list(self.trajectories)
+        return doc
+
+    @classmethod
+    def from_json(cls, doc: Mapping) -> FrictionChoice:
+        tried = {k: (tuple(v["values"]), tuple(tuple(x) for x in v["relative_residual"]))
+                 for k, v in (doc.get("tried") or {}).items()}
+
+        def row(key):
+            return None if doc.get(key) is None else tuple(doc[key])
+        return cls(model=doc["model"], offset=bool(doc.get("offset")), presliding=row("presliding"),
+                   stribeck=row("stribeck"), tried=tried, trajectories=tuple(doc.get("trajectories") or ()))

@@ -42,7 +42,7 @@ from ident_hw.identification.model_comparison import ModelComparison
 from ident_hw.identification.physical import ConsistentSet
 from ident_hw.model import ThreePRRR
 from ident_hw.model.interface import FORCE_UNITS, POSITION_UNITS
-from ident_hw.records import (BaseAnalysis, PredictionMetrics, RecordingCoverage, StepRecord, TrajectoryMetrics,
+from ident_hw.records import (BaseAnalysis, FrictionChoice, PredictionMetrics, RecordingCoverage, StepRecord, TrajectoryMetrics,
                               Verdict)
 
 STATUS_FILE = "STATUS"
@@ -296,9 +296,13 @@ class TrajectoryFit:
 
     Attributes:
         name: trajectory name; role: ``"identification"`` or ``"validation"``.
-        t: (N,) s; tau, tau_model: (N, 6) N·m / N; Theta: (N, 6) rad / m;
-        X: (N, 3) end-effector pose [x m, y m, alpha rad], or None.
-        tau_base: (N, 6) the forces the base-parameter fit (:class:`BaseFit`) predicts, or None.
+        t: (N,) s; tau, tau_model: (N, a) N·m / N; Theta: (N, a) rad / m;
+        X: (N, pose size) the poses, or None.
+        tau_base: (N, a) the forces the base-parameter fit (:class:`BaseFit`) predicts, or None.
+        tau_compared: (N, a) the forces a parameter set from elsewhere predicts
+            (``identification.compare_with``), in the same measure, or None.
+        at_rest: (N, a) bool, the rows where the actuator is at rest (slower than its friction
+            model's rest speed), or None: not known.
     """
 
     name: str
@@ -309,18 +313,26 @@ class TrajectoryFit:
     Theta: np.ndarray
     X: np.ndarray | None = None
     tau_base: np.ndarray | None = None
+    tau_compared: np.ndarray | None = None
+    at_rest: np.ndarray | None = None
+
+    #: the arrays a fit's file holds (those that are not None)
+    ARRAYS = ("t", "tau", "tau_model", "Theta", "X", "tau_base", "tau_compared", "at_rest")
+
+    @property
+    def tau_fit(self) -> np.ndarray:
+        """(N, a) the identified prediction: the base-parameter fit's, else the step-by-step values'."""
+        return self.tau_base if self.tau_base is not None else self.tau_model
 
     def save(self, path: Path) -> None:
-        arrays = {k: getattr(self, k) for k in ("t", "tau", "tau_model", "Theta", "X", "tau_base")
-                  if getattr(self, k) is not None}
+        arrays = {k: getattr(self, k) for k in self.ARRAYS if getattr(self, k) is not None}
         np.savez_compressed(path, name=self.name, role=self.role, **arrays)
 
     @classmethod
     def load(cls, path: Path) -> TrajectoryFit:
         with np.load(path) as f:
-            return cls(name=str(f["name"]), role=str(f["role"]), t=f["t"], tau=f["tau"],
-                       tau_model=f["tau_model"], Theta=f["Theta"], X=f["X"] if "X" in f else None,
-                       tau_base=f["tau_base"] if "tau_base" in f else None)
+            return cls(name=str(f["name"]), role=str(f["role"]),
+                       **{k: (f[k] if k in f else None) for k in cls.ARRAYS})
 
 
 @dataclass
@@ -440,6 +452,12 @@ class Results:
     model_comparison: ModelComparison | None = None
     #: the physically consistent parameters of the base fit (``identification.physical``); None: none made
     consistent: ConsistentSet | None = None
+    #: the label of the parameter set from elsewhere whose predictions the fits hold
+    #: (``identification.compare_with``); None: none
+    compared_label: str | None = None
+    #: the friction model identified with, where it is not the default Coulomb and viscous terms
+    #: (:class:`ident_hw.records.FrictionChoice`); None: the default
+    friction: FrictionChoice | None = None
 
     @property
     def force_units(self) -> tuple[str, ...]:
@@ -531,6 +549,13 @@ def save_results(folder: str | Path, results: Results) -> Path:
         doc["model_comparison"] = results.model_comparison.to_dict()
     if results.consistent is not None:
         doc["consistent"] = results.consistent.to_dict()
+    figures = validation_figures(results)
+    if figures:
+        doc["validation"] = {name: f.to_json() for name, f in figures.items()}
+    if results.compared_label is not None:
+        doc["compared_with"] = results.compared_label
+    if results.friction is not None:
+        doc["friction"] = results.friction.to_json()
     (folder / "parameters.json").write_text(json.dumps(doc, indent=2, default=_jsonable))
     (folder / "parameters.yaml").write_text(yaml.safe_dump(json.loads(json.dumps(doc, default=_jsonable)),
                                                            sort_keys=False))
@@ -568,7 +593,9 @@ def load_results(folder: str | Path) -> Results:
                    quality=Verdict.from_json(doc["quality"]) if doc.get("quality") else None,
                    model_comparison=ModelComparison.from_dict(doc["model_comparison"]) if doc.get("model_comparison")
                    else None,
-                   consistent=ConsistentSet.from_dict(doc["consistent"]) if doc.get("consistent") else None)
+                   consistent=ConsistentSet.from_dict(doc["consistent"]) if doc.get("consistent") else None,
+                   compared_label=doc.get("compared_with"),
+                   friction=FrictionChoice.from_json(doc["friction"]) if doc.get("friction") else None)
 
 
 # ----------------------------------------------------------------------------- figures
@@ -579,6 +606,90 @@ def metrics(results: Results) -> dict[str, TrajectoryMetrics]:
         role=fit.role, samples=int(len(fit.t)), stepwise=_metrics(results.actuators, fit.tau, fit.tau_model),
         base_fit=None if fit.tau_base is None else _metrics(results.actuators, fit.tau, fit.tau_base))
         for fit in results.fits}
+
+
+def relative_residual_percent(tau: np.ndarray, predicted: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    """(a,) per actuator ``rre = 100 ||tau - predicted|| / ||tau||`` over the rows (N,) or (N, a)
+    bool ``rows`` (all: None), the measure of the UR10e dataset's authors: for the whole
+    trajectory it is the ``nrms_percent`` of :func:`ident_hw.identification.metrics.validation_metrics`.
+    NaN where no row is left or the forces there are all 0."""
+    tau, predicted = np.asarray(tau, dtype=float), np.asarray(predicted, dtype=float)
+    mask = np.ones(tau.shape, dtype=bool) if rows is None else np.broadcast_to(
+        np.asarray(rows, dtype=bool).reshape(len(tau), -1), tau.shape)
+    error = np.sqrt(np.sum(np.where(mask, (tau - predicted) ** 2, 0.0), axis=0))
+    size = np.sqrt(np.sum(np.where(mask, tau ** 2, 0.0), axis=0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(size > 0, 100.0 * error / size, np.nan)
+
+
+@dataclass(frozen=True)
+class ValidationFigures:
+    """The force prediction on one validation trajectory, per actuator (in actuator order), as
+    the UR10e dataset's authors measure it (:func:`relative_residual_percent`): ``rre_fit`` of
+    the identified parameters (:attr:`TrajectoryFit.tau_fit`), ``rre_compared`` of the set from
+    elsewhere (None: none); each also over the rows where the actuator moves and where it is at
+    rest (``*_moving``, ``*_at_rest``); ``at_rest_fraction`` of the rows; ``residual_at_rest``: the
+    share (%) of each prediction's squared residual that the rows at rest hold: where what is
+    left comes from."""
+
+    trajectory: str
+    rre_fit: tuple[float, ...]
+    rre_compared: tuple[float, ...] | None = None
+    rre_fit_moving: tuple[float, ...] | None = None
+    rre_fit_at_rest: tuple[float, ...] | None = None
+    rre_compared_moving: tuple[float, ...] | None = None
+    rre_compared_at_rest: tuple[float, ...] | None = None
+    at_rest_fraction: tuple[float, ...] | None = None
+    residual_at_rest_fit: tuple[float, ...] | None = None
+    residual_at_rest_compared: tuple[float, ...] | None = None
+
+    @classmethod
+    def of(cls, fit: TrajectoryFit) -> ValidationFigures:
+        """The figures of one fitted trajectory."""
+        def figures(prediction):
+            if prediction is None:
+                return None, None, None, None
+            whole = relative_residual_percent(fit.tau, prediction)
+            if fit.at_rest is None:
+                return whole, None, None, None
+            squared = (fit.tau - prediction) ** 2
+            with np.errstate(invalid="ignore", divide="ignore"):
+                share = 100.0 * np.sum(np.where(fit.at_rest, squared, 0.0), axis=0) / np.sum(squared, axis=0)
+            return (whole, relative_residual_percent(fit.tau, prediction, ~fit.at_rest),
+                    relative_residual_percent(fit.tau, prediction, fit.at_rest), share)
+
+        def row(values):
+            return None if values is None else tuple(float(v) for v in values)
+        own, compared = figures(fit.tau_fit), figures(fit.tau_compared)
+        rest = None if fit.at_rest is None or not len(fit.t) else fit.at_rest.mean(axis=0)
+        return cls(trajectory=fit.name, rre_fit=row(own[0]), rre_compared=row(compared[0]),
+                   rre_fit_moving=row(own[1]), rre_fit_at_rest=row(own[2]), rre_compared_moving=row(compared[1]),
+                   rre_compared_at_rest=row(compared[2]), at_rest_fraction=row(rest),
+                   residual_at_rest_fit=row(own[3]), residual_at_rest_compared=row(compared[3]))
+
+    def to_json(self) -> dict:
+        def pair(fit, compared):
+            doc = {"fit": _numbers(fit)}
+            if compared is not None:
+                doc["compared"] = _numbers(compared)
+            return doc
+        doc = {"rre_percent": pair(self.rre_fit, self.rre_compared)}
+        if self.rre_fit_moving is not None:
+            doc["rre_moving_percent"] = pair(self.rre_fit_moving, self.rre_compared_moving)
+            doc["rre_at_rest_percent"] = pair(self.rre_fit_at_rest, self.rre_compared_at_rest)
+            doc["residual_share_at_rest_percent"] = pair(self.residual_at_rest_fit, self.residual_at_rest_compared)
+            doc["at_rest_fraction"] = _numbers(self.at_rest_fraction)
+        return doc
+
+
+def validation_figures(results: Results) -> dict[str, ValidationFigures]:
+    """:class:`ValidationFigures` of every validation trajectory, by name."""
+    return {fit.name: ValidationFigures.of(fit) for fit in results.fits if fit.role == "validation"}
+
+
+def _numbers(values) -> list[float | None] | None:
+    """A row of figures for JSON: NaN as null."""
+    return None if values is None else [v if math.isfinite(v) else None for v in values]
 
 
 def _metrics(actuators: tuple[str, ...], tau: np.ndarray, tau_model: np.ndarray) -> PredictionMetrics:

@@ -13,6 +13,7 @@ from ident_hw.config.robots import initial_parameters, model_of
 from ident_hw.config.to_drivers import axis_scaling
 from ident_hw.config.to_trajectories import feasibility_limits
 from ident_hw.model import ThreePRRR
+from recorded_data import dataset, needs_datasets
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
 ROBOT_TEXT = (CONFIGS / "robot-3prrr.yaml").read_text()
@@ -53,6 +54,8 @@ def expect_error(path: Path, key: str, line: int, *words: str) -> ConfigError:
 
 @pytest.mark.parametrize("name", sorted(p.name for p in CONFIGS.glob("*.yaml")))
 def test_every_shipped_config_loads(name):
+    if needs_datasets((CONFIGS / name).read_text()):
+        dataset("ur10e")
     cfg = load_config(CONFIGS / name)
     model = model_of(cfg.robot)
     assert [a.kind for a in cfg.robot.actuators] == list(model.actuator_kinds)

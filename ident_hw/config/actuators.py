@@ -27,16 +27,22 @@ class LimitsConfig:
 
 @dataclass(frozen=True)
 class ActuatorConfig:
-    """One motor + drive, in the robot's actuator order (the 3PRRR: theta1..3, zeta1..3)."""
+    """One motor + drive, in the robot's actuator order (the 3PRRR: theta1..3, zeta1..3).
+
+    ``node_id``, ``profile`` and ``homing`` describe the drive on the bus: a config with a
+    ``bus`` section needs the first two (its check says so); a config that only identifies
+    recordings made elsewhere (a robot whose drives the tool does not talk to) may leave them
+    out. ``torque_constant`` × ``gear_ratio`` is then the joint force per motor ampere of the
+    recordings (a drive gain), ``counts_per_turn`` the resolution their positions were read at."""
 
     name: str
     kind: Literal["revolute", "prismatic"]
-    node_id: int = field(metadata=spec(in_range(NODE_ID_MIN, NODE_ID_MAX)))
-    profile: Literal["epos2", "epos4"]
     torque_constant: float = field(metadata=spec(positive, unit="N m/A"))
     counts_per_turn: int = field(metadata=spec(positive, doc="quadrature counts per motor turn"))
     limits: LimitsConfig
-    homing: HomingConfig
+    node_id: int | None = field(default=None, metadata=spec(in_range(NODE_ID_MIN, NODE_ID_MAX)))
+    profile: Literal["epos2", "epos4"] | None = None
+    homing: HomingConfig | None = None
     gear_ratio: float = field(default=1.0, metadata=spec(positive, doc="motor turns per joint turn"))
     screw_lead: float | None = field(default=None, metadata=spec(positive, unit="m per motor turn"))
     product_code: int | None = field(default=None, metadata=spec(non_negative, doc="expected 0x1018:02"))

@@ -73,6 +73,8 @@ def check_robot(robot: RobotConfig, written: frozenset = frozenset()) -> None:
                              f"actuator {i} ({names[i]}) must be {expected!r}, got {act.kind!r}")
     seen: dict[int, int] = {}
     for i, act in enumerate(robot.actuators):
+        if act.node_id is None:
+            continue
         if act.node_id in seen:
             raise FieldError(f"actuators[{i}].node_id",
                              f"node id {act.node_id} is already used by actuators[{seen[act.node_id]}]")
@@ -88,8 +90,14 @@ def check_trajectory(t: TrajectoryConfig, written: frozenset = frozenset()) -> N
                                     f"its own keys: {reads}; any trajectory's: {', '.join(COMMON_KEYS)}")
     if (t.kind.startswith("delta_") or t.kind == "joint_excitation") and t.duration is None:
         raise FieldError("duration", f"missing key: a {t.kind!r} trajectory needs duration (s)")
-    if t.kind == "file" and t.path is None:
-        raise FieldError("path", "missing key: a 'file' trajectory needs path")
+    if t.kind in ("file", "recorded") and t.path is None:
+        raise FieldError("path", f"missing key: a {t.kind!r} trajectory needs path")
+    if t.rows is not None and t.window is not None:
+        raise FieldError("window", "give either rows or window, not both")
+    for key in ("rows", "window"):
+        pair = getattr(t, key)
+        if pair is not None and not pair[0] < pair[1]:
+            raise FieldError(key, f"expected [first, last] with first < last, got {list(pair)}")
     if isinstance(t.amplitude, tuple) and t.kind.startswith("delta_") and len(t.amplitude) != 3:
         raise FieldError("amplitude", f"one amplitude per arm is for the Delta's three arms, got "
                                       f"{len(t.amplitude)} for a {t.kind!r} trajectory")
@@ -115,11 +123,24 @@ def check_identification(ident: IdentificationConfig, written: frozenset = froze
         for key, what in (("trajectories", "trajectory"), ("parameters", "parameter (or [all])")):
             if not getattr(step, key):
                 raise FieldError(f"steps[{i}].{key}", f"step {step.name!r} needs at least one {what}")
-    least_squares = [i for i, s in enumerate(ident.steps) if s.method != "sqp"]
+    least_squares = [i for i, s in enumerate(ident.steps) if s.method in ("wls", "ols")]
     if len(least_squares) > 1:
         raise FieldError(f"steps[{least_squares[1]}].method",
                          f"only one step may fit base parameters by least squares (steps "
                          f"{[ident.steps[i].name for i in least_squares]} are 'wls'/'ols')")
+    for i, step in enumerate(ident.steps):
+        if (step.method == "gains") != (step.payload is not None):
+            raise FieldError(f"steps[{i}].payload", "a 'gains' step needs the payload (its mass and the trajectories "
+                             "that carry it); only a 'gains' step has one" if step.method == "gains" else
+                             "only a 'gains' step has a payload")
+        if step.payload is not None:
+            for j, name in enumerate(step.payload.trajectories):
+                if name not in step.trajectories:
+                    raise FieldError(f"steps[{i}].payload.trajectories[{j}]", f"{name!r} is not one of the step's "
+                                     f"trajectories {list(step.trajectories)}")
+            if not step.payload.trajectories or set(step.payload.trajectories) == set(step.trajectories):
+                raise FieldError(f"steps[{i}].payload.trajectories", "the drive gains need runs with the payload "
+                                 "and runs without it")
     for name, pair in ident.bounds.items():
         try:
             ordered_pair(pair)
@@ -136,11 +157,14 @@ def check_config(config: Config, written: frozenset = frozenset()) -> None:
     _check_sim(config, model, kind)
     names = _check_trajectory_names(config)
     bus = config.bus
+    _check_drives(config)
     if bus is not None and bus.sync == "lockstep" and not config.simulated:
         raise FieldError("bus.sync", f"lockstep paces the SYNC by the simulated rig's answers; "
                          f"{bus.interface}:{bus.channel} may carry real drives, which "
                          f"need 'periodic'" + ("" if config.sim is not None else " (no sim: section)"))
     _check_fault(config, names)
+    _check_friction(config)
+    _check_recorded(config)
     _check_filter(config)
     _check_trajectory_kinds(config, kind)
     _check_compare_models(config.identification, model)
@@ -148,6 +172,58 @@ def check_config(config: Config, written: frozenset = frozenset()) -> None:
         if t.payload is not None and (config.sim is None or not config.sim.in_process):
             raise FieldError(f"trajectories[{i}].payload", "a payload is put on by the in-process simulated "
                              "rig (sim.in_process: true)")
+
+
+def _check_friction(config: Config) -> None:
+    """A friction model other than Coulomb and viscous is a described robot's, and not simulated
+    (the simulated rig's plant has those two only)."""
+    friction = config.robot.friction
+    if friction.default:
+        return
+    key = "robot.friction." + ("model" if friction.model != "coulomb" else "offset")
+    if not kind_of(config.robot).friction_models:
+        raise FieldError(key, f"the {config.robot.kind}'s model has Coulomb and viscous friction only; other friction "
+                              "models are for robots read from their description file (robot.kind: described)")
+    if config.sim is not None:
+        raise FieldError(key, "the simulated rig's plant has Coulomb and viscous friction only: a simulated robot "
+                              "is identified with robot.friction.model coulomb and no offset")
+
+
+def _check_recorded(config: Config) -> None:
+    """Recorded trajectories need the ``recordings`` section, one column per actuator in it."""
+    recorded = [i for i, t in enumerate(config.trajectories) if t.recorded]
+    if not recorded:
+        return
+    recordings = config.recordings
+    if recordings is None:
+        raise FieldError(f"trajectories[{recorded[0]}].kind", "a 'recorded' trajectory is read as the recordings "
+                                                              "section says (its columns and units): missing section")
+    n = len(config.robot.actuators)
+    columns = recordings.columns
+    if (columns.current is None) == (columns.torque is None):
+        raise FieldError("recordings.columns", "give the columns of either current or torque (one per actuator)")
+    for key in ("position", "velocity", "current", "torque"):
+        given = getattr(columns, key)
+        if given is not None and len(given) != n:
+            raise FieldError(f"recordings.columns.{key}", f"expected one column per actuator ({n}: "
+                             f"{', '.join(a.name for a in config.robot.actuators)}), got {len(given)}")
+    for key in ("position", "velocity", "current", "torque"):
+        factor = getattr(recordings.scale, key)
+        if isinstance(factor, tuple) and len(factor) != n:
+            raise FieldError(f"recordings.scale.{key}", f"expected one factor, or one per actuator ({n}), "
+                                                        f"got {len(factor)}")
+
+
+def _check_drives(config: Config) -> None:
+    """On a bus, every actuator names its drive: node-ID and profile (a config without a bus,
+    which only identifies recordings made elsewhere, may leave them out)."""
+    if config.bus is None:
+        return
+    for i, act in enumerate(config.robot.actuators):
+        for key in ("node_id", "profile"):
+            if getattr(act, key) is None:
+                raise FieldError(f"robot.actuators[{i}].{key}", f"missing key: actuator {act.name!r} is driven on "
+                                 f"bus {config.bus.interface}:{config.bus.channel}, which needs its drive's {key}")
 
 
 def _check_filter(config: Config) -> None:
@@ -169,7 +245,7 @@ def _check_compare_models(ident: IdentificationConfig | None, model: RobotModel)
     """The model comparison needs a least-squares step and a robot with an energy regressor."""
     if ident is None or not ident.compare_models:
         return
-    if not any(s.method != "sqp" for s in ident.steps):
+    if not any(s.method in ("wls", "ols") for s in ident.steps):
         raise FieldError("identification.compare_models", "needs a step that fits base parameters by "
                          "least squares (method 'wls' or 'ols')")
     from ident_hw.identification.model_comparison import supports_energy_models

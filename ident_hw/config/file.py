@@ -11,6 +11,7 @@ import drivers.axis
 
 from .bus import BusConfig
 from .identification import IdentificationConfig
+from .recordings import RecordingsConfig
 from .robot import RobotConfig
 from .schema import spec
 from .sim import SimConfig
@@ -28,13 +29,15 @@ class OutputConfig:
 @dataclass(frozen=True)
 class Config:
     """A whole config file. Only ``robot`` is required; a campaign also needs ``bus``,
-    ``trajectories`` and ``identification``."""
+    ``trajectories`` and ``identification``; ``recorded`` trajectories (recordings made
+    elsewhere) need ``recordings``, which says how their files are read."""
 
     robot: RobotConfig
     bus: BusConfig | None = None
     sim: SimConfig | None = None
     trajectories: tuple[TrajectoryConfig, ...] = ()
     identification: IdentificationConfig | None = None
+    recordings: RecordingsConfig | None = None
     output: OutputConfig = OutputConfig()
     source: str = field(default="", compare=False, metadata=spec(
         key=False, doc="the file it was read from (for messages, and the copy a results folder keeps)"))

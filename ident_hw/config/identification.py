@@ -8,6 +8,7 @@ from typing import Literal
 
 from ident_hw.identification.least_squares import POORLY_IDENTIFIED_PERCENT
 
+from .friction import FrictionKind
 from .schema import in_range, non_negative, positive, spec
 
 
@@ -36,6 +37,15 @@ class FilterConfig:
 
 
 @dataclass(frozen=True)
+class PayloadRunsConfig:
+    """A known payload on the end-effector (``robot.described.end_effector``) during some of a
+    step's trajectories: its ``mass`` (kg) is known, its centre of mass and inertia are not."""
+
+    mass: float = field(metadata=spec(positive, unit="kg"))
+    trajectories: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
 class StepConfig:
     """One identification step: which recorded trajectories identify which parameters.
 
@@ -43,14 +53,18 @@ class StepConfig:
     (the 3PRRR paper); the result is carried into the next steps. ``wls``/``ols``: least squares of the
     base parameters of the listed ones (the SVD-DLS paper; the others held), with their standard
     deviations (the power-model paper); reported beside the physical parameters, not carried on (a base
-    parameter can group several physical ones). At most one step is ``wls``/``ols``.
+    parameter can group several physical ones). At most one step is ``wls``/``ols``. ``gains``: the
+    drive gains (joint force per motor ampere) of every actuator with the base parameters of all the
+    model's, from runs with and without a known ``payload`` (Gautier and Briot's global
+    identification; :mod:`ident_hw.identification.drive_gains`), reported beside the config's.
     """
 
     name: str
     trajectories: tuple[str, ...]
     parameters: tuple[str, ...] = field(metadata=spec(
         doc="parameter names or shell-style patterns of them (leg?_rod.I*), or [all]: every parameter of the model"))
-    method: Literal["sqp", "ols", "wls"] = "sqp"
+    method: Literal["sqp", "ols", "wls", "gains"] = "sqp"
+    payload: PayloadRunsConfig | None = None
 
 
 @dataclass(frozen=True)
@@ -141,6 +155,38 @@ class PhysicalConfig:
 
 
 @dataclass(frozen=True)
+class VectorConfig:
+    """A named vector of a parameter file (``vector``) and, where it holds several values per
+    body or actuator, the names of those values in its ``order``; ``model``: the friction model the
+    vector's friction values belong to (``coulomb``: ``fc sign(qd)``)."""
+
+    vector: str
+    order: tuple[str, ...] = ()
+    model: FrictionKind = "coulomb"
+
+
+@dataclass(frozen=True)
+class CompareWithConfig:
+    """A parameter set from elsewhere (published, a CAD tool's, another identification), whose
+    force prediction the report shows beside the identified one on every validation trajectory.
+
+    ``path``: a text file of named vectors, ``name = [v1 v2 ...]`` (MATLAB's way of printing
+    them); ``bodies``: the vector of the bodies' inertial values, ten per body of the description
+    in its order, named in ``order`` (``m``, ``mx``, ``my``, ``mz`` (first moments), ``Ixx``,
+    ``Ixy``, ``Ixz``, ``Iyy``, ``Iyz``, ``Izz``, about the joint frame); ``friction``: per actuator
+    the values named in its ``order`` (``fv``, ``fc``, ``f0``) of its ``model``; ``rotor``: one
+    rotor inertia per actuator; ``gains``: one drive gain per actuator, which its forces are
+    measured with (joint force per motor ampere; default: the config's)."""
+
+    path: str = field(metadata=spec(path=True))
+    bodies: VectorConfig
+    label: str = "compared"
+    friction: VectorConfig | None = None
+    rotor: VectorConfig | None = None
+    gains: VectorConfig | None = None
+
+
+@dataclass(frozen=True)
 class IdentificationConfig:
     """Steps run in order (each fixes the parameters it identifies), validation trajectories,
     the SQP bounds ``[min, max]`` per parameter, the %σ above which an estimate is reported
@@ -166,3 +212,4 @@ class IdentificationConfig:
     compare_models: bool = field(default=False, metadata=spec(
         doc="the power-model paper's comparison: the least-squares step's base parameters by the dynamic, "
             "power and energy models on the same recordings and filters (robots with an energy regressor)"))
+    compare_with: CompareWithConfig | None = None

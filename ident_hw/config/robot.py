@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from .actuators import ActuatorConfig
+from .friction import FrictionConfig
 from .robot_3prrr import GeometryConfig, InertialConfig
 from .robot_delta import DeltaConfig
 from .robot_described import DescribedConfig
@@ -29,7 +30,9 @@ class RobotConfig:
     ``3prrr``: ``geometry``, carriage ``stroke``, ``cad`` values, ``safety`` margins and six
     actuators theta1..3, zeta1..3. ``delta``: the ``delta`` section (geometry, CAD parameters)
     and three revolute actuators q1..3. ``described``: the ``described`` section (the
-    description file, home, CAD parameters) and one actuator per driven joint.
+    description file, home, CAD parameters) and one actuator per driven joint. ``friction``: the
+    joints' friction model (:class:`~ident_hw.config.friction.FrictionConfig`; other than the
+    default Coulomb and viscous terms for described robots only).
     """
 
     actuators: tuple[ActuatorConfig, ...]
@@ -41,3 +44,4 @@ class RobotConfig:
     described: DescribedConfig | None = None
     safety: SafetyConfig = SafetyConfig()
     coulomb_width: float = field(default=1e-3, metadata=spec(positive, unit="rad/s | m/s"))
+    friction: FrictionConfig = FrictionConfig()

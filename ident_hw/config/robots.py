@@ -62,6 +62,8 @@ class RobotKind:
         build: ``(config, trajectory, robot model, rate) -> Trajectory`` one generated trajectory.
         check: ``(config, trajectory, robot model) -> Report`` its feasibility.
         validate: ``robot -> None`` checks beyond the schema (FieldError, key relative to ``robot``).
+        friction_models: its model takes any friction model of ``robot.friction`` (else only the
+            default Coulomb and viscous terms).
     """
 
     name: str
@@ -75,6 +77,7 @@ class RobotKind:
     build: Callable[[Any, Any, RobotModel, float], trajectories.Trajectory]
     check: Callable[[Any, trajectories.Trajectory, RobotModel], trajectories.Report]
     validate: Callable[[Any], None] = lambda robot: None
+    friction_models: bool = False
 
 
 # ---- the 3PRRR
@@ -142,14 +145,16 @@ DELTA = RobotKind(
 
 
 # ---- any robot from its description file
-def described_model(robot) -> DescribedRobot:
-    """The :class:`DescribedRobot` of a ``described`` robot section."""
+def described_model(robot, presliding: float | None = None, stribeck: float | None = None) -> DescribedRobot:
+    """The :class:`DescribedRobot` of a ``described`` robot section, with its friction model
+    (:func:`to_model.friction_model`; ``presliding``, ``stribeck``: the Dahl distance and the
+    Stribeck velocity where the config leaves them ``auto``)."""
     from ident_hw.model.described import DescribedRobot
     d = robot.described
     return DescribedRobot(d.description, [a.joint or a.name for a in robot.actuators],
                           actuator_names=[a.name for a in robot.actuators], home=d.home,
                           home_actuated=d.home_actuated, end_effector=d.end_effector,
-                          coulomb_width=robot.coulomb_width)
+                          coulomb_width=robot.coulomb_width, friction=to_model.friction_model(robot, presliding, stribeck))
 
 
 def check_parameter_set(params: ParameterSetConfig, model: DescribedRobot) -> None:
@@ -223,13 +228,13 @@ DESCRIBED = RobotKind(
     build=_described_build,
     check=lambda config, traj, robot: joint_space.check_described_trajectory(
         traj, robot, actuator_limits(config.robot), config.robot.described.max_condition),
-    validate=_described_validate)
+    validate=_described_validate, friction_models=True)
 
 
 #: every robot kind by its ``robot.kind``
 KINDS: dict[str, RobotKind] = {k.name: k for k in (THREE_PRRR, DELTA, DESCRIBED)}
 #: trajectory kinds any robot can run
-COMMON_TRAJECTORY_KINDS = ("file", "standstill")
+COMMON_TRAJECTORY_KINDS = ("file", "standstill", "recorded")
 
 
 def kind_of(robot) -> RobotKind:

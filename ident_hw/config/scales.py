@@ -22,7 +22,7 @@ def parameter_kind(name: str) -> str:
     ``fv_1`` → ``fv``, ``rod2.Ixy`` → ``Ixy``; an inertial parameter of the 3PRRR is its own kind."""
     if "." in name:
         return name.split(".", 1)[1]
-    if name.startswith(("fv_", "fc_", "Jm_")):
+    if drive_term(name) is not None:
         return name.rstrip("0123456789").rstrip("_")
     return name
 
@@ -34,9 +34,12 @@ BODY_PARAMETER_FAMILIES = {"m": "mass", "mx": "first moment", "my": "first momen
 
 
 def drive_term(name: str) -> str | None:
-    """``fv``, ``fc`` or ``Jm`` for an actuator's drive parameter (``fv_elbow``), else None."""
+    """``fv``, ``fc``, ``Jm``, ``fs`` or ``f0`` for an actuator's drive parameter (``fv_elbow``;
+    ``fc2_elbow``, a Maxwell-slip element's Coulomb force: ``fc``), else None."""
     head = name.split("_", 1)[0]
-    return head if "_" in name and head in ("fv", "fc", "Jm") else None
+    if head[:2] == "fc" and head[2:].isdigit():
+        head = "fc"
+    return head if "_" in name and head in ("fv", "fc", "Jm", "fs", "f0") else None
 
 
 def check_scales(scales: dict[str, float]) -> None:

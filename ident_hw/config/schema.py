@@ -25,6 +25,7 @@ import dataclasses
 import difflib
 import math
 import os
+import re
 import types
 import typing
 from pathlib import Path
@@ -69,7 +70,8 @@ def spec(check: Callable[[Any], None] | None = None, *, unit: str = "", angle: b
     """Field metadata: an optional validator ``check(value)`` raising ValueError("expected ..."),
     the SI unit (for messages and docs), whether ``<name>_deg`` is accepted (value in rad),
     whether the value is a file path relative to the config file that writes it (``path``: read
-    as that file's folder joined with it, so a base config's path holds in the configs extending it),
+    as that file's folder joined with it, so a base config's path holds in the configs extending it;
+    ``${NAME}`` in it is the environment variable NAME, :func:`expand_variables`),
     and whether the field is a key of the file at all (``key=False``: set by the loader)."""
     return {"check": check, "unit": unit, "angle": angle, "doc": doc, "path": path, "key": key}
 
@@ -215,7 +217,8 @@ class _Builder:
             if used == deg_key:
                 value = _deg_to_rad(value)
             if meta.get("path") and value is not None:
-                value = os.path.normpath(Path(location(value_node)[0]).parent / value)
+                value = os.path.normpath(Path(location(value_node)[0]).parent / expand_variables(value, value_node,
+                                                                                                  _join(path, used)))
             check = meta.get("check")
             if check is not None and value is not None:
                 try:
@@ -301,6 +304,23 @@ class _Builder:
         if tp is str and tag == _TAG_STR:
             return text
         raise error_at(node, path, f"expected {_type_name(declared)}, got {_describe(node)}")
+
+
+#: ``${NAME}`` in a path: the value of the environment variable NAME
+_VARIABLE = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
+
+
+def expand_variables(text: str, node: yaml.Node, path: str) -> str:
+    """``text`` with every ``${NAME}`` replaced by the environment variable ``NAME`` (a dataset's
+    folder, which differs from machine to machine); an unset one is a :class:`ConfigError` naming
+    the key and the variable."""
+    def value(match: re.Match) -> str:
+        name = match.group(1)
+        if name not in os.environ:
+            raise error_at(node, path, f"{text}: the environment variable {name} is not set (set it to the "
+                                       "folder this path starts from)")
+        return os.environ[name]
+    return _VARIABLE.sub(value, text)
 
 
 def _is_null(node) -> bool:

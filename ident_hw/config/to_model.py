@@ -11,6 +11,7 @@ import numpy as np
 
 from ident_hw.model import Delta, DeltaGeometry, Geometry, InertialParams
 from ident_hw.model.delta import physical_parameters
+from ident_hw.model.friction import FrictionModel
 
 from .robot_3prrr import GeometryConfig, InertialConfig
 from .robot_delta import DeltaGeometryConfig, DeltaParametersConfig
@@ -18,6 +19,30 @@ from .robot_described import ParameterSetConfig
 
 if TYPE_CHECKING:  # pinocchio, which described imports, is imported by described robots only
     from ident_hw.model.described import DescribedRobot
+
+
+#: rad | m, the Dahl presliding distance a model is built with where the config says ``auto`` and
+#: the identification has not chosen one yet (:mod:`ident_hw.experiment.friction_choice`)
+DEFAULT_PRESLIDING = 5e-4
+#: rad/s | m/s, the Stribeck velocity likewise
+DEFAULT_STRIBECK = 0.2
+
+
+def friction_model(robot, presliding: float | None = None, stribeck: float | None = None) -> FrictionModel:
+    """The friction model of a ``robot`` section (``robot.friction``, smoothing
+    ``robot.coulomb_width``); ``presliding``, ``stribeck``: the Dahl distance and the Stribeck
+    velocity to use where the config says ``auto`` (default :data:`DEFAULT_PRESLIDING`,
+    :data:`DEFAULT_STRIBECK`)."""
+    f = robot.friction
+    chosen = f.presliding if f.presliding != "auto" else (DEFAULT_PRESLIDING if presliding is None else presliding)
+    if f.stribeck is False:
+        velocity = None
+    elif f.stribeck == "auto":
+        velocity = DEFAULT_STRIBECK if stribeck is None else stribeck
+    else:
+        velocity = float(f.stribeck)
+    return FrictionModel(kind=f.model, width=robot.coulomb_width, rest_speed=f.rest_speed, presliding=chosen,
+                         stribeck_velocity=velocity, offset=f.offset, elements=f.elements)
 
 
 def geometry(g: GeometryConfig) -> Geometry:

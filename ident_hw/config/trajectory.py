@@ -23,7 +23,10 @@ KEYS_OF_KIND = {
     "delta_held_arm": ("duration", "fade", "amplitude"),
     "joint_excitation": ("duration", "fade", "amplitude", "harmonics", "seed"),
     "standstill": ("duration",),
+    "recorded": ("path", "rows", "window"),
 }
+#: the kinds that are recordings made elsewhere, read from their files (nothing is streamed)
+RECORDED_KINDS = frozenset({"recorded"})
 #: the kinds whose spectrum reaches the identification filter's band edge: the paper's
 #: rest-to-rest paths (a jerk step at every vertex, short segments near the limits); their
 #: positions are low-passed above the band by default (``ident_hw.experiment.plan.position_margin``)
@@ -80,6 +83,11 @@ class TrajectoryConfig:
     Any robot's ``standstill``: ``duration`` s (default :data:`STANDSTILL_S`) held at the home
     pose, the drives enabled: their currents at rest, the noise floor the quality verdict holds
     each axis's residual against (``identification.quality.max_residual_over_floor``).
+    Any robot's ``recorded``: a recording the tool did not make (``path``, a CSV file read as the
+    ``recordings`` section says), identified by ``ident-hw identify`` (nothing is streamed);
+    ``rows`` ``[first, last]`` (data rows, 1-based, inclusive) or ``window`` ``[start, end]`` (s,
+    in the file's own time) picks the part to use; idle rows at its head and tail are left out
+    either way. ``path`` may name an environment variable, ``${IDENT_HW_DATASETS}/...``.
     ``online_only``: streamed only for the online estimators (``ident-hw online``, or ``run``
     with ``identification.online.in_run``), after the others; otherwise ``run`` leaves it out. ``payload``: on the in-process simulated rig, a payload added during this trajectory
     (:class:`PayloadConfig`), e.g. on an ``online_only`` one for the online estimators to track.
@@ -94,7 +102,7 @@ class TrajectoryConfig:
     speed_scale: float = field(default=1.0, metadata=spec(in_range(0.01, 1.0)))
     dwell: float = field(default=0.0, metadata=spec(non_negative, unit="s"))
     cycles: int = field(default=1, metadata=spec(in_range(1, 1000)))
-    path: str | None = None
+    path: str | None = field(default=None, metadata=spec(path=True, doc="relative to the file that writes it"))
     bandwidth: float | None = field(default=None, metadata=spec(positive, unit="Hz"))
     duration: float | None = field(default=None, metadata=spec(positive, unit="s"))
     fade: float = field(default=1.0, metadata=spec(non_negative, unit="s"))
@@ -103,3 +111,12 @@ class TrajectoryConfig:
     payload: PayloadConfig | None = None
     harmonics: int = field(default=5, metadata=spec(in_range(1, 50)))
     seed: int = 0
+    rows: tuple[int, int] | None = field(default=None, metadata=spec(
+        in_range(1, 10**9), doc="[first, last] data rows of a recorded file, 1-based, inclusive"))
+    window: tuple[float, float] | None = field(default=None, metadata=spec(
+        unit="s", doc="[start, end] of a recorded file, in its own time"))
+
+    @property
+    def recorded(self) -> bool:
+        """A recording made elsewhere (:data:`RECORDED_KINDS`), read from its file."""
+        return self.kind in RECORDED_KINDS

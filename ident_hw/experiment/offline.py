@@ -37,20 +37,25 @@ from ident_hw.config.to_identification import filter_settings, physical_scales, 
 from ident_hw.identification.base_params import (base_parameters, column_scale, identify_base, on_kept,
                                                   scaled_condition)
 from ident_hw.identification.least_squares import check_regression_data, compensated, ols, stack, wls
+from ident_hw.identification.drive_gains import GainsRun, fit_gains
 from ident_hw.identification.mass_fit import sqp_fit
 from ident_hw.identification.physical import ConsistencyError, ConsistentSet, consistent_parameters
 from ident_hw.identification.model_comparison import (ModelComparison, ModelRows, compare_models,
                                                        power_energy_rows)
+from ident_hw.model.friction import FrictionModel
 from ident_hw.model.interface import RobotModel
-from ident_hw.records import BaseAnalysis, LeastSquaresFigures, MassFitFigures, RecordingCoverage, StepRecord
+from ident_hw.records import (BaseAnalysis, DriveGainsFigures, ImportSummary, LeastSquaresFigures, MassFitFigures, RecordingCoverage,
+                              StepRecord)
 from ident_hw.report import coverage_text
 from ident_hw.results import BaseFit, ParameterTable, Results, TrajectoryFit
 from ident_hw.segments import Segments, slot_indices, split, uniform
 from ident_hw.filtering import (FilterSettings, kept_samples, near_rest, parallel_decimate, prepare_actuated,
                                running_average, through_position_lowpass)
 
+from .compared import compared_set, predicted_forces
 from .encoder import count_shifts, reread, smoothed_positions, spread_covariance, uncounted_axes
-from .plan import motion_bandwidth, position_margin, robot_model
+from .friction_choice import friction_robot
+from .plan import motion_bandwidth, position_margin
 from .quality import verdict
 from .recordings import identification_valid, planned_cycles, require_trajectories
 
@@ -64,7 +69,8 @@ class Prepared:
     regressor Y (M, a, n), forces tau (M, a) (``a`` actuators, ``n`` parameters);
     ``moving`` (M, a) marks the rows the fits use (:attr:`tau_fit`); ``segments``: how the
     recording's rows were used (cuts, rows left out per rule); ``power``, ``energy``: the power
-    and energy models' rows of the same stretches (only when asked for, see :func:`prepare`)."""
+    and energy models' rows of the same stretches (only when asked for, see :func:`prepare`);
+    ``Thetad`` (M, a): the filtered rates of the rows."""
 
     name: str
     t: np.ndarray
@@ -76,6 +82,7 @@ class Prepared:
     segments: Segments | None = None
     power: ModelRows | None = None
     energy: ModelRows | None = None
+    Thetad: np.ndarray | None = None
 
     @property
     def tau_fit(self) -> np.ndarray:
@@ -114,12 +121,13 @@ def segments_of(config: Config, rec: Recording, trim: int = 0, min_kept: int = 1
                  trim=trim, min_kept=min_kept, cut_trim=cut_trim)
 
 
-def coverage(config: Config, name: str, rec: Recording) -> RecordingCoverage:
+def coverage(config: Config, name: str, rec: Recording, imported: ImportSummary | None = None) -> RecordingCoverage:
     """What the recording of trajectory ``name`` holds, for the report and the quality verdict.
 
     The cycles planned are the trajectory's set-points: the recording's ``n_targets``, else the
     config's trajectory of that name; frames not placed in their cycle are counted by
-    :class:`drivers.acquisition.CycleAssembler`.
+    :class:`drivers.acquisition.CycleAssembler`. ``imported``: how a recording made elsewhere
+    was read (its rows are all it holds: nothing was planned).
     """
     meta = rec.metadata
     planned = meta.n_targets or planned_cycles(config, name)
@@ -141,7 +149,7 @@ def coverage(config: Config, name: str, rec: Recording) -> RecordingCoverage:
                              cycles_planned=None if planned is None else int(planned),
                              planned_fraction=None if not planned else min(1.0, len(rec.t) / planned),
                              valid_fraction=fraction, longest_gap_s=gap, skipped_slots=skipped,
-                             unplaced_frames=int(meta.books.unplaced_frames))
+                             unplaced_frames=int(meta.books.unplaced_frames), imported=imported)
 
 
 def _bridged(t: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -204,12 +212,15 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
     if not segments.slices:      # nothing to fit; the quality verdict says why
         a, m = len(robot.actuator_names), len(robot.parameter_names)
         return Prepared(name, np.zeros(0), np.zeros((0, a)), np.zeros((0, robot.pose_size)), np.zeros((0, a, m)),
-                        np.zeros((0, a)), np.zeros((0, a), bool), segments=segments)
+                        np.zeros((0, a)), np.zeros((0, a), bool), segments=segments, Thetad=np.zeros((0, a)))
     force_per_amp = axes_scaling(config.robot.actuators).force_per_amp
     speed_limit = np.array([a.limits.velocity for a in config.robot.actuators])
     guess = kinematics_starts(robot, rec, segments) if starts is None else starts
     averaging = current_averaging(config, rec)
-    coulomb = [i for i, p in enumerate(robot.parameter_names) if drive_term(p) == "fc"]
+    # the friction columns that are not linear in the motion (a sign, a presliding state) pass the
+    # positions' low-pass as the forces do
+    coulomb = [i for i, p in enumerate(robot.parameter_names) if drive_term(p) in ("fc", "fs")]
+    friction = friction_of(robot)
     parts, scalar = [], []
     for stretch in segments.stretches:
         rows, ends = stretch.rows, stretch.ends
@@ -223,15 +234,19 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
         Y, tau = parallel_decimate(settings, regressor, tau, ends=ends)
         kept = kept_samples(settings, len(t), ends)
         slow = np.abs(samples.Thetad) < config.identification.min_speed * speed_limit
-        parts.append((t[kept], samples.Theta[kept], X[kept], Y, tau, ~near_rest(slow, settings)[kept]))
+        if friction is not None:    # an axis whose friction state its motion has not yet set
+            slow |= ~friction.state_known(samples.Theta, samples.Thetad)
+        parts.append((t[kept], samples.Theta[kept], X[kept], Y, tau, ~near_rest(slow, settings)[kept],
+                      samples.Thetad[kept]))
         if scalar_models and len(t) > 2 * settings.trim:    # they trim ``trim`` at both ends
             scalar.append(power_energy_rows(robot, t, samples.Theta, samples.Thetad, samples.tau, guess[rows],
                                             settings))
-    t, Theta, X, Y, tau, moving = (np.concatenate(column) for column in zip(*parts))
+    t, Theta, X, Y, tau, moving, Thetad = (np.concatenate(column) for column in zip(*parts))
     if scalar:
         power, energy = (ModelRows.concatenate(column) for column in zip(*scalar))
-        return Prepared(name, t, Theta, X, Y, tau, moving, segments=segments, power=power, energy=energy)
-    return Prepared(name, t, Theta, X, Y, tau, moving, segments=segments)
+        return Prepared(name, t, Theta, X, Y, tau, moving, segments=segments, power=power, energy=energy,
+                        Thetad=Thetad)
+    return Prepared(name, t, Theta, X, Y, tau, moving, segments=segments, Thetad=Thetad)
 
 
 def fit_base(step, free_names: tuple[str, ...], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
@@ -427,10 +442,13 @@ def reread_draws(config: Config, robot: RobotModel, recordings: Mapping[str, Rec
 
 
 def prepare_all(config: Config, robot: RobotModel, recordings: Mapping[str, Recording], needed: Sequence[str],
-                compared: Sequence[str], progress: Callable[[str], None] | None
+                compared: Sequence[str], progress: Callable[[str], None] | None,
+                imported: Mapping[str, ImportSummary] | None = None
                 ) -> tuple[dict[str, RecordingCoverage], dict[str, Prepared]]:
-    """Each needed trajectory's coverage (what its recording holds) and its :func:`prepare`."""
-    used = {name: coverage(config, name, recordings[name]) for name in needed}
+    """Each needed trajectory's coverage (what its recording holds; ``imported``: how those made
+    elsewhere were read) and its :func:`prepare`."""
+    imported = imported or {}
+    used = {name: coverage(config, name, recordings[name], imported.get(name)) for name in needed}
     if progress:
         for name, u in used.items():
             progress(f"  {name}: {coverage_text(u)}")
@@ -508,19 +526,21 @@ def acting_axes(robot: RobotModel, prepared: Mapping[str, Prepared], trajectorie
 
 
 def identify(config: Config, recordings: Mapping[str, Recording],
-             progress: Callable[[str], None] | None = None) -> Results:
-    """Run the config's identification steps and validation on ``recordings`` (name → samples)."""
+             progress: Callable[[str], None] | None = None,
+             imported: Mapping[str, ImportSummary] | None = None) -> Results:
+    """Run the config's identification steps and validation on ``recordings`` (name → samples);
+    ``imported``: how the recordings made elsewhere were read (:mod:`ident_hw.experiment.external`)."""
     ident = config.identification
     if ident is None:
         raise ValueError(f"{config.source}: identification: missing section")
-    robot = robot_model(config)
-    names = robot.parameter_names
     needed = list(dict.fromkeys([n for s in ident.steps for n in s.trajectories] + list(ident.validation)))
+    require_trajectories(config, recordings)
+    robot, friction = friction_robot(config, recordings, _base_step_trajectories(ident), prepare, progress)
+    names = robot.parameter_names
     compared: tuple[str, ...] = ()
     if ident.compare_models:            # the config check made sure there is such a step
-        compared = next(s for s in ident.steps if s.method != "sqp").trajectories
-    require_trajectories(config, recordings)
-    used, prepared = prepare_all(config, robot, recordings, needed, compared, progress)
+        compared = next(s for s in ident.steps if s.method in ("wls", "ols")).trajectories
+    used, prepared = prepare_all(config, robot, recordings, needed, compared, progress, imported)
     id_names = list(dict.fromkeys(t for s in ident.steps for t in s.trajectories))
     draws, uncounted = encoder_draws(config, robot, recordings, id_names, progress)
 
@@ -528,18 +548,22 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     estimates = _Estimates.initial(initial)
     truth = true_parameters(config, robot)
     steps, base_fit, base_equivalent, model_comparison, fitted = _run_steps(
-        ident, robot, prepared, compared, estimates, initial, truth, progress, draws)
+        ident, robot, prepared, compared, estimates, initial, truth, progress, draws,
+        axes_scaling(config.robot.actuators).force_per_amp)
 
     coef = estimates.coef
     W, _ = stack(*check_regression_data(np.concatenate([prepared[t].Y for t in id_names]),
                                         np.concatenate([prepared[t].tau_fit for t in id_names])))
     analysis = BaseAnalysis.of(base_parameters(W, names, scale=np.maximum(np.abs(initial), 1e-3)))
 
+    compared = compared_forces(config, recordings, prepared, progress)
+    rest = rest_speeds(config, robot)
     fits = []
     for name, p in prepared.items():
         role = "validation" if name in ident.validation and name not in id_names else "identification"
         fits.append(TrajectoryFit(name, role, p.t, p.tau, p.Y @ coef, p.Theta, p.X,
-                                  tau_base=None if base_fit is None else p.Y @ base_equivalent))
+                                  tau_base=None if base_fit is None else p.Y @ base_equivalent,
+                                  tau_compared=compared.get(name), at_rest=np.abs(p.Thetad) < rest))
     table = ParameterTable(names=names, units=tuple(robot.parameter_unit(p) for p in names), initial=initial,
                            identified=coef, sigma=estimates.sigma, lower=estimates.lower, upper=estimates.upper,
                            step=tuple(estimates.step_of), method=tuple(estimates.method_of), truth=truth)
@@ -550,7 +574,9 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     results = Results(parameters=table, actuators=robot.actuator_names, actuator_kinds=robot.actuator_kinds,
                       fits=fits, steps=steps, base_analysis=analysis, base_fit=base_fit,
                       rel_sigma_threshold=ident.rel_sigma_threshold, trajectories=used,
-                      model_comparison=model_comparison)
+                      model_comparison=model_comparison,
+                      compared_label=None if ident.compare_with is None else ident.compare_with.label,
+                      friction=friction)
     if base_fit is not None and ident.physical.enabled:
         if progress:
             progress(f"step {base_fit.step}: the physically consistent parameters nearest the CAD values")
@@ -563,6 +589,52 @@ def identify(config: Config, recordings: Mapping[str, Recording],
                               noise_floors(config, recordings, id_names, draws,
                                            coef if base_fit is None else base_equivalent))
     return results
+
+
+def friction_of(robot: RobotModel) -> FrictionModel | None:
+    """The robot's friction model where it has one (a described robot's,
+    :class:`ident_hw.model.friction.FrictionModel`); None: the hand models' Coulomb and viscous terms."""
+    friction = getattr(robot, "friction", None)
+    return friction if isinstance(friction, FrictionModel) else None
+
+
+def _base_step_trajectories(ident: IdentificationConfig) -> tuple[str, ...]:
+    """The trajectories of the least-squares step, else of every step: what a friction constant
+    is chosen on (:mod:`ident_hw.experiment.friction_choice`)."""
+    least_squares = [s for s in ident.steps if s.method in ("wls", "ols")]
+    steps = least_squares or ident.steps
+    return tuple(dict.fromkeys(t for s in steps for t in s.trajectories))
+
+
+def rest_speeds(config: Config, robot: RobotModel) -> np.ndarray:
+    """(a,) rad/s | m/s: an actuator slower than this is at rest (the validation's moving / at-rest
+    split): its friction model's rest speed (a described robot's), else the identification's
+    ``min_speed`` fraction of its velocity limit."""
+    friction = friction_of(robot)
+    if friction is not None:
+        return np.full(len(robot.actuator_names), friction.rest_speed)
+    return config.identification.min_speed * np.array([a.limits.velocity for a in config.robot.actuators])
+
+
+def compared_forces(config: Config, recordings: Mapping[str, Recording], prepared: Mapping[str, Prepared],
+                    progress: Callable[[str], None] | None = None) -> dict[str, np.ndarray]:
+    """Per prepared trajectory, the forces (N, a) the parameter set of ``identification.compare_with``
+    predicts on its rows, with its own friction model, in the config's measure
+    (:mod:`ident_hw.experiment.compared`); ``{}`` without one."""
+    spec = config.identification.compare_with
+    if spec is None:
+        return {}
+    if progress:
+        progress(f"predicting with the parameters of {spec.label} ({spec.path})")
+    other = compared_set(config, spec)
+    out = {}
+    for name, own in prepared.items():
+        theirs = prepare(config, other.model, name, recordings[name])
+        if len(theirs.t) != len(own.t):
+            raise RecordingError(f"{name}: the compared model's rows ({len(theirs.t)}) are not the identified "
+                                 f"model's ({len(own.t)})")
+        out[name] = predicted_forces(other, theirs.Y, config)
+    return out
 
 
 def held_value_sensitivity(fit, Y: np.ndarray, tau: np.ndarray, free: Sequence[int], held: Sequence[int]
@@ -602,7 +674,8 @@ def held_value_std(estimates: _Estimates, prior_std: np.ndarray) -> np.ndarray:
 
 def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping[str, Prepared],
                compared: tuple[str, ...], estimates: _Estimates, initial: np.ndarray, truth: np.ndarray | None,
-               progress: Callable[[str], None] | None, draws: Sequence[Mapping[str, Prepared]] = ()):
+               progress: Callable[[str], None] | None, draws: Sequence[Mapping[str, Prepared]] = (),
+               force_per_amp: np.ndarray | None = None):
     """Runs the identification steps in their order, each on the parameters the ones before left
     in ``estimates`` (updated in place), and the model comparison on the base step's data when
     ``compared`` names its trajectories; ``draws``: the recordings with the encoders read again
@@ -635,6 +708,9 @@ def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping
             continue
         step_draws = [(np.concatenate([d[t].Y for t in step.trajectories]),
                        np.concatenate([d[t].tau_fit for t in step.trajectories])) for d in draws]
+        if step.method == "gains":
+            steps.append(fit_gains_step(step, robot, prepared, force_per_amp, progress))
+            continue
         if step.method == "sqp":
             record, excited = fit_sqp_step(step, free_names, names, Y, tau, estimates, ident.bounds, prepared,
                                            step_draws, held_value_std(estimates, prior_std))
@@ -653,6 +729,30 @@ def _run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping
     return steps, base_fit, base_equivalent, model_comparison, fitted
 
 
+def fit_gains_step(step, robot: RobotModel, prepared: Mapping[str, Prepared], configured: np.ndarray,
+                   progress: Callable[[str], None] | None = None) -> StepRecord:
+    """A ``gains`` step: the drive gains of every actuator with the base parameters of all the
+    model's, from the step's runs with and without its payload (:mod:`ident_hw.identification.drive_gains`),
+    started from (and reported beside) the config's force per ampere ``configured`` (a,). The
+    estimates of the other steps are not changed: a gain the user trusts goes into the config."""
+    per_amp = np.asarray(configured, dtype=float)
+    payload = list(robot.payload_indices())
+    runs = [GainsRun(prepared[t].Y, prepared[t].tau_fit / per_amp,
+                     prepared[t].Y[:, :, payload] if t in step.payload.trajectories else None)
+            for t in step.trajectories]
+    fit = fit_gains(runs, step.payload.mass, per_amp)
+    figures = DriveGainsFigures(gains=tuple(fit.gains.tolist()), sigma=tuple(fit.sigma.tolist()),
+                                configured=tuple(per_amp.tolist()), residual_rms=tuple(fit.residual_rms.tolist()),
+                                residual_rms_configured=tuple(fit.residual_rms_start.tolist()),
+                                payload_mass=step.payload.mass, payload_trajectories=tuple(step.payload.trajectories),
+                                rank=fit.rank, blocks=fit.blocks)
+    if progress:
+        progress("  drive gains " + ", ".join(f"{a} {g:.4g} (sigma {s:.2g}; config {c:.4g})" for a, g, s, c in
+                                              zip(robot.actuator_names, fit.gains, fit.sigma, per_amp)))
+    return StepRecord(step.name, tuple(step.trajectories), method="gains",
+                      free=tuple(f"g_{a}" for a in robot.actuator_names), drive_gains=figures)
+
+
 def consistent(config: Config, robot: RobotModel, base_fit: BaseFit, equivalent: np.ndarray, initial: np.ndarray,
                truth: np.ndarray | None) -> tuple[ConsistentSet | None, str | None]:
     """The physical parameters nearest the CAD values ``initial`` (n,) that reproduce
@@ -662,15 +762,23 @@ def consistent(config: Config, robot: RobotModel, base_fit: BaseFit, equivalent:
     physical = config.identification.physical
     names = robot.parameter_names
     held = {names.index(p): float(equivalent[names.index(p)]) for p in base_fit.held}
-    # a drive term without a CAD value (friction) is scaled by its least-squares value
+    # a drive term without a CAD value (friction) is scaled by its least-squares value, or where the
+    # data left it at 0 (a rotor inertia merged into its link's) by the largest of its kind
     bodies = robot.physical_bodies()
     in_body = {i for body in bodies for i in body.indices}
     typical = np.array([abs(equivalent[i]) if i not in in_body and not initial[i] else initial[i]
                         for i in range(len(names))])
+    for i, p in enumerate(names):
+        if i not in in_body and not typical[i]:
+            kin = [abs(equivalent[j]) for j, q in enumerate(names) if j not in in_body and drive_term(q) == drive_term(p)]
+            typical[i] = max(kin, default=0.0)
     try:
         scale = np.array(physical_scales(physical, names, typical))
+        # an offset and a Stribeck term have either sign (the Stribeck term: the friction dips or rises near rest)
+        signed = [i for i, p in enumerate(names) if drive_term(p) in ("f0", "fs")]
         return consistent_parameters(names, tuple(robot.parameter_unit(p) for p in names), base_fit.H, base_fit.coef,
                                      base_fit.covariance, initial, scale, bodies, held=held,
-                                     metric=physical.metric, prior_relative=physical.prior, truth=truth), None
+                                     metric=physical.metric, prior_relative=physical.prior, truth=truth,
+                                     signed=signed), None
     except (ConsistencyError, FieldError) as exc:
         return None, str(exc)

@@ -125,10 +125,13 @@ def repeat(traj: trajectories.Trajectory, cycles: int) -> trajectories.Trajector
 
 def plan(config: Config, names: list[str] | None = None, online: bool = False) -> list[PlannedTrajectory]:
     """Build and check the config's trajectories (``names``: a subset, in campaign order), the
-    ``online_only`` ones where ``online`` (``ident-hw online``, ``check``) or named, after the others."""
+    ``online_only`` ones where ``online`` (``ident-hw online``, ``check``) or named, after the others.
+    ``recorded`` trajectories are recordings made elsewhere, not streamed: they are not planned
+    (:func:`check_campaign` refuses to run a config that has them)."""
     robot = robot_model(config)
     out = []
-    ordered = [t for t in config.trajectories if not t.online_only] + [t for t in config.trajectories if t.online_only]
+    streamed = [t for t in config.trajectories if not t.recorded]
+    ordered = [t for t in streamed if not t.online_only] + [t for t in streamed if t.online_only]
     for tcfg in ordered:
         if names is not None and tcfg.name not in names:
             continue
@@ -223,6 +226,10 @@ def check_campaign(config: Config, planned: list[PlannedTrajectory] | None = Non
                         f"not {config.bus.interface}:{config.bus.channel}")
     if not config.trajectories:
         problems.append(f"{config.source}: trajectories: none defined")
+    recorded = [t.name for t in config.trajectories if t.recorded]
+    if recorded:
+        problems.append(f"{config.source}: trajectories {', '.join(recorded)} are recordings made elsewhere: "
+                        f"nothing to stream; identify them with `ident-hw identify {config.source}`")
     if config.identification is None:
         problems.append(f"{config.source}: identification: missing section (the steps that turn the "
                         "recordings into parameters; a run would move, record, then stop)")

@@ -21,8 +21,10 @@ from drivers.errors import RecordingError
 from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log
 from drivers.recording_metadata import RecordingMetadata
 from ident_hw.config import Config
+from ident_hw.records import ImportSummary
 from ident_hw.config.to_drivers import axis_config, axis_scaling
 
+from .external import read_external
 from .plan import plan
 
 #: drive-scaling fields compared between a recording and the config (drivers.units.AxisScaling)
@@ -83,6 +85,59 @@ def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
         rec.metadata = dataclasses.replace(rec.metadata, file=str(path))
         check_axes(path, rec, config)
     return rec.metadata.trajectory or path.stem, rec
+
+
+def gather_recordings(config: Config, given: list[str]) -> tuple[dict[str, Recording], dict[str, ImportSummary]]:
+    """The recordings ``ident-hw identify`` works on: each file ``given`` (``NAME=PATH``: the
+    recording of trajectory NAME; else a decoded ``.npz`` or raw log named by its trajectory, or
+    a file made elsewhere whose stem is a ``recorded`` trajectory's name), then every ``recorded``
+    trajectory of the config not given, from its own file and window. A file given in a recorded
+    trajectory's place is read as the config's ``recordings`` section says, whole (its window is
+    the config's file's). Returns the recordings by trajectory name and, for those read from
+    files made elsewhere, how they were read.
+
+    Raises:
+        RecordingError: an unreadable or mismatched file, two files for one trajectory, or a file
+            made elsewhere that names no trajectory.
+    """
+    recordings: dict[str, Recording] = {}
+    imported: dict[str, ImportSummary] = {}
+    files: dict[str, str] = {}
+    recorded = {t.name: t for t in config.trajectories if t.recorded}
+    for item in given:
+        name, path = _named(item, config)
+        if name is None and Path(path).suffix.lower() not in (".npz", *RAW_LOG_SUFFIXES):
+            stem = Path(path).stem
+            if stem not in recorded:
+                raise RecordingError(f"{path}: a file made elsewhere: give it as NAME={path}, NAME one of the "
+                                     f"config's trajectories ({', '.join(t.name for t in config.trajectories)})")
+            name = stem
+        if name is not None and name in recorded:
+            external = read_external(config, recorded[name], path, use_window=False)
+            rec, imported[name] = external.recording, external.summary
+        else:
+            loaded, rec = load_recording(path, config)
+            name = name or loaded
+        if name in recordings:
+            raise RecordingError(f"{files[name]} and {path} are both recordings of trajectory {name!r}: give one")
+        recordings[name], files[name] = rec, path
+    for name, tcfg in recorded.items():
+        if name not in recordings:
+            external = read_external(config, tcfg)
+            recordings[name], imported[name] = external.recording, external.summary
+    return recordings, imported
+
+
+def _named(item: str, config: Config) -> tuple[str | None, str]:
+    """``(NAME, PATH)`` of an argument ``NAME=PATH`` naming one of the config's trajectories, else
+    ``(None, item)``."""
+    name, sep, path = item.partition("=")
+    if sep and name in {t.name for t in config.trajectories} and not Path(item).exists():
+        return name, path
+    if sep and not Path(item).exists() and "/" not in name:
+        raise RecordingError(f"{item}: no trajectory {name!r} in {config.source} (its trajectories: "
+                             f"{', '.join(t.name for t in config.trajectories)})")
+    return None, item
 
 
 def check_axes(path: Path, rec: Recording, config: Config) -> None:

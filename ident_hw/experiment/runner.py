@@ -28,7 +28,7 @@ import sys
 import threading
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Callable, Iterator, Mapping
 
 import can
 import numpy as np
@@ -40,6 +40,7 @@ from drivers.errors import BusOpenError, ConfigError, DriveError, NodeError
 from drivers.recording import Recording
 from drivers.recording_metadata import RecordingMetadata
 from ident_hw.config import Config
+from ident_hw.records import ImportSummary
 from ident_hw.results import Results, final_status, mark_status, save_results
 
 from .campaign_estimator import CampaignEstimator
@@ -236,13 +237,15 @@ def conclude(folder: Path, results: Results, report: bool) -> None:
 
 
 def identify_recordings(config: Config, recordings: dict[str, Recording], folder: str | Path, *,
-                        log: Callable[[str], None] | None = None, report: bool = True) -> Results:
+                        log: Callable[[str], None] | None = None, report: bool = True,
+                        imported: Mapping[str, ImportSummary] | None = None) -> Results:
     """Identify offline from recordings already read (``ident-hw identify``) into ``folder``,
     whose STATUS ends as a run's does (:func:`conclude`), or ``failed: <why>`` (:func:`stop_reason`)
-    if anything, a signal included, stops it; the exception is raised again."""
+    if anything, a signal included, stops it; the exception is raised again. ``imported``: how the
+    recordings made elsewhere were read."""
     folder = Path(folder)
     try:
-        results = identify(config, recordings, progress=log)
+        results = identify(config, recordings, progress=log, imported=imported)
         conclude(folder, results, report)
     except BaseException as exc:
         mark_status(folder, f"failed: {stop_reason(exc)}")

@@ -209,7 +209,7 @@ def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndar
                           covariance: np.ndarray, prior: np.ndarray, scale: np.ndarray,
                           bodies: Sequence[PhysicalBody], held: dict[int, float] | None = None,
                           metric: str = "entropic", prior_relative: float = 1.0,
-                          truth: np.ndarray | None = None) -> ConsistentSet:
+                          truth: np.ndarray | None = None, signed: Sequence[int] = ()) -> ConsistentSet:
     """The consistent set of the module docstring.
 
     Args:
@@ -222,6 +222,7 @@ def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndar
         held: index → value of parameters the base step held (kept at that value).
         metric: ``euclidean`` or ``entropic``; ``prior_relative``: ``ρ``.
         truth: (n,) the simulated truth, for the report only.
+        signed: indices of drive terms of either sign (a friction offset ``f0``), not kept ≥ 0.
 
     Raises:
         ConsistencyError: no consistent set (e.g. a held value unphysical), or the solver failed.
@@ -239,7 +240,7 @@ def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndar
     A = whiten @ H * scale                                 # (r, n): whitened base rows in scaled variables
     b = whiten @ (base - H @ prior)
     rho2 = prior_relative ** 2
-    values, drive = _solve_program(A, b, prior, scale, bodies, held, metric, rho2)
+    values, drive = _solve_program(A, b, prior, scale, bodies, held, metric, rho2, signed)
     values[drive] = np.maximum(values[drive], 0.0)          # solver rounding below 0
     share, sigma, decided = _posterior(A, scale, held, rho2)
     residual = whiten @ (H @ values - base)
@@ -253,11 +254,12 @@ def consistent_parameters(names: Sequence[str], units: Sequence[str], H: np.ndar
 
 def _solve_program(A: np.ndarray, b: np.ndarray, prior: np.ndarray, scale: np.ndarray,
                    bodies: Sequence[PhysicalBody], held: dict[int, float], metric: str,
-                   rho2: float) -> tuple[np.ndarray, list[int]]:
+                   rho2: float, signed: Sequence[int] = ()) -> tuple[np.ndarray, list[int]]:
     """States and solves the semidefinite program in the scaled variables ``z`` (n,).
 
-    ``A`` (r, n) and ``b`` (r,) are the whitened base rows and residual at the prior. Returns the
-    solution ``π`` (n, SI units), before drive terms are clipped at 0, and the drive terms' indices.
+    ``A`` (r, n) and ``b`` (r,) are the whitened base rows and residual at the prior; ``signed``:
+    drive terms of either sign. Returns the solution ``π`` (n, SI units), before drive terms are
+    clipped at 0, and the indices of the drive terms kept ≥ 0.
     """
     import cvxpy as cp
 
@@ -265,7 +267,7 @@ def _solve_program(A: np.ndarray, b: np.ndarray, prior: np.ndarray, scale: np.nd
     z = cp.Variable(n)
     pi = prior + cp.multiply(scale, z)
     in_body = {i for body in bodies for i in body.indices if i >= 0}
-    drive = [i for i in range(n) if i not in in_body and i not in held]
+    drive = [i for i in range(n) if i not in in_body and i not in held and i not in set(signed)]
     constraints = [z[i] == (value - prior[i]) / scale[i] for i, value in held.items()]
     if drive:
         constraints.append(pi[drive] >= 0)

@@ -43,14 +43,19 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import KinematicsError, SingularityError
+from .friction import FrictionModel
 from .interface import PRISMATIC, REVOLUTE
 from .pseudo_inertia import SPATIAL, PhysicalBody
 
 #: the ten inertial parameters of a body, pinocchio's order: mass (kg), first moment ``m c``
 #: (kg·m) and inertia about the joint frame's origin (kg·m²), in the joint frame
 BODY_PARAMS = SPATIAL
-#: the drive terms, one of each per actuator, after the bodies
+#: the drive terms, one of each per actuator, after the bodies (then the friction model's
+#: :attr:`~ident_hw.model.friction.FrictionModel.extra_terms`, ``fs`` and ``f0``, where it has them)
 DRIVE_PARAMS = ("fv", "fc", "Jm")
+#: SI units of the drive terms: (revolute, prismatic)
+_DRIVE_UNITS = {"fv": ("N·m·s/rad", "N·s/m"), "fc": ("N·m", "N"), "Jm": ("kg·m²", "kg"), "fs": ("N·m", "N"),
+                "f0": ("N·m", "N")}
 #: ``cond(J_p)`` of the passive joints' closure Jacobian beyond which a pose is a parallel singularity
 SINGULAR_CONDITION = 1e10
 _UNITS = {"m": "kg", "mx": "kg·m", "my": "kg·m", "mz": "kg·m"}
@@ -147,6 +152,8 @@ class DescribedRobot:
         end_effector: the body that takes a payload (:meth:`with_payload`).
         coulomb_width: velocity scale (rad/s, m/s) of the smooth Coulomb sign ``tanh(qd / w)``.
         tolerance: closure residual (m, rad) at which Newton stops.
+        friction: the joints' friction model (:class:`~ident_hw.model.friction.FrictionModel`;
+            default: Coulomb ``tanh(qd / coulomb_width)`` and viscous, no offset).
 
     Raises:
         DescriptionError: a joint that is not hinge or slide, an unknown actuated joint or body,
@@ -155,11 +162,13 @@ class DescribedRobot:
 
     def __init__(self, path: str | Path, actuated: Sequence[str], *, actuator_names: Sequence[str] | None = None,
                  home: Mapping[str, float] | None = None, home_actuated: Sequence[float] | None = None,
-                 end_effector: str | None = None, coulomb_width: float = 1e-3, tolerance: float = 1e-12):
+                 end_effector: str | None = None, coulomb_width: float = 1e-3, tolerance: float = 1e-12,
+                 friction: FrictionModel | None = None):
         if not coulomb_width > 0:
             raise ValueError(f"coulomb_width must be positive, got {coulomb_width}")
         self.path = Path(path)
         self.coulomb_width = float(coulomb_width)
+        self.friction = FrictionModel(width=self.coulomb_width) if friction is None else friction
         self.tolerance = float(tolerance)
         model, points, frames = load_description(self.path)
         self.model = model
@@ -176,7 +185,7 @@ class DescribedRobot:
         n = len(actuated)
         self.pose_size = model.nq
         self.parameter_names = tuple(f"{b}.{p}" for b in self.body_names for p in BODY_PARAMS) + tuple(
-            f"{d}_{a}" for d in DRIVE_PARAMS for a in self.actuator_names)
+            f"{d}_{a}" for d in (*DRIVE_PARAMS, *self.friction.extra_terms) for a in self.actuator_names)
         self._n_body = 10 * (model.njoints - 1)
 
         self._set_home(home, home_actuated, kinds, where, n)
@@ -289,15 +298,15 @@ class DescribedRobot:
         """SI unit of a parameter of :attr:`parameter_names` (friction of a joint: its kind's)."""
         if "." in name:
             return _UNITS.get(name.split(".")[-1], "kg·m²")
-        return {"fv": "N·m·s/rad | N·s/m", "fc": "N·m | N", "Jm": "kg·m² | kg"}[name.split("_", 1)[0]]
+        return " | ".join(_DRIVE_UNITS[_term(name)])
 
     def unit_of(self, name: str) -> str:
         """SI unit of a parameter, for this robot's actuator kinds."""
         if "." in name:
             return self.parameter_unit(name)
-        kind, actuator = name.split("_", 1)
+        actuator = name.split("_", 1)[1]
         revolute = self.actuator_kinds[self.actuator_names.index(actuator)] == REVOLUTE
-        return {"fv": ("N·m·s/rad", "N·s/m"), "fc": ("N·m", "N"), "Jm": ("kg·m²", "kg")}[kind][0 if revolute else 1]
+        return _DRIVE_UNITS[_term(name)][0 if revolute else 1]
 
     def nominal_parameters(self) -> np.ndarray:
         """The description's inertias and drive terms (P,) in the order of :attr:`parameter_names`
@@ -305,11 +314,13 @@ class DescribedRobot:
         return self._nominal.copy()
 
     def drive_parameters(self) -> np.ndarray:
-        """The description's drive terms (3n,) of the actuated joints, the parameter vector's
-        tail: fv, fc, Jm, as pinocchio reads them (MJCF joint ``damping``, ``frictionloss``,
-        ``armature``; URDF ``<dynamics damping friction>``, and no armature: URDF has none)."""
+        """The description's drive terms of the actuated joints, the parameter vector's tail: fv,
+        fc, Jm (3n,) as pinocchio reads them (MJCF joint ``damping``, ``frictionloss``,
+        ``armature``; URDF ``<dynamics damping friction>``, and no armature: URDF has none), then
+        0 for each of the friction model's extra terms (n each)."""
         model, v = self.model, self._act_v
-        return np.concatenate([model.damping[v], model.friction[v], model.armature[v]]).astype(float)
+        extra = np.zeros(len(self.friction.extra_terms) * len(v))
+        return np.concatenate([model.damping[v], model.friction[v], model.armature[v], extra]).astype(float)
 
     # ------------------------------------------------------------------ closure layer
     def _closure_residual(self, q) -> np.ndarray:
@@ -512,7 +523,9 @@ class DescribedRobot:
         return out
 
     def identification_regressor(self, Theta, Thetad, Thetadd, guess):
-        """``Y`` (N, n, P) with ``tau = Y @ pi`` and the tree configurations (N, nq)."""
+        """``Y`` (N, n, P) with ``tau = Y @ pi`` and the tree configurations (N, nq). The rows are
+        consecutive samples of one motion where the friction model has a memory
+        (:attr:`~ident_hw.model.friction.FrictionModel.history`)."""
         Theta, Thetad, Thetadd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (Theta, Thetad, Thetadd))
         N, n = Theta.shape
         guess = np.broadcast_to(np.zeros(self.model.nq) if guess is None else guess, (N, self.model.nq))
@@ -530,9 +543,12 @@ class DescribedRobot:
             poses[k] = q
             Y[k, :, :self._n_body] = W.T @ pin.computeJointTorqueRegressor(self.model, self.data, q, v, a)
         b = self._n_body
-        Y[:, idx, b + idx] = Thetad
-        Y[:, idx, b + n + idx] = np.tanh(Thetad / self.coulomb_width)
+        friction = self.friction.columns(Theta, Thetad)
+        Y[:, idx, b + idx] = friction["fv"]
+        Y[:, idx, b + n + idx] = friction["fc"]
         Y[:, idx, b + 2 * n + idx] = Thetadd
+        for k, term in enumerate(self.friction.extra_terms):
+            Y[:, idx, b + (3 + k) * n + idx] = friction[term]
         return Y, poses
 
     def energy_regressor(self, Theta, Thetad, guess=None) -> np.ndarray:
@@ -547,7 +563,7 @@ class DescribedRobot:
             q, v, _, _ = self.tree_motion(Theta[k], Thetad[k], np.zeros(n), start)
             H[k, :self._n_body] = (pin.computeKineticEnergyRegressor(self.model, self.data, q, v)
                                    + pin.computePotentialEnergyRegressor(self.model, self.data, q))
-        H[:, self._n_body + 2 * n:] = 0.5 * Thetad**2
+        H[:, self._n_body + 2 * n:self._n_body + 3 * n] = 0.5 * Thetad**2
         return H
 
     def _set_inertias(self, pi: np.ndarray) -> None:
@@ -577,6 +593,14 @@ class DescribedRobot:
         pi, b, n = np.asarray(params, dtype=float), self._n_body, len(self._act_v)
         return pi[b:b + n].copy(), pi[b + n:b + 2 * n].copy()
 
+    def payload_indices(self) -> tuple[int, ...]:
+        """The ten parameter indices (:data:`BODY_PARAMS` order) of the body that carries the
+        end-effector: a payload's inertial values add to them (about that body's joint frame)."""
+        if self.end_effector is None:
+            raise ValueError(f"{self.path.name}: a payload needs the robot's end_effector (a body or site)")
+        joint = self.model.frames[self.model.getFrameId(self.end_effector)].parentJoint
+        return tuple(range(10 * (joint - 1), 10 * joint))
+
     def with_payload(self, params, mass: float, inertia: float = 0.0) -> np.ndarray:
         """``params`` with a payload on the end-effector (a body or a site of the description):
         ``mass`` kg at its origin and ``inertia`` kg·m² about its z axis, added to the parameters
@@ -590,6 +614,13 @@ class DescribedRobot:
         start = 10 * (frame.parentJoint - 1)
         pi[start:start + 10] += payload
         return pi
+
+
+def _term(name: str) -> str:
+    """The drive term of a drive parameter's name (``fc3_elbow``: a Maxwell-slip element's Coulomb
+    force, ``fc``)."""
+    head = name.split("_", 1)[0]
+    return "fc" if head.startswith("fc") else head
 
 
 def _inertia(p: np.ndarray) -> pin.Inertia:

@@ -45,6 +45,9 @@ def build_report(folder: str | Path) -> Path:
         jobs.append((f"{fit.role}: {fit.name} — measured vs model", plots.plot_forces, (fit, actuators, folder_plots)))
         jobs.append((f"{fit.name}: residuals", plots.plot_residuals, (fit, actuators, folder_plots)))
         jobs.append((f"{fit.name}: motion", plots.plot_motion, (fit, actuators, folder_plots)))
+        if fit.tau_compared is not None and fit.role == "validation":
+            jobs.append((f"{fit.name}: identified and {results.compared_label}", plots.plot_compared,
+                         (fit, actuators, folder_plots, results.compared_label or "compared")))
     if results.online is not None:
         jobs.append(("online estimates", plots.plot_online, (results.online, results.parameters, folder_plots)))
     images = list(zip([title for title, _, _ in jobs], plots.render([(f, a) for _, f, a in jobs])))

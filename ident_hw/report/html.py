@@ -10,7 +10,7 @@ import jinja2
 
 from ident_hw.identification.model_comparison import EQUATIONS, OUTPUT_UNITS
 from ident_hw.records import TrajectoryMetrics
-from ident_hw.results import SETTLED, Results, read_status
+from ident_hw.results import SETTLED, Results, read_status, validation_figures
 
 from .terminal import accuracy_line, coverage_text
 
@@ -48,5 +48,6 @@ def render_html(folder: Path, results: Results, table: dict[str, TrajectoryMetri
         base_list=analysis if analysis is not None and analysis.expressions and results.base_fit is None else None,
         online=results.online, comparison=results.online.comparison() if results.online is not None else [],
         settled_percent=100 * SETTLED, metrics=table, actuators=results.actuators,
-        equations=EQUATIONS, output_units=OUTPUT_UNITS,
+        equations=EQUATIONS, output_units=OUTPUT_UNITS, validation=validation_figures(results),
+        gains=[(s.name, s.drive_gains) for s in results.steps if s.drive_gains is not None],
         images=[(title, str(path.relative_to(folder))) for title, path in images])

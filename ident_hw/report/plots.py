@@ -72,6 +72,8 @@ def plot_forces(fit: TrajectoryFit, actuators: Actuators, plots: Path) -> Path:
         ax.plot(fit.t[s], fit.tau_model[s, j], lw=1.0, ls="--", label="model")
         if fit.tau_base is not None:
             ax.plot(fit.t[s], fit.tau_base[s, j], lw=1.0, ls=":", label="base fit")
+        if fit.tau_compared is not None:
+            ax.plot(fit.t[s], fit.tau_compared[s, j], lw=0.8, ls="-.", label="compared")
         ax.set_ylabel(actuators.label(j))
         ax.grid(alpha=0.3)
     panels[0].legend(loc="best", fontsize=8)
@@ -82,6 +84,29 @@ def plot_forces(fit: TrajectoryFit, actuators: Actuators, plots: Path) -> Path:
         window = f", first {FORCES_WINDOW:g} s of {fit.t[-1] - fit.t[0]:.0f} s (residuals: the whole trajectory)"
     fig.suptitle(f"{fit.name} ({fit.role}): measured vs model forces{window}")
     return _save(fig, plots / f"forces_{fit.name}.png")
+
+
+def plot_compared(fit: TrajectoryFit, actuators: Actuators, plots: Path, label: str = "compared") -> Path:
+    """The whole trajectory: measured forces, the identified parameters' prediction and the set
+    from elsewhere's (``label``), the samples where each actuator is at rest shaded."""
+    fig = _figure(9)
+    panels, bottom = _panels(fig, len(actuators.names))
+    s = _every(len(fit.t))
+    for j, ax in enumerate(panels):
+        ax.plot(fit.t[s], fit.tau[s, j], lw=0.9, color="k", label="measured")
+        ax.plot(fit.t[s], fit.tau_fit[s, j], lw=0.9, color="C3", label="identified")
+        ax.plot(fit.t[s], fit.tau_compared[s, j], lw=0.7, color="C0", label=label)
+        if fit.at_rest is not None and fit.at_rest[:, j].any():
+            low, high = ax.get_ylim()
+            ax.fill_between(fit.t[s], low, high, where=fit.at_rest[s, j], color="0.85", lw=0, label="at rest")
+            ax.set_ylim(low, high)
+        ax.set_ylabel(actuators.label(j))
+        ax.grid(alpha=0.3)
+    panels[0].legend(loc="best", fontsize=8)
+    for ax in bottom:
+        ax.set_xlabel("t [s]")
+    fig.suptitle(f"{fit.name} ({fit.role}): measured, identified and {label}")
+    return _save(fig, plots / f"compared_{fit.name}.png")
 
 
 def plot_residuals(fit: TrajectoryFit, actuators: Actuators, plots: Path) -> Path:

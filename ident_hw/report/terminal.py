@@ -8,9 +8,9 @@ from pathlib import Path
 
 from ident_hw.identification.model_comparison import EQUATIONS, ModelComparison, ModelFit
 from ident_hw.identification.physical import ConsistentSet
-from ident_hw.records import RecordingCoverage, Verdict
-from ident_hw.results import (SETTLED, BaseFit, BaseRow, OnlineTrace, ParameterRow, load_results, metrics,
-                              read_status)
+from ident_hw.records import DriveGainsFigures, RecordingCoverage, Verdict
+from ident_hw.results import (SETTLED, BaseFit, BaseRow, OnlineTrace, ParameterRow, ValidationFigures, load_results,
+                              metrics, read_status, validation_figures)
 
 
 def summary_lines(folder: str | Path) -> list[str]:
@@ -23,9 +23,7 @@ def summary_lines(folder: str | Path) -> list[str]:
     if truth:
         head += f" {'truth':>11} {'error %':>8} {'err/sigma':>9}"
     lines = [f"status: {read_status(folder)}"]
-    if results.trajectories:
-        lines.append("recordings used:")
-        lines += [f"  {name}: {coverage_text(u)}" for name, u in results.trajectories.items()]
+    lines += recording_lines(results)
     if any(r.fitted for r in rows):
         lines.append("physical parameters, step by step (SQP mass fit of the 3PRRR paper):")
         lines.append(head + "  step")
@@ -48,6 +46,8 @@ def summary_lines(folder: str | Path) -> list[str]:
         lines += comparison_lines(results.model_comparison)
     if results.consistent is not None:
         lines += consistent_lines(results.consistent)
+    lines += [line for r in results.steps if r.drive_gains is not None
+              for line in gains_lines(r.name, r.drive_gains, results.actuators)]
     if truth:
         lines.append(accuracy_line(rows, results.base_fit))
     for name, m in metrics(results).items():
@@ -55,8 +55,23 @@ def summary_lines(folder: str | Path) -> list[str]:
         if m.base_fit is not None:
             text += f"; base fit: d_tau = {m.base_fit.d_tau_percent:.2f} %"
         lines.append(text)
+    for figures in validation_figures(results).values():
+        lines += rre_lines(figures, results.actuators, results.compared_label)
     if results.quality is not None:
         lines += _verdict_lines(results.quality)
+    return lines
+
+
+def recording_lines(results) -> list[str]:
+    """What each recording covered (and how one made elsewhere was read), and the friction model
+    identified with where it is not the default."""
+    lines = ["recordings used:"] if results.trajectories else []
+    for name, used in results.trajectories.items():
+        lines.append(f"  {name}: {coverage_text(used)}")
+        if used.imported is not None:
+            lines += [f"    {line}" for line in used.imported.describe()]
+    if results.friction is not None:
+        lines.append(results.friction.describe())
     return lines
 
 
@@ -238,4 +253,48 @@ def consistent_lines(c: ConsistentSet, listed: int = 12) -> list[str]:
     if prior:
         more = f" and {len(prior) - listed} more" if len(prior) > listed else ""
         lines.append(f"  decided by the CAD prior alone ({len(prior)}): {', '.join(prior[:listed])}{more}")
+    return lines
+
+
+def rre_lines(figures: ValidationFigures, actuators: tuple[str, ...], compared: str | None) -> list[str]:
+    """A validation trajectory's per-actuator ``rre`` (the UR10e dataset's authors' measure,
+    :func:`ident_hw.results.relative_residual_percent`): the identified parameters' and, with
+    ``identification.compare_with``, the set from elsewhere's, then the same over the samples where
+    each actuator moves and where it is at rest, and the share of the residual the rest holds."""
+    width = max(len(a) for a in actuators)
+    rows = [("identified", figures.rre_fit, figures.rre_fit_moving, figures.rre_fit_at_rest,
+             figures.residual_at_rest_fit)]
+    if figures.rre_compared is not None:
+        rows.append((compared or "compared", figures.rre_compared, figures.rre_compared_moving,
+                     figures.rre_compared_at_rest, figures.residual_at_rest_compared))
+    lines = [f"validation {figures.trajectory}: rre = 100 ||tau - tau_predicted|| / ||tau|| per actuator, %"
+             + (" (whole; moving; at rest; share of the squared residual at rest)" if figures.rre_fit_moving else "")]
+    label = max(len(r[0]) for r in rows)
+    lines.append(f"  {'':<{label}}  " + " ".join(f"{a:>{max(width, 6)}}" for a in actuators) + "    mean")
+    for name, whole, moving, rest, share in rows:
+        for part, values in (("", whole), (" moving", moving), (" at rest", rest), (" rest share", share)):
+            if values is None:
+                continue
+            finite = [v for v in values if math.isfinite(v)]
+            mean = f"{sum(finite) / len(finite):7.2f}" if finite and not part else ""
+            lines.append(f"  {(name if not part else part):<{label}}  "
+                         + " ".join(f"{v:>{max(width, 6)}.2f}" for v in values) + f" {mean}")
+    if figures.at_rest_fraction is not None:
+        lines.append(f"  {'at rest':<{label}}  " + " ".join(f"{100 * v:>{max(width, 6)}.1f}"
+                                                            for v in figures.at_rest_fraction) + "  % of the samples")
+    return lines
+
+
+def gains_lines(step: str, g: DriveGainsFigures, actuators: tuple[str, ...]) -> list[str]:
+    """A ``gains`` step's drive gains beside the config's: identified, sigma (jackknife), config,
+    difference (% and in sigma), and the currents' residual at each set of gains."""
+    lines = [f"drive gains (step {step}: runs with and without the {g.payload_mass:g} kg payload on "
+             f"{', '.join(g.payload_trajectories)}; sigma from a {g.blocks}-block jackknife):",
+             f"  {'actuator':<10} {'identified':>10} {'sigma':>8} {'config':>10} {'diff %':>7} {'diff/sigma':>10} "
+             f"{'residual A':>10} {'with config':>11}"]
+    for a, gain, sigma, config, res, res_c in zip(actuators, g.gains, g.sigma, g.configured, g.residual_rms,
+                                                  g.residual_rms_configured):
+        diff = 100.0 * (gain - config) / config
+        lines.append(f"  {a:<10} {gain:>10.4g} {sigma:>8.2g} {config:>10.4g} {diff:>+7.1f} "
+                     f"{(gain - config) / sigma if sigma > 0 else math.nan:>+10.1f} {res:>10.3g} {res_c:>11.3g}")
     return lines
