@@ -115,13 +115,17 @@ class BodyInertial:
 
 @dataclass(frozen=True)
 class Drive:
-    """The drive terms of one actuated joint (SI, per :data:`~ident_hw.model.described.DRIVE_PARAMS`)."""
+    """The drive terms of one actuated joint (SI, per :data:`~ident_hw.model.described.DRIVE_PARAMS`):
+    ``fc`` the sliding Coulomb force (of a Maxwell-slip model, the sum of its elements' forces);
+    ``unwritten``: the friction model's terms a description file has no attribute for (an offset
+    ``f0``, a Stribeck term ``fs``), by name, written as a comment."""
 
     joint: str
     actuator: str
     fv: float
     fc: float
     Jm: float
+    unwritten: tuple[tuple[str, float], ...] = ()
 
 
 def description_format(path: str | Path) -> str:
@@ -146,17 +150,17 @@ def physical_vector(robot: DescribedRobot, params) -> np.ndarray:
     params = _checked_vector(robot, params).copy()
     for j, name in enumerate(robot.body_names):
         params[10 * j:10 * j + 10] = _physical_body(name, params[10 * j:10 * j + 10], robot.path)
-    n = len(robot.actuated_joints)
-    start = len(params) - 3 * n
-    for i, key in enumerate(("fv", "fc", "Jm")):
-        values = params[start + i * n:start + (i + 1) * n]
+    names = robot.parameter_names
+    for key in ("fv", "fc", "Jm", *(t for t in robot.friction.extra_terms if t.startswith("fc"))):
+        index = [names.index(f"{key}_{a}") for a in robot.actuator_names]
+        values = params[index]
         tol = _PHYSICAL_TOL * max(1.0, float(np.abs(values).max()))
         bad = [f"{key}_{a} = {float(v)!r} (joint {j!r})"
                for a, j, v in zip(robot.actuator_names, robot.actuated_joints, values) if v < -tol]
         if bad:
             raise DescriptionError(f"{robot.path.name}: negative drive term {', '.join(bad)}: friction and rotor "
                                    "inertia cannot be negative")
-        values[values < 0] = 0.0
+        params[index] = np.maximum(values, 0.0)
     return params
 
 
@@ -172,10 +176,20 @@ def body_inertials(robot: DescribedRobot, params) -> tuple[BodyInertial, ...]:
 def drive_terms(robot: DescribedRobot, params) -> tuple[Drive, ...]:
     """The drive terms of :func:`physical_vector` ``(robot, params)`` per actuated joint."""
     params = physical_vector(robot, params)
-    n = len(robot.actuated_joints)
-    tail = params[len(params) - 3 * n:]
-    return tuple(Drive(joint, actuator, float(tail[k]), float(tail[n + k]), float(tail[2 * n + k]))
-                 for k, (joint, actuator) in enumerate(zip(robot.actuated_joints, robot.actuator_names)))
+    return _drives(robot, params)
+
+
+def _drives(robot: DescribedRobot, params: np.ndarray) -> tuple[Drive, ...]:
+    """The drive terms of ``params`` (P,) per actuated joint, by name (:class:`Drive`)."""
+    names = robot.parameter_names
+    coulomb = ("fc", *(t for t in robot.friction.extra_terms if t.startswith("fc")))
+    other = tuple(t for t in robot.friction.extra_terms if not t.startswith("fc"))
+
+    def value(term: str, actuator: str) -> float:
+        return float(params[names.index(f"{term}_{actuator}")])
+    return tuple(Drive(joint, a, value("fv", a), sum(value(t, a) for t in coulomb), value("Jm", a),
+                       tuple((t, value(t, a)) for t in other))
+                 for joint, a in zip(robot.actuated_joints, robot.actuator_names))
 
 
 def mujoco_problems(bodies, fmt: str = MJCF) -> list[str]:
@@ -243,9 +257,11 @@ def write_description(robot: DescribedRobot, params, to: str | Path, *, for_mujo
     merged = _merged_body_names(robot)
     if fmt == MJCF:
         dropped = _write_mjcf(root, source, bodies, merged, drives)
+        geometry: list[str] = []
     else:
         dropped = _write_urdf(root, source, bodies, merged, drives)
-    out = _assemble(source, text, root, fmt, dropped)
+        geometry = _urdf_meshes(root, source, to, for_mujoco)
+    out = _assemble(source, text, root, fmt, dropped, geometry)
 
     to.parent.mkdir(parents=True, exist_ok=True)
     tmp = to.with_name(f".{to.stem}.ident_hw-tmp{to.suffix}")
@@ -266,8 +282,8 @@ def _checked_vector(robot: DescribedRobot, params) -> np.ndarray:
     size = len(robot.parameter_names)
     if params.shape != (size,):
         raise ValueError(f"{robot.path.name}: a parameter vector of {size} values "
-                         f"({size - 3 * len(robot.actuated_joints)} body values, "
-                         f"{3 * len(robot.actuated_joints)} drive terms) expected, got shape {params.shape}")
+                         f"({10 * len(robot.body_names)} body values, "
+                         f"{size - 10 * len(robot.body_names)} drive terms) expected, got shape {params.shape}")
     if not np.all(np.isfinite(params)):
         bad = [robot.parameter_names[i] for i in np.flatnonzero(~np.isfinite(params))]
         raise ValueError(f"{robot.path.name}: parameters not finite: {', '.join(bad)}")
@@ -501,6 +517,7 @@ def _write_mjcf(root, source, bodies, merged, drives) -> list[str]:
         el.set("damping", _num(drive.fv))
         el.set("frictionloss", _num(drive.fc))
         el.set("armature", _num(drive.Jm))
+        _comment_unwritten(el, drive, depth)
     return _drop_overriding_compiler(root.findall("compiler"))
 
 
@@ -543,7 +560,26 @@ def _write_urdf(root, source, bodies, merged, drives) -> list[str]:
                              f"{drive.actuator}): URDF has no element for it, pinocchio and MuJoCo read none ")
         children = list(joint)
         _insert(joint, children.index(dynamics) + 1, comment, depth[joint])
+        _comment_unwritten(joint, drive, depth)
     return _drop_overriding_compiler(root.findall("mujoco/compiler"))
+
+
+#: the start of the comment that holds a joint's friction terms no attribute can
+_UNWRITTEN_COMMENT = "ident_hw: friction terms"
+
+
+def _comment_unwritten(joint, drive: Drive, depth) -> None:
+    """A comment in ``joint`` with the friction terms no attribute of the format holds (an
+    offset ``f0``, a Stribeck term ``fs``; the Coulomb attribute holds the sliding force), an
+    older one of ours replaced; nothing when there are none."""
+    for old in [c for c in joint if c.tag is ET.Comment and (c.text or "").strip().startswith(_UNWRITTEN_COMMENT)]:
+        _remove(joint, old)
+    if not drive.unwritten:
+        return
+    text = ", ".join(f"{name} = {_num(value)}" for name, value in drive.unwritten)
+    comment = ET.Comment(f" {_UNWRITTEN_COMMENT} of actuator {drive.actuator} no attribute holds (SI): {text}; the "
+                         "Coulomb attribute is the sliding force of its friction model ")
+    _insert(joint, len(joint), comment, depth.get(joint, 0))
 
 
 def _set_urdf_inertial(link: ET.Element, com, mass: float, six, depth: dict) -> None:
@@ -590,7 +626,31 @@ def _prolog(text: str) -> str:
             return text[:i]
 
 
-def _assemble(source: Path, raw: bytes, root: ET.Element, fmt: str, dropped: list[str]) -> str:
+def _urdf_meshes(root: ET.Element, source: Path, to: Path, for_mujoco: bool) -> list[str]:
+    """The URDF's mesh files where the copy finds them: a file name relative to the source
+    rewritten relative to the copy's folder; a ``package://`` name (a ROS package, which neither
+    pinocchio nor MuJoCo resolves) or a file that does not exist kept as it is, or with
+    ``for_mujoco`` its ``<visual>`` or ``<collision>`` dropped (MuJoCo refuses a file whose meshes
+    it cannot open; the inertias do not depend on them). Returns the mesh names dropped."""
+    dropped = []
+    for link in root.findall("link"):
+        for kind in ("visual", "collision"):
+            for element in link.findall(kind):
+                mesh = element.find("geometry/mesh")
+                if mesh is None or not mesh.get("filename"):
+                    continue
+                name = mesh.get("filename")
+                local = None if "://" in name else (source.parent / name)
+                if local is not None and local.is_file():
+                    mesh.set("filename", os.path.relpath(local.resolve(), to.resolve().parent))
+                elif for_mujoco:
+                    _remove(link, element)
+                    dropped.append(name)
+    return sorted(set(dropped))
+
+
+def _assemble(source: Path, raw: bytes, root: ET.Element, fmt: str, dropped: list[str],
+              geometry: list[str] = ()) -> str:
     """The written text: the source's prolog with the header, the root, the source's epilog."""
     try:
         text = raw.decode("utf-8").replace("\r\n", "\n")
@@ -605,7 +665,7 @@ def _assemble(source: Path, raw: bytes, root: ET.Element, fmt: str, dropped: lis
     # a header of an earlier write is replaced, not stacked
     prolog = re.sub(r"<!--\s*" + _HEADER_START + r".*?-->\n?", "", prolog, flags=re.DOTALL)
     prolog = re.sub(r"""(<\?xml[^>]*?encoding\s*=\s*)(["'])[^"']*\2""", r'\1"UTF-8"', prolog)
-    header = _header(source.name, fmt, dropped)
+    header = _header(source.name, fmt, dropped, geometry)
     declaration = re.match(r"\s*<\?xml.*?\?>", prolog, flags=re.DOTALL)
     if declaration:
         k = declaration.end()
@@ -622,7 +682,7 @@ def _serialize(root: ET.Element) -> str:
     return "".join(part if k % 2 else part.replace(" />", "/>") for k, part in enumerate(parts))
 
 
-def _header(name: str, fmt: str, dropped: list[str]) -> str:
+def _header(name: str, fmt: str, dropped: list[str], geometry: list[str] = ()) -> str:
     name = name.replace("--", "- -")
     if fmt == MJCF:
         lines = [
@@ -645,6 +705,10 @@ def _header(name: str, fmt: str, dropped: list[str]) -> str:
     if dropped:
         lines += textwrap.wrap("Compiler options dropped (they would override the identified inertias): "
                                + ", ".join(dropped).replace("--", "- -") + ".", width=96, break_long_words=False)
+    if geometry:
+        lines += textwrap.wrap(f"Visual and collision elements of {len(geometry)} mesh file(s) MuJoCo cannot open "
+                               "dropped (the inertias do not depend on them): "
+                               + ", ".join(geometry).replace("--", "- -") + ".", width=96, break_long_words=False)
     lines.append("Everything else is the source's.")
     return "<!--\n" + "".join(f"  {line}\n" for line in lines) + "-->"
 
@@ -666,17 +730,14 @@ def _read_back(robot: DescribedRobot, params: np.ndarray, path: Path, fmt: str, 
         for name, w, g in zip(BODY_PARAMS, want, got):
             if abs(w - g) > tol:
                 bad.append(f"{robot.body_names[j - 1]}.{name}: {g!r} instead of {w!r}")
-    n = len(robot.actuated_joints)
-    tail = params[len(params) - 3 * n:]
-    for k, joint in enumerate(robot.actuated_joints):
-        v = model.joints[model.getJointId(joint)].idx_v
-        read = [("fv", model.damping[v]), ("fc", model.friction[v])]
+    for drive in _drives(robot, params):
+        v = model.joints[model.getJointId(drive.joint)].idx_v
+        read = [("fv", model.damping[v], drive.fv), ("fc", model.friction[v], drive.fc)]
         if fmt == MJCF:
-            read.append(("Jm", model.armature[v]))
-        for i, (key, got) in enumerate(read):
-            want = tail[i * n + k]
+            read.append(("Jm", model.armature[v], drive.Jm))
+        for key, got, want in read:
             if abs(got - want) > _READ_BACK * abs(want) + 1e-300:
-                bad.append(f"{key}_{robot.actuator_names[k]}: {got!r} instead of {want!r}")
+                bad.append(f"{key}_{drive.actuator}: {got!r} instead of {want!r}")
     if bad:
         raise DescriptionError(f"{to}: pinocchio reads the written file back with other values (a reader quirk "
                                "the writer does not handle):\n  " + "\n  ".join(bad))
