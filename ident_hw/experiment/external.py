@@ -9,9 +9,10 @@ part of it to use (``rows`` or ``window``). Reading a file (:func:`read_external
 2. each row checked (:data:`ident_hw.records.CUT_REASONS`): its number of fields (the file's
    usual number), every field used a finite number, every value within reach of the robot (no
    further outside an actuator's limits than ``recordings.absurd`` times their size), its time
-   after the last kept row's (a lone time stamp ahead of the rows around it is the one out of
-   order). A row that fails is left out, its line and reason in the report, or, with
-   ``recordings.bad_rows: error``, stops the reading with that message: never used silently;
+   in order (the rows outside the file's longest run of increasing stamps are not) and near
+   another row's (a lone stamp far from every other is a corrupted row's). A row that fails is
+   left out, its line and reason in the report, or, with ``recordings.bad_rows: error``, stops
+   the reading with that message: never used silently;
 3. ``window`` picks a time span; the idle head and tail (no actuator away from its first or last
    position by more than ``recordings.idle_tolerance`` of its range) are left out but for
    :data:`IDLE_MARGIN` s next to the motion, which the filters' ends take;
@@ -235,7 +236,11 @@ def _parse(spec: RecordingsConfig, body: Sequence[str], layout: _Layout, path: P
     back = out_of_order(table[:, 0])
     for number in lines[back]:
         _reject(spec, rejected, "time_back", int(number), path, "its time does not go forward")
-    table = table[~back]
+    table, lines = table[~back], lines[~back]
+    alone = isolated(table[:, 0], spec.gap)
+    for number in lines[alone]:
+        _reject(spec, rejected, "absurd", int(number), path, "a time stamp far from every other row's")
+    table = table[~alone]
     cut = tuple(CutRows(reason, len(found), tuple(sorted(found)[:NAMED_LINES]))
                 for reason, found in rejected.items() if found)
     return table, cut
@@ -273,18 +278,39 @@ def beyond_reach(table: np.ndarray, config: Config, absurd: float, force_kind: s
 
 
 def out_of_order(t: np.ndarray) -> np.ndarray:
-    """(N,) bool: rows whose time stamp does not go forward: not after the last row kept before
-    them, or a lone stamp after its successor where that successor follows the row before (the
-    stamp that jumped ahead is the one out of order, not every row after it)."""
-    bad = np.zeros(len(t), dtype=bool)
-    last = -np.inf
-    for k in range(len(t)):
-        ahead = k + 1 < len(t) and t[k] >= t[k + 1] > last
-        if t[k] <= last or ahead:
-            bad[k] = True
-            continue
-        last = t[k]
-    return bad
+    """(N,) bool: rows whose time stamp does not go forward: those outside the longest strictly
+    increasing run of stamps through the file (its longest increasing subsequence: the most rows in
+    time order). A stamp from the past, a repeated one, a lone stamp far ahead (of a corrupted row:
+    the rows after it are the ones in order), all fall outside it."""
+    import bisect
+    tails: list[float] = []          # the smallest last stamp of an increasing run of each length
+    ends: list[int] = []             # the row it is
+    before = np.full(len(t), -1)     # each row's predecessor in the run it ends
+    for k, value in enumerate(t):
+        length = bisect.bisect_left(tails, value)
+        if length == len(tails):
+            tails.append(value)
+            ends.append(k)
+        else:
+            tails[length], ends[length] = value, k
+        before[k] = ends[length - 1] if length else -1
+    keep = np.zeros(len(t), dtype=bool)
+    k = ends[-1] if ends else -1
+    while k >= 0:
+        keep[k] = True
+        k = before[k]
+    return ~keep
+
+
+def isolated(t: np.ndarray, gap: float) -> np.ndarray:
+    """(N,) bool: rows of increasing stamps ``t`` with no other row within ``gap`` median steps on
+    either side: a stamp of a corrupted row that happens to be in order (a zero among stamps of
+    an hour), one row alone, which nothing can be filtered or differentiated with."""
+    if len(t) < 3:
+        return np.zeros(len(t), dtype=bool)
+    steps = np.diff(t)
+    far = steps > gap * np.median(steps)
+    return np.concatenate([[True], far]) & np.concatenate([far, [True]])
 
 
 def idle_trimmed(t: np.ndarray, position: np.ndarray, config: Config) -> slice:
