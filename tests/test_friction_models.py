@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
-import pytest
 from scipy.integrate import solve_ivp
 
 from ident_hw.config import load_config
