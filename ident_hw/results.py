@@ -299,6 +299,8 @@ class TrajectoryFit:
         t: (N,) s; tau, tau_model: (N, 6) N·m / N; Theta: (N, 6) rad / m;
         X: (N, 3) end-effector pose [x m, y m, alpha rad], or None.
         tau_base: (N, 6) the forces the base-parameter fit (:class:`BaseFit`) predicts, or None.
+        moving: (N, 6) bool, the rows of each axis the fits use (an axis near rest gives none,
+            ``identification.min_speed``), or None (every row).
     """
 
     name: str
@@ -309,9 +311,14 @@ class TrajectoryFit:
     Theta: np.ndarray
     X: np.ndarray | None = None
     tau_base: np.ndarray | None = None
+    moving: np.ndarray | None = None
+
+    def used(self) -> np.ndarray:
+        """(N, 6) bool: :attr:`moving`, every row where it is None."""
+        return np.ones(self.tau.shape, bool) if self.moving is None else self.moving
 
     def save(self, path: Path) -> None:
-        arrays = {k: getattr(self, k) for k in ("t", "tau", "tau_model", "Theta", "X", "tau_base")
+        arrays = {k: getattr(self, k) for k in ("t", "tau", "tau_model", "Theta", "X", "tau_base", "moving")
                   if getattr(self, k) is not None}
         np.savez_compressed(path, name=self.name, role=self.role, **arrays)
 
@@ -320,7 +327,8 @@ class TrajectoryFit:
         with np.load(path) as f:
             return cls(name=str(f["name"]), role=str(f["role"]), t=f["t"], tau=f["tau"],
                        tau_model=f["tau_model"], Theta=f["Theta"], X=f["X"] if "X" in f else None,
-                       tau_base=f["tau_base"] if "tau_base" in f else None)
+                       tau_base=f["tau_base"] if "tau_base" in f else None,
+                       moving=f["moving"] if "moving" in f else None)
 
 
 @dataclass
@@ -455,6 +463,14 @@ class Results:
     def passed(self) -> bool:
         """The quality verdict passed, or there is none."""
         return self.quality is None or self.quality.passed
+
+    @property
+    def stepwise_label(self) -> str:
+        """What the step-by-step prediction (:attr:`TrajectoryFit.tau_model`) is made of, as the
+        terminal, the report and the plots name it: ``step by step`` (the parameters the mass-fit
+        steps fitted, the others held), or ``CAD values`` when no step fitted a physical parameter
+        (only base parameters were fitted: the prediction is the CAD model's, not a result)."""
+        return "step by step" if any(r.fitted for r in self.parameter_rows()) else "CAD values"
 
     def parameter_rows(self) -> list[ParameterRow]:
         """The physical parameters, judged by this campaign's %σ threshold, each σ with its

@@ -77,9 +77,13 @@ def test_the_delta_job_identifies_the_specs_base_parameters(tmp_path):
     for row, implied in zip(rows, spec.H @ values):
         assert abs(implied - row["identified"]) <= 0.1 * row["sigma"], row["base_parameter"]
     assert consistent["reproduces_base"] and consistent["chi2"] <= consistent["chi2_limit_95"]
-    # each arm's residual within the verdict's limit of its noise floor (the standstill's)
-    over = doc["quality"]["axis_residual_over_floor"]
-    assert set(over) == {"q1", "q2", "q3"} and max(over.values()) <= doc["quality"]["thresholds"]["max_residual_over_floor"]
+    # each arm judged on its own: its gain against its own model refitted, its residual against its
+    # noise floor (the standstill's), both within the verdict's limits
+    axes, limits = doc["quality"]["axes"], doc["quality"]["thresholds"]
+    assert set(axes) == {"q1", "q2", "q3"} and "not_judged" not in doc["quality"]
+    for name, arm in axes.items():
+        assert arm["residual_over_floor"] <= limits["max_residual_over_floor"], (name, arm)
+        assert abs(arm["gain_percent"]) <= limits["max_axis_gain"], (name, arm)
 
 
 @pytest.mark.slow
