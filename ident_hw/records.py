@@ -32,6 +32,27 @@ _JUDGED_JSON = tuple((key, name) for key, name, judged in _COVERAGE_JSON if judg
 
 
 @dataclass(frozen=True)
+class AxisShortfall:
+    """What one axis lacks in a recording (:class:`RecordingCoverage`): ``missing`` cycles without
+    its position or current (a TPDO lost, late or not placeable), ``saturated`` rows whose current
+    is at its drive's limit (clipped, not a measurement: :data:`ident_hw.segments.SATURATION`),
+    the largest current recorded ``peak_A`` and the drive's limit ``limit_A`` (A)."""
+
+    missing: int = 0
+    saturated: int = 0
+    peak_A: float | None = None
+    limit_A: float | None = None
+
+    def to_json(self) -> dict:
+        return {"missing": self.missing, "saturated": self.saturated, "peak_A": self.peak_A, "limit_A": self.limit_A}
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> AxisShortfall:
+        return cls(missing=doc.get("missing") or 0, saturated=doc.get("saturated") or 0, peak_A=doc.get("peak_A"),
+                   limit_A=doc.get("limit_A"))
+
+
+@dataclass(frozen=True)
 class RecordingCoverage:
     """What the recording of one trajectory holds, and how much of it the fit used.
 
@@ -49,6 +70,8 @@ class RecordingCoverage:
     ``uncounted_axes``: the actuators of an identification trajectory whose positions are not
     whole encoder counts (:func:`ident_hw.experiment.encoder.uncounted_axes`: no encoder draws
     were taken, for any step), JSON ``positions_not_in_counts`` when there are any.
+    ``shortfalls``: per axis that misses cycles or saturates, its :class:`AxisShortfall` (JSON
+    ``shortfalls``, only when there is one): the first cause the verdict names.
     """
 
     file: str | None
@@ -65,6 +88,7 @@ class RecordingCoverage:
     gaps: int | None = None
     stretches: int | None = None
     uncounted_axes: tuple[str, ...] = ()
+    shortfalls: Mapping[str, AxisShortfall] = field(default_factory=dict)
 
     @property
     def prepared(self) -> bool:
@@ -84,6 +108,8 @@ class RecordingCoverage:
                        stretches=self.stretches)
         if self.uncounted_axes:
             doc["positions_not_in_counts"] = list(self.uncounted_axes)
+        if self.shortfalls:
+            doc["shortfalls"] = {name: axis.to_json() for name, axis in self.shortfalls.items()}
         return doc
 
     @classmethod
@@ -94,7 +120,8 @@ class RecordingCoverage:
                      longest_gap_s=books["longest_gap_s"] or 0.0, skipped_slots=books["skipped_slots"] or 0)
         return cls(**books, samples_used=doc.get("samples_used"), rows_left_out=doc.get("rows_left_out"),
                    gaps=doc.get("gaps"), stretches=doc.get("stretches"),
-                   uncounted_axes=tuple(doc.get("positions_not_in_counts") or ()))
+                   uncounted_axes=tuple(doc.get("positions_not_in_counts") or ()),
+                   shortfalls={name: AxisShortfall.from_json(a) for name, a in (doc.get("shortfalls") or {}).items()})
 
 
 @dataclass(frozen=True)

@@ -102,6 +102,37 @@ def test_incomplete_cycles_and_a_gap_degrade_the_result(sweep):
     assert any(r.startswith("sweep: 0.") and "without a complete cycle" in r for r in q.reasons)
 
 
+def test_the_verdict_names_the_first_cause_before_its_consequences(sweep):
+    """Every row of the sweep with zeta2's current at 71 A (its limit 8 A: a drive that lets no such
+    current through, a log decoded with another drive's scaling): the first reason names zeta2,
+    its current and its limit, and says what to check; then that nothing of the sweep could be
+    fitted (rows left out: all saturated); then the step it leaves unfitted. Each reason once.
+    Every other cycle without zeta2's frames: the share of complete cycles names zeta2."""
+    path, rec = sweep
+    config = load_config(path)
+    keys = ("t", "cycle", "position", "velocity", "current", "statusword", "target", "valid")
+    current = rec.current.copy()
+    current[:, 4] = 71.0
+    clipped = Recording(**{k: current if k == "current" else getattr(rec, k) for k in keys}, metadata=rec.metadata)
+    reasons = identify(config, {"sweep": clipped}).quality.reasons
+    n = len(rec.t)
+    assert reasons == (
+        f"sweep: currents at their drive's limit, clipped, not measured (rows left out): zeta2 in {n} of {n} rows, "
+        "up to 71 A against its 8 A limit (beyond what the drive lets through: check the recording's current "
+        "scaling and drive type)",
+        f"sweep: no stretch of consecutive usable rows long enough to filter (rows left out: {n} saturated); "
+        "nothing of it was fitted",
+        "step carriages: not fitted (no stretch of its recordings could be filtered)")
+    valid = rec.valid.copy()
+    valid[::2, 4] = False
+    lossy = Recording(**{k: getattr(rec, k) for k in ("t", "cycle", "velocity", "statusword", "target")},
+                      position=np.where(valid, rec.position, np.nan), current=np.where(valid, rec.current, np.nan),
+                      valid=valid, metadata=rec.metadata)
+    reasons = identify(config, {"sweep": lossy}).quality.reasons
+    assert reasons[0] == f"sweep: 50.0 % of the cycles complete (< 90 %); missing: zeta2 in {(n + 1) // 2} cycles"
+    assert reasons[1].startswith("sweep: no stretch") and reasons[2].startswith("step carriages: not fitted")
+
+
 def test_a_frame_the_master_could_not_place_degrades_the_result(sweep):
     """A recording whose assembler met a frame it could not place (late beyond its look-ahead:
     some cells handed out before may hold another cycle's data) is not marked good, however

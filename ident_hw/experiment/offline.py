@@ -43,10 +43,11 @@ from ident_hw.identification.physical import ConsistencyError, ConsistentSet, co
 from ident_hw.identification.model_comparison import (ModelComparison, ModelRows, compare_models,
                                                        power_energy_rows)
 from ident_hw.model.interface import RobotModel
-from ident_hw.records import BaseAnalysis, LeastSquaresFigures, MassFitFigures, RecordingCoverage, StepRecord
+from ident_hw.records import (AxisShortfall, BaseAnalysis, LeastSquaresFigures, MassFitFigures, RecordingCoverage,
+                              StepRecord)
 from ident_hw.report import coverage_text
 from ident_hw.results import BaseFit, ParameterTable, Results, TrajectoryFit
-from ident_hw.segments import Segments, slot_indices, split, uniform
+from ident_hw.segments import SATURATION, Segments, slot_indices, split, uniform
 from ident_hw.filtering import (FilterSettings, kept_samples, near_rest, parallel_decimate, prepare_actuated,
                                running_average, through_position_lowpass)
 
@@ -142,7 +143,26 @@ def coverage(config: Config, name: str, rec: Recording) -> RecordingCoverage:
                              cycles_planned=None if planned is None else int(planned),
                              planned_fraction=None if not planned else min(1.0, len(rec.t) / planned),
                              valid_fraction=fraction, longest_gap_s=gap, skipped_slots=skipped,
-                             unplaced_frames=int(meta.books.unplaced_frames))
+                             unplaced_frames=int(meta.books.unplaced_frames), shortfalls=shortfalls(config, rec))
+
+
+def shortfalls(config: Config, rec: Recording) -> dict[str, AxisShortfall]:
+    """Per actuator that lacks something in ``rec``: the cycles without its position or current,
+    the rows whose current is at its drive's limit (:data:`ident_hw.segments.SATURATION` of
+    ``limits.current``, as :func:`ident_hw.segments.split` leaves them out), its largest current
+    and that limit. The verdict names these as the cause of what follows (rows left out, no
+    stretch to fit)."""
+    measured = identification_valid(rec)
+    out = {}
+    for j, act in enumerate(config.robot.actuators):
+        current = np.abs(rec.current[measured[:, j], j])
+        missing = int((~measured[:, j]).sum())
+        saturated = int(np.sum(current >= SATURATION * act.limits.current))
+        if missing or saturated:
+            out[act.name] = AxisShortfall(missing=missing, saturated=saturated,
+                                          peak_A=float(current.max()) if len(current) else None,
+                                          limit_A=float(act.limits.current))
+    return out
 
 
 def _bridged(t: np.ndarray, values: np.ndarray) -> np.ndarray:

@@ -243,32 +243,63 @@ def force_lags(results: Results) -> dict[str, ForceLag]:
 
 def recording_reasons(results: Results, limits: QualityConfig) -> tuple[dict[str, TrajectoryVerdict], list[str]]:
     """Per trajectory: what its recording covered (``results.trajectories``), and why that is not
-    enough (partial or truncated, too few cycles, too few complete, a gap, a frame not placed)."""
-    reasons: list[str] = []
+    enough, first causes first: a stop or a truncated log (and the cycles it lost), saturated
+    currents (more than ``1 - min_valid_fraction`` of the rows, or every usable one: which
+    drive, how far beyond its limit), incomplete cycles (which drives' frames are missing), a
+    frame not placed, a gap; then, after every trajectory's causes, their consequence: a
+    recording with no stretch long enough to filter (what left its rows out)."""
+    causes: list[str] = []
+    consequences: list[str] = []
     per_traj: dict[str, TrajectoryVerdict] = {}
     for name, used in results.trajectories.items():
         per_traj[name] = TrajectoryVerdict.of(used)
         status = used.recording_status
         if status.startswith(("stopped", "running")):
-            reasons.append(f"{name}: partial recording ({status})")
+            causes.append(f"{name}: partial recording ({status})")
         elif "truncated" in status:
-            reasons.append(f"{name}: truncated raw log")
+            causes.append(f"{name}: truncated raw log")
         cov = used.planned_fraction
         if cov is not None and cov < limits.min_coverage:
-            reasons.append(f"{name}: {used.cycles} of {used.cycles_planned} cycles recorded "
-                           f"({100 * cov:.0f} % < {100 * limits.min_coverage:g} %)")
+            causes.append(f"{name}: {used.cycles} of {used.cycles_planned} cycles recorded "
+                          f"({100 * cov:.0f} % < {100 * limits.min_coverage:g} %)")
+        saturated = {axis: f for axis, f in used.shortfalls.items() if f.saturated}
+        rows = max(used.cycles, 1)
+        clipped = sum(f.saturated for f in saturated.values())
+        if saturated and (used.stretches == 0 or clipped > (1 - limits.min_valid_fraction) * rows):
+            causes.append(f"{name}: currents at their drive's limit, clipped, not measured (rows left out): "
+                          + "; ".join(_saturation_text(axis, f, used.cycles) for axis, f in saturated.items()))
         if used.valid_fraction < limits.min_valid_fraction:
-            reasons.append(f"{name}: {100 * used.valid_fraction:.1f} % of the cycles complete "
-                           f"(< {100 * limits.min_valid_fraction:g} %)")
-        if used.stretches == 0:
-            reasons.append(f"{name}: no stretch of consecutive complete cycles long enough to filter; "
-                           f"nothing of it was fitted")
+            missing = {axis: f.missing for axis, f in used.shortfalls.items() if f.missing}
+            which = ("; missing: " + ", ".join(f"{axis} in {n} cycles" for axis, n in missing.items())
+                     if missing else "")
+            causes.append(f"{name}: {100 * used.valid_fraction:.1f} % of the cycles complete "
+                          f"(< {100 * limits.min_valid_fraction:g} %){which}")
         if used.unplaced_frames:
-            reasons.append(f"{name}: {used.unplaced_frames} frame(s) could not be placed in their SYNC "
-                           f"cycle (late by more than the assembler's look-ahead, or sent twice)")
+            causes.append(f"{name}: {used.unplaced_frames} frame(s) could not be placed in their SYNC "
+                          f"cycle (late by more than the assembler's look-ahead, or sent twice)")
         if used.longest_gap_s > limits.max_gap:
-            reasons.append(f"{name}: {used.longest_gap_s:.3g} s without a complete cycle (> {limits.max_gap:g} s)")
-    return per_traj, reasons
+            causes.append(f"{name}: {used.longest_gap_s:.3g} s without a complete cycle (> {limits.max_gap:g} s)")
+        if used.stretches == 0:
+            out = [f"{n} {rule.replace('_', ' ')}" for rule, n in (used.rows_left_out or {}).items() if n]
+            consequences.append(f"{name}: no stretch of consecutive usable rows long enough to filter"
+                                + (f" (rows left out: {', '.join(out)})" if out else "")
+                                + "; nothing of it was fitted")
+    return per_traj, causes + consequences
+
+
+#: a current this many times its drive's limit was not limited by the drive: the recording's scaling is off
+BEYOND_LIMIT = 1.5
+
+
+def _saturation_text(axis: str, shortfall, cycles: int) -> str:
+    """``zeta2 in 1005 of 1005 rows, up to 71 A against its 8 A limit: ...`` with what to check:
+    a current far beyond the limit the drive enforces was not measured in A (another drive's log,
+    another scaling); one at the limit means the motion asks more than the drive may give."""
+    text = (f"{axis} in {shortfall.saturated} of {cycles} rows, up to {shortfall.peak_A:.3g} A against its "
+            f"{shortfall.limit_A:.3g} A limit")
+    if shortfall.peak_A is not None and shortfall.peak_A > BEYOND_LIMIT * shortfall.limit_A:
+        return text + " (beyond what the drive lets through: check the recording's current scaling and drive type)"
+    return text + " (slow the trajectory down, or raise limits.current if the motor allows)"
 
 
 def step_reasons(results: Results, limits: QualityConfig) -> tuple[dict[str, float | None], list[str]]:

@@ -82,6 +82,11 @@ def coverage_text(used: RecordingCoverage) -> str:
         out = [f"{n} {rule.replace('_', ' ')}" for rule, n in (used.rows_left_out or {}).items() if n]
         if out:
             text += f" (rows left out: {', '.join(out)})"
+        for axis, short in used.shortfalls.items():
+            parts = ([f"{short.missing} cycles missing"] if short.missing else []) + (
+                [f"{short.saturated} rows saturated (up to {short.peak_A:.3g} A, limit {short.limit_A:.3g} A)"]
+                if short.saturated else [])
+            text += f"; {axis}: {', '.join(parts)}"
         if used.uncounted_axes:
             text += (f"; positions of {', '.join(used.uncounted_axes)} not in whole encoder counts: no encoder "
                      "draws, sigma without the encoders' resolution")
