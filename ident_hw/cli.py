@@ -55,14 +55,15 @@ def cmd_check(args) -> int:
 
 
 def cmd_identify(args) -> int:
-    """Identify offline from recordings (decoded .npz or raw CAN logs) into a results folder.
+    """Identify offline from recordings (decoded .npz or raw CAN logs, or a results folder's) into
+    a results folder.
 
     Every recording is read and checked against the config before the folder is made; the
     folder's STATUS ends ``complete``, ``degraded: <reasons>`` or ``failed: <why>``."""
     from drivers.errors import RecordingError
     from ident_hw.config import ConfigError
     from ident_hw.experiment.folders import new_results_folder
-    from ident_hw.experiment.recordings import load_recording, require_trajectories
+    from ident_hw.experiment.recordings import load_recording, recording_paths, require_trajectories
     from ident_hw.experiment.runner import identify_recordings
     from ident_hw.report import summary_lines
     config = _load(args.config)
@@ -70,10 +71,14 @@ def cmd_identify(args) -> int:
         raise ConfigError("identification: missing section (the steps to run on the recordings)",
                           file=config.source)
     recordings, files = {}, {}
-    for path in args.data:
+    paths, notes = recording_paths(args.data)
+    for note in notes:
+        print(note, file=sys.stderr)
+    for path in paths:
         name, rec = load_recording(path, config)
         if name in recordings:
-            raise RecordingError(f"{files[name]} and {path} are both recordings of trajectory {name!r}: give one")
+            raise RecordingError(f"{files[name]} and {path} are both recordings of trajectory {name!r}: give one "
+                                 "(or the results folder: its decoded .npz recordings are used)")
         recordings[name], files[name] = rec, path
     require_trajectories(config, recordings)
     folder = new_results_folder(config, args.out, "identify")
@@ -362,9 +367,11 @@ def _add_campaign_commands(command) -> None:
 def _add_offline_commands(command) -> None:
     """``identify``: identification from recordings, without a bus (``command`` as in
     :func:`_add_campaign_commands`)."""
-    p = command("identify", cmd_identify, "identify offline from recordings (decoded .npz or raw .log/.asc/.blf)")
-    p.add_argument("config", help="YAML config of the recorded run")
-    p.add_argument("data", nargs="+", help="recording files; the file stem names the trajectory")
+    p = command("identify", cmd_identify, "identify offline from recordings (decoded .npz or raw .log/.asc/.blf), "
+                "or from a results folder's recordings")
+    p.add_argument("config", help="YAML config of the recorded run (its results folder's config.yaml is the run's own)")
+    p.add_argument("data", nargs="+", help="recording files (the file stem names the trajectory), or a results "
+                   "folder: the recordings of its data/ (each trajectory's .npz, else its raw log)")
     p.add_argument("--out", metavar="DIR", help="results folder (default: output.dir/identify-<time>)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.add_argument("--no-report", action="store_true", help="no plots and no report.html (`ident-hw report DIR` "

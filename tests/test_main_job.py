@@ -33,6 +33,7 @@ from ident_hw.experiment.session import HostSettings
 from ident_hw.experiment.folders import new_results_folder
 from ident_hw.model.parameters import FRICTION_NAMES, INERTIAL_NAMES
 from ident_hw.results import save_results
+from cli_runs import ident_hw
 from ident_scenarios import CONFIGS, SWEEP_CAMPAIGN, without_draws
 from ident_hw.config.to_drivers import axis_config
 
@@ -249,6 +250,35 @@ def test_the_main_job_with_one_axis_s_friction_doubled_passes(tmp_path, truth):
     for name, f in quality.axes.items():
         assert abs(f.gain_percent) <= limits.max_axis_gain and f.residual_over_floor <= limits.max_residual_over_floor, \
             (name, f)
+
+
+def test_identify_on_a_finished_run_s_folder_gives_its_parameters(main_job, tmp_path):
+    """``ident-hw identify CONFIG RESULTS_FOLDER``: the recordings of the run's data/ (each
+    trajectory's .npz, its raw log, sidecar and drives.json left), identified as the run did:
+    the same parameters.json, key for key, but where each recording came from (``file``: the
+    run identified them from memory, identify from the folder's files). The same with the
+    folder's own config.yaml, and from the files of data/ by a shell glob (drives.json and the
+    raw logs' sidecars skipped, and said). An identify folder keeps no recordings: refused."""
+    config, folder = main_job
+    run = json.loads((folder / "parameters.json").read_text())
+    for config_path in (CONFIGS / "sim-3prrr.yaml", folder / "config.yaml"):
+        out = tmp_path / f"identify-{config_path.parent.name}"
+        done = ident_hw("identify", config_path, folder, "--out", out, "--no-report", "--quiet")
+        assert done.returncode == 0, done.stderr
+        assert f"the recordings in {folder / 'data'}: excitation.npz, square1.npz" in done.stderr
+        again = json.loads((out / "parameters.json").read_text())
+        files = {name: used.pop("file") for name, used in again["trajectories"].items()}
+        assert files == {name: str(folder / "data" / f"{name}.npz") for name in files}
+        assert all(used.pop("file") is None for used in run["trajectories"].values())
+        assert again == run
+        run = json.loads((folder / "parameters.json").read_text())
+    globbed = ident_hw("identify", CONFIGS / "sim-3prrr.yaml", *sorted((folder / "data").glob("*.npz")),
+                       folder / "data" / "drives.json", folder / "data" / "triangle.log.json",
+                       "--out", tmp_path / "globbed", "--no-report", "--quiet")
+    assert globbed.returncode == 0 and "skipped, not recordings: " in globbed.stderr
+    assert json.loads((tmp_path / "globbed" / "parameters.json").read_text())["quality"] == run["quality"]
+    refused = ident_hw("identify", CONFIGS / "sim-3prrr.yaml", tmp_path / "globbed", "--out", tmp_path / "none")
+    assert refused.returncode == 5 and "no recordings in" in refused.stderr and not (tmp_path / "none").exists()
 
 
 def test_the_report_shows_the_numbers_of_parameters_json(main_job):

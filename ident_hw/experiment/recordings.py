@@ -1,5 +1,6 @@
-"""The recordings given to ``ident-hw identify``: loaded and checked against the config before
-anything is written.
+"""The recordings given to ``ident-hw identify``: found (files, or a results folder's
+``data/``: :func:`recording_paths`), loaded and checked against the config before anything is
+written.
 
 A decoded ``.npz`` keeps the node-IDs, profiles and drive scalings it was converted with
 (``metadata.axes``); a mismatch with the config is an error naming both files, since the SI
@@ -14,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
@@ -83,6 +85,59 @@ def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
         rec.metadata = dataclasses.replace(rec.metadata, file=str(path))
         check_axes(path, rec, config)
     return rec.metadata.trajectory or path.stem, rec
+
+
+#: what a results folder's ``data/`` holds beside the recordings, by name or ending (not recordings)
+NOT_RECORDINGS = ("drives.json", ".log.json", ".asc.json", ".blf.json")
+
+
+def recording_paths(given: Sequence[str | Path]) -> tuple[list[Path], list[str]]:
+    """The recording files ``ident-hw identify`` reads, from what the command line gives: a file
+    as it is; a folder (a results folder, or its ``data/``) as its recordings, one per trajectory:
+    the decoded ``<name>.npz`` the run wrote, else its raw CAN log (``.log``/``.asc``/``.blf``,
+    decoded with the config's values). What a results folder holds beside its recordings
+    (``drives.json``, the raw logs' ``.json`` sidecars) is skipped, also when given by a shell
+    glob, and said. Returns the files and the notes to print.
+
+    Raises:
+        RecordingError: a folder without recordings, or a file that is no recording (by its
+            ending: ``.npz`` or a raw CAN log), naming it and what is accepted.
+    """
+    files: list[Path] = []
+    notes: list[str] = []
+    skipped: list[str] = []
+    for item in map(Path, given):
+        if item.is_dir():
+            folder = item / "data" if (item / "data").is_dir() else item
+            found = _folder_recordings(folder)
+            if not found:
+                raise RecordingError(f"{item}: no recordings in {folder} (decoded .npz or raw CAN logs "
+                                     f"{'/'.join(RAW_LOG_SUFFIXES)}); an 'ident-hw identify' results folder keeps "
+                                     "none: give the folder of the run that recorded them")
+            notes.append(f"{item}: the recordings in {folder}: {', '.join(p.name for p in found)}")
+            files += found
+        elif item.name == "drives.json" or item.name.endswith(NOT_RECORDINGS):
+            skipped.append(str(item))
+        elif item.suffix.lower() not in (".npz", *RAW_LOG_SUFFIXES):
+            raise RecordingError(f"{item}: not a recording (a decoded .npz or a raw CAN log "
+                                 f"{'/'.join(RAW_LOG_SUFFIXES)}); to use a results folder's recordings, give the folder")
+        else:
+            files.append(item)
+    if skipped:
+        notes.append(f"skipped, not recordings: {', '.join(skipped)}")
+    return files, notes
+
+
+def _folder_recordings(folder: Path) -> list[Path]:
+    """One file per trajectory of ``folder``: ``<name>.npz``, else its raw CAN log."""
+    chosen: dict[str, Path] = {}
+    for path in sorted(folder.iterdir()):
+        kind = path.suffix.lower()
+        if not path.is_file() or kind not in (".npz", *RAW_LOG_SUFFIXES):
+            continue
+        if path.stem not in chosen or kind == ".npz":
+            chosen[path.stem] = path
+    return [chosen[name] for name in sorted(chosen)]
 
 
 def check_axes(path: Path, rec: Recording, config: Config) -> None:
