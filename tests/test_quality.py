@@ -173,6 +173,15 @@ def test_the_verdict_is_in_status_parameters_report_and_terminal(sweep, tmp_path
     assert re.search(r"<td>sweep \(identification\)</td>.*<td class='partial'>[0-9.]+ / — \(fail\)</td>", page)
 
 
+def test_each_prediction_is_called_what_it_is(sweep):
+    """The step-by-step prediction is the mass-fit steps' parameters where a step fitted one
+    (the sweep's), the CAD values' where none did (a results table with nothing fitted)."""
+    path, rec = sweep
+    assert identify(load_config(path), {"sweep": rec}).stepwise_label == "step by step"
+    config = load_config(CONFIGS / "sim-3prrr.yaml")
+    assert _results_of(config.robot.actuators, []).stepwise_label == "CAD values"
+
+
 def test_relative_difference_by_hand():
     tau = np.array([[3.0, 4.0], [0.0, 0.0], [1.0, 0.0]])       # norms 5, 0 (left out), 1
     a = np.array([[1.0, 1.0], [9.0, 9.0], [2.0, 0.0]])
