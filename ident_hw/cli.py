@@ -55,7 +55,8 @@ def cmd_check(args) -> int:
 
 
 def cmd_identify(args) -> int:
-    """Identify offline from recordings (decoded .npz or raw CAN logs) into a results folder.
+    """Identify offline from recordings (decoded .npz or raw CAN logs, or a results folder's) into
+    a results folder.
 
     Every recording is read and checked against the config before the folder is made; the
     folder's STATUS ends ``complete``, ``degraded: <reasons>`` or ``failed: <why>``."""
@@ -68,7 +69,9 @@ def cmd_identify(args) -> int:
     if config.identification is None:
         raise ConfigError("identification: missing section (the steps to run on the recordings)",
                           file=config.source)
-    recordings, imported = gather_recordings(config, args.data)
+    recordings, imported, notes = gather_recordings(config, args.data)
+    for note in notes:
+        print(note, file=sys.stderr)
     require_trajectories(config, recordings)
     folder = new_results_folder(config, args.out, "identify")
     results = identify_recordings(config, recordings, folder, log=_logger(args), report=not args.no_report,
@@ -357,11 +360,12 @@ def _add_campaign_commands(command) -> None:
 def _add_offline_commands(command) -> None:
     """``identify``: identification from recordings, without a bus (``command`` as in
     :func:`_add_campaign_commands`)."""
-    p = command("identify", cmd_identify, "identify offline from recordings (decoded .npz or raw .log/.asc/.blf)")
-    p.add_argument("config", help="YAML config of the recorded run")
-    p.add_argument("data", nargs="*", help="recording files (the file stem names the trajectory), or NAME=PATH: "
-                   "PATH in the place of trajectory NAME; the config's recorded trajectories not given are read "
-                   "from their own files")
+    p = command("identify", cmd_identify, "identify offline from recordings (decoded .npz or raw .log/.asc/.blf), "
+                "a results folder's recordings, or recordings made elsewhere (CSV)")
+    p.add_argument("config", help="YAML config of the recorded run (its results folder's config.yaml is the run's own)")
+    p.add_argument("data", nargs="*", help="recording files (the file stem names the trajectory), a results folder "
+                   "(the recordings of its data/), or NAME=PATH: PATH in the place of trajectory NAME; the config's "
+                   "recorded trajectories not given are read from their own files")
     p.add_argument("--out", metavar="DIR", help="results folder (default: output.dir/identify-<time>)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.add_argument("--no-report", action="store_true", help="no plots and no report.html (`ident-hw report DIR` "

@@ -118,6 +118,27 @@ class ImportSummary:
 
 
 @dataclass(frozen=True)
+class AxisShortfall:
+    """What one axis lacks in a recording (:class:`RecordingCoverage`): ``missing`` cycles without
+    its position or current (a TPDO lost, late or not placeable), ``saturated`` rows whose current
+    is at its drive's limit (clipped, not a measurement: :data:`ident_hw.segments.SATURATION`),
+    the largest current recorded ``peak_A`` and the drive's limit ``limit_A`` (A)."""
+
+    missing: int = 0
+    saturated: int = 0
+    peak_A: float | None = None
+    limit_A: float | None = None
+
+    def to_json(self) -> dict:
+        return {"missing": self.missing, "saturated": self.saturated, "peak_A": self.peak_A, "limit_A": self.limit_A}
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> AxisShortfall:
+        return cls(missing=doc.get("missing") or 0, saturated=doc.get("saturated") or 0, peak_A=doc.get("peak_A"),
+                   limit_A=doc.get("limit_A"))
+
+
+@dataclass(frozen=True)
 class RecordingCoverage:
     """What the recording of one trajectory holds, and how much of it the fit used.
 
@@ -136,7 +157,9 @@ class RecordingCoverage:
     whole encoder counts (:func:`ident_hw.experiment.encoder.uncounted_axes`: no encoder draws
     were taken, for any step), JSON ``positions_not_in_counts`` when there are any;
     ``imported``: how a recording made elsewhere was read (:class:`ImportSummary`), JSON
-    ``imported`` (absent for the tool's own recordings).
+    ``imported`` (absent for the tool's own recordings);
+    ``shortfalls``: per axis that misses cycles or saturates, its :class:`AxisShortfall` (JSON
+    ``shortfalls``, only when there is one): the first cause the verdict names.
     """
 
     file: str | None
@@ -154,6 +177,7 @@ class RecordingCoverage:
     stretches: int | None = None
     uncounted_axes: tuple[str, ...] = ()
     imported: ImportSummary | None = None
+    shortfalls: Mapping[str, AxisShortfall] = field(default_factory=dict)
 
     @property
     def prepared(self) -> bool:
@@ -175,6 +199,8 @@ class RecordingCoverage:
             doc["positions_not_in_counts"] = list(self.uncounted_axes)
         if self.imported is not None:
             doc["imported"] = self.imported.to_json()
+        if self.shortfalls:
+            doc["shortfalls"] = {name: axis.to_json() for name, axis in self.shortfalls.items()}
         return doc
 
     @classmethod
@@ -186,7 +212,8 @@ class RecordingCoverage:
         return cls(**books, samples_used=doc.get("samples_used"), rows_left_out=doc.get("rows_left_out"),
                    gaps=doc.get("gaps"), stretches=doc.get("stretches"),
                    uncounted_axes=tuple(doc.get("positions_not_in_counts") or ()),
-                   imported=ImportSummary.from_json(doc["imported"]) if doc.get("imported") else None)
+                   imported=ImportSummary.from_json(doc["imported"]) if doc.get("imported") else None,
+                   shortfalls={name: AxisShortfall.from_json(a) for name, a in (doc.get("shortfalls") or {}).items()})
 
 
 @dataclass(frozen=True)
@@ -504,20 +531,61 @@ def _thresholds_from_json(doc: Mapping[str, Any] | None) -> QualityConfig | None
     return QualityConfig(**{f.name: doc[f.name] for f in fields(QualityConfig) if f.name in doc})
 
 
+#: the per-axis checks of the quality verdict, by the name the verdict and the report give them
+AXIS_CHECKS = ("gain", "noise floor", "force lag")
+
+
+@dataclass(frozen=True)
+class AxisFigures:
+    """The figures the quality verdict judged on one axis (:mod:`ident_hw.experiment.quality`);
+    None: not judged (the verdict's ``not_judged`` says why, when it is not the axis's alone).
+
+    ``gain_percent``: how far its forces are from its own model, every fitted parameter
+    refitted with its gain free (:func:`ident_hw.identification.axis_gain.axis_gains`), with
+    its standard error ``gain_sigma_percent`` (inf: not determined, its own parameters absorb
+    any gain of it). ``residual_over_floor``: its worst residual over what noise alone leaves
+    it, on the rows the fits used, on trajectory ``floor_trajectory``: the residual's RMS
+    ``residual_A`` and the floor ``floor_A`` (its drive's current, A). ``force_lag_s``: the delay
+    of its measured forces behind the model's, and its standard error ``force_lag_sigma_s`` (s).
+    ``failed``: the checks (of :data:`AXIS_CHECKS`) that name it in a reason.
+    """
+
+    gain_percent: float | None = None
+    gain_sigma_percent: float | None = None
+    residual_over_floor: float | None = None
+    floor_trajectory: str | None = None
+    residual_A: float | None = None
+    floor_A: float | None = None
+    force_lag_s: float | None = None
+    force_lag_sigma_s: float | None = None
+    failed: tuple[str, ...] = ()
+
+    def to_json(self) -> dict:
+        doc: dict[str, Any] = {f.name: getattr(self, f.name) for f in fields(self)
+                               if f.name != "failed" and getattr(self, f.name) is not None}
+        doc["failed"] = list(self.failed)
+        return doc
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> AxisFigures:
+        return cls(**{f.name: doc.get(f.name) for f in fields(cls) if f.name != "failed"},
+                   failed=tuple(doc.get("failed") or ()))
+
+
 @dataclass(frozen=True)
 class Verdict:
     """The quality verdict of a result (:func:`ident_hw.experiment.quality.verdict`).
 
-    ``passed``: no threshold missed; ``reasons``: one per missed threshold; ``thresholds``: the
+    ``passed``: no threshold missed; ``reasons``: one per missed threshold, first causes
+    (what the recordings lack) before their consequences; ``thresholds``: the
     ``identification.quality`` limits judged against (JSON: one key per field of
     :class:`ident_hw.config.QualityConfig`; None when the folder holds none, a limit it lacks
     reads as its default). Per trajectory its
     :class:`TrajectoryVerdict`; per step its scaled condition number ``cond_scaled`` (JSON
     ``steps``); ``well_identified``: the fitted parameters (physical, then base) with %σ at most
-    the campaign's threshold. Per judged axis (``axes_judged``): its gain spread (%) and worst
-    residual ratio against the axes of the same drive, its worst residual over its current noise at
-    standstill (``axis_residual_over_floor``, JSON only when a standstill was recorded), and the lag of its measured forces
-    behind the model's with its standard error (s).
+    the campaign's threshold. Per judged axis (``axes_judged``) its :class:`AxisFigures` (JSON
+    ``axes``). ``not_judged``: the checks that could not be made, and why (JSON only when there
+    are some: ``{"noise floor": "no standstill"}``).
     """
 
     passed: bool
@@ -526,37 +594,37 @@ class Verdict:
     trajectories: Mapping[str, TrajectoryVerdict] = field(default_factory=dict)
     cond_scaled: Mapping[str, float | None] = field(default_factory=dict)
     well_identified: tuple[str, ...] = ()
-    axis_gain_spread_percent: Mapping[str, float] = field(default_factory=dict)
-    axis_residual_ratio: Mapping[str, float] = field(default_factory=dict)
-    axis_residual_over_floor: Mapping[str, float] = field(default_factory=dict)
-    force_lag_s: Mapping[str, float] = field(default_factory=dict)
-    force_lag_sigma_s: Mapping[str, float] = field(default_factory=dict)
+    axes: Mapping[str, AxisFigures] = field(default_factory=dict)
+    not_judged: Mapping[str, str] = field(default_factory=dict)
     axes_judged: tuple[str, ...] = ()
 
     def to_json(self) -> dict:
-        return {"passed": self.passed, "reasons": list(self.reasons), "thresholds": _thresholds_to_json(self.thresholds),
-                "trajectories": {name: t.to_json() for name, t in self.trajectories.items()},
-                "steps": {name: {"cond_scaled": cond} for name, cond in self.cond_scaled.items()},
-                "well_identified": list(self.well_identified),
-                "axis_gain_spread_percent": dict(self.axis_gain_spread_percent),
-                "axis_residual_ratio": dict(self.axis_residual_ratio), "force_lag_s": dict(self.force_lag_s),
-                **({"axis_residual_over_floor": dict(self.axis_residual_over_floor)}
-                   if self.axis_residual_over_floor else {}),
-                "force_lag_sigma_s": dict(self.force_lag_sigma_s), "axes_judged": list(self.axes_judged)}
+        doc = {"passed": self.passed, "reasons": list(self.reasons), "thresholds": _thresholds_to_json(self.thresholds),
+               "trajectories": {name: t.to_json() for name, t in self.trajectories.items()},
+               "steps": {name: {"cond_scaled": cond} for name, cond in self.cond_scaled.items()},
+               "well_identified": list(self.well_identified),
+               "axes": {name: figures.to_json() for name, figures in self.axes.items()},
+               "axes_judged": list(self.axes_judged)}
+        if self.not_judged:
+            doc["not_judged"] = dict(self.not_judged)
+        return doc
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> Verdict:
+        axes = {name: AxisFigures.from_json(figures) for name, figures in (doc.get("axes") or {}).items()}
+        if not axes:            # a folder written before the per-axis records: its lags and floor ratios
+            lags, sigmas = doc.get("force_lag_s") or {}, doc.get("force_lag_sigma_s") or {}
+            over = doc.get("axis_residual_over_floor") or {}
+            axes = {name: AxisFigures(residual_over_floor=over.get(name), force_lag_s=lags.get(name),
+                                      force_lag_sigma_s=sigmas.get(name))
+                    for name in dict.fromkeys([*lags, *over])}
         return cls(passed=bool(doc["passed"]), reasons=tuple(doc.get("reasons") or ()),
                    thresholds=_thresholds_from_json(doc.get("thresholds")),
                    trajectories={name: TrajectoryVerdict.from_json(t)
                                  for name, t in (doc.get("trajectories") or {}).items()},
                    cond_scaled={name: s.get("cond_scaled") for name, s in (doc.get("steps") or {}).items()},
-                   well_identified=tuple(doc.get("well_identified") or ()),
-                   axis_gain_spread_percent=doc.get("axis_gain_spread_percent") or {},
-                   axis_residual_ratio=doc.get("axis_residual_ratio") or {},
-                   axis_residual_over_floor=doc.get("axis_residual_over_floor") or {},
-                   force_lag_s=doc.get("force_lag_s") or {}, force_lag_sigma_s=doc.get("force_lag_sigma_s") or {},
-                   axes_judged=tuple(doc.get("axes_judged") or ()))
+                   well_identified=tuple(doc.get("well_identified") or ()), axes=axes,
+                   not_judged=doc.get("not_judged") or {}, axes_judged=tuple(doc.get("axes_judged") or ()))
 
 
 @dataclass(frozen=True)

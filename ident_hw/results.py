@@ -299,6 +299,8 @@ class TrajectoryFit:
         t: (N,) s; tau, tau_model: (N, a) N·m / N; Theta: (N, a) rad / m;
         X: (N, pose size) the poses, or None.
         tau_base: (N, a) the forces the base-parameter fit (:class:`BaseFit`) predicts, or None.
+        moving: (N, a) bool, the rows of each axis the fits use (an axis near rest gives none,
+            ``identification.min_speed``), or None (every row).
         tau_compared: (N, a) the forces a parameter set from elsewhere predicts
             (``identification.compare_with``), in the same measure, or None.
         at_rest: (N, a) bool, the rows where the actuator is at rest (slower than its friction
@@ -313,16 +315,21 @@ class TrajectoryFit:
     Theta: np.ndarray
     X: np.ndarray | None = None
     tau_base: np.ndarray | None = None
+    moving: np.ndarray | None = None
     tau_compared: np.ndarray | None = None
     at_rest: np.ndarray | None = None
 
     #: the arrays a fit's file holds (those that are not None)
-    ARRAYS = ("t", "tau", "tau_model", "Theta", "X", "tau_base", "tau_compared", "at_rest")
+    ARRAYS = ("t", "tau", "tau_model", "Theta", "X", "tau_base", "moving", "tau_compared", "at_rest")
 
     @property
     def tau_fit(self) -> np.ndarray:
         """(N, a) the identified prediction: the base-parameter fit's, else the step-by-step values'."""
         return self.tau_base if self.tau_base is not None else self.tau_model
+
+    def used(self) -> np.ndarray:
+        """(N, a) bool: :attr:`moving`, every row where it is None."""
+        return np.ones(self.tau.shape, bool) if self.moving is None else self.moving
 
     def save(self, path: Path) -> None:
         arrays = {k: getattr(self, k) for k in self.ARRAYS if getattr(self, k) is not None}
@@ -473,6 +480,14 @@ class Results:
     def passed(self) -> bool:
         """The quality verdict passed, or there is none."""
         return self.quality is None or self.quality.passed
+
+    @property
+    def stepwise_label(self) -> str:
+        """What the step-by-step prediction (:attr:`TrajectoryFit.tau_model`) is made of, as the
+        terminal, the report and the plots name it: ``step by step`` (the parameters the mass-fit
+        steps fitted, the others held), or ``CAD values`` when no step fitted a physical parameter
+        (only base parameters were fitted: the prediction is the CAD model's, not a result)."""
+        return "step by step" if any(r.fitted for r in self.parameter_rows()) else "CAD values"
 
     def parameter_rows(self) -> list[ParameterRow]:
         """The physical parameters, judged by this campaign's %σ threshold, each σ with its

@@ -49,6 +49,43 @@ def test_check_accepts_the_sim_campaign():
     assert "triangle: ok" in out.stdout and "everything would run" in out.stdout
 
 
+def test_check_says_nothing_on_the_shipped_configs():
+    """No note on a shipped config: the encoders' count per SYNC period, which the identification
+    accounts for (its encoder draws), is said only where it does not (encoder_draws 0)."""
+    for name in ("sim-3prrr.yaml", "sim-2r.yaml", "hil-3prrr-epos4.yaml"):
+        out = ident_hw("check", CONFIGS / name)
+        assert out.returncode == 0 and "note:" not in out.stdout, out.stdout
+
+
+def test_check_says_the_encoder_note_where_the_draws_are_off(tmp_path):
+    (tmp_path / "no-draws.yaml").write_text(f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n"
+                                           "identification: {encoder_draws: 0}\n")
+    out = ident_hw("check", tmp_path / "no-draws.yaml")
+    assert out.returncode == 0 and "note: one encoder count per SYNC period" in out.stdout
+    assert "with identification.encoder_draws 0 the sigma leave the encoders' resolution out" in out.stdout
+
+
+@pytest.mark.parametrize("offset, expected", [
+    (7.0, "robot.actuators[0] (theta1) homing.offset 7 rad is outside its position limits [-6.3, 6.3] rad: the drive "
+          "would stop on its software position limit as soon as it is homed"),
+    (-0.40, "robot.actuators[0] (theta1) homing.offset -0.4 rad: homing method 37 takes the current position as "
+            "home, where the model puts theta1 at -0.485518 rad (+0.08552 rad apart, more than 10 encoder counts): "
+            "set the offset to -0.485518")])
+def test_check_refuses_a_homing_offset_off_the_limits_or_the_home(tmp_path, offset, expected):
+    """A homing offset outside the axis's limits (the run would stop on an EMCY software position
+    limit once homed), or, homing on the current position, away from the model's home: check
+    and run refuse it, naming the file, the actuator and what to set, before anything moves."""
+    config = tmp_path / "homing.yaml"
+    base = yaml.safe_load((CONFIGS / "robot-3prrr.yaml").read_text())["robot"]["actuators"]
+    actuators = [dict(a, homing=dict(a["homing"], offset=offset)) if a["name"] == "theta1" else a for a in base]
+    config.write_text(f"extends: {CONFIGS / 'sim-3prrr.yaml'}\nrobot:\n  actuators: {json.dumps(actuators)}\n")
+    out = ident_hw("check", config)
+    assert out.returncode == 2 and f"{config}: {expected}" in out.stdout, out.stdout
+    assert "NOT runnable" in out.stdout
+    run = ident_hw("run", config, "--out", tmp_path / "res")
+    assert run.returncode == 2 and expected in run.stderr and not (tmp_path / "res").exists()
+
+
 def test_check_rejects_an_infeasible_trajectory(tmp_path):
     (tmp_path / "bad.yaml").write_text(
         f"extends: {CONFIGS / 'sim-3prrr.yaml'}\n"

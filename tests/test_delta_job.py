@@ -8,6 +8,7 @@ truth column the run writes."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import subprocess
 from pathlib import Path
@@ -17,7 +18,9 @@ import pytest
 import yaml
 
 from delta_scenarios import smallest_pseudo_inertia_eigenvalue
+from drivers.recording import Recording
 from ident_hw.config import load_config, to_model
+from ident_hw.experiment.offline import identify
 from ident_hw.model.delta import PARAM_NAMES, closed_form_base
 from ident_hw.config.robots import true_parameters
 
@@ -77,9 +80,23 @@ def test_the_delta_job_identifies_the_specs_base_parameters(tmp_path):
     for row, implied in zip(rows, spec.H @ values):
         assert abs(implied - row["identified"]) <= 0.1 * row["sigma"], row["base_parameter"]
     assert consistent["reproduces_base"] and consistent["chi2"] <= consistent["chi2_limit_95"]
-    # each arm's residual within the verdict's limit of its noise floor (the standstill's)
-    over = doc["quality"]["axis_residual_over_floor"]
-    assert set(over) == {"q1", "q2", "q3"} and max(over.values()) <= doc["quality"]["thresholds"]["max_residual_over_floor"]
+    # each arm judged on its own: its gain against its own model refitted, its residual against its
+    # noise floor (the standstill's), both within the verdict's limits
+    axes, limits = doc["quality"]["axes"], doc["quality"]["thresholds"]
+    assert set(axes) == {"q1", "q2", "q3"} and "not_judged" not in doc["quality"]
+    for name, arm in axes.items():
+        assert arm["residual_over_floor"] <= limits["max_residual_over_floor"], (name, arm)
+        assert abs(arm["gain_percent"]) <= limits["max_axis_gain"], (name, arm)
+    # the same recordings with the second arm's torque constant 3 % low in the config: named alone,
+    # its gain the 3 % (the arms share the platform, which the gain cannot bend)
+    cfg = load_config(out / "config.yaml")
+    actuators = tuple(dataclasses.replace(a, torque_constant=0.97 * a.torque_constant) if a.name == "q2" else a
+                      for a in cfg.robot.actuators)
+    wrong = dataclasses.replace(cfg, robot=dataclasses.replace(cfg.robot, actuators=actuators))
+    recordings = {path.stem: Recording.load(path) for path in sorted((out / "data").glob("*.npz"))}
+    quality = identify(wrong, recordings).quality
+    (reason,) = quality.reasons
+    assert reason.startswith("q2: forces -3.0") and quality.axes["q2"].gain_percent == pytest.approx(-3.0, rel=0.03)
 
 
 @pytest.mark.slow

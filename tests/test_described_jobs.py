@@ -60,6 +60,8 @@ def test_the_2r_job_identifies_the_textbook_base_parameters_by_three_models(tmp_
     done = run(config, out)
     assert done.returncode == 0, done.stderr + done.stdout[-2000:]
     assert (out / "STATUS").read_text().strip() == "complete"
+    # no physical parameter fitted step by step: the other prediction is the CAD values', and says so
+    assert "identification excitation: CAD values d_tau = " in done.stdout and "step by step" not in done.stdout
     doc = json.loads((out / "parameters.json").read_text())
     assert [a["name"] for a in doc["actuators"]] == ["shoulder", "elbow"]
     cfg = load_config(config)
@@ -90,25 +92,34 @@ def test_the_2r_job_identifies_the_textbook_base_parameters_by_three_models(tmp_
         assert abs(implied - rows[name]["identified"]) <= 0.1 * rows[name]["sigma"], name
     assert consistent["physical"] and all(b["margin"] >= 0 for b in consistent["bodies"])
     exported_forces_match_the_base_fit(out, tmp_path / "2r-identified.urdf")
-    torque_constant_5_percent_off_shows_above_the_noise_floor(out, doc)
+    torque_constant_5_percent_off_is_named(out, doc)
 
 
-def torque_constant_5_percent_off_shows_above_the_noise_floor(results: Path, doc: dict) -> None:
+def torque_constant_5_percent_off_is_named(results: Path, doc: dict) -> None:
     """The run's standstill gives each joint a noise floor (its current at rest, its encoders'
-    part from the draws): the shipped run keeps both within the verdict's limit; the same
-    recordings identified with the elbow's torque constant 5 % off leave it far above (a serial
-    arm has no twin axis whose gain could give it away on its own)."""
-    limit = doc["quality"]["thresholds"]["max_residual_over_floor"]
-    over = doc["quality"]["axis_residual_over_floor"]
-    assert set(over) == {"shoulder", "elbow"} and max(over.values()) <= limit, over
+    part from the draws): the shipped run keeps each joint's gain and residual within the
+    verdict's limits. The same recordings identified with the elbow's torque constant 5 % off:
+    the elbow's gain against its own model refitted comes out at 5 %, and since the shoulder
+    carries every parameter (scaling them all and the shoulder's gain by 1/1.05 fits as well),
+    the reason names both, one as the other's alternative; the elbow's residual is far above its
+    floor, in the same reason."""
+    limits = doc["quality"]["thresholds"]
+    axes = doc["quality"]["axes"]
+    assert set(axes) == {"shoulder", "elbow"}, axes
+    for joint in axes.values():
+        assert joint["residual_over_floor"] <= limits["max_residual_over_floor"], axes
+        assert abs(joint["gain_percent"]) <= limits["max_axis_gain"], axes
     config = load_config(results / "config.yaml")
     actuators = tuple(dataclasses.replace(a, torque_constant=1.05 * a.torque_constant) if a.name == "elbow" else a
                       for a in config.robot.actuators)
     wrong = dataclasses.replace(config, robot=dataclasses.replace(config.robot, actuators=actuators))
     recordings = {path.stem: Recording.load(path) for path in sorted((results / "data").glob("*.npz"))}
     quality = identify(wrong, recordings).quality
-    assert not quality.passed and quality.axis_residual_over_floor["elbow"] > 10 * limit, quality.axis_residual_over_floor
-    assert any(r.startswith("elbow: residual") and "noise at standstill" in r for r in quality.reasons), quality.reasons
+    assert not quality.passed
+    (reason,) = quality.reasons
+    assert reason.startswith(("elbow: forces +5.0", "shoulder: forces -4.")), reason
+    assert ("or shoulder's (off by about -" in reason) or ("or elbow's (off by about +5" in reason), reason
+    assert quality.axes["elbow"].residual_over_floor > 10 * limits["max_residual_over_floor"], quality.axes
 
 
 def exported_forces_match_the_base_fit(results: Path, exported: Path, mujoco_loads: bool = True) -> None:
@@ -159,9 +170,9 @@ def exported_forces_match_the_base_fit(results: Path, exported: Path, mujoco_loa
 
 @pytest.mark.slow
 def test_a_short_stewart_campaign_identifies_the_legs_friction(tmp_path):
-    """The shipped Stewart config with 30 s of excitation: every cycle recorded, each leg's
-    viscous and Coulomb friction within 2 % or 3σ of the truth, the base parameters' prediction
-    of the validation forces within 2 %. Without the encoder draws: they widen σ by the legs'
+    """The shipped Stewart config with 30 s of excitation: every cycle recorded, the verdict passed
+    (the noise floor not judged: no standstill), each leg's viscous and Coulomb friction within
+    2 % or 3σ of the truth, the base parameters' prediction of the validation forces within 2 %. Without the encoder draws: they widen σ by the legs'
     encoders (a third of a micrometre per count), their path through a described robot is the 2R job's, and on the
     Stewart they are the most of this test's time."""
     config = tmp_path / "short.yaml"
@@ -173,8 +184,14 @@ identification: {encoder_draws: 0}
 """)
     out = tmp_path / "stewart"
     done = run(config, out, "--no-report")
-    assert done.returncode in (0, 6), done.stderr + done.stdout[-2000:]      # complete or degraded
+    assert done.returncode == 0, done.stderr + done.stdout[-2000:]
     doc = json.loads((out / "parameters.json").read_text())
+    # six legs alike in drive, each with friction and rotor inertia of its own: each judged on its own
+    # model, the verdict passes; no standstill in this campaign: the noise floor is not judged, and said
+    assert doc["quality"]["passed"] and doc["quality"]["not_judged"] == {"noise floor": "no standstill"}
+    assert "quality verdict: passed (identification.quality thresholds; noise floor: not judged (no standstill))" \
+        in done.stdout
+    assert all(abs(leg["gain_percent"]) <= 2.0 for leg in doc["quality"]["axes"].values())
     excitation = doc["trajectories"]["excitation"]
     assert excitation["cycles"] == excitation["cycles_planned"] == 7501 and excitation["valid_fraction"] == 1.0
     cfg = load_config(config)

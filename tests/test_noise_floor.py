@@ -64,6 +64,15 @@ def test_the_floor_is_the_filtered_noise_at_rest_and_the_draws_spread_in_squares
     (floor,) = noise_floors(config, {"still": rec}, ["excitation"], draws, coef).values()
     expected = np.sqrt(sigma ** 2 * share + 2 * e ** 2 / per_amp ** 2)
     np.testing.assert_allclose(floor, expected, rtol=0.05)
+    # on the rows the fits use only: draws that differ by 20 e on the rows at rest (the first half
+    # of each axis's, where a Coulomb term flips with a count) and by 2 e elsewhere give the same floor
+    half = np.arange(50)[:, None] < 25
+    scale = np.where(half, 10.0, 1.0)[:, :, None]
+    draws = [{"excitation": SimpleNamespace(Y=s / 2.0 * scale * e[None, :, None] * np.ones((50, axes, 2)))}
+             for s in (1, -1)]
+    moving = {"excitation": np.broadcast_to(~half, (50, axes))}
+    (floor,) = noise_floors(config, {"still": rec}, ["excitation"], draws, coef, moving).values()
+    np.testing.assert_allclose(floor, expected, rtol=0.05)
     # nothing to hold the residuals against without a standstill, or without draws
     assert noise_floors(config, {}, ["excitation"], draws, coef) == {}
     assert noise_floors(config, {"still": rec}, ["excitation"], [], coef) == {}

@@ -12,7 +12,7 @@ import yaml
 
 from ident_hw.config import QualityConfig
 from ident_hw.model import InertialParams, ThreePRRR
-from ident_hw.records import (BaseAnalysis, RecordingCoverage, StepRecord, TrajectoryVerdict, Verdict)
+from ident_hw.records import (AxisFigures, BaseAnalysis, RecordingCoverage, StepRecord, TrajectoryVerdict, Verdict)
 from ident_hw.report import build_report, summary_lines
 from ident_hw.results import (BaseFit, OnlineTrace, ParameterTable, Results, TrajectoryFit, load_results, mark_status,
                               read_status, save_results)
@@ -132,7 +132,7 @@ def test_base_fit_round_trip_table_and_metrics(tmp_path):
     m = yaml.safe_load((tmp_path / "metrics.yaml").read_text())["triangle"]["base_fit"]
     assert m["rms"]["theta1"] == pytest.approx(np.sqrt(np.mean((fit.tau_base[:, 0] - fit.tau[:, 0]) ** 2)))
     triangle = next(line for line in lines if "triangle" in line)
-    assert f"base fit: d_tau = {m['d_tau_percent']:.2f} %" in triangle
+    assert f"base fit d_tau = {m['d_tau_percent']:.2f} %" in triangle
     text = (tmp_path / "report.html").read_text()
     assert "Base parameters: WLS on fourier" in text and "poorly identified (%σ &gt; 10)" in text
     mat = scipy.io.loadmat(tmp_path / "results.mat", simplify_cells=True)
@@ -201,6 +201,11 @@ RECORDS = [
                          "coverage": 10 / 12, "valid_fraction": 0.9, "longest_gap_s": 0.004, "skipped_slots": 1,
                          "unplaced_frames": 0, "samples_used": 5, "rows_left_out": {"edges": 2}, "gaps": 1,
                          "stretches": 2}),
+    (RecordingCoverage, {"file": None, "recording_status": "complete", "cycles": 10, "cycles_planned": 10,
+                         "coverage": 1.0, "valid_fraction": 0.8, "longest_gap_s": 0.0, "skipped_slots": 0,
+                         "unplaced_frames": 0, "samples_used": 0, "rows_left_out": {"saturated": 8}, "gaps": 0,
+                         "stretches": 0, "shortfalls": {"zeta2": {"missing": 2, "saturated": 8, "peak_A": 71.0,
+                                                                   "limit_A": 8.0}}}),
     (Verdict, {"passed": False, "reasons": ["why"], "thresholds": dataclasses.asdict(QualityConfig(max_d_tau=5.0)),
                "trajectories": {"sweep": {"recording_status": "complete", "coverage": 1.0, "valid_fraction": 1.0,
                                           "longest_gap_s": 0.0, "unplaced_frames": 0, "role": "identification",
@@ -208,8 +213,11 @@ RECORDS = [
                                 "triangle": {"role": "validation", "d_tau_percent": 1.0,
                                              "base_fit_d_tau_percent": 1.1, "disagreement_percent": 0.1}},
                "steps": {"carriages": {"cond_scaled": 12.0}}, "well_identified": ["m_c"],
-               "axis_gain_spread_percent": {"zeta1": 0.1}, "axis_residual_ratio": {"zeta1": 1.2},
-               "force_lag_s": {"zeta1": 1e-4}, "force_lag_sigma_s": {"zeta1": 1e-5}, "axes_judged": ["zeta1"]}),
+               "axes": {"zeta1": {"gain_percent": 0.1, "gain_sigma_percent": 0.01, "residual_over_floor": 1.2,
+                                  "floor_trajectory": "sweep", "residual_A": 0.0012, "floor_A": 0.001,
+                                  "force_lag_s": 1e-4, "force_lag_sigma_s": 1e-5, "failed": ["noise floor"]},
+                        "zeta2": {"force_lag_s": 2e-4, "force_lag_sigma_s": 1e-5, "failed": []}},
+               "axes_judged": ["zeta1", "zeta2"], "not_judged": {"noise floor": "no standstill"}}),
 ]
 
 
@@ -225,9 +233,18 @@ def test_records_read_folders_written_before_a_key_existed():
     verdict = Verdict.from_json({"passed": True, "reasons": [], "thresholds": {}, "trajectories": {
         "sweep": {"recording_status": "complete", "coverage": None, "valid_fraction": 1.0, "longest_gap_s": 0.0}},
         "steps": {}, "well_identified": []})
-    assert verdict.passed and verdict.force_lag_s == {} and verdict.trajectories["sweep"] == TrajectoryVerdict(
-        recorded=True, recording_status="complete", valid_fraction=1.0, longest_gap_s=0.0)
+    assert verdict.passed and verdict.axes == {} and verdict.not_judged == {}
+    assert verdict.trajectories["sweep"] == TrajectoryVerdict(recorded=True, recording_status="complete",
+                                                               valid_fraction=1.0, longest_gap_s=0.0)
     assert verdict.thresholds is None
+    # a folder of before the per-axis records: its lags and floor ratios read into them; the keys
+    # of retired checks (gain spread, residual ratio against the same drives) are dropped
+    flat = Verdict.from_json({"passed": True, "axis_gain_spread_percent": {"zeta1": 0.1},
+                              "axis_residual_ratio": {"zeta1": 1.2}, "axis_residual_over_floor": {"zeta1": 2.0},
+                              "force_lag_s": {"zeta1": 1e-4}, "force_lag_sigma_s": {"zeta1": 1e-5},
+                              "thresholds": {"max_axis_gain_spread": 2.0, "max_d_tau": 5.0}})
+    assert flat.axes == {"zeta1": AxisFigures(residual_over_floor=2.0, force_lag_s=1e-4, force_lag_sigma_s=1e-5)}
+    assert flat.thresholds == QualityConfig(max_d_tau=5.0)
     older = Verdict.from_json({"passed": True, "thresholds": {"max_d_tau": 5.0, "min_coverage": 1.0}})
     assert older.thresholds == QualityConfig(max_d_tau=5.0)
     used = RecordingCoverage.from_json({"file": None, "recording_status": "complete", "cycles": 5,

@@ -36,7 +36,7 @@ def ur10e():
 
 
 def rre(config, given=()):
-    recordings, imported = gather_recordings(config, list(given))
+    recordings, imported, _ = gather_recordings(config, list(given))
     results = identify(config, recordings, imported=imported)
     figures = validation_figures(results)["validation"]
     return np.array(figures.rre_fit), np.array(figures.rre_compared), imported, results
@@ -66,7 +66,7 @@ def test_the_datasets_corrupted_file_has_each_bad_row_cut_with_its_reason(ur10e)
     """The second loaded run of the dataset starts with rows of garbage and ends mid-row."""
     run = ur10e / "identification" / "ur-20_02_19_15harm50secLoad.csv"
     config = load_config(CONFIGS / "ur10e.yaml")
-    _, imported = gather_recordings(config, [f"excitation={run}"])
+    _, imported, _ = gather_recordings(config, [f"excitation={run}"])
     cut = {c.reason: c for c in imported["excitation"].cut}
     assert cut["fields"].lines == (6107,)                 # the last line, cut short
     assert cut["absurd"].count == 8 and cut["absurd"].lines[:3] == (2, 3, 4)
@@ -103,7 +103,7 @@ def test_the_published_parameters_are_read_into_the_models_order(ur10e):
 def test_the_consistent_set_is_exported_as_a_urdf_that_pinocchio_and_mujoco_load(ur10e, tmp_path):
     mujoco = pytest.importorskip("mujoco")
     config = load_config(CONFIGS / "ur10e.yaml")
-    recordings, imported = gather_recordings(config, [])
+    recordings, imported, _ = gather_recordings(config, [])
     folder = new_results_folder(config, tmp_path / "results", "identify")
     results = identify_recordings(config, recordings, folder, report=False, imported=imported)
     assert results.consistent is not None
@@ -120,7 +120,7 @@ def test_the_consistent_set_is_exported_as_a_urdf_that_pinocchio_and_mujoco_load
 @pytest.mark.slow
 def test_the_drive_gains_from_the_payload_pair_beside_the_published_ones(ur10e):
     config = load_config(CONFIGS / "ur10e-gains.yaml")
-    recordings, imported = gather_recordings(config, [])
+    recordings, imported, _ = gather_recordings(config, [])
     results = identify(config, recordings, imported=imported)
     gains = next(s for s in results.steps if s.name == "gains").drive_gains
     found, sigma, published = (np.array(x) for x in (gains.gains, gains.sigma, gains.configured))

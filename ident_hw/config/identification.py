@@ -4,7 +4,7 @@ physically consistent step and the thresholds of the quality verdict."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import ClassVar, Literal
 
 from ident_hw.identification.least_squares import POORLY_IDENTIFIED_PERCENT
 
@@ -121,18 +121,24 @@ class QualityConfig:
         positive, unit="s", doc="delay of an axis's measured forces behind the model's (least squares over all "
                                 "fitted trajectories): beyond it the data and the model disagree in time (a current "
                                 "averaged by the drive identified as instantaneous: bus.current)"))
-    max_axis_gain_spread: float = field(default=2.0, metadata=spec(
-        positive, unit="%", doc="an axis's forces against the model's prediction (least-squares gain over all "
-                                "fitted trajectories), minus the median of the other axes with the same drive: "
-                                "beyond it, that axis's torque constant, gear or lead is likely off"))
-    max_axis_residual_ratio: float = field(default=3.0, metadata=spec(
-        positive, doc="an axis's force residual (RMS, on any fitted trajectory) over the median of those of "
-                      "the other axes with the same drive: above it the data contradict the model on that "
-                      "axis (its torque constant, gear, lead or friction model)"))
+    max_axis_gain: float = field(default=2.0, metadata=spec(
+        positive, unit="%", doc="how far an axis's forces stand from its own model, every fitted parameter refitted "
+                                "with that axis's gain free (least squares over the rows the fits used): beyond it, "
+                                "its torque constant, gear ratio or screw lead is likely off by about that much"))
     max_residual_over_floor: float = field(default=5.0, metadata=spec(
-        positive, doc="an axis's force residual (RMS, on any fitted trajectory, in the drive's current) over its "
-                      "current noise at standstill in the same band (a 'standstill' trajectory of the campaign; "
-                      "without one, not judged): above it the data contradict the model on that axis, twins or not"))
+        positive, doc="an axis's force residual (RMS over the rows the fits used, on any fitted trajectory, in the "
+                      "drive's current) over what noise alone leaves it there: its current noise at standstill in "
+                      "the same band (a 'standstill' trajectory of the campaign) and its encoders' rounding through "
+                      "the identified model; without a standstill, not judged"))
+
+    #: keys of earlier versions, and what became of them (the loader's message for a config that has one)
+    RETIRED_KEYS: ClassVar[dict[str, str]] = {
+        "max_axis_gain_spread": "replaced by max_axis_gain: each axis's gain is judged against its own model "
+                                "refitted, no longer against the median of the axes with the same drive",
+        "max_axis_residual_ratio": "removed: an axis's residual is judged against its own noise floor "
+                                   "(max_residual_over_floor), no longer against its twins', which may differ "
+                                   "in friction, rotor inertia and noise",
+    }
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,9 @@ their field's name), raising :class:`FieldError` naming the offending key (path 
 section); each runs as soon as its section is built, so its error points at the section's node.
 
 Every error is one :class:`ConfigError` naming the file, the line, the key path
-(``robot.geometry.l1``) and what was expected. Unknown keys are errors (with a "did you mean").
+(``robot.geometry.l1``) and what was expected. Unknown keys are errors (with a "did you mean");
+a key an earlier version had is one too, saying what became of it (the section class's
+``RETIRED_KEYS``: key -> message).
 """
 
 from __future__ import annotations
@@ -192,6 +194,9 @@ class _Builder:
         unknown = [k for k in items if k not in known]
         if unknown:
             k = unknown[0]
+            retired = getattr(cls, "RETIRED_KEYS", {})
+            if k in retired:                    # a key of an earlier version: say what became of it
+                raise error_at(items[k][0], _join(path, k), f"no longer a key: {retired[k]}")
             close = difflib.get_close_matches(k, sorted(known), n=1)
             hint = f"; did you mean {close[0]!r}?" if close else f"; expected one of {sorted(known)}"
             raise error_at(items[k][0], _join(path, k), f"unknown key{hint}")

@@ -34,6 +34,7 @@ from ident_hw.config.schema import FieldError
 from ident_hw.config.to_drivers import axes_scaling
 from ident_hw.config.trajectory import STANDSTILL_SETTLE
 from ident_hw.config.to_identification import filter_settings, physical_scales, step_parameters
+from ident_hw.identification.axis_gain import axis_gains, sharing_axes
 from ident_hw.identification.base_params import (base_parameters, column_scale, identify_base, on_kept,
                                                   scaled_condition)
 from ident_hw.identification.least_squares import check_regression_data, compensated, ols, stack, wls
@@ -44,11 +45,11 @@ from ident_hw.identification.model_comparison import (ModelComparison, ModelRows
                                                        power_energy_rows)
 from ident_hw.model.friction import FrictionModel
 from ident_hw.model.interface import RobotModel
-from ident_hw.records import (BaseAnalysis, DriveGainsFigures, ImportSummary, LeastSquaresFigures, MassFitFigures, RecordingCoverage,
-                              StepRecord)
+from ident_hw.records import (AxisShortfall, BaseAnalysis, DriveGainsFigures, ImportSummary, LeastSquaresFigures,
+                              MassFitFigures, RecordingCoverage, StepRecord)
 from ident_hw.report import coverage_text
 from ident_hw.results import BaseFit, ParameterTable, Results, TrajectoryFit
-from ident_hw.segments import Segments, slot_indices, split, uniform
+from ident_hw.segments import SATURATION, Segments, slot_indices, split, uniform
 from ident_hw.filtering import (FilterSettings, kept_samples, near_rest, parallel_decimate, prepare_actuated,
                                running_average, through_position_lowpass)
 
@@ -56,7 +57,7 @@ from .compared import compared_set, predicted_forces
 from .encoder import count_shifts, reread, smoothed_positions, spread_covariance, uncounted_axes
 from .friction_choice import friction_robot
 from .plan import motion_bandwidth, position_margin
-from .quality import verdict
+from .quality import AxisEvidence, verdict
 from .recordings import identification_valid, planned_cycles, require_trajectories
 
 #: rows a stretch needs beyond the filters' support at its two ends
@@ -149,7 +150,27 @@ def coverage(config: Config, name: str, rec: Recording, imported: ImportSummary 
                              cycles_planned=None if planned is None else int(planned),
                              planned_fraction=None if not planned else min(1.0, len(rec.t) / planned),
                              valid_fraction=fraction, longest_gap_s=gap, skipped_slots=skipped,
-                             unplaced_frames=int(meta.books.unplaced_frames), imported=imported)
+                             unplaced_frames=int(meta.books.unplaced_frames), imported=imported,
+                             shortfalls=shortfalls(config, rec))
+
+
+def shortfalls(config: Config, rec: Recording) -> dict[str, AxisShortfall]:
+    """Per actuator that lacks something in ``rec``: the cycles without its position or current,
+    the rows whose current is at its drive's limit (:data:`ident_hw.segments.SATURATION` of
+    ``limits.current``, as :func:`ident_hw.segments.split` leaves them out), its largest current
+    and that limit. The verdict names these as the cause of what follows (rows left out, no
+    stretch to fit)."""
+    measured = identification_valid(rec)
+    out = {}
+    for j, act in enumerate(config.robot.actuators):
+        current = np.abs(rec.current[measured[:, j], j])
+        missing = int((~measured[:, j]).sum())
+        saturated = int(np.sum(current >= SATURATION * act.limits.current))
+        if missing or saturated:
+            out[act.name] = AxisShortfall(missing=missing, saturated=saturated,
+                                          peak_A=float(current.max()) if len(current) else None,
+                                          limit_A=float(act.limits.current))
+    return out
 
 
 def _bridged(t: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -347,7 +368,8 @@ class _Estimates:
 
 
 def noise_floors(config: Config, recordings: Mapping[str, Recording], fitted: Sequence[str],
-                 draws: Sequence[Mapping[str, Prepared]] = (), coef: np.ndarray | None = None) -> dict[str, np.ndarray]:
+                 draws: Sequence[Mapping[str, Prepared]] = (), coef: np.ndarray | None = None,
+                 moving: Mapping[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
     """Per fitted trajectory (``fitted``), the residual (a,) that noise alone leaves each axis, in
     the drive's current (A): the current's noise at rest and, with ``draws``, the encoders'.
 
@@ -357,10 +379,13 @@ def noise_floors(config: Config, recordings: Mapping[str, Recording], fitted: Se
     variance, more samples), as its fitted forces are; the longest stretch of complete rows of
     each standstill counts, one shorter than the filter's two trims gives nothing. The
     encoders': the positions' rounding, differentiated twice, moves the regressor and so the
-    predicted forces: the RMS over the rows of their spread over the draws (the recordings read
-    again, :func:`reread_draws`) at the parameters ``coef``. The two add in squares. ``{}``
+    predicted forces (its friction included: a Coulomb term switching with a count near zero
+    speed): the RMS over the rows of their spread over the draws (the recordings read again,
+    :func:`reread_draws`) at the parameters ``coef``; with ``moving`` (per trajectory (rows, a)
+    bool, :attr:`Prepared.moving`), over each axis's rows the fits use (NaN for an axis
+    without one), as the verdict takes the residual. The two add in squares. ``{}``
     without a standstill recording, or without draws (on a fine trajectory the encoders' part
-    can be most of the floor): the verdict then has no floor."""
+    can be most of the floor): the verdict then has no floor (:func:`floor_missing` says why)."""
     if len(draws) < 2 or coef is None:
         return {}
     stills = []                 # (sample rate, the current about its mean over the longest complete stretch)
@@ -383,15 +408,63 @@ def noise_floors(config: Config, recordings: Mapping[str, Recording], fitted: Se
             (filtered,) = parallel_decimate(band, current)
             squares, count = squares + np.sum(filtered ** 2, axis=0), count + len(filtered)
         if count:
-            floors[name] = np.sqrt(squares / count + _encoder_spread(draws, name, coef) ** 2 / per_amp ** 2)
+            rows = None if moving is None else moving.get(name)
+            floors[name] = np.sqrt(squares / count + _encoder_spread(draws, name, coef, rows) ** 2 / per_amp ** 2)
     return floors
 
 
-def _encoder_spread(draws: Sequence[Mapping[str, Prepared]], name: str, coef: np.ndarray) -> np.ndarray:
-    """(a,) RMS over the rows of trajectory ``name`` of the spread over ``draws`` (at least two)
-    of the forces predicted at ``coef`` (force units)."""
+def floor_missing(config: Config, recordings: Mapping[str, Recording], fitted: Sequence[str],
+                  floors: Mapping[str, np.ndarray], draws: Sequence) -> str | None:
+    """Why :func:`noise_floors` gave no floor for some of the ``fitted`` trajectories (None: it
+    gave every one): no standstill recorded, one too short for a trajectory's filter, or no
+    encoder draws."""
+    if all(name in floors for name in fitted):
+        return None
+    if not any(t.kind == "standstill" and t.name in recordings for t in config.trajectories):
+        return "no standstill"
+    if len(draws) < 2:
+        return "no encoder draws"
+    short = [name for name in fitted if name not in floors]
+    return f"the standstill is too short for the filter of {', '.join(short)}"
+
+
+def axis_evidence(config: Config, robot: RobotModel, recordings: Mapping[str, Recording],
+                  prepared: Mapping[str, Prepared], fitted_trajectories: Sequence[str], fitted: set[str],
+                  draws: Sequence[Mapping[str, Prepared]], coef: np.ndarray) -> AxisEvidence:
+    """What the verdict's per-axis checks judge, from the fitted trajectories' regressor and
+    forces at the fit's parameters ``coef`` (n,): the axes the ``fitted`` parameters act on
+    (:func:`acting_axes`), each axis's gain against its own model refitted
+    (:func:`ident_hw.identification.axis_gain.axis_gains`, over the rows the fits use), its noise
+    floors on those rows (:func:`noise_floors`) or why there are none, and the axes sharing
+    parameters (:func:`ident_hw.identification.axis_gain.sharing_axes`)."""
+    names = robot.parameter_names
+    judged = acting_axes(robot, prepared, fitted_trajectories, fitted)
+    free = [names.index(p) for p in names if p in fitted]
+    gains, sharing = None, {}
+    if free and fitted_trajectories:
+        Y = np.concatenate([prepared[t].Y for t in fitted_trajectories])
+        tau = np.concatenate([prepared[t].tau_fit for t in fitted_trajectories])
+        gains = axis_gains(Y, tau, coef, free, robot.actuator_names, config.identification.quality.max_axis_gain,
+                           judged)
+        sharing = sharing_axes(Y, free, robot.actuator_names)
+    floors = noise_floors(config, recordings, fitted_trajectories, draws, coef,
+                          {t: prepared[t].moving for t in fitted_trajectories})
+    return AxisEvidence(judged=judged, gains=gains, floors=floors, sharing=sharing,
+                        floor_missing=floor_missing(config, recordings, fitted_trajectories, floors, draws))
+
+
+def _encoder_spread(draws: Sequence[Mapping[str, Prepared]], name: str, coef: np.ndarray,
+                    rows: np.ndarray | None = None) -> np.ndarray:
+    """(a,) RMS over the rows of trajectory ``name`` (``rows``: (N, a) bool, each axis's own;
+    None: all) of the spread over ``draws`` (at least two) of the forces predicted at ``coef``
+    (force units); NaN for an axis without a row."""
     predicted = np.array([d[name].Y @ coef for d in draws])          # (draws, rows, a)
-    return np.sqrt(np.mean(np.var(predicted, axis=0, ddof=1), axis=0))
+    variance = np.var(predicted, axis=0, ddof=1)
+    if rows is None or rows.shape != variance.shape:
+        return np.sqrt(np.mean(variance, axis=0))
+    counts = rows.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.sqrt(np.where(counts > 0, np.sum(np.where(rows, variance, 0.0), axis=0) / counts, np.nan))
 
 
 def _longest_run(mask: np.ndarray) -> slice:
@@ -562,7 +635,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     for name, p in prepared.items():
         role = "validation" if name in ident.validation and name not in id_names else "identification"
         fits.append(TrajectoryFit(name, role, p.t, p.tau, p.Y @ coef, p.Theta, p.X,
-                                  tau_base=None if base_fit is None else p.Y @ base_equivalent,
+                                  tau_base=None if base_fit is None else p.Y @ base_equivalent, moving=p.moving,
                                   tau_compared=compared.get(name), at_rest=np.abs(p.Thetad) < rest))
     table = ParameterTable(names=names, units=tuple(robot.parameter_unit(p) for p in names), initial=initial,
                            identified=coef, sigma=estimates.sigma, lower=estimates.lower, upper=estimates.upper,
@@ -585,9 +658,8 @@ def identify(config: Config, recordings: Mapping[str, Recording],
             results.steps = [replace(s, consistency_failure=failure) if s.name == base_fit.step else s
                              for s in results.steps]
     results.quality = verdict(results, ident.quality, config.robot.actuators,
-                              acting_axes(robot, prepared, id_names, fitted),
-                              noise_floors(config, recordings, id_names, draws,
-                                           coef if base_fit is None else base_equivalent))
+                              axis_evidence(config, robot, recordings, prepared, id_names, fitted, draws,
+                                            coef if base_fit is None else base_equivalent))
     return results
 
 

@@ -200,7 +200,12 @@ def quantisation_notes(config: Config, traj: trajectories.Trajectory) -> tuple[s
     """Advice (not an error): the axes on which one encoder count per SYNC period, as a demand
     acceleration (``1 / (counts_per_unit T²)``), exceeds the trajectory's RMS acceleration. The
     set-points are whole counts, so the drives' interpolated demand ripples by that much: the
-    currents carry it (the identification filters it out, at the cost of noise)."""
+    currents carry it (the identification filters it out, at the cost of noise). Only where the
+    user should act on it: with ``identification.encoder_draws`` (the default), every sigma and
+    the verdict's noise floor hold the encoders' resolution, and nothing is said; without, the
+    sigma would leave it out."""
+    if config.identification is not None and config.identification.encoder_draws:
+        return ()
     period = 1.0 / sample_rate(config)
     parts = []
     for j, axis in enumerate(config.robot.actuators):
@@ -212,7 +217,43 @@ def quantisation_notes(config: Config, traj: trajectories.Trajectory) -> tuple[s
     if not parts:
         return ()
     return (f"one encoder count per SYNC period as an acceleration exceeds this motion's: {'; '.join(parts)}. "
-            "Expect current ripple at the set-point rate (a finer encoder or a slower SYNC lowers it)",)
+            "Expect current ripple at the set-point rate (a finer encoder or a slower SYNC lowers it); with "
+            "identification.encoder_draws 0 the sigma leave the encoders' resolution out",)
+
+
+#: CiA 402 homing methods that take the current position as home (35, and 37 of newer firmware):
+#: the robot stands at its home pose when it homes, so the offset is that pose's coordinate
+HOME_ON_CURRENT_POSITION = (35, 37)
+#: encoder counts a homing offset may stand from the model's home coordinate (a config rounded
+#: to a few decimals, not a drive that would disagree with the model)
+HOME_TOLERANCE_COUNTS = 10
+
+
+def homing_problems(config: Config, robot: RobotModel | None = None) -> list[str]:
+    """Homing offsets that would stop a run or mislead the model, as messages: one outside its
+    axis's position limits (the drive would stop on its software position limit at home), or,
+    for a method homing on the current position (:data:`HOME_ON_CURRENT_POSITION`), one away
+    from the coordinate the model gives that axis at the robot's home pose (the drives and the
+    model would then disagree by the difference for the whole run) by more than
+    :data:`HOME_TOLERANCE_COUNTS` encoder counts."""
+    robot = robot_model(config) if robot is None else robot
+    home = robot.home_actuated()
+    problems = []
+    for j, (act, axis) in enumerate(zip(config.robot.actuators, drive_axes(config))):
+        offset, unit = act.homing.offset, POSITION_UNITS[act.kind]
+        where = f"{config.source}: robot.actuators[{j}] ({act.name}) homing.offset {offset:.6g} {unit}"
+        if outside_position_limits([axis], np.array([[offset]]))[0, 0]:
+            problems.append(f"{where} is outside its position limits [{axis.position_min:.6g}, "
+                            f"{axis.position_max:.6g}] {unit}: the drive would stop on its software position limit "
+                            "as soon as it is homed")
+        elif act.homing.method in HOME_ON_CURRENT_POSITION:
+            tolerance = HOME_TOLERANCE_COUNTS / axis_scaling(act).counts_per_unit
+            if abs(offset - home[j]) > tolerance:
+                problems.append(f"{where}: homing method {act.homing.method} takes the current position as home, "
+                                f"where the model puts {act.name} at {home[j]:.6g} {unit} ({offset - home[j]:+.4g} "
+                                f"{unit} apart, more than {HOME_TOLERANCE_COUNTS} encoder counts): set the offset to "
+                                f"{home[j]:.6f}, or the robot's home in its description")
+    return problems
 
 
 def check_campaign(config: Config, planned: list[PlannedTrajectory] | None = None) -> list[str]:
@@ -233,6 +274,7 @@ def check_campaign(config: Config, planned: list[PlannedTrajectory] | None = Non
     if config.identification is None:
         problems.append(f"{config.source}: identification: missing section (the steps that turn the "
                         "recordings into parameters; a run would move, record, then stop)")
+    problems += homing_problems(config)
     for p in plan(config, online=True) if planned is None else planned:
         if not p.ok:
             problems.append(p.describe())

@@ -10,11 +10,15 @@ thresholds of ``identification.quality`` (:class:`ident_hw.config.QualityConfig`
 * the base parameters: some physically consistent parameter set reproduces them within their
   covariance (:func:`consistency_reasons`);
 * the parameters: how many fitted ones are well identified (%σ at most ``rel_sigma_threshold``);
-* per axis, against the axes with the same drive (:func:`axis_reasons`): the gain between its
-  measured and predicted forces, and its residual; and against its own current noise at
-  standstill, where the campaign recorded one (:func:`floor_reasons`). A model the data contradict on one axis (its
-  torque constant, say) shows there, whatever the parameters' sigma say; and the delay of its
-  measured forces behind the predicted ones (:func:`force_lags`);
+* per axis, each on its own and against nothing but itself (:func:`axis_figures`): its gain,
+  the factor its forces stand from its own model with every fitted parameter refitted
+  (:func:`ident_hw.identification.axis_gain.axis_gains`: a torque constant, gear ratio or screw
+  lead off); its residual over what noise alone leaves it, on the rows the fits used, where the
+  campaign recorded a standstill (:func:`floor_figures`); and the delay of its measured forces
+  behind the predicted ones (:func:`force_lags`). No axis is compared with a twin: a real
+  robot's joints differ in friction, rotor inertia and noise, and the verdict must pass a
+  correct model of them. A check that cannot be made (no standstill: no noise floor) is
+  listed as not judged, with why;
 * per validation trajectory (each identification one when there is none): the force prediction
   error d_τ of the step-by-step parameters (and of the base-parameter fit), and how far the
   two predictions are apart. Not on identification trajectories beside a validation one: on
@@ -22,7 +26,9 @@ thresholds of ``identification.quality`` (:class:`ident_hw.config.QualityConfig`
   weigh on d_τ, and an ill-conditioned step's two predictions part, however good the fit.
 
 The verdict (a :class:`ident_hw.records.Verdict`, stored in ``parameters.json``) lists every
-figure, the thresholds and, when it fails, one reason per missed threshold; ``STATUS`` is then
+figure, the thresholds and, when it fails, one reason per missed threshold, each once, the first
+causes (what the recordings lack: a stop, saturated currents, incomplete cycles, gaps) before
+their consequences (nothing to fit, a step not fitted, the predictions); ``STATUS`` is then
 ``degraded: <reasons>`` (:func:`ident_hw.results.final_status`).
 """
 
@@ -30,15 +36,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
 import numpy as np
 
 from ident_hw.config import ActuatorConfig, QualityConfig
 from ident_hw.config.to_drivers import axes_scaling
+from ident_hw.identification.axis_gain import AxisGains
 from ident_hw.identification.metrics import validation_metrics
-from ident_hw.records import TrajectoryVerdict, Verdict
+from ident_hw.records import AxisFigures, TrajectoryVerdict, Verdict
 from ident_hw.results import Results
 
 
@@ -68,174 +75,121 @@ def consistency_reasons(results: Results) -> list[str]:
     return out
 
 
-def same_drive_groups(actuators: Sequence[ActuatorConfig]) -> list[tuple[int, ...]]:
-    """The actuators (indices, two or more each) whose currents the drives measure alike: same
-    joint kind, drive profile and streamed current. The config's torque constants, gears and
-    leads do not group them: one of those mistyped is what :func:`axis_reasons` is to find."""
-    groups: dict[tuple, list[int]] = {}
-    for i, a in enumerate(actuators):
-        groups.setdefault((a.kind, a.profile), []).append(i)
-    return [tuple(g) for g in groups.values() if len(g) > 1]
+@dataclass(frozen=True)
+class AxisEvidence:
+    """What the per-axis checks judge beside the fits (gathered by
+    :func:`ident_hw.experiment.offline.identify`, which holds the regressor).
+
+    ``judged``: the axes some fitted parameter acts on; ``gains``: each axis's gain against its
+    own model with every fitted parameter refitted (:func:`ident_hw.identification.axis_gain.axis_gains`;
+    None: nothing was fitted); ``floors``: per fitted trajectory, (a,) what noise alone leaves
+    each axis on the rows the fits used, in its drive's current, A (NaN: no such row;
+    :func:`ident_hw.experiment.offline.noise_floors`), empty when there is none and
+    ``floor_missing`` says why (``"no standstill"``); ``sharing``: per axis, the axes some fitted
+    parameter acts on together with it (:func:`ident_hw.identification.axis_gain.sharing_axes`)."""
+
+    judged: tuple[str, ...]
+    gains: AxisGains | None = None
+    floors: Mapping[str, np.ndarray] = field(default_factory=dict)
+    floor_missing: str | None = None
+    sharing: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
 
 
-def axis_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits: QualityConfig,
-                 judged: Sequence[str] | None = None) -> tuple[dict, dict, list[str]]:
-    """Each axis against the other axes of its group (:func:`same_drive_groups`), by what the fit
-    leaves unexplained: the measured forces against those the base-parameter fit predicts (the
-    step-by-step values' where there is none), on every fitted trajectory.
+@dataclass(frozen=True)
+class FloorFigure:
+    """An axis's worst residual over its noise floor: the ``ratio``, on ``trajectory``, of the
+    RMS ``residual`` to the ``floor`` (its drive's current, A), on the rows the fits used."""
 
-    * its gain: the least-squares factor ``g`` of ``tau = (1 + g) tau_predicted`` over all the
-      trajectories, %. A torque constant, gear or lead off by x % on one axis makes its forces
-      x % larger or smaller than those of its twins, which share its parameters (the 3PRRR's
-      links, its carriages): the spread of the gains shows it when the residual, spread over
-      the twins by the fit, does not;
-    * its residual, RMS per trajectory, in the drive's current (A, through the config's force per
-      ampere, where one drive's noise and quantisation are those of the next): a model wrong on
-      one axis leaves it a residual several times its twins' (a drive whose parameters the fit
-      cannot bend to it: the Delta's arms share their platform).
-
-    Only the axes in ``judged`` (None: all) are compared.
-
-    Returns ``({axis: gain - the group's median gain, %}, {axis: worst residual ratio}, reasons)``:
-    the ratio is the axis's residual over the median of the others', at its worst trajectory; a
-    reason names each axis beyond ``limits.max_axis_gain_spread`` or
-    ``limits.max_axis_residual_ratio``. Of two axes alone, the one further off the model is named.
-    """
-    judged = results.actuators if judged is None else tuple(judged)
-    groups = [g for g in (tuple(i for i in group if results.actuators[i] in judged)
-                          for group in same_drive_groups(actuators)) if len(g) > 1]
-    gain, worst = _gains_and_residuals(results, actuators, groups)
-    spreads, reasons = {}, []
-    for group in groups:
-        names = [results.actuators[i] for i in group]
-        # the group's gain: its median (of two, the one nearer the model's)
-        typical = (float(np.median(gain[list(group)])) if len(group) > 2
-                   else float(min(gain[list(group)], key=abs)))
-        for i, name in zip(group, names):
-            if name not in worst:           # no fitted trajectory
-                continue
-            spread = float(gain[i] - typical)
-            spreads[name] = spread
-            reasons += _axis_texts(name, names, gain[i], typical, spread, worst[name], limits)
-    return spreads, {name: w[0] for name, w in worst.items()}, reasons
+    ratio: float
+    trajectory: str
+    residual: float
+    floor: float
 
 
-def floor_reasons(results: Results, actuators: Sequence[ActuatorConfig], limits: QualityConfig,
-                  floors: Mapping[str, np.ndarray], judged: Sequence[str] | None = None,
-                  named: frozenset[str] = frozenset()) -> tuple[dict[str, float], list[str]]:
-    """Each axis's residual against its own noise floor: the RMS of what the fit leaves of its
-    measured forces (as :func:`axis_reasons`), in the drive's current, over the RMS current at
-    rest through the same filter (``floors``: per fitted trajectory, (a,) A,
-    :func:`ident_hw.experiment.offline.noise_floors`). Unlike the comparison with the axes of the
-    same drive, this needs no twin: a model wrong on an axis leaves a residual far above what
-    its drive's noise and its encoders can make. Which axis it shows on is the fit's doing: on
-    the 2R arm a torque constant off on the shoulder shows on the elbow (the shoulder's forces
-    are all the parameters', the elbow's a part of them; docs/identification.md), so the reason
-    names where it shows, and says so. Only the axes in ``judged`` (None: all). Returns ``({axis: worst ratio over the fitted trajectories}, reasons)``, a
-    reason for each axis beyond ``limits.max_residual_over_floor``; of the axes with the same
-    drive (:func:`same_drive_groups`) beyond it, only the one furthest above its floor: the fit
-    spreads one axis's error over the twins that share its parameters (the 3PRRR's third link's
-    error can leave the first further above its floor than the third). Where the
-    comparison with the same drives already ``named`` an axis of the group (its gain or residual
-    off its twins': the more specific diagnosis), only those of its named axes beyond their floor
-    are, not a twin it spread the error onto."""
+def floor_figures(results: Results, actuators: Sequence[ActuatorConfig], floors: Mapping[str, np.ndarray],
+                  judged: Sequence[str] | None = None) -> dict[str, FloorFigure]:
+    """Each judged axis's residual against its own noise floor, at its worst fitted trajectory:
+    the RMS of what the fit leaves of its measured forces (:func:`_residual`) over the rows the
+    fits used (``TrajectoryFit.moving``: at rest a joint's friction holds whatever the last
+    motion left, which no rate-dependent friction model predicts, and the fits leave those rows
+    out), in the drive's current, over ``floors`` (per fitted trajectory, (a,) A, on the same
+    rows). Needs no twin axis: a model wrong on an axis leaves it a residual far above what its
+    drive's noise and its encoders can make, however it differs from the others. Only the axes
+    in ``judged`` (None: all) with rows and a floor."""
     judged = results.actuators if judged is None else tuple(judged)
     per_amp = axes_scaling(actuators).force_per_amp
-    worst: dict[str, tuple[float, str, float, float]] = {}
+    worst: dict[str, FloorFigure] = {}
     for fit in results.fits:
         floor = floors.get(fit.name)
         if floor is None or not len(fit.t):
             continue
-        rms = _residual_rms(fit) / per_amp
+        left, used = _residual(fit), fit.used()
         for i, name in enumerate(results.actuators):
-            if name in judged and floor[i] > 0 and (name not in worst or rms[i] / floor[i] > worst[name][0]):
-                worst[name] = (float(rms[i] / floor[i]), fit.name, float(rms[i]), float(floor[i]))
-    beyond = {name for name, w in worst.items() if w[0] > limits.max_residual_over_floor}
-    for group in same_drive_groups(actuators):
-        names = [results.actuators[i] for i in group]
-        over = [n for n in names if n in beyond]
-        keep = ({n for n in over if n in named} if named.intersection(names)
-                else set(sorted(over, key=lambda n: worst[n][0])[-1:]))
-        beyond -= set(over) - keep
-    reasons = [f"{name}: residual {1e3 * own:.3g} mA on {trajectory}, {ratio:.1f} times its current noise at "
-               f"standstill and encoders ({1e3 * floor:.3g} mA in that trajectory's band; > "
-               f"{limits.max_residual_over_floor:g}): the model does not fit {name}; check its torque constant, gear "
-               f"ratio or screw lead and its friction, and those of the axes whose parameters it shares (a serial "
-               f"arm's shoulder error shows on its elbow)"
-               for name, (ratio, trajectory, own, floor) in worst.items() if name in beyond]
-    return {name: w[0] for name, w in worst.items()}, reasons
+            if name not in judged or not used[:, i].any() or not floor[i] > 0:
+                continue
+            rms = float(np.sqrt(np.mean(left[used[:, i], i] ** 2)) / per_amp[i])
+            if name not in worst or rms / floor[i] > worst[name].ratio:
+                worst[name] = FloorFigure(rms / float(floor[i]), fit.name, rms, float(floor[i]))
+    return worst
 
 
-def _residual_rms(fit) -> np.ndarray:
-    """(a,) RMS of the measured forces of ``fit`` (a TrajectoryFit) minus the base-parameter
-    fit's prediction (the step-by-step values' where there is none), force units."""
+def _residual(fit) -> np.ndarray:
+    """(N, a) the measured forces of ``fit`` (a TrajectoryFit) minus the base-parameter fit's
+    prediction (the step-by-step values' where there is none), force units."""
     predicted = fit.tau_base if fit.tau_base is not None else fit.tau_model
-    return np.sqrt(np.mean((fit.tau - predicted) ** 2, axis=0))
+    return fit.tau - predicted
 
 
-def _gains_and_residuals(results: Results, actuators: Sequence[ActuatorConfig], groups: list[tuple[int, ...]]
-                         ) -> tuple[np.ndarray, dict[str, tuple[float, str, float, float]]]:
-    """The figures :func:`axis_reasons` judges, over the fitted trajectories: each axis's gain
-    (n_axes,), %, and, per axis of ``groups``, its worst residual against its twins as ``(ratio,
-    trajectory, its RMS residual in A, the median of the twins' in A)``."""
-    per_amp = axes_scaling(actuators).force_per_amp
-    worst: dict[str, tuple[float, str, float, float]] = {}
-    along, power = np.zeros(len(actuators)), np.zeros(len(actuators))
-    for fit in results.fits:
-        if not len(fit.t):
-            continue
-        predicted = fit.tau_base if fit.tau_base is not None else fit.tau_model
-        along += np.sum((fit.tau - predicted) * predicted, axis=0)
-        power += np.sum(predicted ** 2, axis=0)
-        rms = _residual_rms(fit) / per_amp
-        for group in groups:
-            for i in group:
-                others = float(np.median([rms[j] for j in group if j != i]))
-                ratio = float(rms[i] / others) if others > 0 else (math.inf if rms[i] > 0 else 1.0)
-                name = results.actuators[i]
-                if name not in worst or ratio > worst[name][0]:
-                    worst[name] = (ratio, fit.name, float(rms[i]), others)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        gain = 100.0 * along / power
-    return gain, worst
-
-
-def _gain_off(spread: float, limits: QualityConfig) -> bool:
-    """An axis's gain ``spread`` (%) from its group's beyond the limit: :func:`axis_reasons` names it."""
-    return abs(spread) > limits.max_axis_gain_spread
-
-
-def _residual_off(ratio: float, limits: QualityConfig) -> bool:
-    """An axis's residual ``ratio`` to its twins' beyond the limit: :func:`axis_reasons` names it."""
-    return ratio > limits.max_axis_residual_ratio
-
-
-def _named_against_twins(spreads: Mapping[str, float], ratios: Mapping[str, float],
-                        limits: QualityConfig) -> frozenset[str]:
-    """The axes :func:`axis_reasons` named, from its ``spreads`` and ``ratios``."""
-    return frozenset(n for n, spread in spreads.items() if _gain_off(spread, limits)).union(
-        n for n, ratio in ratios.items() if _residual_off(ratio, limits))
-
-
-def _axis_texts(name: str, names: list[str], gain: float, typical: float, spread: float,
-                worst: tuple[float, str, float, float], limits: QualityConfig) -> list[str]:
-    """The reasons against one axis of a group ``names``: its gain (%) ``spread`` from the
-    group's ``typical`` one beyond ``limits.max_axis_gain_spread``, its ``worst`` residual ratio
-    (as in :func:`_gains_and_residuals`) beyond ``limits.max_axis_residual_ratio``."""
+def gain_reasons(gains: AxisGains | None, limits: QualityConfig,
+                 over_floor: Mapping[str, FloorFigure] = {}) -> list[str]:
+    """One reason per axis :func:`ident_hw.identification.axis_gain.axis_gains` names (its gain
+    beyond ``limits.max_axis_gain``), with the axes whose gain would fit as well, and, on the
+    first, the axes its error leaves above their noise floor (``over_floor``: those beyond
+    ``limits.max_residual_over_floor``; the fit spreads one axis's error over the axes sharing
+    its parameters, and the gain names the first cause)."""
     reasons = []
-    twins = ", ".join(n for n in names if n != name)
-    if _gain_off(spread, limits):
-        reasons.append(
-            f"{name}: forces {gain:+.2f} % off what the model predicts, against {typical:+.2f} % on the "
-            f"same drives ({twins}; {spread:+.2f} % apart, > {limits.max_axis_gain_spread:g} %): check "
-            f"{name}'s torque constant, gear ratio or screw lead (off by about {spread:+.1f} %)")
-    ratio, trajectory, own, twins_rms = worst
-    if _residual_off(ratio, limits):
-        reasons.append(
-            f"{name}: residual {1e3 * own:.3g} mA on {trajectory}, {ratio:.1f} times that of the same "
-            f"drives ({twins}: {1e3 * twins_rms:.3g} mA; > {limits.max_axis_residual_ratio:g}): the model "
-            f"does not fit {name}; check its torque constant, gear ratio or screw lead, and its friction")
+    for k, named in enumerate(() if gains is None else gains.named):
+        text = (f"{named.axis}: forces {named.percent:+.2f} % (sigma {named.sigma_percent:.2g} %) off the model, every "
+                f"fitted parameter refitted with its gain free (> {limits.max_axis_gain:g} %): check {named.axis}'s "
+                f"torque constant, gear ratio or screw lead (off by about {named.percent:+.1f} %)")
+        if named.alike:
+            text += ("; or " + ", ".join(f"{axis}'s (off by about {percent:+.1f} %)" for axis, percent in named.alike)
+                     + ": the data fit either as well (every parameter scaled alike moves one's error onto the other)")
+        if k == 0 and over_floor:
+            text += "; left above the noise floor with it: " + _floor_list(over_floor)
+        reasons.append(text)
     return reasons
+
+
+def floor_reason(over_floor: Mapping[str, FloorFigure], limits: QualityConfig,
+                 sharing: Mapping[str, tuple[str, ...]] = {}) -> list[str]:
+    """The reason naming every axis whose residual is beyond ``limits.max_residual_over_floor``
+    times its noise floor (``over_floor``: those axes' :class:`FloorFigure`), or none. Which axis
+    it shows on is the fit's doing: an error of one axis can show on the axes it shares
+    parameters with (``sharing``), which the reason names."""
+    if not over_floor:
+        return []
+    names = list(over_floor)
+    figures = "; ".join(f"{name} {1e3 * f.residual:.3g} mA on {f.trajectory} against {1e3 * f.floor:.3g} mA"
+                        for name, f in over_floor.items())
+    others = [a for name in names for a in sharing.get(name, ()) if a not in names]
+    shared = f", and those of the axes sharing their parameters ({', '.join(dict.fromkeys(others))})" if others else ""
+    if len(names) == 1:
+        head = f"{names[0]}: residual {over_floor[names[0]].ratio:.1f} times"
+        them = names[0]
+    else:
+        head = f"{', '.join(names)}: residuals " + ", ".join(f"{f.ratio:.1f}" for f in over_floor.values()) + " times"
+        them = "them"
+    return [f"{head} what noise alone leaves (current noise at standstill and encoders, on the rows fitted: "
+            f"{figures}; > {limits.max_residual_over_floor:g}): the model does not fit {them}; check the friction "
+            f"model, torque constant, gear ratio or screw lead of {', '.join(names)}{shared}"]
+
+
+def _floor_list(over_floor: Mapping[str, FloorFigure]) -> str:
+    """``theta1 6.1 (square1) and theta2 5.1 (square4) times their noise floor``."""
+    parts = [f"{name} {f.ratio:.1f} ({f.trajectory})" for name, f in over_floor.items()]
+    return (" and ".join([", ".join(parts[:-1]), parts[-1]] if len(parts) > 1 else parts)
+            + (" times their noise floor" if len(parts) > 1 else " times its noise floor"))
 
 
 @dataclass(frozen=True)
@@ -289,32 +243,63 @@ def force_lags(results: Results) -> dict[str, ForceLag]:
 
 def recording_reasons(results: Results, limits: QualityConfig) -> tuple[dict[str, TrajectoryVerdict], list[str]]:
     """Per trajectory: what its recording covered (``results.trajectories``), and why that is not
-    enough (partial or truncated, too few cycles, too few complete, a gap, a frame not placed)."""
-    reasons: list[str] = []
+    enough, first causes first: a stop or a truncated log (and the cycles it lost), saturated
+    currents (more than ``1 - min_valid_fraction`` of the rows, or every usable one: which
+    drive, how far beyond its limit), incomplete cycles (which drives' frames are missing), a
+    frame not placed, a gap; then, after every trajectory's causes, their consequence: a
+    recording with no stretch long enough to filter (what left its rows out)."""
+    causes: list[str] = []
+    consequences: list[str] = []
     per_traj: dict[str, TrajectoryVerdict] = {}
     for name, used in results.trajectories.items():
         per_traj[name] = TrajectoryVerdict.of(used)
         status = used.recording_status
         if status.startswith(("stopped", "running")):
-            reasons.append(f"{name}: partial recording ({status})")
+            causes.append(f"{name}: partial recording ({status})")
         elif "truncated" in status:
-            reasons.append(f"{name}: truncated raw log")
+            causes.append(f"{name}: truncated raw log")
         cov = used.planned_fraction
         if cov is not None and cov < limits.min_coverage:
-            reasons.append(f"{name}: {used.cycles} of {used.cycles_planned} cycles recorded "
-                           f"({100 * cov:.0f} % < {100 * limits.min_coverage:g} %)")
+            causes.append(f"{name}: {used.cycles} of {used.cycles_planned} cycles recorded "
+                          f"({100 * cov:.0f} % < {100 * limits.min_coverage:g} %)")
+        saturated = {axis: f for axis, f in used.shortfalls.items() if f.saturated}
+        rows = max(used.cycles, 1)
+        clipped = sum(f.saturated for f in saturated.values())
+        if saturated and (used.stretches == 0 or clipped > (1 - limits.min_valid_fraction) * rows):
+            causes.append(f"{name}: currents at their drive's limit, clipped, not measured (rows left out): "
+                          + "; ".join(_saturation_text(axis, f, used.cycles) for axis, f in saturated.items()))
         if used.valid_fraction < limits.min_valid_fraction:
-            reasons.append(f"{name}: {100 * used.valid_fraction:.1f} % of the cycles complete "
-                           f"(< {100 * limits.min_valid_fraction:g} %)")
-        if used.stretches == 0:
-            reasons.append(f"{name}: no stretch of consecutive complete cycles long enough to filter; "
-                           f"nothing of it was fitted")
+            missing = {axis: f.missing for axis, f in used.shortfalls.items() if f.missing}
+            which = ("; missing: " + ", ".join(f"{axis} in {n} cycles" for axis, n in missing.items())
+                     if missing else "")
+            causes.append(f"{name}: {100 * used.valid_fraction:.1f} % of the cycles complete "
+                          f"(< {100 * limits.min_valid_fraction:g} %){which}")
         if used.unplaced_frames:
-            reasons.append(f"{name}: {used.unplaced_frames} frame(s) could not be placed in their SYNC "
-                           f"cycle (late by more than the assembler's look-ahead, or sent twice)")
+            causes.append(f"{name}: {used.unplaced_frames} frame(s) could not be placed in their SYNC "
+                          f"cycle (late by more than the assembler's look-ahead, or sent twice)")
         if used.longest_gap_s > limits.max_gap:
-            reasons.append(f"{name}: {used.longest_gap_s:.3g} s without a complete cycle (> {limits.max_gap:g} s)")
-    return per_traj, reasons
+            causes.append(f"{name}: {used.longest_gap_s:.3g} s without a complete cycle (> {limits.max_gap:g} s)")
+        if used.stretches == 0:
+            out = [f"{n} {rule.replace('_', ' ')}" for rule, n in (used.rows_left_out or {}).items() if n]
+            consequences.append(f"{name}: no stretch of consecutive usable rows long enough to filter"
+                                + (f" (rows left out: {', '.join(out)})" if out else "")
+                                + "; nothing of it was fitted")
+    return per_traj, causes + consequences
+
+
+#: a current this many times its drive's limit was not limited by the drive: the recording's scaling is off
+BEYOND_LIMIT = 1.5
+
+
+def _saturation_text(axis: str, shortfall, cycles: int) -> str:
+    """``zeta2 in 1005 of 1005 rows, up to 71 A against its 8 A limit: ...`` with what to check:
+    a current far beyond the limit the drive enforces was not measured in A (another drive's log,
+    another scaling); one at the limit means the motion asks more than the drive may give."""
+    text = (f"{axis} in {shortfall.saturated} of {cycles} rows, up to {shortfall.peak_A:.3g} A against its "
+            f"{shortfall.limit_A:.3g} A limit")
+    if shortfall.peak_A is not None and shortfall.peak_A > BEYOND_LIMIT * shortfall.limit_A:
+        return text + " (beyond what the drive lets through: check the recording's current scaling and drive type)"
+    return text + " (slow the trajectory down, or raise limits.current if the motor allows)"
 
 
 def step_reasons(results: Results, limits: QualityConfig) -> tuple[dict[str, float | None], list[str]]:
@@ -371,7 +356,7 @@ def prediction_reasons(results: Results, limits: QualityConfig,
     for fit in [f for f in results.fits if f.role == "validation"] or results.fits:
         figures: dict = {"role": fit.role}
         if len(fit.t):
-            predictions = {"step-by-step": fit.tau_model if stepwise else None, "base-parameter": fit.tau_base}
+            predictions = {"step-by-step": fit.tau_model if stepwise else None, "base-fit": fit.tau_base}
             for label, tau_hat in predictions.items():
                 if tau_hat is None:
                     continue
@@ -390,32 +375,71 @@ def prediction_reasons(results: Results, limits: QualityConfig,
     return reasons
 
 
+def axis_figures(results: Results, limits: QualityConfig, actuators: Sequence[ActuatorConfig],
+                 evidence: AxisEvidence) -> tuple[dict[str, AxisFigures], dict[str, str], list[str]]:
+    """The per-axis checks: each judged axis's gain against its own model refitted, its
+    residual against its own noise floor, the lag of its forces; each axis on its own, none
+    against another. Returns the figures per axis, the checks not judged (and why), and the
+    reasons: a gain first (the cause), the floor's (folded into the gain's when a gain was
+    named: it is then that axis's error spread by the fit), the lags."""
+    judged = evidence.judged
+    over = floor_figures(results, actuators, evidence.floors, judged) if actuators else {}
+    beyond = {name: f for name, f in over.items() if f.ratio > limits.max_residual_over_floor}
+    gains = evidence.gains
+    named = {n.axis for n in gains.named} if gains is not None else set()
+    reasons = gain_reasons(gains, limits, beyond)
+    if not named:
+        reasons += floor_reason(beyond, limits, evidence.sharing)
+    lags = {name: lag for name, lag in force_lags(results).items() if name in judged}
+    reasons += lag_reasons(lags, limits)
+    not_judged: dict[str, str] = {}
+    if gains is None:
+        not_judged["gain"] = "nothing fitted"
+    else:
+        loose = [name for name in judged if name in gains.gains and not gains.gains[name].determined(limits.max_axis_gain)]
+        if loose:
+            not_judged["gain"] = (f"not determined on {', '.join(loose)}: the data do not resolve a gain of "
+                                  f"{limits.max_axis_gain:g} % there (the axis's own parameters, or the gain of an "
+                                  "axis named, take it)")
+    if evidence.floor_missing:
+        not_judged["noise floor"] = evidence.floor_missing
+    figures = {}
+    for name in judged:
+        gain = gains.gains.get(name) if gains is not None else None
+        if gain is not None and not gain.determined(limits.max_axis_gain):
+            gain = None
+        floor, lag = over.get(name), lags.get(name)
+        failed = tuple(check for check, off in (("gain", name in named), ("noise floor", name in beyond),
+                                                ("force lag", lag is not None and lag.beyond(limits.max_force_lag)))
+                       if off)
+        figures[name] = AxisFigures(
+            gain_percent=None if gain is None else gain.percent, gain_sigma_percent=None if gain is None else gain.sigma_percent,
+            residual_over_floor=None if floor is None else floor.ratio, floor_trajectory=None if floor is None else floor.trajectory,
+            residual_A=None if floor is None else floor.residual, floor_A=None if floor is None else floor.floor,
+            force_lag_s=None if lag is None else lag.seconds, force_lag_sigma_s=None if lag is None else lag.sigma,
+            failed=failed)
+    return figures, not_judged, reasons
+
+
 def verdict(results: Results, limits: QualityConfig, actuators: Sequence[ActuatorConfig] = (),
-            judged_axes: Sequence[str] | None = None, floors: Mapping[str, np.ndarray] | None = None) -> Verdict:
+            evidence: AxisEvidence | None = None) -> Verdict:
     """The quality verdict of ``results`` (its ``trajectories`` coverage included); ``actuators``:
-    the config's, whose drives say which axes :func:`axis_reasons` compares (none: no comparison);
-    ``judged_axes``: the axes whose forces the fitted parameters act on, which the axis checks and
-    :func:`force_lags` judge (None: every axis); ``floors``: per fitted trajectory, each axis's
-    current noise at standstill (:func:`floor_reasons`; None or empty: no such check).
-    """
+    the config's (their force per ampere puts residuals in each drive's current; none: no floor
+    check); ``evidence``: what the per-axis checks judge (:class:`AxisEvidence`; None: every
+    axis, no gains, no floors). The reasons come in order of cause: what the recordings lack,
+    the steps, each axis (a drive's data off), then what follows: the parameters, their
+    physical consistency, the predictions."""
     per_traj, reasons = recording_reasons(results, limits)
     steps, more = step_reasons(results, limits)
     reasons += more
+    if evidence is None:
+        evidence = AxisEvidence(judged=tuple(results.actuators), floor_missing="no noise floors given")
+    axes, not_judged, more = axis_figures(results, limits, actuators, evidence)
+    reasons += more             # an axis's drive data off: the cause of what follows
     well, more = well_identified_reasons(results, limits)
     reasons += more
     reasons += consistency_reasons(results)
-    axes = results.actuators if judged_axes is None else tuple(judged_axes)
-    spreads, ratios, more = axis_reasons(results, actuators, limits, axes)
-    reasons += more
-    named = _named_against_twins(spreads, ratios, limits)
-    over_floor, more = (floor_reasons(results, actuators, limits, floors or {}, axes, named) if actuators
-                        else ({}, []))
-    reasons += more
-    lags = {name: lag for name, lag in force_lags(results).items() if name in axes}
-    reasons += lag_reasons(lags, limits)
     reasons += prediction_reasons(results, limits, per_traj)
-    return Verdict(passed=not reasons, reasons=tuple(reasons), thresholds=limits,
-                   trajectories=per_traj, cond_scaled=steps, well_identified=tuple(well),
-                   axis_gain_spread_percent=spreads, axis_residual_ratio=ratios, axis_residual_over_floor=over_floor,
-                   force_lag_s={name: lag.seconds for name, lag in lags.items()},
-                   force_lag_sigma_s={name: lag.sigma for name, lag in lags.items()}, axes_judged=tuple(axes))
+    return Verdict(passed=not reasons, reasons=tuple(dict.fromkeys(reasons)), thresholds=limits,
+                   trajectories=per_traj, cond_scaled=steps, well_identified=tuple(well), axes=axes,
+                   not_judged=not_judged, axes_judged=tuple(evidence.judged))

@@ -1,5 +1,6 @@
-"""The recordings given to ``ident-hw identify``: loaded and checked against the config before
-anything is written.
+"""The recordings given to ``ident-hw identify``: found (files, or a results folder's
+``data/``: :func:`recording_paths`), loaded and checked against the config before anything is
+written.
 
 A decoded ``.npz`` keeps the node-IDs, profiles and drive scalings it was converted with
 (``metadata.axes``); a mismatch with the config is an error naming both files, since the SI
@@ -14,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
@@ -87,25 +89,42 @@ def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
     return rec.metadata.trajectory or path.stem, rec
 
 
-def gather_recordings(config: Config, given: list[str]) -> tuple[dict[str, Recording], dict[str, ImportSummary]]:
-    """The recordings ``ident-hw identify`` works on: each file ``given`` (``NAME=PATH``: the
-    recording of trajectory NAME; else a decoded ``.npz`` or raw log named by its trajectory, or
-    a file made elsewhere whose stem is a ``recorded`` trajectory's name), then every ``recorded``
+def gather_recordings(config: Config, given: list[str]
+                      ) -> tuple[dict[str, Recording], dict[str, ImportSummary], list[str]]:
+    """The recordings ``ident-hw identify`` works on: each item ``given`` (``NAME=PATH``: the
+    recording of trajectory NAME; a results folder or its ``data/``: its recordings,
+    :func:`recording_paths`; else a decoded ``.npz`` or raw log named by its trajectory, or a file
+    made elsewhere whose stem is a ``recorded`` trajectory's name), then every ``recorded``
     trajectory of the config not given, from its own file and window. A file given in a recorded
     trajectory's place is read as the config's ``recordings`` section says, whole (its window is
-    the config's file's). Returns the recordings by trajectory name and, for those read from
-    files made elsewhere, how they were read.
+    the config's file's). Returns the recordings by trajectory name, for those read from files made
+    elsewhere how they were read, and the notes to print (what a folder gave, what was skipped).
 
     Raises:
-        RecordingError: an unreadable or mismatched file, two files for one trajectory, or a file
-            made elsewhere that names no trajectory.
+        RecordingError: an unreadable or mismatched file, two files for one trajectory, a folder
+            without recordings, or a file made elsewhere that names no trajectory.
     """
     recordings: dict[str, Recording] = {}
     imported: dict[str, ImportSummary] = {}
     files: dict[str, str] = {}
+    notes: list[str] = []
     recorded = {t.name: t for t in config.trajectories if t.recorded}
+
+    def keep(name: str, rec: Recording, path) -> None:
+        if name in recordings:
+            raise RecordingError(f"{files[name]} and {path} are both recordings of trajectory {name!r}: give one "
+                                 "(or the results folder: its decoded .npz recordings are used)")
+        recordings[name], files[name] = rec, str(path)
+
     for item in given:
         name, path = _named(item, config)
+        if name is None and (Path(path).is_dir() or Path(path).name == "drives.json"
+                             or Path(path).name.endswith(NOT_RECORDINGS)):
+            paths, more = recording_paths([path])
+            notes += more
+            for found in paths:
+                keep(*load_recording(found, config), found)
+            continue
         if name is None and Path(path).suffix.lower() not in (".npz", *RAW_LOG_SUFFIXES):
             stem = Path(path).stem
             if stem not in recorded:
@@ -114,18 +133,16 @@ def gather_recordings(config: Config, given: list[str]) -> tuple[dict[str, Recor
             name = stem
         if name is not None and name in recorded:
             external = read_external(config, recorded[name], path, use_window=False)
-            rec, imported[name] = external.recording, external.summary
+            imported[name] = external.summary
+            keep(name, external.recording, path)
         else:
             loaded, rec = load_recording(path, config)
-            name = name or loaded
-        if name in recordings:
-            raise RecordingError(f"{files[name]} and {path} are both recordings of trajectory {name!r}: give one")
-        recordings[name], files[name] = rec, path
+            keep(name or loaded, rec, path)
     for name, tcfg in recorded.items():
         if name not in recordings:
             external = read_external(config, tcfg)
             recordings[name], imported[name] = external.recording, external.summary
-    return recordings, imported
+    return recordings, imported, notes
 
 
 def _named(item: str, config: Config) -> tuple[str | None, str]:
@@ -138,6 +155,57 @@ def _named(item: str, config: Config) -> tuple[str | None, str]:
         raise RecordingError(f"{item}: no trajectory {name!r} in {config.source} (its trajectories: "
                              f"{', '.join(t.name for t in config.trajectories)})")
     return None, item
+#: what a results folder's ``data/`` holds beside the recordings, by name or ending (not recordings)
+NOT_RECORDINGS = ("drives.json", ".log.json", ".asc.json", ".blf.json")
+
+
+def recording_paths(given: Sequence[str | Path]) -> tuple[list[Path], list[str]]:
+    """The recording files ``ident-hw identify`` reads, from what the command line gives: a file
+    as it is; a folder (a results folder, or its ``data/``) as its recordings, one per trajectory:
+    the decoded ``<name>.npz`` the run wrote, else its raw CAN log (``.log``/``.asc``/``.blf``,
+    decoded with the config's values). What a results folder holds beside its recordings
+    (``drives.json``, the raw logs' ``.json`` sidecars) is skipped, also when given by a shell
+    glob, and said. Returns the files and the notes to print.
+
+    Raises:
+        RecordingError: a folder without recordings, or a file that is no recording (by its
+            ending: ``.npz`` or a raw CAN log), naming it and what is accepted.
+    """
+    files: list[Path] = []
+    notes: list[str] = []
+    skipped: list[str] = []
+    for item in map(Path, given):
+        if item.is_dir():
+            folder = item / "data" if (item / "data").is_dir() else item
+            found = _folder_recordings(folder)
+            if not found:
+                raise RecordingError(f"{item}: no recordings in {folder} (decoded .npz or raw CAN logs "
+                                     f"{'/'.join(RAW_LOG_SUFFIXES)}); an 'ident-hw identify' results folder keeps "
+                                     "none: give the folder of the run that recorded them")
+            notes.append(f"{item}: the recordings in {folder}: {', '.join(p.name for p in found)}")
+            files += found
+        elif item.name == "drives.json" or item.name.endswith(NOT_RECORDINGS):
+            skipped.append(str(item))
+        elif item.suffix.lower() not in (".npz", *RAW_LOG_SUFFIXES):
+            raise RecordingError(f"{item}: not a recording (a decoded .npz or a raw CAN log "
+                                 f"{'/'.join(RAW_LOG_SUFFIXES)}); to use a results folder's recordings, give the folder")
+        else:
+            files.append(item)
+    if skipped:
+        notes.append(f"skipped, not recordings: {', '.join(skipped)}")
+    return files, notes
+
+
+def _folder_recordings(folder: Path) -> list[Path]:
+    """One file per trajectory of ``folder``: ``<name>.npz``, else its raw CAN log."""
+    chosen: dict[str, Path] = {}
+    for path in sorted(folder.iterdir()):
+        kind = path.suffix.lower()
+        if not path.is_file() or kind not in (".npz", *RAW_LOG_SUFFIXES):
+            continue
+        if path.stem not in chosen or kind == ".npz":
+            chosen[path.stem] = path
+    return [chosen[name] for name in sorted(chosen)]
 
 
 def check_axes(path: Path, rec: Recording, config: Config) -> None:

@@ -12,6 +12,8 @@ Public API::
   :func:`run_stream` records what one does on a stream.
 - :func:`power_rows`, :func:`energy_rows`: power and energy models (no accelerations).
 - :func:`validation_metrics`: RMS, NRMS, d_tau and J_RMSE on held-out data.
+- :func:`axis_gains`: each axis's gain against its own model refitted (a torque constant,
+  gear ratio or screw lead off; the quality verdict's check).
 
 In a results folder, the figures of a least-squares or mass fit are a step's
 :class:`ident_hw.records.LeastSquaresFigures` or :class:`ident_hw.records.MassFitFigures`, and
@@ -25,6 +27,7 @@ import lazy_loader
 # ``ident_hw.identification.least_squares`` and the config that reads its constants do not pay
 # for SciPy's optimiser and signal modules.
 __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submod_attrs={
+    "axis_gain": ["AxisGains", "axis_gains"],
     "base_params": ["BaseParameters", "base_parameters", "identify_base"],
     "least_squares": ["LeastSquaresResult", "ols", "stack", "wls"],
     "mass_fit": ["MassFitResult", "sqp_fit"],

@@ -8,7 +8,8 @@ Built files::
     report.html      the summary and verdict first, then everything above on one page
     results.mat      parameters and fits for MATLAB (scipy.io.savemat)
 
-Modules: :mod:`.terminal` (lines printed at the end of a run), :mod:`.plots`, :mod:`.html`
+Modules: :mod:`.terminal` (lines printed at the end of a run), :mod:`.verdict` (the quality
+verdict's figures against their limits, for both), :mod:`.plots`, :mod:`.html`
 (Jinja2 template ``templates/report.html``), :mod:`.matlab`. Imports :mod:`ident_hw.results`,
 the model's names and the identification metrics; nothing of the runner or the drivers.
 """
@@ -42,7 +43,8 @@ def build_report(folder: str | Path) -> Path:
     jobs = []
     actuators = plots.Actuators(results.actuators, results.actuator_kinds)
     for fit in results.fits:
-        jobs.append((f"{fit.role}: {fit.name} — measured vs model", plots.plot_forces, (fit, actuators, folder_plots)))
+        jobs.append((f"{fit.role}: {fit.name} — measured vs model", plots.plot_forces,
+                     (fit, actuators, folder_plots, results.stepwise_label)))
         jobs.append((f"{fit.name}: residuals", plots.plot_residuals, (fit, actuators, folder_plots)))
         jobs.append((f"{fit.name}: motion", plots.plot_motion, (fit, actuators, folder_plots)))
         if fit.tau_compared is not None and fit.role == "validation":

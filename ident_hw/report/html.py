@@ -13,6 +13,7 @@ from ident_hw.records import TrajectoryMetrics
 from ident_hw.results import SETTLED, Results, read_status, validation_figures
 
 from .terminal import accuracy_line, coverage_text
+from .verdict import axis_table, status_line, trajectory_table
 
 _ENV = jinja2.Environment(loader=jinja2.PackageLoader("ident_hw.report", "templates"),
                           autoescape=True, undefined=jinja2.StrictUndefined, keep_trailing_newline=True)
@@ -40,7 +41,10 @@ def render_html(folder: Path, results: Results, table: dict[str, TrajectoryMetri
     rows = results.parameter_rows()
     analysis = results.base_analysis
     return _ENV.get_template("report.html").render(
-        status=read_status(folder), results=results, rows=rows, base_rows=results.base_rows(),
+        status=read_status(folder), shown_status=status_line(read_status(folder), results.quality),
+        axis_table=axis_table(results.quality) if results.quality is not None else None,
+        trajectory_table=trajectory_table(results.quality) if results.quality is not None else None,
+        results=results, rows=rows, base_rows=results.base_rows(),
         poor=[r.name for r in rows if r.poorly_identified],
         has_truth=results.parameters.truth is not None,
         accuracy=accuracy_line(rows, results.base_fit) if results.parameters.truth is not None else None,

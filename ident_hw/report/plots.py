@@ -62,14 +62,16 @@ def _every(n: int, at_most: int = 3000) -> slice:
     return slice(None, None, max(1, n // at_most))
 
 
-def plot_forces(fit: TrajectoryFit, actuators: Actuators, plots: Path) -> Path:
+def plot_forces(fit: TrajectoryFit, actuators: Actuators, plots: Path, model_label: str = "step by step") -> Path:
+    """Measured forces against the step-by-step prediction (``model_label``: what it is made of,
+    :attr:`ident_hw.results.Results.stepwise_label`) and the base fit's, over the first window."""
     fig = _figure(8)
     panels, bottom = _panels(fig, len(actuators.names))
     shown = int(np.searchsorted(fit.t, fit.t[0] + FORCES_WINDOW, side="right")) if len(fit.t) else 0
     s = slice(0, shown, _every(shown).step)
     for j, ax in enumerate(panels):
         ax.plot(fit.t[s], fit.tau[s, j], lw=0.8, label="measured")
-        ax.plot(fit.t[s], fit.tau_model[s, j], lw=1.0, ls="--", label="model")
+        ax.plot(fit.t[s], fit.tau_model[s, j], lw=1.0, ls="--", label=model_label)
         if fit.tau_base is not None:
             ax.plot(fit.t[s], fit.tau_base[s, j], lw=1.0, ls=":", label="base fit")
         if fit.tau_compared is not None:

@@ -12,6 +12,8 @@ from ident_hw.records import DriveGainsFigures, RecordingCoverage, Verdict
 from ident_hw.results import (SETTLED, BaseFit, BaseRow, OnlineTrace, ParameterRow, ValidationFigures, load_results,
                               metrics, read_status, validation_figures)
 
+from .verdict import axis_table, not_judged_notes, status_line, text_lines
+
 
 def summary_lines(folder: str | Path) -> list[str]:
     """The numbers printed at the end of a run: a Table-1-like table of the fitted parameters
@@ -22,7 +24,7 @@ def summary_lines(folder: str | Path) -> list[str]:
     head = f"  {'parameter':>10} {'unit':>9} {'initial':>11} {'identified':>11} {'%sigma':>7}"
     if truth:
         head += f" {'truth':>11} {'error %':>8} {'err/sigma':>9}"
-    lines = [f"status: {read_status(folder)}"]
+    lines = [f"status: {status_line(read_status(folder), results.quality)}"]
     lines += recording_lines(results)
     if any(r.fitted for r in rows):
         lines.append("physical parameters, step by step (SQP mass fit of the 3PRRR paper):")
@@ -50,10 +52,12 @@ def summary_lines(folder: str | Path) -> list[str]:
               for line in gains_lines(r.name, r.drive_gains, results.actuators)]
     if truth:
         lines.append(accuracy_line(rows, results.base_fit))
+    label = results.stepwise_label
     for name, m in metrics(results).items():
-        text = f"  {m.role:>14} {name}: d_tau = {m.stepwise.d_tau_percent:.2f} %, J_RMSE = {m.stepwise.j_rmse:.4g}"
+        text = (f"  {m.role:>14} {name}: {label} d_tau = {m.stepwise.d_tau_percent:.2f} %, "
+                f"J_RMSE = {m.stepwise.j_rmse:.4g}")
         if m.base_fit is not None:
-            text += f"; base fit: d_tau = {m.base_fit.d_tau_percent:.2f} %"
+            text += f"; base fit d_tau = {m.base_fit.d_tau_percent:.2f} %"
         lines.append(text)
     for figures in validation_figures(results).values():
         lines += rre_lines(figures, results.actuators, results.compared_label)
@@ -93,6 +97,11 @@ def coverage_text(used: RecordingCoverage) -> str:
         out = [f"{n} {rule.replace('_', ' ')}" for rule, n in (used.rows_left_out or {}).items() if n]
         if out:
             text += f" (rows left out: {', '.join(out)})"
+        for axis, short in used.shortfalls.items():
+            parts = ([f"{short.missing} cycles missing"] if short.missing else []) + (
+                [f"{short.saturated} rows saturated (up to {short.peak_A:.3g} A, limit {short.limit_A:.3g} A)"]
+                if short.saturated else [])
+            text += f"; {axis}: {', '.join(parts)}"
         if used.uncounted_axes:
             text += (f"; positions of {', '.join(used.uncounted_axes)} not in whole encoder counts: no encoder "
                      "draws, sigma without the encoders' resolution")
@@ -172,10 +181,16 @@ def _or_nan(value: float | None) -> float:
 
 
 def _verdict_lines(quality: Verdict) -> list[str]:
-    """The quality verdict for the terminal: passed, or DEGRADED with one line per reason."""
+    """The quality verdict for the terminal: passed, or DEGRADED with one line per reason; the
+    checks it could not make (``noise floor: not judged (no standstill)``) beside the thresholds;
+    then each judged axis's figures against their limits (:func:`ident_hw.report.verdict.axis_table`)."""
+    where = "; ".join(("identification.quality thresholds",) + not_judged_notes(quality))
     if quality.passed:
-        return ["quality verdict: passed (identification.quality thresholds)"]
-    return ["quality verdict: DEGRADED (identification.quality thresholds):"] + [f"  {r}" for r in quality.reasons]
+        lines = [f"quality verdict: passed ({where})"]
+    else:
+        lines = [f"quality verdict: DEGRADED ({where}):"] + [f"  {r}" for r in quality.reasons]
+    table = axis_table(quality)
+    return lines + (["per axis, against the limits:"] + text_lines(table) if table.rows else [])
 
 
 def model_summary(fit: ModelFit) -> str:
