@@ -34,10 +34,14 @@ def _load(path: str):
 
 
 def cmd_check(args) -> int:
-    """Validate the config and every trajectory; move nothing, open no bus."""
+    """Validate the config and every trajectory; move nothing, open no bus. A config of
+    recordings made elsewhere only (``recorded`` trajectories): read every file as ``identify``
+    would and say what it holds."""
     from ident_hw.experiment.plan import check_campaign, plan
     config = _load(args.config)
     print(f"{args.config}: config ok")
+    if config.trajectories and all(t.recorded for t in config.trajectories):
+        return _check_recorded(config)
     planned = plan(config, online=True)
     for p in planned:
         print("  " + p.describe() + ("  (ident-hw online only)" if p.config.online_only else ""))
@@ -51,6 +55,27 @@ def cmd_check(args) -> int:
         print("NOT runnable: fix the items above")
         return Exit.CONFIG
     print("everything would run")
+    return Exit.OK
+
+
+def _check_recorded(config) -> int:
+    """``check`` of a config of recordings made elsewhere: each file read, what it holds."""
+    from drivers.errors import RecordingError
+    from ident_hw.experiment.external import read_external
+    failed = False
+    for tcfg in config.trajectories:
+        try:
+            summary = read_external(config, tcfg).summary
+        except RecordingError as exc:
+            print(f"  {tcfg.name}: cannot read: {exc}")
+            failed = True
+            continue
+        print(f"  {tcfg.name}: {tcfg.path}")
+        print("\n".join(f"    {line}" for line in summary.describe()))
+    if failed:
+        print("NOT identifiable: fix the items above")
+        return Exit.CONFIG
+    print(f"recordings made elsewhere: nothing to move; identify them with `ident-hw identify {config.source}`")
     return Exit.OK
 
 

@@ -532,7 +532,7 @@ def _thresholds_from_json(doc: Mapping[str, Any] | None) -> QualityConfig | None
 
 
 #: the per-axis checks of the quality verdict, by the name the verdict and the report give them
-AXIS_CHECKS = ("gain", "noise floor", "force lag")
+AXIS_CHECKS = ("gain", "noise floor", "force lag", "prediction")
 
 
 @dataclass(frozen=True)
@@ -546,8 +546,12 @@ class AxisFigures:
     any gain of it). ``residual_over_floor``: its worst residual over what noise alone leaves
     it, on the rows the fits used, on trajectory ``floor_trajectory``: the residual's RMS
     ``residual_A`` and the floor ``floor_A`` (its drive's current, A). ``force_lag_s``: the delay
-    of its measured forces behind the model's, and its standard error ``force_lag_sigma_s`` (s).
-    ``failed``: the checks (of :data:`AXIS_CHECKS`) that name it in a reason.
+    of its measured forces behind the model's, and its standard error ``force_lag_sigma_s`` (s);
+    ``force_lag_share``: the share of its residual the lag accounts for. ``rre_percent``: its
+    worst relative residual where it moves, on trajectory ``rre_trajectory`` (a validation one,
+    else an identification one), of the identified parameters, and ``rre_consistent_percent`` of
+    the physically consistent ones (%). ``failed``: the checks (of :data:`AXIS_CHECKS`) that name
+    it in a reason.
     """
 
     gain_percent: float | None = None
@@ -558,6 +562,10 @@ class AxisFigures:
     floor_A: float | None = None
     force_lag_s: float | None = None
     force_lag_sigma_s: float | None = None
+    force_lag_share: float | None = None
+    rre_percent: float | None = None
+    rre_consistent_percent: float | None = None
+    rre_trajectory: str | None = None
     failed: tuple[str, ...] = ()
 
     def to_json(self) -> dict:
@@ -585,7 +593,8 @@ class Verdict:
     ``steps``); ``well_identified``: the fitted parameters (physical, then base) with %σ at most
     the campaign's threshold. Per judged axis (``axes_judged``) its :class:`AxisFigures` (JSON
     ``axes``). ``not_judged``: the checks that could not be made, and why (JSON only when there
-    are some: ``{"noise floor": "no standstill"}``).
+    are some: ``{"noise floor": "no standstill"}``). ``notes``: what the verdict saw and does not
+    fail on, with why (JSON only when there are some).
     """
 
     passed: bool
@@ -597,6 +606,7 @@ class Verdict:
     axes: Mapping[str, AxisFigures] = field(default_factory=dict)
     not_judged: Mapping[str, str] = field(default_factory=dict)
     axes_judged: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
 
     def to_json(self) -> dict:
         doc = {"passed": self.passed, "reasons": list(self.reasons), "thresholds": _thresholds_to_json(self.thresholds),
@@ -607,6 +617,8 @@ class Verdict:
                "axes_judged": list(self.axes_judged)}
         if self.not_judged:
             doc["not_judged"] = dict(self.not_judged)
+        if self.notes:
+            doc["notes"] = list(self.notes)
         return doc
 
     @classmethod
@@ -624,7 +636,8 @@ class Verdict:
                                  for name, t in (doc.get("trajectories") or {}).items()},
                    cond_scaled={name: s.get("cond_scaled") for name, s in (doc.get("steps") or {}).items()},
                    well_identified=tuple(doc.get("well_identified") or ()), axes=axes,
-                   not_judged=doc.get("not_judged") or {}, axes_judged=tuple(doc.get("axes_judged") or ()))
+                   not_judged=doc.get("not_judged") or {}, axes_judged=tuple(doc.get("axes_judged") or ()),
+                   notes=tuple(doc.get("notes") or ()))
 
 
 @dataclass(frozen=True)

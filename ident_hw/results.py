@@ -305,6 +305,8 @@ class TrajectoryFit:
             (``identification.compare_with``), in the same measure, or None.
         at_rest: (N, a) bool, the rows where the actuator is at rest (slower than its friction
             model's rest speed), or None: not known.
+        tau_consistent: (N, a) the forces of the physically consistent parameters
+            (:class:`~ident_hw.identification.physical.ConsistentSet`), or None: none.
     """
 
     name: str
@@ -318,9 +320,11 @@ class TrajectoryFit:
     moving: np.ndarray | None = None
     tau_compared: np.ndarray | None = None
     at_rest: np.ndarray | None = None
+    tau_consistent: np.ndarray | None = None
 
     #: the arrays a fit's file holds (those that are not None)
-    ARRAYS = ("t", "tau", "tau_model", "Theta", "X", "tau_base", "moving", "tau_compared", "at_rest")
+    ARRAYS = ("t", "tau", "tau_model", "Theta", "X", "tau_base", "moving", "tau_compared", "at_rest",
+              "tau_consistent")
 
     @property
     def tau_fit(self) -> np.ndarray:

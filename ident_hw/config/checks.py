@@ -207,6 +207,9 @@ def _check_recorded(config: Config) -> None:
         if given is not None and len(given) != n:
             raise FieldError(f"recordings.columns.{key}", f"expected one column per actuator ({n}: "
                              f"{', '.join(a.name for a in config.robot.actuators)}), got {len(given)}")
+    if isinstance(recordings.current_delay, tuple) and len(recordings.current_delay) != n:
+        raise FieldError("recordings.current_delay", f"expected one delay, or one per actuator ({n}), "
+                                                     f"got {len(recordings.current_delay)}")
     for key in ("position", "velocity", "current", "torque"):
         factor = getattr(recordings.scale, key)
         if isinstance(factor, tuple) and len(factor) != n:

@@ -125,6 +125,16 @@ class QualityConfig:
         positive, unit="%", doc="how far an axis's forces stand from its own model, every fitted parameter refitted "
                                 "with that axis's gain free (least squares over the rows the fits used): beyond it, "
                                 "its torque constant, gear ratio or screw lead is likely off by about that much"))
+    max_axis_rre: float = field(default=10.0, metadata=spec(
+        positive, unit="%", doc="an axis's relative residual rre = 100 ||tau - tau_predicted|| / ||tau|| on each validation "
+                                "trajectory (each identification one when there is none) over the samples where it moves, "
+                                "of the identified parameters and of the physically consistent ones: beyond it the model "
+                                "does not predict that axis (a current of the wrong sign, joint or gain, positions and "
+                                "currents of different runs)"))
+    min_lag_share: float = field(default=0.2, metadata=spec(
+        in_range(0.0, 1.0), doc="a force lag beyond max_force_lag fails the verdict when it also accounts for at least "
+                                "this share of the axis's residual (a time misalignment the data show); a smaller share "
+                                "is a limit of the model beside a larger residual (a real joint's elasticity), noted"))
     max_residual_over_floor: float = field(default=5.0, metadata=spec(
         positive, doc="an axis's force residual (RMS over the rows the fits used, on any fitted trajectory, in the "
                       "drive's current) over what noise alone leaves it there: its current noise at standstill in "

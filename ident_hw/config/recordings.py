@@ -72,7 +72,10 @@ class RecordingsConfig:
     ``gap``: two rows further apart than this many times the median step are a gap: the
     recording is cut there, as the tool's own recordings are at a skipped SYNC slot.
     ``idle_tolerance``: a head or tail where no actuator leaves its first (last) position by more
-    than this fraction of its position range is idle, and left out.
+    than this fraction of its position range is idle, and left out. ``current_delay``: s by which
+    the currents (torques) are stamped late against the positions (one for all actuators, or one
+    per actuator; negative: early): a logger that takes the two from different buses or filters,
+    which the quality verdict's force lag shows; the currents are read at their stamp minus it.
     """
 
     columns: ColumnsConfig
@@ -84,3 +87,4 @@ class RecordingsConfig:
     absurd: float = field(default=1.0, metadata=spec(positive))
     gap: float = field(default=2.5, metadata=spec(in_range(1.5, 100.0)))
     idle_tolerance: float = field(default=1e-3, metadata=spec(in_range(0.0, 0.5)))
+    current_delay: float | tuple[float, ...] = field(default=0.0, metadata=spec(in_range(-1.0, 1.0), unit="s"))

@@ -131,6 +131,7 @@ def read_external(config: Config, tcfg: TrajectoryConfig, path: str | Path | Non
     median = float(np.median(steps))
     regular = steps <= spec.gap * median
     period = float(np.mean(steps[regular]))
+    force = delayed(t, force, ~regular, spec.current_delay)
     grid, (position, force, velocity) = resample(t, period, ~regular, position, force, velocity)
     current = force / axes_scaling(config.robot.actuators).force_per_amp if layout.force_kind == "torque" else force
     summary = ImportSummary(
@@ -327,6 +328,21 @@ def idle_trimmed(t: np.ndarray, position: np.ndarray, config: Config) -> slice:
     start = int(np.searchsorted(t, t[moved_from_start[0]] - IDLE_MARGIN))
     stop = int(np.searchsorted(t, t[moved_to_end[-1]] + IDLE_MARGIN, side="right"))
     return slice(start, max(stop, start + 1))
+
+
+def delayed(t: np.ndarray, force: np.ndarray, gap_after: np.ndarray, delay) -> np.ndarray:
+    """``force`` (N, a) stamped ``delay`` s late (one, or (a,); 0: as it is) moved to its own time:
+    each column read at ``t + delay`` by linear interpolation within its stretch between gaps
+    (held at a stretch's ends)."""
+    delay = np.broadcast_to(np.asarray(delay, dtype=float), (force.shape[1],))
+    if not np.any(delay):
+        return force
+    out = np.array(force, dtype=float)
+    bounds = np.concatenate([[0], np.flatnonzero(gap_after) + 1, [len(t)]])
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        for j in np.flatnonzero(delay):
+            out[lo:hi, j] = np.interp(t[lo:hi] + delay[j], t[lo:hi], force[lo:hi, j])
+    return out
 
 
 def resample(t: np.ndarray, period: float, gap_after: np.ndarray, position: np.ndarray,

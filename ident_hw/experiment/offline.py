@@ -632,7 +632,11 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     compared = compared_forces(config, recordings, prepared, progress)
     rest = rest_speeds(config, robot)
     fits = []
+    # a trajectory only a gains step uses (a payload run) is no fit of the model: the gains' figures say it all
+    payload_only = set(id_names) - {t for s in ident.steps if s.method != "gains" for t in s.trajectories}
     for name, p in prepared.items():
+        if name in payload_only and name not in ident.validation:
+            continue
         role = "validation" if name in ident.validation and name not in id_names else "identification"
         fits.append(TrajectoryFit(name, role, p.t, p.tau, p.Y @ coef, p.Theta, p.X,
                                   tau_base=None if base_fit is None else p.Y @ base_equivalent, moving=p.moving,
@@ -657,6 +661,9 @@ def identify(config: Config, recordings: Mapping[str, Recording],
         if failure is not None:         # the base step's record says why there is none
             results.steps = [replace(s, consistency_failure=failure) if s.name == base_fit.step else s
                              for s in results.steps]
+        else:                           # its forces beside the base fit's, on every trajectory
+            results.fits = [replace(f, tau_consistent=prepared[f.name].Y @ results.consistent.values)
+                            for f in results.fits]
     results.quality = verdict(results, ident.quality, config.robot.actuators,
                               axis_evidence(config, robot, recordings, prepared, id_names, fitted, draws,
                                             coef if base_fit is None else base_equivalent))

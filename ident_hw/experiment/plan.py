@@ -235,11 +235,16 @@ def homing_problems(config: Config, robot: RobotModel | None = None) -> list[str
     for a method homing on the current position (:data:`HOME_ON_CURRENT_POSITION`), one away
     from the coordinate the model gives that axis at the robot's home pose (the drives and the
     model would then disagree by the difference for the whole run) by more than
-    :data:`HOME_TOLERANCE_COUNTS` encoder counts."""
+    :data:`HOME_TOLERANCE_COUNTS` encoder counts. None without a bus (no drive to home) or for an
+    actuator without homing."""
+    if config.bus is None:
+        return []
     robot = robot_model(config) if robot is None else robot
     home = robot.home_actuated()
     problems = []
     for j, (act, axis) in enumerate(zip(config.robot.actuators, drive_axes(config))):
+        if act.homing is None:
+            continue
         offset, unit = act.homing.offset, POSITION_UNITS[act.kind]
         where = f"{config.source}: robot.actuators[{j}] ({act.name}) homing.offset {offset:.6g} {unit}"
         if outside_position_limits([axis], np.array([[offset]]))[0, 0]:

@@ -46,7 +46,7 @@ from ident_hw.config.to_drivers import axes_scaling
 from ident_hw.identification.axis_gain import AxisGains
 from ident_hw.identification.metrics import validation_metrics
 from ident_hw.records import AxisFigures, TrajectoryVerdict, Verdict
-from ident_hw.results import Results
+from ident_hw.results import Results, relative_residual_percent
 
 
 #: a lag counts when it exceeds its threshold and this many of its standard errors
@@ -200,6 +200,7 @@ class ForceLag:
 
     seconds: float
     sigma: float
+    explained: float = 1.0
 
     def beyond(self, limit: float, sigmas: float = LAG_SIGMAS) -> bool:
         """Larger than ``limit`` and than ``sigmas`` standard errors: a delay the data show."""
@@ -237,7 +238,8 @@ def force_lags(results: Results) -> dict[str, ForceLag]:
             continue
         lag = -along[j] / power[j]
         left = max(square[j] - lag ** 2 * power[j], 0.0) / (count - 1)    # the residual beside the lag
-        out[name] = ForceLag(float(lag), float(math.sqrt(left / power[j])))
+        out[name] = ForceLag(float(lag), float(math.sqrt(left / power[j])),
+                             float(lag ** 2 * power[j] / square[j]) if square[j] > 0 else 0.0)
     return out
 
 
@@ -334,16 +336,29 @@ def well_identified_reasons(results: Results, limits: QualityConfig) -> tuple[li
     return well, []
 
 
-def lag_reasons(lags: dict[str, ForceLag], limits: QualityConfig) -> list[str]:
-    """One reason naming the axes whose forces lag (or lead) the model's beyond ``limits.max_force_lag``
-    and beyond :data:`LAG_SIGMAS` standard errors."""
-    late = {name: lag for name, lag in lags.items() if lag.beyond(limits.max_force_lag)}
-    if not late:
-        return []
-    return ["the measured forces lag the model's by " + ", ".join(
-        f"{1e3 * lag.seconds:.2f} ms (sigma {1e3 * lag.sigma:.2g}) on {name}" for name, lag in late.items())
-            + f" (> {1e3 * limits.max_force_lag:g} ms): currents averaged by the drive but identified as "
-              "instantaneous (bus.current), or sample times off"]
+def lag_failed(lag: ForceLag, limits: QualityConfig) -> bool:
+    """A lag beyond ``limits.max_force_lag`` and :data:`LAG_SIGMAS` standard errors that accounts for
+    at least ``limits.min_lag_share`` of its axis's residual: a time misalignment, which the verdict fails."""
+    return lag.beyond(limits.max_force_lag) and lag.explained >= limits.min_lag_share
+
+
+def lag_reasons(lags: dict[str, ForceLag], limits: QualityConfig) -> tuple[list[str], list[str]]:
+    """One reason naming the axes whose forces lag (or lead) the model's (:func:`lag_failed`), and
+    one note naming those whose lag is beyond the limit but a small share of a larger residual (a
+    limit of the model, such as an elastic joint's, not a clock's)."""
+    late = {name: lag for name, lag in lags.items() if lag_failed(lag, limits)}
+    small = {name: lag for name, lag in lags.items() if lag.beyond(limits.max_force_lag) and name not in late}
+    reasons = (["the measured forces lag the model's by " + ", ".join(
+        f"{1e3 * lag.seconds:.2f} ms (sigma {1e3 * lag.sigma:.2g}, {100 * lag.explained:.0f} % of its residual) on "
+        f"{name}" for name, lag in late.items())
+        + f" (> {1e3 * limits.max_force_lag:g} ms): currents averaged by the drive but identified as "
+          "instantaneous (bus.current), or sample times off"] if late else [])
+    notes = (["the measured forces lead or lag the model's by " + ", ".join(
+        f"{1e3 * lag.seconds:+.2f} ms on {name} ({100 * lag.explained:.0f} % of its residual)" for name, lag in small.items())
+        + f": beyond {1e3 * limits.max_force_lag:g} ms, but less than {100 * limits.min_lag_share:.0f} % of what the "
+          "model leaves: a limit of the model beside a larger residual (a real joint's elasticity: the motor's "
+          "current leads its link), not a time misalignment"] if small else [])
+    return reasons, notes
 
 
 def prediction_reasons(results: Results, limits: QualityConfig,
@@ -375,8 +390,59 @@ def prediction_reasons(results: Results, limits: QualityConfig,
     return reasons
 
 
+@dataclass(frozen=True)
+class PredictionFigure:
+    """An axis's worst relative residual where it moves (%, :func:`prediction_figures`), of the
+    identified parameters ``rre`` and of the physically consistent ones ``consistent`` (None:
+    none), on ``trajectory``."""
+
+    rre: float
+    consistent: float | None
+    trajectory: str
+
+
+def prediction_figures(results: Results, judged: Sequence[str]) -> dict[str, PredictionFigure]:
+    """Per judged axis, its worst ``rre = 100 ||tau - tau_predicted|| / ||tau||`` over the samples
+    where it moves (not at rest, :attr:`ident_hw.results.TrajectoryFit.at_rest`) on the validation
+    trajectories, each identification one when there is none: of the identified parameters and
+    of the physically consistent ones. At rest a real joint holds whatever friction its last motion
+    left: what a model predicts there is reported (:class:`ident_hw.results.ValidationFigures`),
+    not judged."""
+    fits = [f for f in results.fits if f.role == "validation" and len(f.t)] or [f for f in results.fits if len(f.t)]
+    out: dict[str, PredictionFigure] = {}
+    for fit in fits:
+        moving = None if fit.at_rest is None else ~fit.at_rest
+        own = relative_residual_percent(fit.tau, fit.tau_fit, moving)
+        consistent = (None if fit.tau_consistent is None
+                      else relative_residual_percent(fit.tau, fit.tau_consistent, moving))
+        for j, name in enumerate(results.actuators):
+            if name not in judged or not math.isfinite(own[j]):
+                continue
+            worst = max(own[j], consistent[j] if consistent is not None and math.isfinite(consistent[j]) else 0.0)
+            if name not in out or worst > max(out[name].rre, out[name].consistent or 0.0):
+                out[name] = PredictionFigure(float(own[j]), None if consistent is None else float(consistent[j]),
+                                             fit.name)
+    return out
+
+
+def prediction_reasons_per_axis(figures: Mapping[str, AxisFigures], limits: QualityConfig) -> list[str]:
+    """A reason per axis whose forces the identified (or the physically consistent) parameters do
+    not predict within ``limits.max_axis_rre`` where it moves (its :class:`AxisFigures`)."""
+    out = []
+    for name, f in figures.items():
+        worst = [(label, value) for label, value in (("identified", f.rre_percent),
+                                                     ("physically consistent", f.rre_consistent_percent))
+                 if value is not None and value > limits.max_axis_rre]
+        if worst:
+            out.append(f"{name}: the {' and the '.join(label for label, _ in worst)} parameters predict its forces on "
+                       f"{f.rre_trajectory} with rre {', '.join(f'{v:.1f}' for _, v in worst)} % where it moves (> "
+                       f"{limits.max_axis_rre:g} %): check its current's column, sign and gain, and that its positions "
+                       "and currents come from one run")
+    return out
+
+
 def axis_figures(results: Results, limits: QualityConfig, actuators: Sequence[ActuatorConfig],
-                 evidence: AxisEvidence) -> tuple[dict[str, AxisFigures], dict[str, str], list[str]]:
+                 evidence: AxisEvidence) -> tuple[dict[str, AxisFigures], dict[str, str], list[str], list[str]]:
     """The per-axis checks: each judged axis's gain against its own model refitted, its
     residual against its own noise floor, the lag of its forces; each axis on its own, none
     against another. Returns the figures per axis, the checks not judged (and why), and the
@@ -391,7 +457,9 @@ def axis_figures(results: Results, limits: QualityConfig, actuators: Sequence[Ac
     if not named:
         reasons += floor_reason(beyond, limits, evidence.sharing)
     lags = {name: lag for name, lag in force_lags(results).items() if name in judged}
-    reasons += lag_reasons(lags, limits)
+    more, notes = lag_reasons(lags, limits)
+    reasons += more
+    predicted = prediction_figures(results, judged)     # its reasons come with the predictions' (consequences)
     not_judged: dict[str, str] = {}
     if gains is None:
         not_judged["gain"] = "nothing fitted"
@@ -408,17 +476,22 @@ def axis_figures(results: Results, limits: QualityConfig, actuators: Sequence[Ac
         gain = gains.gains.get(name) if gains is not None else None
         if gain is not None and not gain.determined(limits.max_axis_gain):
             gain = None
-        floor, lag = over.get(name), lags.get(name)
+        floor, lag, prediction = over.get(name), lags.get(name), predicted.get(name)
+        mispredicted = prediction is not None and max(prediction.rre, prediction.consistent or 0.0) > limits.max_axis_rre
         failed = tuple(check for check, off in (("gain", name in named), ("noise floor", name in beyond),
-                                                ("force lag", lag is not None and lag.beyond(limits.max_force_lag)))
+                                                ("force lag", lag is not None and lag_failed(lag, limits)),
+                                                ("prediction", mispredicted))
                        if off)
         figures[name] = AxisFigures(
             gain_percent=None if gain is None else gain.percent, gain_sigma_percent=None if gain is None else gain.sigma_percent,
             residual_over_floor=None if floor is None else floor.ratio, floor_trajectory=None if floor is None else floor.trajectory,
             residual_A=None if floor is None else floor.residual, floor_A=None if floor is None else floor.floor,
             force_lag_s=None if lag is None else lag.seconds, force_lag_sigma_s=None if lag is None else lag.sigma,
-            failed=failed)
-    return figures, not_judged, reasons
+            force_lag_share=None if lag is None else lag.explained,
+            rre_percent=None if prediction is None else prediction.rre,
+            rre_consistent_percent=None if prediction is None else prediction.consistent,
+            rre_trajectory=None if prediction is None else prediction.trajectory, failed=failed)
+    return figures, not_judged, reasons, notes
 
 
 def verdict(results: Results, limits: QualityConfig, actuators: Sequence[ActuatorConfig] = (),
@@ -434,12 +507,40 @@ def verdict(results: Results, limits: QualityConfig, actuators: Sequence[Actuato
     reasons += more
     if evidence is None:
         evidence = AxisEvidence(judged=tuple(results.actuators), floor_missing="no noise floors given")
-    axes, not_judged, more = axis_figures(results, limits, actuators, evidence)
+    axes, not_judged, more, notes = axis_figures(results, limits, actuators, evidence)
     reasons += more             # an axis's drive data off: the cause of what follows
     well, more = well_identified_reasons(results, limits)
     reasons += more
-    reasons += consistency_reasons(results)
+    noise_only = noise_dominated(axes, limits)
+    if noise_only is True or results.consistent is None:
+        reasons += consistency_reasons(results)
+    else:
+        reasons += [r for r in consistency_reasons(results) if r.startswith("step ")]
+        c = results.consistent
+        if not c.reproduces_base:
+            not_judged["physical consistency chi2"] = (
+                f"chi2 {c.chi2:.3g} against a {c.chi2_limit:.3g} quantile, but {noise_only}: the base parameters' "
+                "covariance describes noise, not the model's own error; the physically consistent parameters' "
+                f"prediction is judged instead (rre where each axis moves, <= {limits.max_axis_rre:g} %)")
+    reasons += prediction_reasons_per_axis({name: figures for name, figures in axes.items()
+                                            if figures.rre_percent is not None}, limits)
     reasons += prediction_reasons(results, limits, per_traj)
     return Verdict(passed=not reasons, reasons=tuple(dict.fromkeys(reasons)), thresholds=limits,
                    trajectories=per_traj, cond_scaled=steps, well_identified=tuple(well), axes=axes,
-                   not_judged=not_judged, axes_judged=tuple(evidence.judged))
+                   not_judged=not_judged, axes_judged=tuple(evidence.judged), notes=tuple(notes))
+
+
+def noise_dominated(axes: Mapping[str, AxisFigures], limits: QualityConfig) -> bool | str:
+    """True when every judged axis's residual is within ``limits.max_residual_over_floor`` of its
+    noise floor (what the fit leaves is noise: the base parameters' covariance, of noise,
+    describes it and the consistency's chi2 test means what it says); else why not (no floor, or
+    the residual above it: a real robot's model error, correlated over seconds)."""
+    ratios = {name: f.residual_over_floor for name, f in axes.items()}
+    missing = [name for name, r in ratios.items() if r is None]
+    if missing or not ratios:
+        return "no noise floor to tell the residual from noise (no standstill)"
+    above = {name: r for name, r in ratios.items() if r > limits.max_residual_over_floor}
+    if above:
+        return "the residual is the model's own error, not noise: " + ", ".join(
+            f"{name} {r:.1f} times its noise floor" for name, r in above.items())
+    return True

@@ -2,8 +2,9 @@
 (:mod:`.terminal`) and ``report.html`` (:mod:`.html`).
 
 Per judged axis (:func:`axis_table`): its gain against its own model refitted
-(``max_axis_gain``), its worst residual over its noise floor (``max_residual_over_floor``) and
-the lag of its forces (``max_force_lag``), each with pass or fail as the verdict judged it
+(``max_axis_gain``), its worst residual over its noise floor (``max_residual_over_floor``),
+the lag of its forces (``max_force_lag``, ``min_lag_share``) and its force prediction where it
+moves (``max_axis_rre``), each with pass or fail as the verdict judged it
 (``AxisFigures.failed``); a check the verdict could not make says so in its column's head, as
 ``noise floor: not judged (no standstill)``. Per trajectory (:func:`trajectory_table`): what its
 recording covers and, where judged, the force prediction error, against their limits.
@@ -47,8 +48,10 @@ def status_line(status: str, q: Verdict | None) -> str:
 
 
 def not_judged_notes(q: Verdict) -> tuple[str, ...]:
-    """``noise floor: not judged (no standstill)``, one per check the verdict could not make."""
-    return tuple(f"{check}: not judged ({why})" for check, why in q.not_judged.items())
+    """``noise floor: not judged (no standstill)``, one per check the verdict could not make, then
+    the verdict's notes (what it saw and does not fail on)."""
+    return tuple(f"{check}: not judged ({why})" for check, why in q.not_judged.items()) + tuple(
+        f"note: {note}" for note in q.notes)
 
 
 def axis_table(q: Verdict) -> Table:
@@ -56,8 +59,10 @@ def axis_table(q: Verdict) -> Table:
     limits = q.thresholds or QualityConfig()
     heads = ("axis", f"gain % (|g| ≤ {limits.max_axis_gain:g})",
              f"residual / noise floor (≤ {limits.max_residual_over_floor:g})",
-             f"force lag ms (|lag| ≤ {1e3 * limits.max_force_lag:g})")
-    rows = tuple((Cell(name), _gain(figures), _floor(figures), _lag(figures)) for name, figures in q.axes.items())
+             f"force lag ms (|lag| ≤ {1e3 * limits.max_force_lag:g} or < {100 * limits.min_lag_share:g} % of the residual)",
+             f"rre % moving, identified / consistent (≤ {limits.max_axis_rre:g})")
+    rows = tuple((Cell(name), _gain(figures), _floor(figures), _lag(figures), _rre(figures))
+                 for name, figures in q.axes.items())
     return Table(heads, rows, not_judged_notes(q))
 
 
@@ -80,7 +85,15 @@ def _lag(f: AxisFigures) -> Cell:
     if f.force_lag_s is None:
         return Cell("not judged")
     sigma = f" ± {1e3 * f.force_lag_sigma_s:.2g}" if f.force_lag_sigma_s is not None else ""
-    return Cell(f"{1e3 * f.force_lag_s:+.3f}{sigma}", "force lag" not in f.failed)
+    share = f" ({100 * f.force_lag_share:.0f} %)" if f.force_lag_share is not None else ""
+    return Cell(f"{1e3 * f.force_lag_s:+.3f}{sigma}{share}", "force lag" not in f.failed)
+
+
+def _rre(f: AxisFigures) -> Cell:
+    if f.rre_percent is None:
+        return Cell("not judged")
+    consistent = f" / {f.rre_consistent_percent:.2f}" if f.rre_consistent_percent is not None else ""
+    return Cell(f"{f.rre_percent:.2f}{consistent} on {f.rre_trajectory}", "prediction" not in f.failed)
 
 
 def trajectory_table(q: Verdict) -> Table:
