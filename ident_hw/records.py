@@ -309,7 +309,9 @@ class DriveGainsFigures:
     config's gains ``configured`` (torque constant × gear), the currents' residual ``residual_rms``
     (A) at the identified gains and ``residual_rms_configured`` with the configured ones (every
     other parameter fitted again); the payload's ``payload_mass`` (kg) and the trajectories that
-    carry it; ``rank``: the base parameters fitted with the gains; ``blocks``: the jackknife's."""
+    carry it; ``rank``: the base parameters fitted with the gains; ``blocks``: the jackknife's;
+    ``mass_axes``: the actuators whose forces the payload's known mass acts on (its mass column not
+    zero there): the others' gains follow only from the parameters the axes share."""
 
     gains: tuple[float, ...]
     sigma: tuple[float, ...]
@@ -320,6 +322,7 @@ class DriveGainsFigures:
     payload_trajectories: tuple[str, ...]
     rank: int
     blocks: int
+    mass_axes: tuple[str, ...] = ()
 
     def to_json(self) -> dict:
         return {f.name: (list(getattr(self, f.name)) if isinstance(getattr(self, f.name), tuple) else getattr(self, f.name))
@@ -328,7 +331,7 @@ class DriveGainsFigures:
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> DriveGainsFigures:
         return cls(**{f.name: (tuple(doc[f.name]) if isinstance(doc[f.name], list) else doc[f.name])
-                      for f in fields(cls)})
+                      for f in fields(cls) if f.name in doc})
 
 
 @dataclass(frozen=True)

@@ -820,11 +820,14 @@ def fit_gains_step(step, robot: RobotModel, prepared: Mapping[str, Prepared], co
                      prepared[t].Y[:, :, payload] if t in step.payload.trajectories else None)
             for t in step.trajectories]
     fit = fit_gains(runs, step.payload.mass, per_amp)
+    mass = np.concatenate([run.payload[:, :, 0] for run in runs if run.payload is not None])
+    reach = np.sqrt(np.mean(mass ** 2, axis=0))           # N·m (N) per kg of payload, RMS
     figures = DriveGainsFigures(gains=tuple(fit.gains.tolist()), sigma=tuple(fit.sigma.tolist()),
                                 configured=tuple(per_amp.tolist()), residual_rms=tuple(fit.residual_rms.tolist()),
                                 residual_rms_configured=tuple(fit.residual_rms_start.tolist()),
                                 payload_mass=step.payload.mass, payload_trajectories=tuple(step.payload.trajectories),
-                                rank=fit.rank, blocks=fit.blocks)
+                                rank=fit.rank, blocks=fit.blocks,
+                                mass_axes=tuple(a for a, r in zip(robot.actuator_names, reach) if r > 1e-6 * reach.max()))
     if progress:
         progress("  drive gains " + ", ".join(f"{a} {g:.4g} (sigma {s:.2g}; config {c:.4g})" for a, g, s, c in
                                               zip(robot.actuator_names, fit.gains, fit.sigma, per_amp)))

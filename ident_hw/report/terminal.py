@@ -312,4 +312,7 @@ def gains_lines(step: str, g: DriveGainsFigures, actuators: tuple[str, ...]) -> 
         diff = 100.0 * (gain - config) / config
         lines.append(f"  {a:<10} {gain:>10.4g} {sigma:>8.2g} {config:>10.4g} {diff:>+7.1f} "
                      f"{(gain - config) / sigma if sigma > 0 else math.nan:>+10.1f} {res:>10.3g} {res_c:>11.3g}")
+    if g.mass_axes:
+        lines.append(f"  the payload's known mass acts on the forces of {', '.join(g.mass_axes)}; the other gains follow "
+                     "only from the parameters the axes share")
     return lines
