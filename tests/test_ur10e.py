@@ -35,6 +35,16 @@ def ur10e():
     return dataset("ur10e")
 
 
+@pytest.fixture(scope="module")
+def authors(ur10e, tmp_path_factory):
+    """``configs/ur10e.yaml`` identified from the authors' run into a results folder (no report):
+    ``(results, folder)``."""
+    config = load_config(CONFIGS / "ur10e.yaml")
+    recordings, imported, _ = gather_recordings(config, [])
+    folder = new_results_folder(config, tmp_path_factory.mktemp("ur10e") / "results", "identify")
+    return identify_recordings(config, recordings, folder, report=False, imported=imported), folder
+
+
 def rre(config, given=()):
     recordings, imported, _ = gather_recordings(config, list(given))
     results = identify(config, recordings, imported=imported)
@@ -42,9 +52,12 @@ def rre(config, given=()):
     return np.array(figures.rre_fit), np.array(figures.rre_compared), imported, results
 
 
-def test_identified_from_the_authors_run_it_predicts_their_held_out_run_better_on_every_joint(ur10e):
-    ours, theirs, imported, results = rre(load_config(CONFIGS / "ur10e.yaml"))
-    assert imported["excitation"].window == "rows 635..3510" and imported["validation"].window == "rows 700..4200"
+def test_identified_from_the_authors_run_it_predicts_their_held_out_run_better_on_every_joint(authors):
+    results, _ = authors
+    figures = validation_figures(results)["validation"]
+    ours, theirs = np.array(figures.rre_fit), np.array(figures.rre_compared)
+    assert results.trajectories["excitation"].imported.window == "rows 635..3510"
+    assert results.trajectories["validation"].imported.window == "rows 700..4200"
     assert np.all(ours <= theirs), (ours, theirs)
     assert ours.mean() <= 0.8 * theirs.mean(), (ours.mean(), theirs.mean())     # the issue's aim: 20 % below
     # their published set as the issue measured it independently: about 12.9 5.7 5.7 12.4 15.9 55.6 %
@@ -100,12 +113,9 @@ def test_the_published_parameters_are_read_into_the_models_order(ur10e):
     assert np.allclose(published.gains, [10.0, 10.6956, 8.4566, 9.0029, 9.48, 10.1232])
 
 
-def test_the_consistent_set_is_exported_as_a_urdf_that_pinocchio_and_mujoco_load(ur10e, tmp_path):
+def test_the_consistent_set_is_exported_as_a_urdf_that_pinocchio_and_mujoco_load(authors, tmp_path):
     mujoco = pytest.importorskip("mujoco")
-    config = load_config(CONFIGS / "ur10e.yaml")
-    recordings, imported, _ = gather_recordings(config, [])
-    folder = new_results_folder(config, tmp_path / "results", "identify")
-    results = identify_recordings(config, recordings, folder, report=False, imported=imported)
+    results, folder = authors
     assert results.consistent is not None
     written = export_description(folder, tmp_path / "ur10e_identified.urdf", for_mujoco=True)
     robot = pin.buildModelFromUrdf(str(written))
@@ -137,14 +147,12 @@ def test_the_drive_gains_from_the_payload_pair_beside_the_published_ones(ur10e):
 
 
 # ----------------------------------------------------------------------------- the verdict on real data
-def test_the_verdict_passes_the_real_fit_and_says_what_it_could_not_judge_and_why(ur10e):
+def test_the_verdict_passes_the_real_fit_and_says_what_it_could_not_judge_and_why(authors):
     """The UR10e's own data: no standstill (no noise floor), a serial arm whose axes' own
     parameters take any gain, a residual of model error (so the chi2 of the physical consistency,
     against a covariance of noise, is not judged: the consistent set's prediction is), the loaded
     joints' currents leading their links (an elastic joint: a small share of the residual, noted)."""
-    config = load_config(CONFIGS / "ur10e.yaml")
-    recordings, imported, _ = gather_recordings(config, [])
-    quality = identify(config, recordings, imported=imported).quality
+    quality = authors[0].quality
     assert quality.passed, quality.reasons
     assert set(quality.not_judged) == {"gain", "noise floor", "physical consistency chi2"}
     assert any("elasticity" in note for note in quality.notes)
@@ -171,13 +179,18 @@ GARBAGE = {
 }
 
 
+#: the friction constants the real data chose (the friction choice is not what these tests test)
+CHOSEN = "friction: {model: dahl, offset: true, presliding: 0.0001, stribeck: 2.0}"
+
+
 @pytest.mark.parametrize("case", sorted(GARBAGE))
 def test_the_verdict_fails_garbage_made_of_the_real_data_naming_the_axis(ur10e, tmp_path, case):
     old, new, axis = GARBAGE[case]
     text = (CONFIGS / "ur10e.yaml").read_text()
-    assert old in text
+    shipped = "friction: {model: dahl, offset: true, presliding: auto, stribeck: auto}"
+    assert old in text and shipped in text
     path = tmp_path / "garbage.yaml"
-    path.write_text(text.replace(old, new))
+    path.write_text(text.replace(old, new).replace(shipped, CHOSEN))
     config = load_config(path)
     recordings, imported, _ = gather_recordings(config, [])
     quality = identify(config, recordings, imported=imported).quality

@@ -23,6 +23,7 @@ from ident_hw.config import Config
 from ident_hw.config.identification import CompareWithConfig, VectorConfig
 from ident_hw.config.robots import described_model
 from ident_hw.config.to_drivers import axes_scaling
+from ident_hw.model.friction import FrictionModel
 from ident_hw.model.interface import RobotModel
 from ident_hw.model.pseudo_inertia import SPATIAL
 
@@ -73,27 +74,29 @@ def read_vectors(path: str | Path) -> dict[str, np.ndarray]:
     return out
 
 
-def compared_model(config: Config, spec: CompareWithConfig) -> RobotModel:
+def compared_model(config: Config, spec: CompareWithConfig, robot: RobotModel | None = None) -> RobotModel:
     """The robot of the config with the friction model of the compared set: its ``friction.model``
-    (``coulomb`` as a plain sign, ``tanh(qd / 1e-9)``), an offset where its ``order`` has ``f0``."""
-    import dataclasses
+    (``coulomb`` as a plain sign, ``tanh(qd / 1e-9)``), an offset where its ``order`` has ``f0``;
+    ``robot``: the config's robot already built (a described robot: its copy shares its tree)."""
     friction = spec.friction
     order = friction.order if friction is not None else ()
-    robot = config.robot
-    section = dataclasses.replace(robot.friction, model=friction.model if friction is not None else "coulomb",
-                                  offset="f0" in order)
-    return described_model(dataclasses.replace(robot, friction=section, coulomb_width=1e-9))
+    model = FrictionModel(kind=friction.model if friction is not None else "coulomb", width=1e-9,
+                          rest_speed=config.robot.friction.rest_speed, offset="f0" in order,
+                          stribeck_velocity=None)
+    base = described_model(config.robot) if robot is None else robot
+    return base.with_friction(model)
 
 
-def compared_set(config: Config, spec: CompareWithConfig) -> ComparedSet:
-    """The set of ``spec`` read from its file, in the order of :func:`compared_model`'s parameters.
+def compared_set(config: Config, spec: CompareWithConfig, robot: RobotModel | None = None) -> ComparedSet:
+    """The set of ``spec`` read from its file, in the order of :func:`compared_model`'s parameters
+    (``robot``: the config's robot, if built).
 
     Raises:
         CompareError: a vector the file does not hold, of the wrong length, or an order naming a
             value the model has no place for; the message names the file and the key.
     """
     vectors = read_vectors(spec.path)
-    model = compared_model(config, spec)
+    model = compared_model(config, spec, robot)
     names = model.parameter_names
     values = np.zeros(len(names))
     bodies = sorted({n.split(".")[0] for n in names if "." in n}, key=lambda b: names.index(f"{b}.m"))

@@ -19,7 +19,7 @@ import numpy as np
 
 from drivers.recording import Recording
 from ident_hw.config import Config
-from ident_hw.config.robots import described_model
+from ident_hw.config.to_model import friction_model
 from ident_hw.identification.least_squares import check_regression_data, stack
 from ident_hw.model.interface import RobotModel
 from ident_hw.records import FrictionChoice
@@ -54,15 +54,16 @@ def friction_robot(config: Config, recordings: Mapping[str, Recording], names: S
     order = [k for k in ("presliding", "stribeck", "presliding") if free[k] is not None]
     if len(order) == 2:             # one constant alone: once is enough
         order = order[:1]
+    base = robot_model(config)      # its copies share the tree's regressor of each motion
     for key in order:
         residuals = []              # per value of the grid, per actuator
         for value in free[key]:
-            robot = described_model(config.robot, **{**chosen, key: value})
+            robot = base.with_friction(friction_model(config.robot, **{**chosen, key: value}))
             residuals.append(_relative_residuals([prepare(config, robot, n, recordings[n]) for n in names]))
         best = _parsimonious(np.array(residuals))
         chosen[key] = tuple(float(free[key][i]) for i in best)
         tried[key] = (free[key], tuple(tuple(float(x) for x in r) for r in residuals))
-    robot = described_model(config.robot, **chosen)
+    robot = base.with_friction(friction_model(config.robot, **chosen))
     model = robot.friction
     choice = FrictionChoice(friction.model, friction.offset, _per_actuator(model.presliding, robot)
                             if friction.model == "dahl" else None, _per_actuator(model.stribeck_velocity, robot),

@@ -629,7 +629,7 @@ def identify(config: Config, recordings: Mapping[str, Recording],
                                         np.concatenate([prepared[t].tau_fit for t in id_names])))
     analysis = BaseAnalysis.of(base_parameters(W, names, scale=np.maximum(np.abs(initial), 1e-3)))
 
-    compared = compared_forces(config, recordings, prepared, progress)
+    compared = compared_forces(config, recordings, prepared, progress, robot)
     rest = rest_speeds(config, robot)
     fits = []
     # a trajectory only a gains step uses (a payload run) is no fit of the model: the gains' figures say it all
@@ -696,16 +696,18 @@ def rest_speeds(config: Config, robot: RobotModel) -> np.ndarray:
 
 
 def compared_forces(config: Config, recordings: Mapping[str, Recording], prepared: Mapping[str, Prepared],
-                    progress: Callable[[str], None] | None = None) -> dict[str, np.ndarray]:
+                    progress: Callable[[str], None] | None = None, robot: RobotModel | None = None
+                    ) -> dict[str, np.ndarray]:
     """Per prepared trajectory, the forces (N, a) the parameter set of ``identification.compare_with``
     predicts on its rows, with its own friction model, in the config's measure
-    (:mod:`ident_hw.experiment.compared`); ``{}`` without one."""
+    (:mod:`ident_hw.experiment.compared`; ``robot``: the identified robot, whose tree its model
+    shares); ``{}`` without one."""
     spec = config.identification.compare_with
     if spec is None:
         return {}
     if progress:
         progress(f"predicting with the parameters of {spec.label} ({spec.path})")
-    other = compared_set(config, spec)
+    other = compared_set(config, spec, robot)
     out = {}
     for name, own in prepared.items():
         theirs = prepare(config, other.model, name, recordings[name])

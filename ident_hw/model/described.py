@@ -35,6 +35,9 @@ that carries the assembly mode from sample to sample. Everything is SI: rad, m, 
 
 from __future__ import annotations
 
+import copy
+import hashlib
+from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -56,6 +59,8 @@ DRIVE_PARAMS = ("fv", "fc", "Jm")
 #: SI units of the drive terms: (revolute, prismatic)
 _DRIVE_UNITS = {"fv": ("N·m·s/rad", "N·s/m"), "fc": ("N·m", "N"), "Jm": ("kg·m²", "kg"), "fs": ("N·m", "N"),
                 "f0": ("N·m", "N")}
+#: the motions whose tree regressor a robot keeps (:meth:`DescribedRobot._tree_regressor`)
+TREE_ROWS_KEPT = 4
 #: ``cond(J_p)`` of the passive joints' closure Jacobian beyond which a pose is a parallel singularity
 SINGULAR_CONDITION = 1e10
 _UNITS = {"m": "kg", "mx": "kg·m", "my": "kg·m", "mz": "kg·m"}
@@ -184,9 +189,12 @@ class DescribedRobot:
         self._set_dynamics_models()
         n = len(actuated)
         self.pose_size = model.nq
-        self.parameter_names = tuple(f"{b}.{p}" for b in self.body_names for p in BODY_PARAMS) + tuple(
-            f"{d}_{a}" for d in (*DRIVE_PARAMS, *self.friction.extra_terms) for a in self.actuator_names)
         self._n_body = 10 * (model.njoints - 1)
+        self._set_parameter_names()
+        # the tree's part of the regressor of the motions last asked for, kept once a copy with
+        # another friction model is made (:meth:`with_friction`), which shares it: the friction
+        # choice prepares one motion with many models
+        self._tree_rows: OrderedDict | None = None
 
         self._set_home(home, home_actuated, kinds, where, n)
         self.end_effector = end_effector
@@ -200,6 +208,24 @@ class DescribedRobot:
         bodies = [model.inertias[j].toDynamicParameters() for j in range(1, model.njoints)]
         self._nominal = np.concatenate([*bodies, self.drive_parameters()])
         self._mobility_check()
+
+    def _set_parameter_names(self) -> None:
+        """The parameter vector's names: the bodies' ten, then the drive terms of the friction model."""
+        self.parameter_names = tuple(f"{b}.{p}" for b in self.body_names for p in BODY_PARAMS) + tuple(
+            f"{d}_{a}" for d in (*DRIVE_PARAMS, *self.friction.extra_terms) for a in self.actuator_names)
+
+    def with_friction(self, friction: FrictionModel) -> DescribedRobot:
+        """This robot with another friction model: the same tree (shared, with the tree's
+        regressor of the motions already computed), the parameters of the new model's terms."""
+        if self._tree_rows is None:
+            self._tree_rows = OrderedDict()
+        other = copy.copy(self)
+        other.friction = friction
+        other._set_parameter_names()
+        bodies = self._nominal[:self._n_body]
+        other._nominal = np.concatenate([bodies, other.drive_parameters()])
+        other.__dict__.pop("_base", None)           # numerical base parameters: of the new columns
+        return other
 
     def _set_actuated(self, actuated: tuple[str, ...], actuator_names: Sequence[str] | None,
                       kinds: Mapping[str, str], where: str) -> None:
@@ -530,8 +556,31 @@ class DescribedRobot:
         N, n = Theta.shape
         guess = np.broadcast_to(np.zeros(self.model.nq) if guess is None else guess, (N, self.model.nq))
         Y = np.zeros((N, n, len(self.parameter_names)))
+        Y[:, :, :self._n_body], poses = self._tree_regressor(Theta, Thetad, Thetadd, guess)
+        b, idx = self._n_body, np.arange(n)
+        friction = self.friction.columns(Theta, Thetad)
+        Y[:, idx, b + idx] = friction["fv"]
+        Y[:, idx, b + n + idx] = friction["fc"]
+        Y[:, idx, b + 2 * n + idx] = Thetadd
+        for k, term in enumerate(self.friction.extra_terms):
+            Y[:, idx, b + (3 + k) * n + idx] = friction[term]
+        return Y, poses
+
+    def _tree_regressor(self, Theta, Thetad, Thetadd, guess) -> tuple[np.ndarray, np.ndarray]:
+        """The tree's part ``W^T Y_tree`` (N, n, 10 bodies) of the regressor and the tree
+        configurations (N, nq) of a motion, from the cache of the motions last asked for (the
+        same arrays give the same rows; a copy with another friction model shares it)."""
+        key = None
+        if self._tree_rows is not None:
+            key = hashlib.sha1(b"".join(np.ascontiguousarray(x).tobytes()
+                                        for x in (Theta, Thetad, Thetadd, guess))).digest()
+        if key is not None and key in self._tree_rows:
+            self._tree_rows.move_to_end(key)
+            rows, poses = self._tree_rows[key]
+            return rows.copy(), poses.copy()
+        N, n = Theta.shape
+        rows = np.zeros((N, n, self._n_body))
         poses = np.empty((N, self.model.nq))
-        idx = np.arange(n)
         q = None
         for k in range(N):
             start = guess[k] if np.any(guess[k]) else q
@@ -541,15 +590,13 @@ class DescribedRobot:
                 exc.sample = k
                 raise
             poses[k] = q
-            Y[k, :, :self._n_body] = W.T @ pin.computeJointTorqueRegressor(self.model, self.data, q, v, a)
-        b = self._n_body
-        friction = self.friction.columns(Theta, Thetad)
-        Y[:, idx, b + idx] = friction["fv"]
-        Y[:, idx, b + n + idx] = friction["fc"]
-        Y[:, idx, b + 2 * n + idx] = Thetadd
-        for k, term in enumerate(self.friction.extra_terms):
-            Y[:, idx, b + (3 + k) * n + idx] = friction[term]
-        return Y, poses
+            rows[k] = W.T @ pin.computeJointTorqueRegressor(self.model, self.data, q, v, a)
+        if key is None:
+            return rows, poses
+        self._tree_rows[key] = (rows, poses)
+        while len(self._tree_rows) > TREE_ROWS_KEPT:
+            self._tree_rows.popitem(last=False)
+        return rows.copy(), poses.copy()
 
     def energy_regressor(self, Theta, Thetad, guess=None) -> np.ndarray:
         """``H`` (N, P) with the robot's energy ``E = H @ pi``: the tree's kinetic plus potential
