@@ -53,7 +53,9 @@ from drivers.recording import Recording  # noqa: E402
 from drivers.recording_metadata import RecordingMetadata  # noqa: E402
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP, Plant  # noqa: E402
 from ident_hw.config import load_config  # noqa: E402
-from ident_hw.experiment.offline import identify, prepare  # noqa: E402
+from ident_hw.experiment.inputs import identification_plan  # noqa: E402
+from ident_hw.experiment.offline import identify  # noqa: E402
+from ident_hw.experiment.preparation import prepare, trajectory_filter  # noqa: E402
 from ident_hw.experiment.plan import plan, robot_model  # noqa: E402
 from ident_hw.identification.base_params import column_scale, identify_base  # noqa: E402
 from ident_scenarios import follow_targets  # noqa: E402
@@ -93,8 +95,9 @@ def instrumental(config, robot, name: str, rec: Recording, reference: np.ndarray
     weights, :func:`identify_base`): the instruments are the regressor of ``reference`` (N, a)
     prepared like the positions. Returns the estimate and its heteroscedasticity-robust sigma
     (rows taken as independent)."""
-    measured = prepare(config, robot, name, rec)
-    instruments = prepare(config, robot, name, dataclasses.replace(rec, position=reference))
+    plan = identification_plan(config)
+    measured = prepare(plan, robot, name, rec)
+    instruments = prepare(plan, robot, name, dataclasses.replace(rec, position=reference))
     names = robot.parameter_names
     base, fit = identify_base(measured.Y, measured.tau_fit, names, scale=column_scale(measured.Y), weighted=True,
                               basis=robot.readable_base())
@@ -169,13 +172,14 @@ def setpoint_response(rec: Recording, smooth, exact: np.ndarray | None = None) -
 
 def draws_read(config, args, truth_log: dict, targets: np.ndarray) -> None:
     """Make the encoder draws read ``args.draws_motion`` (module docstring) instead of the smoothed
-    recording: replaces :func:`ident_hw.experiment.offline.smoothed_positions` for this process."""
-    from ident_hw.experiment import encoder, offline
+    recording: replaces :func:`ident_hw.experiment.encoder.smoothed_positions` where the draws
+    read it (:mod:`ident_hw.experiment.uncertainty`) for this process."""
+    from ident_hw.experiment import encoder, uncertainty
 
     exact = sensed(config, "exact", truth_log, targets, 0)
     motion = exact.position
     if args.draws_motion == "lowpassed-exact":
-        settings = offline.trajectory_filter(config, args.trajectory, config.bus.sync_rate)
+        settings = trajectory_filter(identification_plan(config), args.trajectory, config.bus.sync_rate)
         motion = encoder.smoothed_positions(exact, settings.sample_rate, settings.cutoff_hz, settings.order)
     if args.draws_motion == "setpoint-response":
         original, shown = encoder.smoothed_positions, []
@@ -185,9 +189,9 @@ def draws_read(config, args, truth_log: dict, targets: np.ndarray) -> None:
                 return original(dataclasses.replace(rec, position=position), *settings)
             shown.append(True)
             return smooth(rec.position) + setpoint_response(rec, smooth, None if len(shown) > 1 else exact.position)
-        offline.smoothed_positions = smoothed_with_response
+        uncertainty.smoothed_positions = smoothed_with_response
         return
-    offline.smoothed_positions = lambda rec, *_: motion.copy()
+    uncertainty.smoothed_positions = lambda rec, *_: motion.copy()
 
 
 def run_source(config, args, source: str, traj, motion: tuple) -> None:

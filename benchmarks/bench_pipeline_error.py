@@ -35,7 +35,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from bench_bias_sources import CONFIG, base_only_config, plant_motion, sensed  # noqa: E402
 from ident_hw import filtering  # noqa: E402
 from ident_hw.config.to_drivers import axes_scaling  # noqa: E402
-from ident_hw.experiment import offline  # noqa: E402
+from ident_hw.experiment import offline, preparation  # noqa: E402
+from ident_hw.experiment.inputs import identification_plan  # noqa: E402
 from ident_hw.experiment.plan import plan  # noqa: E402
 
 DERIVATIVES = ("production", "exact", "exact-acceleration", "unfiltered")
@@ -77,15 +78,15 @@ def main() -> None:
     rec = sensed(config, "exact", truth_log, traj.Theta, 0)
     rec = dataclasses.replace(rec, current=truth_log["force"] / axes_scaling(config.robot.actuators).force_per_amp)
     if args.margin:
-        production_filter = offline.trajectory_filter
-        offline.trajectory_filter = lambda *a, **k: dataclasses.replace(production_filter(*a, **k),
+        production_filter = preparation.trajectory_filter
+        preparation.trajectory_filter = lambda *a, **k: dataclasses.replace(production_filter(*a, **k),
                                                                         position_margin=args.margin)
     print(f"{args.config.name}, {args.trajectory}: {len(traj.t)} cycles at {config.bus.sync_rate:g} Hz, "
-          f"filter {offline.trajectory_filter(config, args.trajectory, config.bus.sync_rate)}")
+          f"filter {preparation.trajectory_filter(identification_plan(config), args.trajectory, config.bus.sync_rate)}")
     for derivatives in args.derivatives.split(","):
         if derivatives not in DERIVATIVES:
             ap.error(f"unknown --derivatives {derivatives!r}; known: {', '.join(DERIVATIVES)}")
-        offline.prepare_actuated = swapped(derivatives, truth_log)
+        preparation.prepare_actuated = swapped(derivatives, truth_log)
         fit = offline.identify(config, {args.trajectory: rec}).base_fit
         print(f"{derivatives}:")
         for expression, estimate, truth in zip(fit.expressions, fit.coef, fit.truth):

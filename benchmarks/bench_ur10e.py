@@ -48,7 +48,8 @@ RUNS = ("ur-20_02_05-20sec_12harm.csv", "ur-20_02_05-20sec_8harm.csv", "ur-20_02
 def rre(config, given=()) -> tuple[np.ndarray, np.ndarray]:
     recordings, imported, _ = gather_recordings(config, list(given))
     figures = validation_figures(identify(config, recordings, imported=imported))["validation"]
-    return np.array(figures.rre_fit), np.array(figures.rre_compared)
+    return (np.array(figures.rre_percent.fit, dtype=float),
+            np.array(figures.rre_percent.compared, dtype=float))
 
 
 def main() -> None:

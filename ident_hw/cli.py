@@ -1,18 +1,26 @@
-"""``ident-hw``: identify the dynamic parameters of the 3PRRR from one YAML config.
+"""``ident-hw``: identify the dynamic parameters of a robot (the 3PRRR, the Delta, any robot
+from its description file, or one's own recordings) from one YAML config.
 
 A thin layer over :mod:`ident_hw.config`, :mod:`ident_hw.experiment` and :mod:`ident_hw.report`;
 nothing imports it. Every command runs under :func:`ident_hw.experiment.interrupts.stop_on_signals`
 (SIGTERM and SIGHUP are Ctrl-C) and ends with one exit code per class of outcome,
-:class:`Exit` (documented in the README): no traceback reaches the user.
+:class:`Exit` (documented in the README): no traceback reaches the user. What the library logs
+(:mod:`logging`, logger ``ident_hw``) goes to stderr, its progress reports
+(:mod:`ident_hw.progress`) as tqdm bars on a terminal (:class:`Console`); ``--quiet`` keeps
+only the warnings.
 """
 
 from __future__ import annotations
 
 import argparse
 import enum
+import logging
 import os
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 
 class Exit(enum.IntEnum):
@@ -97,10 +105,9 @@ def cmd_identify(args) -> int:
     recordings, imported, notes = gather_recordings(config, args.data)
     for note in notes:
         print(note, file=sys.stderr)
-    require_trajectories(config, recordings)
+    require_trajectories(config.identification, config.source, recordings)
     folder = new_results_folder(config, args.out, "identify")
-    results = identify_recordings(config, recordings, folder, log=_logger(args), report=not args.no_report,
-                                  imported=imported)
+    results = identify_recordings(config, recordings, folder, report=not args.no_report, imported=imported)
     print("\n".join(summary_lines(folder)))
     print(f"results: {folder}" + ("" if args.no_report else f"  (report: {folder / 'report.html'})"))
     return Exit.OK if results.passed else Exit.DEGRADED
@@ -127,40 +134,17 @@ def cmd_export(args) -> int:
 
 def cmd_study(args) -> int:
     """A Monte-Carlo study: ``--runs`` campaigns of a simulated config, each with its own noise seed."""
-    import time
-
     from ident_hw.experiment.study import StudyError, run_study
     from ident_hw.report.study import study_lines, write_study_report
     config = _load(args.config)
     folder = Path(args.out) if args.out else Path(config.output.dir) / f"study-{Path(args.config).stem}"
     print(f"study folder: {folder}", file=sys.stderr)
-    bar, started, ran_here = None, time.monotonic(), 0
-    if _progress_bars(args):
-        from tqdm import tqdm
-        bar = tqdm(total=args.runs, unit="run", desc="study", file=sys.stderr)
-
-    def progress(outcome, done: int, runs: int) -> None:
-        nonlocal ran_here
-        ran_here += 1
-        if bar is not None:
-            bar.n = done
-            bar.refresh()
-            return
-        if args.quiet:
-            return
-        rate = ran_here / (time.monotonic() - started)
-        print(f"run {outcome.index} (seed {outcome.seed}): {outcome.status.split(':')[0]} in "
-              f"{outcome.wall_seconds:.0f} s; {done} of {runs} done, about {(runs - done) / rate / 60:.1f} min left",
-              file=sys.stderr, flush=True)
     try:
         study = run_study(args.config, folder, args.runs, workers=args.workers, scheduler=args.scheduler,
-                          perturb=args.perturb, on_outcome=progress)
+                          perturb=args.perturb)
     except StudyError as exc:
         print(f"config error: {exc}", file=sys.stderr)
         return Exit.CONFIG
-    finally:
-        if bar is not None:
-            bar.close()
     print("\n".join(study_lines(study)))
     print(f"study: {folder}  (report: {write_study_report(study)})")
     return Exit.OK if not study.failed else Exit.DEGRADED
@@ -191,8 +175,7 @@ def cmd_run(args) -> int:
     elif config.identification.online.in_run:
         online = CampaignEstimator(config)
     try:
-        results = run_campaign(config, folder, show_progress=_progress_bars(args), log=_logger(args), online=online,
-                               planned=planned, host=HostSettings.for_command(config),
+        results = run_campaign(config, folder, online=online, planned=planned, host=HostSettings.for_command(config),
                                report=not args.no_report)
     except BusOpenError:
         if discard_unused(folder):
@@ -300,13 +283,69 @@ def cmd_home(args) -> int:
     return Exit.OK
 
 
-def _progress_bars(args) -> bool:
-    """tqdm bars only on a terminal and without --quiet."""
-    return not args.quiet and sys.stderr.isatty()
+class Console(logging.Handler):
+    """The library's log as ``ident-hw`` shows it, on stderr: each message (``INFO`` and above) a
+    line; each progress report (a record with a :class:`ident_hw.progress.Progress`) a tqdm bar
+    when ``bars`` (a terminal), one per step, closed when the step ends."""
+
+    def __init__(self, bars: bool) -> None:
+        super().__init__(logging.DEBUG)
+        self.bars = bars
+        self.open: dict[str, Any] = {}
+
+    def emit(self, record: logging.LogRecord) -> None:
+        progress = getattr(record, "progress", None)
+        if progress is not None:
+            if self.bars:
+                self._show(progress)
+            return
+        if record.levelno < logging.INFO:
+            return
+        text = self.format(record)
+        if self.open:
+            from tqdm import tqdm
+            tqdm.write(text, file=sys.stderr)
+        else:
+            print(text, file=sys.stderr, flush=True)
+
+    def _show(self, progress) -> None:
+        from tqdm import tqdm
+        bar = self.open.get(progress.what)
+        if bar is None:
+            bar = tqdm(total=progress.total, desc=f"{progress.what:>10}", unit=progress.unit or "it",
+                       file=sys.stderr, leave=True)
+            self.open[progress.what] = bar
+        bar.n = min(progress.done, progress.total)
+        bar.refresh()
+        if progress.finished:
+            bar.close()
+            del self.open[progress.what]
+
+    def close(self) -> None:
+        for bar in self.open.values():
+            bar.close()
+        self.open.clear()
+        super().close()
 
 
-def _logger(args):
-    return None if args.quiet else (lambda message: print(message, file=sys.stderr, flush=True))
+@contextmanager
+def console(quiet: bool) -> Iterator[None]:
+    """The library's log shown on stderr while a command runs (:class:`Console`): its messages,
+    and its progress as bars where stderr is a terminal; ``quiet``: its warnings only."""
+    logger = logging.getLogger("ident_hw")
+    handler = Console(bars=not quiet and sys.stderr.isatty())
+    handler.setLevel(logging.WARNING if quiet else logging.DEBUG)
+    level, propagate = logger.level, logger.propagate
+    logger.setLevel(logging.WARNING if quiet else logging.DEBUG)
+    logger.propagate = False
+    logger.addHandler(handler)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        handler.close()
+        logger.setLevel(level)
+        logger.propagate = propagate
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -353,7 +392,7 @@ def _add_campaign_commands(command) -> None:
     p = command("run", cmd_run, "run the campaign: move, record, identify, validate, write a results folder")
     p.add_argument("config", help="YAML config")
     p.add_argument("--arm", action="store_true", help="allow motion on a bus that is not the simulated rig's")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_argument("--quiet", action="store_true", help="no progress messages or bars (warnings only)")
     p.add_argument("--out", metavar="DIR", help="results folder (default: output.dir/run-<time>)")
     p.add_argument("--no-report", action="store_true", help="no plots and no report.html (`ident-hw report DIR` "
                    "builds them later)")
@@ -362,7 +401,7 @@ def _add_campaign_commands(command) -> None:
                 "its table is printed after each trajectory and its trace saved")
     p.add_argument("config", help="YAML config")
     p.add_argument("--arm", action="store_true", help="allow motion on a bus that is not the simulated rig's")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_argument("--quiet", action="store_true", help="no progress messages or bars (warnings only)")
     p.add_argument("--out", metavar="DIR", help="results folder (default: output.dir/online-<time>)")
     p.add_argument("--no-report", action="store_true", help="no plots and no report.html")
 
@@ -379,7 +418,7 @@ def _add_campaign_commands(command) -> None:
     p.add_argument("--perturb", type=float, default=0.0, metavar="REL",
                    help="each run but run 0 on a true robot of its own: every body's parameters scaled by a "
                         "factor exp(REL * N(0, 1)) drawn from the run's seed (sim.perturb; default 0)")
-    p.add_argument("--quiet", action="store_true", help="no progress")
+    p.add_argument("--quiet", action="store_true", help="no progress messages or bars (warnings only)")
 
 
 def _add_offline_commands(command) -> None:
@@ -392,7 +431,7 @@ def _add_offline_commands(command) -> None:
                    "(the recordings of its data/), or NAME=PATH: PATH in the place of trajectory NAME; the config's "
                    "recorded trajectories not given are read from their own files")
     p.add_argument("--out", metavar="DIR", help="results folder (default: output.dir/identify-<time>)")
-    p.add_argument("--quiet", action="store_true", help="no progress messages")
+    p.add_argument("--quiet", action="store_true", help="no progress messages or bars (warnings only)")
     p.add_argument("--no-report", action="store_true", help="no plots and no report.html (`ident-hw report DIR` "
                    "builds them later)")
 
@@ -462,7 +501,7 @@ def main(argv: list[str] | None = None, process_exits: bool = False) -> int:
     handlers stay (a second Ctrl-C while it exits is reported, not a kill)."""
     from ident_hw.experiment.interrupts import signal_name, stop_on_signals
     args = build_parser().parse_args(argv)
-    with stop_on_signals(restore=not process_exits):
+    with stop_on_signals(restore=not process_exits), console(getattr(args, "quiet", False)):
         try:
             return int(args.func(args))
         except KeyboardInterrupt as exc:

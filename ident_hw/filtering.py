@@ -3,7 +3,7 @@ filtering and decimation (the power-model paper, sec. 5).
 
 All arrays are time-major: axis 0 is the sample index. Times in s, frequencies in Hz.
 
-The chain used by :func:`ident_hw.experiment.offline.prepare` (stretch by stretch) is
+The chain used by :func:`ident_hw.experiment.preparation.prepare` (stretch by stretch) is
 
 1. ``lowpass`` of the measured positions (zero phase, Butterworth, ``sosfiltfilt``);
 2. ``central_derivatives`` of the filtered positions (velocities, accelerations);

@@ -3,7 +3,7 @@
 
 It is :mod:`ident_hw.filtering`'s chain applied to a whole run at once: the production path,
 which cuts recordings at gaps and serves every robot, is
-:func:`ident_hw.experiment.offline.prepare`.
+:func:`ident_hw.experiment.preparation.prepare`.
 """
 
 from __future__ import annotations

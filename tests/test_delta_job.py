@@ -120,8 +120,8 @@ trajectories:
                          capture_output=True, text=True, timeout=600)
     print(run.stdout[-2500:])
     assert run.returncode == 0, run.stderr + run.stdout[-2000:]
-    from ident_hw.results import OnlineTrace
-    trace = OnlineTrace.load(out / "online.npz")
+    from ident_hw.results import load_online
+    trace = load_online(out / "online.npz")
     assert set(trace.estimates) == {"SVD-DLS", "RLS", "damped RLS"} and not trace.diverged
     loaded = load_config(config)
     spec = closed_form_base(to_model.delta_geometry(loaded.robot.delta.geometry), drive_terms=True)

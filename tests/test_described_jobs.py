@@ -17,9 +17,11 @@ import pytest
 
 from drivers.recording import Recording
 from ident_hw.config import load_config
-from ident_hw.experiment.offline import identify, prepare
+from ident_hw.experiment.inputs import identification_plan
+from ident_hw.experiment.offline import identify
+from ident_hw.experiment.preparation import prepare
 from ident_hw.identification.metrics import validation_metrics
-from ident_hw.results import TrajectoryFit
+from ident_hw.results import load_fit
 from ident_hw.config.robots import model_of, true_parameters
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
@@ -157,8 +159,8 @@ def exported_forces_match_the_base_fit(results: Path, exported: Path, mujoco_loa
         M0, bias0, _ = original.plant_dynamics(Theta, Thetad, consistent_pi, guess)
         np.testing.assert_allclose(M, M0, rtol=1e-9, atol=1e-12 * np.abs(M0).max())
         np.testing.assert_allclose(bias, bias0, rtol=1e-9, atol=1e-9 * np.abs(bias0).max())
-    prepared = prepare(config, robot, "validation", recording)
-    fit = TrajectoryFit.load(results / "fits" / "validation.npz")
+    prepared = prepare(identification_plan(config), robot, "validation", recording)
+    fit = load_fit(results / "fits" / "validation.npz")
     np.testing.assert_array_equal(prepared.t, fit.t)
     assert validation_metrics(fit.tau_base, prepared.Y @ pi).d_tau_percent <= 0.5
     if not mujoco_loads:

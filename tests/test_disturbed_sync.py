@@ -73,7 +73,7 @@ def test_a_disturbed_sync_ends_within_5_percent_or_degraded(tmp_path, monkeypatc
     _disturb_sync(monkeypatch, seed=attempt)
     folder = new_results_folder(config, tmp_path / "res", "run")
     try:
-        results = runner.run_campaign(config, folder, show_progress=False, report=False,
+        results = runner.run_campaign(config, folder, report=False,
                                       host=HostSettings.for_command(config))
     except runner.CampaignStopped as stopped:
         # the drives starved of set-points ran into their following-error window, as real ones do:

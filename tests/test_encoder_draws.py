@@ -1,10 +1,11 @@
 """The encoders' resolution in every sigma (issue 30): the recordings read again with the count
 edges moved (ident_hw.experiment.encoder), the spread of those draws' estimates joining the
-least-squares covariance (offline.fit_base, fit_sqp_step), and where the simulated rig's and the
+least-squares covariance (steps.fit_base, fit_sqp_step), and where the simulated rig's and the
 study's encoders count (sim.encoder_edges)."""
 
 import dataclasses
 import json
+import logging
 from types import SimpleNamespace
 
 import numpy as np
@@ -15,9 +16,11 @@ from drivers.recording_metadata import RecordingMetadata
 from ident_hw.config import load_config
 from ident_hw.config.schema import ConfigError
 from ident_hw.experiment.encoder import count_shifts, reread, smoothed_positions, spread_covariance, uncounted_axes
-from ident_hw.experiment.offline import fit_base, identify
+from ident_hw.experiment.offline import identify
+from ident_hw.experiment.steps import fit_base
 from ident_hw.experiment.plan import plan
-from ident_hw.records import RecordingCoverage
+from ident_hw.records import MassFitStep, RecordingCoverage
+from ident_hw.storage import from_json, to_json
 from ident_hw.report import coverage_text
 from ident_hw.identification.least_squares import compensated, wls
 
@@ -88,19 +91,21 @@ def test_fit_base_adds_the_covariance_of_the_draws_estimates():
     draws = [(Y + rng.normal(0, 0.02, Y.shape), tau) for _ in range(6)]
     step = SimpleNamespace(name="base", method="wls", trajectories=("t",))
     coef0 = np.zeros(3)
-    alone, _, record_alone = fit_base(step, names, names, Y, tau, coef0, coef0, None, 10.0)
-    fit, _, record = fit_base(step, names, names, Y, tau, coef0, coef0, None, 10.0, draws=draws)
+    one = fit_base(step, names, names, Y, tau, coef0, coef0, None, 10.0)
+    alone, record_alone = one.fit, one.record
+    both = fit_base(step, names, names, Y, tau, coef0, coef0, None, 10.0, draws=draws)
+    fit, record = both.fit, both.record
     # the estimate: the data's own, corrected for the regressor noise the draws show
     np.testing.assert_allclose(np.array(record.encoder_shift), fit.coef - alone.coef, rtol=0, atol=1e-15)
     assert np.all(np.abs(fit.coef - alone.coef) > 0) and record_alone.encoder_shift == ()
-    std = np.array(record_alone.figures.output_std)
+    std = np.array(record_alone.output_std)
     estimates = np.array([_weighted_lstsq(Yk, tk, std) for Yk, tk in draws])
     spread = np.cov(estimates, rowvar=False)
     np.testing.assert_allclose(fit.covariance, alone.covariance + spread, rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(fit.sigma, np.sqrt(np.diag(alone.covariance) + np.diag(spread)), rtol=1e-9)
     np.testing.assert_allclose(record.encoder_sigma, np.sqrt(np.diag(spread)), rtol=1e-9)
     assert record.encoder_draws == 6 and record_alone.encoder_draws == 0
-    assert "encoder_draws" in record.to_json() and "encoder_draws" not in record_alone.to_json()
+    assert "encoder_draws" in to_json(record) and "encoder_draws" not in to_json(record_alone)
 
 
 def test_spread_covariance_of_fewer_than_two_draws_is_zero():
@@ -177,7 +182,7 @@ def test_positions_off_the_count_grid_are_found_per_axis():
     assert uncounted_axes(dataclasses.replace(rec, position=exact), counts) == (1,)
 
 
-def test_a_recording_not_in_whole_counts_is_identified_without_draws(tmp_path):
+def test_a_recording_not_in_whole_counts_is_identified_without_draws(tmp_path, caplog):
     """The plant's exact positions under a config that asks for draws: none are taken (they would
     round what was never rounded, and the compensation would remove noise that is not there), the
     estimates and sigma are those of the same config without draws, and the recording's coverage
@@ -192,15 +197,16 @@ def test_a_recording_not_in_whole_counts_is_identified_without_draws(tmp_path):
     assert config.identification.encoder_draws > 1
     (planned,) = plan(config, ["square"])
     rec = exact_recording(config, planned.trajectory, None)
-    said = []
-    results = identify(config, {"square": rec}, progress=said.append)
+    with caplog.at_level(logging.INFO, logger="ident_hw"):
+        results = identify(config, {"square": rec})
+    said = [r.getMessage() for r in caplog.records]
     plain = identify(without_draws(config), {"square": rec})
     np.testing.assert_array_equal(results.parameters.identified, plain.parameters.identified)
     np.testing.assert_array_equal(results.parameters.sigma, plain.parameters.sigma)
-    assert [step.skipped for step in results.steps] == [None] and results.steps[0].encoder_draws == 0
+    assert [type(step) for step in results.steps] == [MassFitStep] and results.steps[0].encoder_draws == 0
     actuators = tuple(a.name for a in config.robot.actuators)
     used = results.trajectories["square"]
-    assert used.uncounted_axes == actuators
+    assert used.positions_not_in_counts == actuators
     assert any("no encoder draws" in line and "not whole encoder counts" in line for line in said), said
     assert "not in whole encoder counts" in coverage_text(used)
-    assert RecordingCoverage.from_json(json.loads(json.dumps(used.to_json()))) == used
+    assert from_json(RecordingCoverage, json.loads(json.dumps(to_json(used)))) == used

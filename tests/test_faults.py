@@ -361,7 +361,7 @@ def test_a_silent_node_is_reported_as_state_unknown_not_as_disabled(tmp_path, mo
             yield session
     monkeypatch.setattr(runner, "open_session", silencing)
     with pytest.raises(runner.CampaignStopped) as stopped:
-        runner.run_campaign(config, folder, show_progress=False,
+        runner.run_campaign(config, folder,
                                 host=HostSettings.for_command(config))
     message = stopped.value.stop_message()
     assert "node 5 (zeta2)" in message and "state unknown" in message
@@ -392,7 +392,7 @@ def test_dropped_pdo_frames_end_the_run_degraded_not_complete(tmp_path, monkeypa
             session.rig.frame_faults(drop_probability=0.05)
             yield session
     monkeypatch.setattr(runner, "open_session", lossy)
-    results = runner.run_campaign(config, folder, show_progress=False,
+    results = runner.run_campaign(config, folder,
                                 host=HostSettings.for_command(config))
     rec = Recording.load(folder / "data" / "square.npz")
     # complete cycles over the SYNC slots: a slot the SYNC thread skipped (counted by the

@@ -63,7 +63,8 @@ def test_a_held_values_error_moves_a_mass_fit_as_its_held_sigma_says(campaign):
     the CAD values (0.011 %, more than the data's own sigma) is within its sigma."""
     from ident_hw.config import load_config
     from ident_hw.config.to_identification import physical_scales, step_parameters
-    from ident_hw.experiment.offline import Prepared, _Estimates, fit_sqp_step, held_value_std
+    from ident_hw.experiment.preparation import Prepared
+    from ident_hw.experiment.steps import Estimates, fit_sqp_step, held_value_std
     from ident_hw.segments import Segments
 
     ident = load_config(CONFIGS / "sim-3prrr.yaml").identification
@@ -72,17 +73,16 @@ def test_a_held_values_error_moves_a_mass_fit_as_its_held_sigma_says(campaign):
     Y, tau = campaign["carriage-sweep"]
     n = len(Y)
     prepared = {"sweep": Prepared("sweep", np.zeros(n), np.zeros((n, 6)), np.zeros((n, 3)), Y, tau,
-                                  np.ones((n, 6), bool), Segments(np.zeros(n), [], 0, 0))}
+                                  np.ones((n, 6), bool), Segments(np.zeros(n), [], 0, 0), np.zeros((n, 6)))}
     free = step_parameters(step, NAMES)
     idx = [NAMES.index(p) for p in free]
     cad = CAD.as_vector()
 
     def fit(start, held_std):
-        estimates = _Estimates.initial(start)
-        record, fitted = fit_sqp_step(step, free, NAMES, Y, tau, estimates, ident.bounds, prepared,
-                                      held_std=held_std)
-        assert list(fitted) == list(free)
-        return estimates.coef[idx], np.array(record.held_sigma)
+        mass = fit_sqp_step(step, free, NAMES, Y, tau, Estimates.initial(start), ident.bounds, prepared,
+                            held_std=held_std)
+        assert list(mass.excited) == list(free)
+        return mass.estimates.coef[idx], np.array(mass.record.held_sigma)
 
     exact, none = fit(TRUTH, np.zeros(len(NAMES)))
     np.testing.assert_allclose(exact, TRUTH[idx], rtol=1e-9, atol=1e-9)
@@ -102,7 +102,7 @@ def test_a_held_values_error_moves_a_mass_fit_as_its_held_sigma_says(campaign):
     assert moved == 4                      # m_l2, I_l2, m_ee, I_ee (m_l1, I_l1: CAD = truth)
 
     prior = ident.physical.prior * np.array(physical_scales(ident.physical, NAMES, cad))
-    once, held = fit(cad, held_value_std(_Estimates.initial(cad), prior))
+    once, held = fit(cad, held_value_std(Estimates.initial(cad), prior))
     m_c = NAMES.index("m_c")
     error = once[0] - TRUTH[m_c]
     assert abs(error) > 1e-4 * TRUTH[m_c]  # beyond what the main job's data alone say (0.04 kg)

@@ -10,9 +10,12 @@ from drivers.recording import Recording
 from drivers.recording_metadata import RecordingMetadata
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
 from ident_hw.config import ConfigError, load_config, to_model
-from ident_hw.experiment.offline import identify, prepare
+from ident_hw.experiment.inputs import identification_plan, trajectory_inputs
+from ident_hw.experiment.offline import identify
+from ident_hw.experiment.preparation import prepare
 from ident_hw.segments import split, uniform
-from ident_hw.experiment.plan import excitation_of, motion_bandwidth, plan, position_margin, robot_model
+from ident_hw.experiment.plan import plan, robot_model
+from ident_hw.config.to_trajectories import excitation_of
 from ident_hw.identification.least_squares import ols, output_noise_std, wls
 from ident_hw.filtering import (EVEN, ODD, POLYNOMIAL, Ends, FilterSettings, central_derivatives, lowpass, main_lobe,
                              near, near_rest, runs_at_least)
@@ -22,6 +25,22 @@ from ident_hw.config.to_drivers import axis_scaling
 from ident_hw.config.to_identification import filter_settings
 
 
+
+
+def _inputs(config, name):
+    """The identification's inputs of trajectory ``name`` (the filter's own band for a name the
+    config does not list)."""
+    if any(t.name == name for t in config.trajectories):
+        return trajectory_inputs(config, name)
+    return identification_plan(config).inputs_of(name)
+
+
+def motion_bandwidth(config, name):
+    return _inputs(config, name).bandwidth
+
+
+def position_margin(config, name):
+    return _inputs(config, name).position_margin
 
 def test_central_derivatives_are_fourth_order_on_a_uniform_grid():
     """Against the analytic derivatives of a sine: the interior error falls 16x when h halves."""
@@ -228,7 +247,7 @@ def test_rows_of_axes_near_rest_are_left_out_of_the_fits():
     rec = Recording(t=tr.t, cycle=np.arange(n), position=tr.Theta, velocity=tr.Thetad, current=tau / fpa,
                     statusword=np.zeros((n, 6), np.int32), target=tr.Theta, valid=np.ones((n, 6), bool),
                     metadata=RecordingMetadata(trajectory="sweep", sync_period=period))
-    p = prepare(config, robot, "sweep", rec)
+    p = prepare(identification_plan(config), robot, "sweep", rec)
     assert not p.moving[:, :3].any()
     threshold = config.identification.min_speed * np.array([a.limits.velocity for a in config.robot.actuators[3:]])
     lobe = main_lobe(filter_settings(config.identification.filter, 1.0 / period, motion_bandwidth(config, "sweep")))

@@ -32,7 +32,7 @@ from ident_hw.experiment.offline import identify
 from ident_hw.experiment.session import HostSettings
 from ident_hw.experiment.folders import new_results_folder
 from ident_hw.model.parameters import FRICTION_NAMES, INERTIAL_NAMES
-from ident_hw.results import save_results
+from ident_hw.results import save_results, settling_time, tracked
 from cli_runs import ident_hw
 from ident_scenarios import CONFIGS, SWEEP_CAMPAIGN, without_draws
 from ident_hw.config.to_drivers import axis_config
@@ -106,7 +106,7 @@ class _Cells(HTMLParser):
 def main_job(tmp_path_factory):
     config = load_config(CONFIGS / "sim-3prrr.yaml")
     folder = new_results_folder(config, tmp_path_factory.mktemp("main") / "res", "run")
-    runner.run_campaign(config, folder, show_progress=False,
+    runner.run_campaign(config, folder,
                                 host=HostSettings.for_command(config))
     return config, folder
 
@@ -242,7 +242,7 @@ def test_the_main_job_with_one_axis_s_friction_doubled_passes(tmp_path, truth):
     path.write_text(f"extends: {CONFIGS / 'sim-3prrr.yaml'}\nsim:\n  truth:\n    {truth}\n")
     config = load_config(path)
     folder = new_results_folder(config, tmp_path / "res", "run")
-    results = runner.run_campaign(config, folder, show_progress=False, host=HostSettings.for_command(config),
+    results = runner.run_campaign(config, folder, host=HostSettings.for_command(config),
                                   report=False)
     quality = results.quality
     assert quality.passed and (folder / "STATUS").read_text().strip() == "complete", quality.reasons
@@ -335,7 +335,7 @@ def test_an_epos2_rig_identifies_the_carriages(tmp_path):
     config = load_config(path)
     assert {a.profile for a in config.robot.actuators} == {"epos2"}
     folder = new_results_folder(config, tmp_path / "res", "run")
-    runner.run_campaign(config, folder, show_progress=False, report=False,
+    runner.run_campaign(config, folder, report=False,
                         host=HostSettings.for_command(config))
     doc = json.loads((folder / "parameters.json").read_text())
     truth = dict(zip(to_model.inertial_params(config.sim.truth).NAMES, to_model.inertial_params(config.sim.truth).as_vector()))
@@ -393,15 +393,15 @@ def test_svd_dls_tracks_a_payload_added_mid_run(tmp_path):
         "  validation: []\n")
     config = load_config(path)
     folder = new_results_folder(config, tmp_path / "res", "online")
-    results = runner.run_campaign(config, folder, show_progress=False, online=CampaignEstimator(config),
+    results = runner.run_campaign(config, folder, online=CampaignEstimator(config),
                                   host=HostSettings.for_command(config))
     trace = results.online
-    tracked = [trace.base_names[i] for i in trace.tracked()]
-    assert tracked == ["1.5 m_l2 + m_ee", "0.0216 m_l2 + I_ee"]
+    names = [trace.base_names[i] for i in tracked(trace)]
+    assert names == ["1.5 m_l2 + m_ee", "0.0216 m_l2 + I_ee"]
     assert trace.change_time == pytest.approx(10.0, abs=0.05)
     end = trace.t[-1] - trace.change_time
-    for i in trace.tracked():
-        settle = trace.settling_time("SVD-DLS", i)
+    for i in tracked(trace):
+        settle = settling_time(trace, "SVD-DLS", i)
         assert settle is not None and settle < end, (trace.base_names[i], settle, end)
         new = trace.base(trace.truth)[-1, i]
         assert abs(trace.base(trace.estimates["SVD-DLS"])[-1, i] / new - 1) <= 0.02

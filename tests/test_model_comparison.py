@@ -15,7 +15,12 @@ import numpy as np
 import pytest
 
 from ident_hw.config import load_config
-from ident_hw.experiment.offline import Prepared, comparison, fit_base, prepare
+from ident_hw.experiment.inputs import identification_plan
+from ident_hw.experiment.preparation import Prepared, prepare
+from ident_hw.experiment.steps import comparison, fit_base
+from ident_hw.results.folder import ModelComparisonFile
+from ident_hw.segments import Segments
+from ident_hw.storage import from_json
 from ident_hw.identification.model_comparison import (ModelComparison, ModelRows, compare_models, energy_columns,
                                                       power_energy_rows, supports_energy_models)
 from ident_hw.identification.power import FrictionLayout, energy_rows_in_layout, power_rows_in_layout
@@ -207,8 +212,8 @@ def test_prepare_gives_the_power_and_energy_models_the_least_squares_steps_stret
                     statusword=np.zeros((n, 6), np.int32), target=m.Theta, valid=np.ones((n, 6), bool),
                     metadata=RecordingMetadata(sync_period=1.0 / rate))
     robot = EnergyThreePRRR(ROBOT)
-    plain = prepare(config, robot, "excitation", rec)
-    both = prepare(config, robot, "excitation", rec, scalar_models=True)
+    plain = prepare(identification_plan(config), robot, "excitation", rec)
+    both = prepare(identification_plan(config), robot, "excitation", rec, scalar_models=True)
     assert plain.power is None and plain.energy is None
     np.testing.assert_array_equal(both.Y, plain.Y)
     np.testing.assert_array_equal(both.tau_fit, plain.tau_fit)
@@ -219,7 +224,7 @@ def test_prepare_gives_the_power_and_energy_models_the_least_squares_steps_stret
     names, truth = ROBOT.parameter_names, TRUE.as_vector()
     free = step_parameters(step, names)
     result = comparison(step, free, names, both.Y, both.tau_fit, {"excitation": both}, truth, truth, True, 10.0)
-    base_fit, _, _ = fit_base(step, free, names, both.Y, both.tau_fit, truth, truth, truth, 10.0)
+    base_fit = fit_base(step, free, names, both.Y, both.tau_fit, truth, truth, truth, 10.0).fit
     dynamic = result.fit("dynamic")
     assert dynamic.expressions == base_fit.expressions and dynamic.method == "WLS"
     np.testing.assert_array_equal(dynamic.coef, base_fit.coef)
@@ -234,7 +239,8 @@ def folder(robot, truth, tmp_path_factory):
     dynamic, power, energy = exact_rows(robot, truth, 250.0)
     n = len(dynamic.Y)
     prepared = {"excite": Prepared("excite", np.zeros(n), np.zeros((n, 2)), np.zeros((n, 2)), dynamic.Y, dynamic.y,
-                                   np.ones((n, 2), bool), power=power, energy=energy)}
+                                   np.ones((n, 2), bool), Segments(np.zeros(n), [], 0, 0), np.zeros((n, 2)),
+                                   power=power, energy=energy)}
     step = SimpleNamespace(name="base", trajectories=("excite",))
     free = tuple(p for p in names if p != "Jm_joint2")
     result = comparison(step, free, names, dynamic.Y, dynamic.y, prepared, truth, truth, True, 10.0,
@@ -263,7 +269,7 @@ def test_comparison_with_a_held_parameter_is_stored_in_parameters_json(folder, r
     assert stored["models"][0]["method"] == "WLS" and stored["models"][1]["method"] == "OLS"
     back = load_results(folder).model_comparison
     assert isinstance(back, ModelComparison)
-    for a, b in zip(back.fits, ModelComparison.from_dict(stored).fits):
+    for a, b in zip(back.fits, from_json(ModelComparisonFile, stored).comparison().fits):
         np.testing.assert_array_equal(a.coef, b.coef)
         np.testing.assert_array_equal(a.H, b.H)
     # the results of a run without the comparison have no such key

@@ -15,7 +15,9 @@ from drivers.recording import Recording
 from drivers.recording_metadata import RecordingMetadata
 from ident_hw.config import TrajectoryConfig, load_config
 from ident_hw.config.to_drivers import axis_scaling
-from ident_hw.experiment.offline import noise_floors, trajectory_filter
+from ident_hw.experiment.evidence import noise_floors
+from ident_hw.experiment.inputs import identification_plan
+from ident_hw.experiment.preparation import trajectory_filter
 from ident_hw.experiment.plan import check, plan, robot_model
 
 from ident_scenarios import CONFIGS
@@ -53,7 +55,8 @@ def test_the_floor_is_the_filtered_noise_at_rest_and_the_draws_spread_in_squares
                     valid=np.ones((n, axes), bool), metadata=RecordingMetadata(sync_period=1 / rate))
     still = TrajectoryConfig(name="still", kind="standstill")
     config = dataclasses.replace(config, trajectories=tuple(config.trajectories) + (still,))
-    settings = trajectory_filter(config, "excitation", rate)
+    plan = identification_plan(config)
+    settings = trajectory_filter(plan, "excitation", rate)
     sos = sps.butter(settings.order, settings.decimation_cutoff_hz, fs=rate, output="sos")
     f, h = sps.sosfreqz(sos, worN=200_000, fs=rate)
     share = np.trapezoid(np.abs(h) ** 4, f) / (rate / 2)
@@ -61,7 +64,7 @@ def test_the_floor_is_the_filtered_noise_at_rest_and_the_draws_spread_in_squares
     coef = np.ones(2)
     draws = [{"excitation": SimpleNamespace(Y=np.full((50, axes, 2), s / 2.0) * e[None, :, None])} for s in (1, -1)]
     per_amp = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])
-    (floor,) = noise_floors(config, {"still": rec}, ["excitation"], draws, coef).values()
+    (floor,) = noise_floors(plan, {"still": rec}, ["excitation"], draws, coef).values()
     expected = np.sqrt(sigma ** 2 * share + 2 * e ** 2 / per_amp ** 2)
     np.testing.assert_allclose(floor, expected, rtol=0.05)
     # on the rows the fits use only: draws that differ by 20 e on the rows at rest (the first half
@@ -71,8 +74,8 @@ def test_the_floor_is_the_filtered_noise_at_rest_and_the_draws_spread_in_squares
     draws = [{"excitation": SimpleNamespace(Y=s / 2.0 * scale * e[None, :, None] * np.ones((50, axes, 2)))}
              for s in (1, -1)]
     moving = {"excitation": np.broadcast_to(~half, (50, axes))}
-    (floor,) = noise_floors(config, {"still": rec}, ["excitation"], draws, coef, moving).values()
+    (floor,) = noise_floors(plan, {"still": rec}, ["excitation"], draws, coef, moving).values()
     np.testing.assert_allclose(floor, expected, rtol=0.05)
     # nothing to hold the residuals against without a standstill, or without draws
-    assert noise_floors(config, {}, ["excitation"], draws, coef) == {}
-    assert noise_floors(config, {"still": rec}, ["excitation"], [], coef) == {}
+    assert noise_floors(plan, {}, ["excitation"], draws, coef) == {}
+    assert noise_floors(plan, {"still": rec}, ["excitation"], [], coef) == {}

@@ -48,7 +48,7 @@ def test_a_clean_recording_passes_and_the_figures_are_the_data(sweep):
     q = results.quality
     assert q.passed and q.reasons == () and final_status(results) == "complete"
     row = q.trajectories["sweep"]
-    assert row.planned_fraction == 1.0 and row.valid_fraction == 1.0 and row.longest_gap_s == 0.0
+    assert row.coverage == 1.0 and row.valid_fraction == 1.0 and row.longest_gap_s == 0.0
     fit = results.fits[0]
     norm = np.linalg.norm(fit.tau, axis=1)
     by_hand = 100 * np.mean(np.linalg.norm(fit.tau - fit.tau_model, axis=1)[norm > 0] / norm[norm > 0])
@@ -212,7 +212,7 @@ def _results_of(actuators, fits):
     table = ParameterTable(names=(), units=(), initial=np.zeros(0), identified=np.zeros(0), sigma=np.zeros(0),
                            lower=np.zeros(0), upper=np.zeros(0), step=(), method=(), truth=None)
     return Results(parameters=table, actuators=tuple(a.name for a in actuators),
-                   actuator_kinds=tuple(a.kind for a in actuators), fits=fits)
+                   actuator_kinds=tuple(a.kind for a in actuators), fits=tuple(fits))
 
 
 def _residual_fit(name, rms_mA, per_amp, at_rest_mA=None, n=400):
@@ -237,16 +237,16 @@ def test_the_floor_judges_each_axis_on_its_fitted_rows_by_hand():
     friction model predicts and the fits leave out) do not count. Floors 1 mA (trajectory a) and
     2 mA (b); links 6.1, 1, 5.9 mA and carriages 1, 8, 1 mA on a, everything 1.5 mA on b. One
     reason names every axis beyond the limit of 5, with its figures, in the axes' own names."""
-    from ident_hw.experiment.quality import floor_figures, floor_reason
+    from ident_hw.experiment.quality import floor_figures, floor_reason, thresholds_of
     config = load_config(CONFIGS / "sim-3prrr.yaml")
-    actuators, limits = config.robot.actuators, config.identification.quality
+    actuators, limits = config.robot.actuators, thresholds_of(config.identification.quality)
     assert limits.max_residual_over_floor == 5
     per_amp = np.array([axis_scaling(a).force_per_amp for a in actuators])
     held = np.full(6, 50.0)
     fits = [_residual_fit("a", [6.1, 1.0, 5.9, 1.0, 8.0, 1.0], per_amp, at_rest_mA=held),
             _residual_fit("b", np.full(6, 1.5), per_amp, at_rest_mA=held)]
     floors = {"a": np.full(6, 1e-3), "b": np.full(6, 2e-3)}
-    figures = floor_figures(_results_of(actuators, fits), actuators, floors)
+    figures = floor_figures(_results_of(actuators, fits), per_amp, floors)
     assert {n: f.ratio for n, f in figures.items()} == pytest.approx(
         {"theta1": 6.1, "theta2": 1.0, "theta3": 5.9, "zeta1": 1.0, "zeta2": 8.0, "zeta3": 1.0})
     assert {f.trajectory for n, f in figures.items()} == {"a"} and figures["zeta2"].residual == pytest.approx(8e-3)
@@ -255,7 +255,7 @@ def test_the_floor_judges_each_axis_on_its_fitted_rows_by_hand():
     assert reason.startswith("theta1, theta3, zeta2: residuals 6.1, 5.9, 8.0 times what noise alone leaves"), reason
     assert "zeta2 8 mA on a against 1 mA" in reason and reason.endswith(
         "of theta1, theta3, zeta2, and those of the axes sharing their parameters (theta2, zeta1)")
-    assert floor_figures(_results_of(actuators, fits), actuators, floors, judged=["zeta2"]).keys() == {"zeta2"}
+    assert floor_figures(_results_of(actuators, fits), per_amp, floors, judged=["zeta2"]).keys() == {"zeta2"}
 
 
 def test_a_named_gain_is_the_cause_and_the_floor_excess_its_consequence():
@@ -263,10 +263,10 @@ def test_a_named_gain_is_the_cause_and_the_floor_excess_its_consequence():
     as :func:`axis_gains` finds it on the main job) and the first link above its floor (the fit
     spread the error there): one reason, naming theta3, with theta1's figure in it; every
     axis's figures, and the checks that fail on it."""
-    from ident_hw.experiment.quality import AxisEvidence, verdict
+    from ident_hw.experiment.quality import AxisEvidence, thresholds_of, verdict
     from ident_hw.identification.axis_gain import AxisGain, AxisGains, NamedGain
     config = load_config(CONFIGS / "sim-3prrr.yaml")
-    actuators, limits = config.robot.actuators, config.identification.quality
+    actuators, limits = config.robot.actuators, thresholds_of(config.identification.quality)
     per_amp = np.array([axis_scaling(a).force_per_amp for a in actuators])
     fits = [_residual_fit("a", [5.5, 1.0, 2.0, 1.0, 1.0, 1.0], per_amp)]
     gains = AxisGains(gains={n: AxisGain(2.92 if n == "theta3" else 0.01, 0.04, 0.4 if n == "theta3" else 0.0)
@@ -274,7 +274,7 @@ def test_a_named_gain_is_the_cause_and_the_floor_excess_its_consequence():
                       named=(NamedGain("theta3", 2.92, 0.04),))
     evidence = AxisEvidence(judged=("theta1", "theta2", "theta3", "zeta1", "zeta2", "zeta3"), gains=gains,
                             floors={"a": np.full(6, 1e-3)})
-    q = verdict(_results_of(actuators, fits), limits, actuators, evidence)
+    q = verdict(_results_of(actuators, fits), limits, per_amp, evidence)
     (reason,) = q.reasons
     assert reason.startswith("theta3: forces +2.92 % (sigma 0.04 %) off the model, every fitted parameter refitted")
     assert reason.endswith("left above the noise floor with it: theta1 5.5 (a) times its noise floor"), reason
@@ -312,7 +312,7 @@ def test_force_lags_by_hand():
     trajectories with a gap in their sample times, give back T per axis (to first order in
     omega T, and the central difference's (omega h)^2 / 6: both below 1e-3 here); a lag beyond
     max_force_lag fails the verdict, naming the axes."""
-    from ident_hw.experiment.quality import force_lags, verdict
+    from ident_hw.experiment.quality import force_lags, thresholds_of, verdict
     from ident_hw.results import TrajectoryFit
     config = load_config(CONFIGS / "sim-3prrr.yaml")
     actuators = config.robot.actuators
@@ -331,7 +331,8 @@ def test_force_lags_by_hand():
     np.testing.assert_allclose([f.seconds for f in found.values()], lag, rtol=1e-3, atol=1e-9)
     # the residual beside the lag: the second-order term (omega T)^2 / 2, tiny against T itself
     assert all(f.sigma < 1e-3 * abs(f.seconds) for f, true in zip(found.values(), lag) if true)
-    q = verdict(results, config.identification.quality, actuators)
+    per_amp = np.array([axis_scaling(a).force_per_amp for a in actuators])
+    q = verdict(results, thresholds_of(config.identification.quality), per_amp)
     (reason,) = [r for r in q.reasons if "lag" in r]
     named = re.findall(r"\) on (\w+)", reason)
     assert named == ["zeta1", "zeta2", "zeta3"], reason

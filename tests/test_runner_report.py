@@ -12,10 +12,12 @@ import yaml
 
 from ident_hw.config import QualityConfig
 from ident_hw.model import InertialParams, ThreePRRR
-from ident_hw.records import (AxisFigures, BaseAnalysis, RecordingCoverage, StepRecord, TrajectoryVerdict, Verdict)
+from ident_hw.records import (AxisFigures, BaseAnalysis, MassFitStep, RecordingCoverage, StepRecord, Thresholds,
+                              TrajectoryVerdict, Verdict)
 from ident_hw.report import build_report, summary_lines
 from ident_hw.results import (BaseFit, OnlineTrace, ParameterTable, Results, TrajectoryFit, load_results, mark_status,
-                              read_status, save_results)
+                              read_status, save_results, settling_time, tracked)
+from ident_hw.storage import from_json, to_json
 
 NAMES = InertialParams.NAMES
 
@@ -48,8 +50,8 @@ def synthetic_results(rng) -> Results:
                        sigma=np.array([0.02, 0.1]), initial=H @ (truth * 1.3), truth=H @ truth,
                        held=("fv_zeta1",), unexcited=(), threshold=10.0)
     return Results(parameters=table, actuators=ThreePRRR.actuator_names, actuator_kinds=ThreePRRR.actuator_kinds,
-                   fits=fits, steps=[StepRecord("carriages", ("sweep",), method="sqp", free=("m_c",))],
-                   base_analysis=BaseAnalysis(rank=18, n_params=19, expressions=("I_l1 + 0.0225 m_l1",),
+                   fits=tuple(fits), steps=(MassFitStep("carriages", ("sweep",), method="sqp", free=("m_c",)),),
+                   base_analysis=BaseAnalysis(rank=18, n_params=19, base_parameters=("I_l1 + 0.0225 m_l1",),
                                               unexcited=("m_c",)), online=online, base_fit=base_fit)
 
 
@@ -173,9 +175,9 @@ def test_online_settling_time_and_diverged_estimator_by_hand():
     bad[t > 5.0] = np.nan
     trace = OnlineTrace(names, t, {"SVD-DLS": good, "RLS": bad}, H=H, base_names=names, truth=truth,
                         change_time=1.0, diverged={"RLS": 5.0})
-    assert trace.tracked() == [0]
-    assert trace.settling_time("SVD-DLS", 0) == pytest.approx(tau * np.log(25), abs=0.011)
-    assert trace.settling_time("RLS", 0) is None
+    assert tracked(trace) == [0]
+    assert settling_time(trace, "SVD-DLS", 0) == pytest.approx(tau * np.log(25), abs=0.011)
+    assert settling_time(trace, "RLS", 0) is None
 
 
 #: the JSON of each record, as parameters.json holds it (key order included)
@@ -206,7 +208,7 @@ RECORDS = [
                          "unplaced_frames": 0, "samples_used": 0, "rows_left_out": {"saturated": 8}, "gaps": 0,
                          "stretches": 0, "shortfalls": {"zeta2": {"missing": 2, "saturated": 8, "peak_A": 71.0,
                                                                    "limit_A": 8.0}}}),
-    (Verdict, {"passed": False, "reasons": ["why"], "thresholds": dataclasses.asdict(QualityConfig(max_d_tau=5.0)),
+    (Verdict, {"passed": False, "reasons": ["why"], "thresholds": dataclasses.asdict(Thresholds(max_d_tau=5.0)),
                "trajectories": {"sweep": {"recording_status": "complete", "coverage": 1.0, "valid_fraction": 1.0,
                                           "longest_gap_s": 0.0, "unplaced_frames": 0, "role": "identification",
                                           "d_tau_percent": 2.0},
@@ -218,36 +220,51 @@ RECORDS = [
                                   "force_lag_s": 1e-4, "force_lag_sigma_s": 1e-5, "failed": ["noise floor"]},
                         "zeta2": {"force_lag_s": 2e-4, "force_lag_sigma_s": 1e-5, "failed": []}},
                "axes_judged": ["zeta1", "zeta2"], "not_judged": {"noise floor": "no standstill"}}),
+    (Verdict, {"passed": True, "reasons": [], "thresholds": dataclasses.asdict(Thresholds()), "trajectories": {},
+               "steps": {"gains": {"cond_scaled": None}}, "well_identified": [], "axes": {}, "axes_judged": [],
+               "notes": ["a lag noted"]}),
 ]
 
 
 @pytest.mark.parametrize("record, doc", RECORDS, ids=[f"{r.__name__}-{i}" for i, (r, _) in enumerate(RECORDS)])
 def test_each_record_reads_and_writes_its_json_unchanged(record, doc):
     """parameters.json keeps its keys, values and their order through the typed records."""
-    back = record.from_json(doc).to_json()
+    back = to_json(from_json(record, doc))
     assert json.dumps(back) == json.dumps(doc)
+
+
+def test_the_verdict_stores_the_config_thresholds_under_its_own_names():
+    """The results format holds its own copy of the limits (a renamed config key must be mapped
+    in ident_hw.experiment.quality.thresholds_of, not change the files): same names and defaults
+    today, and every limit of the config mapped."""
+    from ident_hw.experiment.quality import thresholds_of
+    assert dataclasses.asdict(Thresholds()) == dataclasses.asdict(QualityConfig())
+    given = QualityConfig(**{f.name: 0.5 + i for i, f in enumerate(dataclasses.fields(QualityConfig))
+                             if f.type in ("float", float)})
+    assert dataclasses.asdict(thresholds_of(given)) == dataclasses.asdict(given)
 
 
 def test_records_read_folders_written_before_a_key_existed():
     """A verdict and a coverage without the keys added later read as None or empty."""
-    verdict = Verdict.from_json({"passed": True, "reasons": [], "thresholds": {}, "trajectories": {
+    verdict = from_json(Verdict, {"passed": True, "reasons": [], "thresholds": {}, "trajectories": {
         "sweep": {"recording_status": "complete", "coverage": None, "valid_fraction": 1.0, "longest_gap_s": 0.0}},
         "steps": {}, "well_identified": []})
     assert verdict.passed and verdict.axes == {} and verdict.not_judged == {}
-    assert verdict.trajectories["sweep"] == TrajectoryVerdict(recorded=True, recording_status="complete",
-                                                               valid_fraction=1.0, longest_gap_s=0.0)
+    assert verdict.trajectories["sweep"] == TrajectoryVerdict(recording_status="complete", valid_fraction=1.0,
+                                                               longest_gap_s=0.0)
+    assert verdict.trajectories["sweep"].recorded
     assert verdict.thresholds is None
     # a folder of before the per-axis records: its lags and floor ratios read into them; the keys
     # of retired checks (gain spread, residual ratio against the same drives) are dropped
-    flat = Verdict.from_json({"passed": True, "axis_gain_spread_percent": {"zeta1": 0.1},
+    flat = from_json(Verdict, {"passed": True, "axis_gain_spread_percent": {"zeta1": 0.1},
                               "axis_residual_ratio": {"zeta1": 1.2}, "axis_residual_over_floor": {"zeta1": 2.0},
                               "force_lag_s": {"zeta1": 1e-4}, "force_lag_sigma_s": {"zeta1": 1e-5},
                               "thresholds": {"max_axis_gain_spread": 2.0, "max_d_tau": 5.0}})
     assert flat.axes == {"zeta1": AxisFigures(residual_over_floor=2.0, force_lag_s=1e-4, force_lag_sigma_s=1e-5)}
-    assert flat.thresholds == QualityConfig(max_d_tau=5.0)
-    older = Verdict.from_json({"passed": True, "thresholds": {"max_d_tau": 5.0, "min_coverage": 1.0}})
-    assert older.thresholds == QualityConfig(max_d_tau=5.0)
-    used = RecordingCoverage.from_json({"file": None, "recording_status": "complete", "cycles": 5,
+    assert flat.thresholds == Thresholds(max_d_tau=5.0)
+    older = from_json(Verdict, {"passed": True, "thresholds": {"max_d_tau": 5.0, "min_coverage": 1.0}})
+    assert older.thresholds == Thresholds(max_d_tau=5.0)
+    used = from_json(RecordingCoverage, {"file": None, "recording_status": "complete", "cycles": 5,
                                         "cycles_planned": None, "coverage": None, "valid_fraction": 1.0,
                                         "longest_gap_s": 0.0})
     assert not used.prepared and used.skipped_slots == 0 and used.unplaced_frames is None

@@ -5,6 +5,7 @@ is the config's own campaign; a study continues where it stopped; the summary's 
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 import subprocess
@@ -17,8 +18,9 @@ import numpy as np
 import pytest
 
 from ident_hw.config import load_config
-from ident_hw.experiment.study import (Estimate, ParameterSummary, RunOutcome, RunTask, Study, StudyError, run_file,
-                                        run_study, run_yaml, summarize)
+from ident_hw.experiment.study import RunTask, StudyError, run_file, run_study, run_yaml
+from ident_hw.results.study import Estimate, ParameterSummary, RunOutcome, Study, summarize
+from ident_hw.storage import from_json, to_json
 from ident_hw.report.study import study_lines, verdict_line, write_study_report
 from ident_hw.config.to_drivers import encoder_edge_counts
 
@@ -61,7 +63,7 @@ def test_runs_on_two_worker_processes_equal_the_same_runs_in_this_process(tmp_pa
 
 
 @pytest.mark.slow
-def test_run_zero_is_the_configs_own_campaign_and_a_study_continues_where_it_stopped(tmp_path):
+def test_run_zero_is_the_configs_own_campaign_and_a_study_continues_where_it_stopped(tmp_path, caplog):
     config = short_config(tmp_path)
     folder = tmp_path / "study"
     run_study(config, folder, runs=2, workers=0)
@@ -78,8 +80,9 @@ def test_run_zero_is_the_configs_own_campaign_and_a_study_continues_where_it_sto
     # finished one is kept as it was
     kept, redone = outcome(folder, 0), outcome(folder, 1)
     run_file(folder, 1).write_text(json.dumps(dict(redone, estimates=[], error="OSError: disk full")))
-    ran = []
-    study = run_study(config, folder, runs=3, workers=0, on_outcome=lambda o, done, runs: ran.append(o.index))
+    with caplog.at_level(logging.INFO, logger="ident_hw"):
+        study = run_study(config, folder, runs=3, workers=0)
+    ran = [int(r.getMessage().split()[1]) for r in caplog.records if r.getMessage().startswith("run ")]
     assert sorted(ran) == [1, 2] and outcome(folder, 0) == kept and len(study.outcomes) == 3
     assert outcome(folder, 1)["estimates"] == redone["estimates"] and outcome(folder, 1)["error"] is None
     assert json.loads((folder / "study.json").read_text())["runs_finished"] == 3
@@ -164,7 +167,7 @@ def test_a_sigma_of_few_draws_covers_with_students_t():
     assert not normal.covered and few.covered
     assert not Estimate("base", "x", 1.24, 0.1, 1.0, True, dof=7.0).covered
     outcome = RunOutcome(0, 0, "complete", 1.0, "here", (normal, few))
-    assert RunOutcome.from_dict(json.loads(json.dumps(outcome.to_dict()))) == outcome
+    assert from_json(RunOutcome, json.loads(json.dumps(to_json(outcome)))) == outcome
     assert summarize([outcome])[0].coverage == 0.5
 
 
@@ -202,7 +205,7 @@ def test_how_often_calibrated_sigmas_fail_the_bar_against_the_binomial_by_hand(t
     36 of 40 intervals holding the truth (binomial, summed by hand) or a mean z beyond 0.5 (normal
     tail); for parameters whose errors move together it is ``p``. The simulated figure matches
     both; a study's own figure comes from the correlation of its runs' z-scores."""
-    from ident_hw.experiment.study import calibrated_failure_rate
+    from ident_hw.results.study import calibrated_failure_rate
     runs = 40
     coverage_tail = sum(math.comb(runs, j) * 0.95 ** j * 0.05 ** (runs - j) for j in range(36))
     bias_tail = math.erfc(0.5 * math.sqrt(runs) / math.sqrt(2.0))

@@ -49,13 +49,13 @@ def rre(config, given=()):
     recordings, imported, _ = gather_recordings(config, list(given))
     results = identify(config, recordings, imported=imported)
     figures = validation_figures(results)["validation"]
-    return np.array(figures.rre_fit), np.array(figures.rre_compared), imported, results
+    return np.array(figures.rre_percent.fit, dtype=float), np.array(figures.rre_percent.compared, dtype=float), imported, results
 
 
 def test_identified_from_the_authors_run_it_predicts_their_held_out_run_better_on_every_joint(authors):
     results, _ = authors
     figures = validation_figures(results)["validation"]
-    ours, theirs = np.array(figures.rre_fit), np.array(figures.rre_compared)
+    ours, theirs = np.array(figures.rre_percent.fit, dtype=float), np.array(figures.rre_percent.compared, dtype=float)
     assert results.trajectories["excitation"].imported.window == "rows 635..3510"
     assert results.trajectories["validation"].imported.window == "rows 700..4200"
     assert np.all(ours <= theirs), (ours, theirs)
@@ -93,7 +93,7 @@ def test_the_published_parameters_are_read_into_the_models_order(ur10e):
     Iyy Ixz Iyz Izz], friction per joint Fv qd + Fc sign(qd) + F0, rotor inertias."""
     config = load_config(CONFIGS / "ur10e.yaml")
     spec = config.identification.compare_with
-    published = compared_set(config, spec)
+    published = compared_set(config.robot, spec)
     vectors = read_vectors(spec.path)
     model = pin.buildModelFromUrdf(str(ur10e / "ur10e.urdf"))
     data = model.createData()

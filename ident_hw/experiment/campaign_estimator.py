@@ -25,16 +25,14 @@ import numpy as np
 
 from drivers.recording import Recording
 from ident_hw.config import Config
-from ident_hw.config.robots import initial_parameters, true_parameters
-from ident_hw.config.to_drivers import axes_scaling
 from ident_hw.config.to_identification import online_scales
 from ident_hw.identification import RLS, SVDDLS, DampedRLS, base_parameters
 from ident_hw.identification.base_params import on_kept
 from ident_hw.model.combinations import format_combination
 from ident_hw.results import BaseFit, OnlineTrace
 
-from .offline import prepare
-from .plan import robot_model
+from .inputs import identification_plan
+from .preparation import prepare
 
 #: the estimator whose estimates are printed and judged; the others are baselines
 MAIN = "SVD-DLS"
@@ -44,14 +42,13 @@ class CampaignEstimator:
     """The online estimators over the recordings of a campaign, in the order they are recorded."""
 
     def __init__(self, config: Config, show: Callable[[str], None] | None = None):
-        if config.identification is None:
-            raise ValueError(f"{config.source}: identification: missing section")
-        self.config = config
-        self.robot = robot_model(config)
+        self.plan = plan = identification_plan(config)
+        self.payloads = {t.name: t.payload for t in config.trajectories if t.payload is not None}
+        self.robot = plan.model
         self.show = show
-        online = config.identification.online
+        online = plan.identification.online
         physical = self.robot.parameter_names
-        cad = initial_parameters(config.robot)
+        cad = np.array(plan.initial)
         scale = np.array(online_scales(online, physical, cad))
         basis = self.robot.readable_base()
         if basis is None:      # the physical parameters (their base ones follow from the data)
@@ -63,7 +60,7 @@ class CampaignEstimator:
             self.names = tuple(format_combination(h, physical) for h in self._H)
             self.units = tuple(map(self.robot.parameter_unit, self._kept))
             self.cad, self.scale = self._H @ cad, np.abs(self._H) @ scale
-        self.output_std = online.output_noise * axes_scaling(config.robot.actuators).force_per_amp
+        self.output_std = online.output_noise * plan.axes.force_per_amp
         n = len(self.names)
         common = {"forgetting": online.forgetting, "scale": self.scale, "output_std": self.output_std}
         self.estimators = {
@@ -87,11 +84,11 @@ class CampaignEstimator:
 
     def _truth_at(self, name: str, t: np.ndarray) -> np.ndarray | None:
         """(M, n) the simulated truth at the trajectory's times ``t`` (s from its start)."""
-        true = true_parameters(self.config, self.robot)
+        true = self.plan.truth
         if true is None:
             return None
         truth = np.tile(true, (len(t), 1))
-        payload = self.config.trajectory(name).payload
+        payload = self.payloads.get(name)
         if payload is not None:
             after = t >= payload.after
             truth[after] = self.robot.with_payload(true, payload.mass, payload.inertia)
@@ -100,7 +97,7 @@ class CampaignEstimator:
 
     def update(self, name: str, rec: Recording) -> None:
         """Feed one recorded trajectory, sample by sample, to every estimator; print the table."""
-        p = prepare(self.config, self.robot, name, rec)
+        p = prepare(self.plan, self.robot, name, rec)
         Y = p.Y if self._columns is None else p.Y[:, :, self._columns]
         Y = np.where(p.moving[:, :, None], Y, 0.0)      # rows of axes near rest: no information
         tau = np.where(p.moving, p.tau, 0.0)

@@ -19,10 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from drivers.errors import RecordingError
-from ident_hw.config import Config
+from ident_hw.config import RobotConfig
 from ident_hw.config.identification import CompareWithConfig, VectorConfig
 from ident_hw.config.robots import described_model
-from ident_hw.config.to_drivers import axes_scaling
 from ident_hw.model.friction import FrictionModel
 from ident_hw.model.interface import RobotModel
 from ident_hw.model.pseudo_inertia import SPATIAL
@@ -51,10 +50,9 @@ class ComparedSet:
     values: np.ndarray
     gains: np.ndarray | None
 
-    def force_factor(self, config: Config) -> np.ndarray:
+    def force_factor(self, per_amp: np.ndarray) -> np.ndarray:
         """(a,) what turns this set's predicted forces into the config's measure of them: the
-        config's force per ampere over the set's gains (1 without gains)."""
-        per_amp = axes_scaling(config.robot.actuators).force_per_amp
+        config's force per ampere ``per_amp`` (a,) over the set's gains (1 without gains)."""
         return np.ones_like(per_amp) if self.gains is None else per_amp / self.gains
 
 
@@ -74,29 +72,30 @@ def read_vectors(path: str | Path) -> dict[str, np.ndarray]:
     return out
 
 
-def compared_model(config: Config, spec: CompareWithConfig, robot: RobotModel | None = None) -> RobotModel:
-    """The robot of the config with the friction model of the compared set: its ``friction.model``
+def compared_model(robot_config: RobotConfig, spec: CompareWithConfig, robot: RobotModel | None = None
+                   ) -> RobotModel:
+    """The robot of the config's robot section ``robot_config`` with the friction model of the compared set: its ``friction.model``
     (``coulomb`` as a plain sign, ``tanh(qd / 1e-9)``), an offset where its ``order`` has ``f0``;
     ``robot``: the config's robot already built (a described robot: its copy shares its tree)."""
     friction = spec.friction
     order = friction.order if friction is not None else ()
     model = FrictionModel(kind=friction.model if friction is not None else "coulomb", width=1e-9,
-                          rest_speed=config.robot.friction.rest_speed, offset="f0" in order,
+                          rest_speed=robot_config.friction.rest_speed, offset="f0" in order,
                           stribeck_velocity=None)
-    base = described_model(config.robot) if robot is None else robot
+    base = described_model(robot_config) if robot is None else robot
     return base.with_friction(model)
 
 
-def compared_set(config: Config, spec: CompareWithConfig, robot: RobotModel | None = None) -> ComparedSet:
+def compared_set(robot_config: RobotConfig, spec: CompareWithConfig, robot: RobotModel | None = None) -> ComparedSet:
     """The set of ``spec`` read from its file, in the order of :func:`compared_model`'s parameters
-    (``robot``: the config's robot, if built).
+    (``robot_config``: the config's robot section; ``robot``: its model, if built).
 
     Raises:
         CompareError: a vector the file does not hold, of the wrong length, or an order naming a
             value the model has no place for; the message names the file and the key.
     """
     vectors = read_vectors(spec.path)
-    model = compared_model(config, spec, robot)
+    model = compared_model(robot_config, spec, robot)
     names = model.parameter_names
     values = np.zeros(len(names))
     bodies = sorted({n.split(".")[0] for n in names if "." in n}, key=lambda b: names.index(f"{b}.m"))
@@ -138,7 +137,8 @@ def _fill(values: np.ndarray, names: tuple[str, ...], found: np.ndarray, groups:
         values[names.index(name)] = value
 
 
-def predicted_forces(compared: ComparedSet, prepared_Y: np.ndarray, config: Config) -> np.ndarray:
+def predicted_forces(compared: ComparedSet, prepared_Y: np.ndarray, per_amp: np.ndarray) -> np.ndarray:
     """(N, a) the compared set's forces on rows whose regressor of :attr:`ComparedSet.model` is
-    ``prepared_Y`` (N, a, P), in the config's measure (:meth:`ComparedSet.force_factor`)."""
-    return (prepared_Y @ compared.values) * compared.force_factor(config)
+    ``prepared_Y`` (N, a, P), in the config's measure (:meth:`ComparedSet.force_factor` of the
+    config's force per ampere ``per_amp`` (a,))."""
+    return (prepared_Y @ compared.values) * compared.force_factor(per_amp)

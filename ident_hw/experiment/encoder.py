@@ -10,7 +10,7 @@ whose count edges lie elsewhere (``benchmarks/bench_bias_sources.py``, source ``
 
 The spread is measured from the data, not assumed: each draw reads the recorded positions,
 smoothed, again with every axis's count edges shifted by a random fraction of a count (as two
-homings of one rig differ), is prepared as the recording was (:func:`ident_hw.experiment.offline.reread_draws`)
+homings of one rig differ), is prepared as the recording was (:func:`ident_hw.experiment.uncertainty.reread_draws`)
 and fitted on the same columns with the same weights; the covariance of the draws' estimates is
 added to the least-squares one (:func:`spread_covariance`). The draws are seeded: the same
 recordings give the same sigma on any host.

@@ -13,16 +13,21 @@ trajectories judge the choice, they do not make it.
 
 from __future__ import annotations
 
+import logging
+from dataclasses import dataclass
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
 from drivers.recording import Recording
-from ident_hw.config import Config
+from ident_hw.config import RobotConfig
 from ident_hw.config.to_model import friction_model
 from ident_hw.identification.least_squares import check_regression_data, stack
 from ident_hw.model.interface import RobotModel
-from ident_hw.records import FrictionChoice
+from ident_hw.progress import report_progress
+from ident_hw.records import FrictionChoice, Tried
+
+logger = logging.getLogger(__name__)
 
 #: rad | m, the presliding distances tried (a lab's joints: 10 µrad to a few mrad behind a gear)
 PRESLIDING_GRID = (2e-5, 5e-5, 1e-4, 2e-4, 5e-4, 1e-3, 2e-3, 5e-3)
@@ -33,44 +38,60 @@ TOLERANCE = 0.1
 STRIBECK_GRID = (0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0)
 
 
-def friction_robot(config: Config, recordings: Mapping[str, Recording], names: Sequence[str],
-                   prepare: Callable, progress: Callable[[str], None] | None = None
-                   ) -> tuple[RobotModel, FrictionChoice | None]:
+@dataclass(frozen=True)
+class FrictionRobot:
     """The robot model to identify with, and its friction model (None: the default Coulomb and
-    viscous terms, nothing to say). The constants the config leaves ``auto`` (a Dahl presliding
-    distance, a Stribeck velocity) are chosen per actuator on the recordings ``names`` (each
-    through ``prepare(config, robot, name, recording)``): each constant in turn over its grid,
-    the same value for every actuator in one fit, each actuator then taking the value that left
-    its own residual smallest (its friction acts on its own force only); the presliding distance
-    first and again after the Stribeck velocity (coordinate descent)."""
-    from .plan import robot_model
-    friction = config.robot.friction
+    viscous terms, nothing to say)."""
+
+    robot: RobotModel
+    choice: FrictionChoice | None
+
+
+#: prepares one recording for a robot model: ``(robot, trajectory name, recording) -> Prepared``
+Preparer = Callable[[RobotModel, str, Recording], object]
+
+
+def friction_robot(robot_config: RobotConfig, base: RobotModel, recordings: Mapping[str, Recording],
+                   names: Sequence[str], prepare: Preparer) -> FrictionRobot:
+    """The robot model to identify with (``base``: the config's robot section ``robot_config``'s
+    model, whose copies share the tree's regressor of each motion), and its friction model. The
+    constants the config leaves ``auto`` (a Dahl presliding distance, a Stribeck velocity) are
+    chosen per actuator on the recordings ``names`` (each through ``prepare(robot, name,
+    recording)``): each constant in turn over its grid, the same value for every actuator in one
+    fit, each actuator then taking the value that left its own residual smallest (its friction acts
+    on its own force only); the presliding distance first and again after the Stribeck velocity
+    (coordinate descent)."""
+    friction = robot_config.friction
     if friction.default:
-        return robot_model(config), None
+        return FrictionRobot(base, None)
     free = {"presliding": PRESLIDING_GRID if friction.model == "dahl" and friction.presliding == "auto" else None,
             "stribeck": STRIBECK_GRID if friction.stribeck == "auto" else None}
     chosen: dict[str, tuple[float, ...] | None] = {"presliding": None, "stribeck": None}
-    tried: dict[str, tuple[tuple[float, ...], tuple[tuple[float, ...], ...]]] = {}
+    tried: dict[str, Tried] = {}
     order = [k for k in ("presliding", "stribeck", "presliding") if free[k] is not None]
     if len(order) == 2:             # one constant alone: once is enough
         order = order[:1]
-    base = robot_model(config)      # its copies share the tree's regressor of each motion
+    total, done = sum(len(free[k] or ()) for k in order), 0
     for key in order:
+        grid = free[key] or ()
         residuals = []              # per value of the grid, per actuator
-        for value in free[key]:
-            robot = base.with_friction(friction_model(config.robot, **{**chosen, key: value}))
-            residuals.append(_relative_residuals([prepare(config, robot, n, recordings[n]) for n in names]))
+        for value in grid:
+            report_progress(logger, "friction constants", done, total, "fit")
+            done += 1
+            robot = base.with_friction(friction_model(robot_config, **{**chosen, key: value}))
+            residuals.append(_relative_residuals([prepare(robot, n, recordings[n]) for n in names]))
         best = _parsimonious(np.array(residuals))
-        chosen[key] = tuple(float(free[key][i]) for i in best)
-        tried[key] = (free[key], tuple(tuple(float(x) for x in r) for r in residuals))
-    robot = base.with_friction(friction_model(config.robot, **chosen))
+        chosen[key] = tuple(float(grid[i]) for i in best)
+        tried[key] = Tried(tuple(grid), tuple(tuple(float(x) for x in r) for r in residuals))
+    if total:
+        report_progress(logger, "friction constants", total, total, "fit")
+    robot = base.with_friction(friction_model(robot_config, **chosen))
     model = robot.friction
     choice = FrictionChoice(friction.model, friction.offset, _per_actuator(model.presliding, robot)
                             if friction.model == "dahl" else None, _per_actuator(model.stribeck_velocity, robot),
                             tried=tried, trajectories=tuple(names) if tried else ())
-    if progress:
-        progress(choice.describe())
-    return robot, choice
+    logger.info(choice.describe())
+    return FrictionRobot(robot, choice)
 
 
 def _parsimonious(residuals: np.ndarray) -> np.ndarray:

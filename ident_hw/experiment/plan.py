@@ -12,9 +12,7 @@ from drivers.axis import AxisConfig, outside_position_limits
 from ident_hw.config import Config, TrajectoryConfig
 from ident_hw.config.robots import kind_of, model_of
 from ident_hw.config.to_drivers import axis_config, axis_scaling
-from ident_hw.config.to_trajectories import excitation_of
-from ident_hw.config.trajectory import REST_TO_REST_KINDS, STANDSTILL_S
-from ident_hw.filtering import POSITION_MARGIN
+from ident_hw.config.trajectory import STANDSTILL_S
 from ident_hw.model import KinematicsError
 from ident_hw.model.interface import POSITION_UNITS, RobotModel
 
@@ -82,32 +80,6 @@ def build(config: Config, tcfg: TrajectoryConfig, robot: RobotModel) -> trajecto
     traj = repeat(traj, tcfg.cycles)
     traj.name = tcfg.name
     return traj
-
-
-def motion_bandwidth(config: Config, name: str) -> float:
-    """Bandwidth (Hz) of the motion of trajectory ``name``, for its identification filter: its
-    ``bandwidth`` key, else the highest harmonic of a Fourier excitation, else the identification
-    filter's ``bandwidth`` (also for a name the config does not list)."""
-    tcfg = next((t for t in config.trajectories if t.name == name), None)
-    if tcfg is not None and tcfg.bandwidth is not None:
-        return tcfg.bandwidth
-    if tcfg is not None and tcfg.kind == "fourier":
-        return excitation_of(config, tcfg).bandwidth
-    return config.identification.filter.bandwidth
-
-
-def position_margin(config: Config, name: str) -> float:
-    """How far above the identification's band the positions of trajectory ``name`` are
-    low-passed (:attr:`ident_hw.filtering.FilterSettings.position_margin`): the config's
-    ``identification.filter.position_margin`` where it gives one, else
-    :data:`ident_hw.filtering.POSITION_MARGIN` for the rest-to-rest kinds
-    (:data:`ident_hw.config.trajectory.REST_TO_REST_KINDS`), whose force near the band edge would
-    otherwise be biased, and 1 (one cut-off) for band-limited motions and for a name the config
-    does not list."""
-    if config.identification.filter.position_margin is not None:
-        return config.identification.filter.position_margin
-    tcfg = next((t for t in config.trajectories if t.name == name), None)
-    return POSITION_MARGIN if tcfg is not None and tcfg.kind in REST_TO_REST_KINDS else 1.0
 
 
 def repeat(traj: trajectories.Trajectory, cycles: int) -> trajectories.Trajectory:

@@ -1,7 +1,8 @@
 """The quality verdict of a result: is it good enough to be marked ``complete``?
 
 Computed from the data and the fit of :func:`ident_hw.experiment.offline.identify`, against the
-thresholds of ``identification.quality`` (:class:`ident_hw.config.QualityConfig`):
+thresholds of ``identification.quality`` (:class:`ident_hw.config.QualityConfig`, judged as the
+:class:`ident_hw.records.Thresholds` the verdict stores, :func:`thresholds_of`):
 
 * per trajectory: the share of its set-points the recording holds (a stopped run, a checkpoint,
   a truncated log), the share of complete cycles, the longest stretch without one, and any
@@ -41,16 +42,27 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ident_hw.config import ActuatorConfig, QualityConfig
-from ident_hw.config.to_drivers import axes_scaling
+from ident_hw.config import QualityConfig
 from ident_hw.identification.axis_gain import AxisGains
 from ident_hw.identification.metrics import validation_metrics
-from ident_hw.records import AxisFigures, TrajectoryVerdict, Verdict
+from ident_hw.records import (AxisFigures, BaseStep, MassFitStep, SkippedStep, StepVerdict, Thresholds,
+                              TrajectoryVerdict, Verdict)
 from ident_hw.results import Results, relative_residual_percent
 
 
 #: a lag counts when it exceeds its threshold and this many of its standard errors
 LAG_SIGMAS = 5.0
+
+
+def thresholds_of(quality: QualityConfig) -> Thresholds:
+    """The limits of ``identification.quality`` as the verdict stores them (:class:`Thresholds`):
+    the one place a config key meets a key of the results format."""
+    return Thresholds(min_coverage=quality.min_coverage, min_valid_fraction=quality.min_valid_fraction,
+                      max_gap=quality.max_gap, max_condition=quality.max_condition, max_d_tau=quality.max_d_tau,
+                      max_disagreement=quality.max_disagreement, min_well_identified=quality.min_well_identified,
+                      max_force_lag=quality.max_force_lag, max_axis_gain=quality.max_axis_gain,
+                      max_axis_rre=quality.max_axis_rre, min_lag_share=quality.min_lag_share,
+                      max_residual_over_floor=quality.max_residual_over_floor)
 
 
 def relative_difference(tau: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -65,8 +77,8 @@ def consistency_reasons(results: Results) -> list[str]:
     """Why the base parameters do not fit a physical robot, if they do not: no consistent set
     (the step's record says why), or none within the base parameters' covariance (χ² above
     its 95 % quantile: rigid bodies cannot produce what was measured)."""
-    out = [f"step {r.name}: no physically consistent parameters ({r.consistency_failure})"
-           for r in results.steps if r.consistency_failure]
+    out = [f"step {r.name}: no physically consistent parameters ({r.consistent})"
+           for r in results.steps if isinstance(r, BaseStep) and r.consistent]
     c = results.consistent
     if c is not None and not c.reproduces_base:
         out.append(f"no physically consistent parameters reproduce the {c.base_count} base parameters within their "
@@ -84,7 +96,7 @@ class AxisEvidence:
     own model with every fitted parameter refitted (:func:`ident_hw.identification.axis_gain.axis_gains`;
     None: nothing was fitted); ``floors``: per fitted trajectory, (a,) what noise alone leaves
     each axis on the rows the fits used, in its drive's current, A (NaN: no such row;
-    :func:`ident_hw.experiment.offline.noise_floors`), empty when there is none and
+    :func:`ident_hw.experiment.evidence.noise_floors`), empty when there is none and
     ``floor_missing`` says why (``"no standstill"``); ``sharing``: per axis, the axes some fitted
     parameter acts on together with it (:func:`ident_hw.identification.axis_gain.sharing_axes`)."""
 
@@ -106,7 +118,7 @@ class FloorFigure:
     floor: float
 
 
-def floor_figures(results: Results, actuators: Sequence[ActuatorConfig], floors: Mapping[str, np.ndarray],
+def floor_figures(results: Results, force_per_amp: np.ndarray, floors: Mapping[str, np.ndarray],
                   judged: Sequence[str] | None = None) -> dict[str, FloorFigure]:
     """Each judged axis's residual against its own noise floor, at its worst fitted trajectory:
     the RMS of what the fit leaves of its measured forces (:func:`_residual`) over the rows the
@@ -115,9 +127,10 @@ def floor_figures(results: Results, actuators: Sequence[ActuatorConfig], floors:
     out), in the drive's current, over ``floors`` (per fitted trajectory, (a,) A, on the same
     rows). Needs no twin axis: a model wrong on an axis leaves it a residual far above what its
     drive's noise and its encoders can make, however it differs from the others. Only the axes
-    in ``judged`` (None: all) with rows and a floor."""
+    in ``judged`` (None: all) with rows and a floor; ``force_per_amp`` (a,): each actuator's
+    force per ampere, N·m/A | N/A."""
     judged = results.actuators if judged is None else tuple(judged)
-    per_amp = axes_scaling(actuators).force_per_amp
+    per_amp = force_per_amp
     worst: dict[str, FloorFigure] = {}
     for fit in results.fits:
         floor = floors.get(fit.name)
@@ -140,7 +153,7 @@ def _residual(fit) -> np.ndarray:
     return fit.tau - predicted
 
 
-def gain_reasons(gains: AxisGains | None, limits: QualityConfig,
+def gain_reasons(gains: AxisGains | None, limits: Thresholds,
                  over_floor: Mapping[str, FloorFigure] = {}) -> list[str]:
     """One reason per axis :func:`ident_hw.identification.axis_gain.axis_gains` names (its gain
     beyond ``limits.max_axis_gain``), with the axes whose gain would fit as well, and, on the
@@ -161,7 +174,7 @@ def gain_reasons(gains: AxisGains | None, limits: QualityConfig,
     return reasons
 
 
-def floor_reason(over_floor: Mapping[str, FloorFigure], limits: QualityConfig,
+def floor_reason(over_floor: Mapping[str, FloorFigure], limits: Thresholds,
                  sharing: Mapping[str, tuple[str, ...]] = {}) -> list[str]:
     """The reason naming every axis whose residual is beyond ``limits.max_residual_over_floor``
     times its noise floor (``over_floor``: those axes' :class:`FloorFigure`), or none. Which axis
@@ -243,7 +256,7 @@ def force_lags(results: Results) -> dict[str, ForceLag]:
     return out
 
 
-def recording_reasons(results: Results, limits: QualityConfig) -> tuple[dict[str, TrajectoryVerdict], list[str]]:
+def recording_reasons(results: Results, limits: Thresholds) -> tuple[dict[str, TrajectoryVerdict], list[str]]:
     """Per trajectory: what its recording covered (``results.trajectories``), and why that is not
     enough, first causes first: a stop or a truncated log (and the cycles it lost), saturated
     currents (more than ``1 - min_valid_fraction`` of the rows, or every usable one: which
@@ -260,7 +273,7 @@ def recording_reasons(results: Results, limits: QualityConfig) -> tuple[dict[str
             causes.append(f"{name}: partial recording ({status})")
         elif "truncated" in status:
             causes.append(f"{name}: truncated raw log")
-        cov = used.planned_fraction
+        cov = used.coverage
         if cov is not None and cov < limits.min_coverage:
             causes.append(f"{name}: {used.cycles} of {used.cycles_planned} cycles recorded "
                           f"({100 * cov:.0f} % < {100 * limits.min_coverage:g} %)")
@@ -304,45 +317,45 @@ def _saturation_text(axis: str, shortfall, cycles: int) -> str:
     return text + " (slow the trajectory down, or raise limits.current if the motor allows)"
 
 
-def step_reasons(results: Results, limits: QualityConfig) -> tuple[dict[str, float | None], list[str]]:
+def step_reasons(results: Results, limits: Thresholds) -> tuple[dict[str, StepVerdict], list[str]]:
     """Per identification step: its scaled condition number (None: not fitted), and why the step
     falls short (not fitted, parameters its data do not excite, ill-conditioned)."""
     reasons: list[str] = []
     steps = {}
     for record in results.steps:
-        if record.skipped:
+        if isinstance(record, SkippedStep):
             reasons.append(f"step {record.name}: not fitted ({record.skipped})")
-        if record.unexcited:
+        if isinstance(record, MassFitStep) and record.unexcited:
             reasons.append(f"step {record.name}: {', '.join(record.unexcited)} not excited by its data "
                            "(held at their previous values)")
-        cond = record.cond_scaled
-        steps[record.name] = cond
+        cond = record.cond_scaled if isinstance(record, (MassFitStep, BaseStep)) else None
+        steps[record.name] = StepVerdict(cond)
         if cond is not None and not cond <= limits.max_condition:
             reasons.append(f"step {record.name}: condition number {cond:.3g} (> {limits.max_condition:g})")
     return steps, reasons
 
 
-def well_identified_reasons(results: Results, limits: QualityConfig) -> tuple[list[str], list[str]]:
+def well_identified_reasons(results: Results, limits: Thresholds) -> tuple[list[str], list[str]]:
     """The fitted parameters (physical, then base) with %sigma at most the campaign's threshold,
     and a reason when fewer than ``limits.min_well_identified`` are."""
     fitted: list = [r for r in results.parameter_rows() if r.fitted]
     well = [r.name for r in fitted if r.well_identified]
     base_rows = results.base_rows()
     fitted += base_rows
-    well += [r.expression for r in base_rows if r.well_identified]
+    well += [r.base_parameter for r in base_rows if r.well_identified]
     if fitted and len(well) < limits.min_well_identified:
         return well, [f"{len(well)} of {len(fitted)} fitted parameters well identified "
                       f"(%sigma <= {results.rel_sigma_threshold:g}; at least {limits.min_well_identified} needed)"]
     return well, []
 
 
-def lag_failed(lag: ForceLag, limits: QualityConfig) -> bool:
+def lag_failed(lag: ForceLag, limits: Thresholds) -> bool:
     """A lag beyond ``limits.max_force_lag`` and :data:`LAG_SIGMAS` standard errors that accounts for
     at least ``limits.min_lag_share`` of its axis's residual: a time misalignment, which the verdict fails."""
     return lag.beyond(limits.max_force_lag) and lag.explained >= limits.min_lag_share
 
 
-def lag_reasons(lags: dict[str, ForceLag], limits: QualityConfig) -> tuple[list[str], list[str]]:
+def lag_reasons(lags: dict[str, ForceLag], limits: Thresholds) -> tuple[list[str], list[str]]:
     """One reason naming the axes whose forces lag (or lead) the model's (:func:`lag_failed`), and
     one note naming those whose lag is beyond the limit but a small share of a larger residual (a
     limit of the model, such as an elastic joint's, not a clock's)."""
@@ -361,7 +374,7 @@ def lag_reasons(lags: dict[str, ForceLag], limits: QualityConfig) -> tuple[list[
     return reasons, notes
 
 
-def prediction_reasons(results: Results, limits: QualityConfig,
+def prediction_reasons(results: Results, limits: Thresholds,
                        per_traj: dict[str, TrajectoryVerdict]) -> list[str]:
     """On each validation trajectory (each identification one when there is none): the force
     prediction error d_tau of the step-by-step and the base-parameter values, and how far the two
@@ -425,7 +438,7 @@ def prediction_figures(results: Results, judged: Sequence[str]) -> dict[str, Pre
     return out
 
 
-def prediction_reasons_per_axis(figures: Mapping[str, AxisFigures], limits: QualityConfig) -> list[str]:
+def prediction_reasons_per_axis(figures: Mapping[str, AxisFigures], limits: Thresholds) -> list[str]:
     """A reason per axis whose forces the identified (or the physically consistent) parameters do
     not predict within ``limits.max_axis_rre`` where it moves (its :class:`AxisFigures`)."""
     out = []
@@ -441,7 +454,7 @@ def prediction_reasons_per_axis(figures: Mapping[str, AxisFigures], limits: Qual
     return out
 
 
-def axis_figures(results: Results, limits: QualityConfig, actuators: Sequence[ActuatorConfig],
+def axis_figures(results: Results, limits: Thresholds, force_per_amp: np.ndarray | None,
                  evidence: AxisEvidence) -> tuple[dict[str, AxisFigures], dict[str, str], list[str], list[str]]:
     """The per-axis checks: each judged axis's gain against its own model refitted, its
     residual against its own noise floor, the lag of its forces; each axis on its own, none
@@ -449,7 +462,7 @@ def axis_figures(results: Results, limits: QualityConfig, actuators: Sequence[Ac
     reasons: a gain first (the cause), the floor's (folded into the gain's when a gain was
     named: it is then that axis's error spread by the fit), the lags."""
     judged = evidence.judged
-    over = floor_figures(results, actuators, evidence.floors, judged) if actuators else {}
+    over = floor_figures(results, force_per_amp, evidence.floors, judged) if force_per_amp is not None else {}
     beyond = {name: f for name, f in over.items() if f.ratio > limits.max_residual_over_floor}
     gains = evidence.gains
     named = {n.axis for n in gains.named} if gains is not None else set()
@@ -494,11 +507,11 @@ def axis_figures(results: Results, limits: QualityConfig, actuators: Sequence[Ac
     return figures, not_judged, reasons, notes
 
 
-def verdict(results: Results, limits: QualityConfig, actuators: Sequence[ActuatorConfig] = (),
+def verdict(results: Results, limits: Thresholds, force_per_amp: np.ndarray | None = None,
             evidence: AxisEvidence | None = None) -> Verdict:
-    """The quality verdict of ``results`` (its ``trajectories`` coverage included); ``actuators``:
-    the config's (their force per ampere puts residuals in each drive's current; none: no floor
-    check); ``evidence``: what the per-axis checks judge (:class:`AxisEvidence`; None: every
+    """The quality verdict of ``results`` (its ``trajectories`` coverage included) against the
+    ``limits``; ``force_per_amp`` (a,): each actuator's force per ampere, N·m/A | N/A (it puts
+    residuals in each drive's current; None: no floor check); ``evidence``: what the per-axis checks judge (:class:`AxisEvidence`; None: every
     axis, no gains, no floors). The reasons come in order of cause: what the recordings lack,
     the steps, each axis (a drive's data off), then what follows: the parameters, their
     physical consistency, the predictions."""
@@ -507,7 +520,7 @@ def verdict(results: Results, limits: QualityConfig, actuators: Sequence[Actuato
     reasons += more
     if evidence is None:
         evidence = AxisEvidence(judged=tuple(results.actuators), floor_missing="no noise floors given")
-    axes, not_judged, more, notes = axis_figures(results, limits, actuators, evidence)
+    axes, not_judged, more, notes = axis_figures(results, limits, force_per_amp, evidence)
     reasons += more             # an axis's drive data off: the cause of what follows
     well, more = well_identified_reasons(results, limits)
     reasons += more
@@ -526,11 +539,11 @@ def verdict(results: Results, limits: QualityConfig, actuators: Sequence[Actuato
                                             if figures.rre_percent is not None}, limits)
     reasons += prediction_reasons(results, limits, per_traj)
     return Verdict(passed=not reasons, reasons=tuple(dict.fromkeys(reasons)), thresholds=limits,
-                   trajectories=per_traj, cond_scaled=steps, well_identified=tuple(well), axes=axes,
+                   trajectories=per_traj, steps=steps, well_identified=tuple(well), axes=axes,
                    not_judged=not_judged, axes_judged=tuple(evidence.judged), notes=tuple(notes))
 
 
-def noise_dominated(axes: Mapping[str, AxisFigures], limits: QualityConfig) -> bool | str:
+def noise_dominated(axes: Mapping[str, AxisFigures], limits: Thresholds) -> bool | str:
     """True when every judged axis's residual is within ``limits.max_residual_over_floor`` of its
     noise floor (what the fit leaves is noise: the base parameters' covariance, of noise,
     describes it and the consistency's chi2 test means what it says); else why not (no floor, or

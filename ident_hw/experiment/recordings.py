@@ -7,7 +7,7 @@ A decoded ``.npz`` keeps the node-IDs, profiles and drive scalings it was conver
 samples of the file were made with the recording's values (a raw CAN log holds counts and mA and
 is decoded with the config's values instead). A raw log must hold frames of every configured
 node. What each recording covers (complete, stopped, checkpoint, truncated) is reported by
-:func:`ident_hw.experiment.offline.coverage` and judged by the quality verdict.
+:func:`ident_hw.experiment.preparation.coverage` and judged by the quality verdict.
 """
 
 from __future__ import annotations
@@ -15,14 +15,14 @@ from __future__ import annotations
 import dataclasses
 import math
 from pathlib import Path
-from typing import Sequence
+from typing import Collection, Sequence
 
 import numpy as np
 
 from drivers.errors import RecordingError
 from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log
 from drivers.recording_metadata import RecordingMetadata
-from ident_hw.config import Config
+from ident_hw.config import Config, IdentificationConfig
 from ident_hw.records import ImportSummary
 from ident_hw.config.to_drivers import axis_config, axis_scaling
 
@@ -40,14 +40,14 @@ def identification_valid(rec: Recording) -> np.ndarray:
     return rec.position_valid & rec.current_valid
 
 
-def require_trajectories(config: Config, names) -> None:
-    """Every trajectory the config's identification needs is among ``names`` (those recorded)."""
-    ident = config.identification
+def require_trajectories(ident: IdentificationConfig, source: str, names: Collection[str]) -> None:
+    """Every trajectory the identification section ``ident`` (of the config file ``source``)
+    needs is among ``names`` (those recorded)."""
     needed = [n for s in ident.steps for n in s.trajectories] + list(ident.validation)
     missing = [n for n in dict.fromkeys(needed) if n not in names]
     if missing:
         raise RecordingError(f"no recording of trajectories {missing}, which the identification of "
-                             f"{config.source} needs (given: {sorted(names) or 'none'})")
+                             f"{source} needs (given: {sorted(names) or 'none'})")
 
 
 def planned_cycles(config: Config, name: str) -> int | None:

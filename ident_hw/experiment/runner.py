@@ -23,25 +23,26 @@ both is written here and nowhere else.
 
 from __future__ import annotations
 
-import json
-import sys
+import logging
 import threading
-from contextlib import contextmanager
+from collections.abc import Iterator, Mapping
+from contextlib import closing, contextmanager
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable, Iterator, Mapping
 
 import can
 import numpy as np
-from tqdm import tqdm
 
 from drivers.cia import SYNC_COB_ID, UNPOWERED
 from drivers.epos import DriveGroup
 from drivers.errors import BusOpenError, ConfigError, DriveError, NodeError
 from drivers.recording import Recording
 from drivers.recording_metadata import RecordingMetadata
-from ident_hw.config import Config
+from ident_hw.config import Config, PayloadConfig, SimFaultConfig
+from ident_hw.progress import report_progress
 from ident_hw.records import ImportSummary
 from ident_hw.results import Results, final_status, mark_status, save_results
+from ident_hw.storage import NONE, read_file, stored, write_file
 
 from .campaign_estimator import CampaignEstimator
 from .interrupts import shielded, signal_name
@@ -49,11 +50,12 @@ from .offline import identify
 from .plan import PlannedTrajectory, plan, setpoints, sync_period
 from .session import HostSettings, Session, open_session
 
+logger = logging.getLogger(__name__)
+
 #: profile-position moves to a trajectory's start run at this fraction of each axis' speed limit
 APPROACH_SPEED = 0.2
-
-
-#: CiA 402 states in which a drive's power stage is off
+#: where a run keeps its drives' states after the stop, in its data folder
+DRIVES_FILE = "drives.json"
 
 
 class CampaignStopped(Exception):
@@ -65,7 +67,7 @@ class CampaignStopped(Exception):
     it could not).
     """
 
-    def __init__(self, folder: Path, reason: str, cause: BaseException, drives: dict[str, str] | None = None):
+    def __init__(self, folder: Path, reason: str, cause: BaseException, drives: Mapping[str, str] | None = None):
         super().__init__(f"{reason} (partial results in {folder})")
         self.folder, self.reason, self.cause = folder, reason, cause
         self.drives = dict(drives or {})
@@ -77,7 +79,7 @@ class CampaignStopped(Exception):
                 f"recordings kept in {self.folder / 'data'}")
 
 
-def drives_after_stop(master: dict[str, str]) -> str:
+def drives_after_stop(master: Mapping[str, str]) -> str:
     """``drives disabled: a, b; FAULT: c; state unknown: d`` from the states the master read
     (``unknown (...)`` for a drive that did not answer: never claimed disabled)."""
     if not master:
@@ -88,6 +90,60 @@ def drives_after_stop(master: dict[str, str]) -> str:
                "drives disabled" if state in UNPOWERED else state)
         groups.setdefault(key, []).append(label)
     return "; ".join(f"{key}: {', '.join(labels)}" for key, labels in groups.items())
+
+
+@dataclass(frozen=True)
+class DriveStates:
+    """``data/drives.json``: the CiA 402 state of every drive after the run, as the master read it
+    over SDO (``master``: by drive label; ``unknown (...)`` where it did not answer) and, on the
+    in-process simulated rig, as the rig holds it (``rig``: by node)."""
+
+    master: Mapping[str, str] = field(default_factory=dict)
+    rig: Mapping[str, str] | None = field(default=None, metadata=stored(NONE))
+
+
+def read_drive_states(data: Path) -> DriveStates | None:
+    """The drives' states a run left in its data folder ``data``; None when it wrote none."""
+    path = data / DRIVES_FILE
+    try:
+        return read_file(DriveStates, path) if path.is_file() else None
+    except ValueError:
+        return None
+
+
+@dataclass(frozen=True)
+class CampaignInputs:
+    """What streaming a campaign takes of the config, made once at the edge (:func:`campaign_inputs`):
+    the config file's ``name`` (each recording's metadata says it), the motor ``current`` the drives
+    stream (``bus.current``), the ``sync_period`` (s), the raw log's suffix, each actuator's
+    ``following_error`` window (a,) (a drive standing further than half of it from a trajectory's
+    start is moved there first), the drives' ``bring_up_timeout`` (s), where the bus is
+    (``bus_label``), whether it is the simulated rig's, the simulated rig's ``fault`` and each
+    trajectory's ``payloads``."""
+
+    name: str
+    current: str
+    sync_period: float
+    raw_log: str
+    following_error: np.ndarray
+    bring_up_timeout: float
+    bus_label: str
+    simulated: bool
+    fault: SimFaultConfig | None = None
+    payloads: Mapping[str, PayloadConfig] = field(default_factory=dict)
+
+
+def campaign_inputs(config: Config) -> CampaignInputs:
+    """The :class:`CampaignInputs` of a config whose campaign can run (it has a bus)."""
+    if config.bus is None:
+        raise ValueError(f"{config.source}: bus: missing section (needed to run)")
+    return CampaignInputs(name=Path(config.source).name, current=config.current, sync_period=sync_period(config),
+                          raw_log=config.output.raw_log,
+                          following_error=np.array([a.limits.following_error for a in config.robot.actuators]),
+                          bring_up_timeout=config.bus.bring_up_timeout,
+                          bus_label=f"{config.bus.interface}:{config.bus.channel}", simulated=config.simulated,
+                          fault=config.sim.fault if config.sim is not None else None,
+                          payloads={t.name: t.payload for t in config.trajectories if t.payload is not None})
 
 
 class _SyncCounter(can.Listener):
@@ -102,20 +158,19 @@ class _SyncCounter(can.Listener):
 
 
 @contextmanager
-def _progress(network, name: str, cycles: int, enabled: bool) -> Iterator[None]:
-    """A tqdm bar of the SYNC cycles of one stream, refreshed from its own thread."""
-    if not enabled:
+def _progress(network, name: str, cycles: int) -> Iterator[None]:
+    """The SYNC cycles of one stream reported (:func:`ident_hw.progress.report_progress`) from a
+    thread of its own, five times a second, while someone listens."""
+    if not logger.isEnabledFor(logging.DEBUG):
         yield
         return
     counter = _SyncCounter()
     network.notifier.add_listener(counter)
-    bar = tqdm(total=cycles, desc=f"{name:>10}", unit="cycle", file=sys.stderr, leave=True)
     done = threading.Event()
 
     def refresh() -> None:
         while not done.wait(0.2):
-            bar.n = min(counter.count, cycles)
-            bar.refresh()
+            report_progress(logger, name, min(counter.count, cycles), cycles, "cycle")
     thread = threading.Thread(target=refresh, name="progress", daemon=True)
     thread.start()
     try:
@@ -123,19 +178,18 @@ def _progress(network, name: str, cycles: int, enabled: bool) -> Iterator[None]:
     finally:
         done.set()
         thread.join()
-        bar.n = min(counter.count, cycles)
-        bar.close()
+        report_progress(logger, name, cycles, cycles, "cycle")
         network.notifier.remove_listener(counter)
 
 
 @contextmanager
-def _injected_events(session: Session, name: str) -> Iterator[None]:
+def _injected_events(session: Session, inputs: CampaignInputs, name: str) -> Iterator[None]:
     """Arm the config's ``sim.fault`` and the trajectory's ``payload`` when trajectory ``name``
     starts streaming: each happens ``after`` s of simulated time into the stream
     (:meth:`drivers.sim.SimulatedRig.schedule`); the payload is dropped again at its end."""
-    sim, rig = session.config.sim, session.rig
-    fault = sim.fault if sim is not None and sim.fault is not None and sim.fault.trajectory == name else None
-    payload = session.config.trajectory(name).payload
+    rig = session.rig
+    fault = inputs.fault if inputs.fault is not None and inputs.fault.trajectory == name else None
+    payload = inputs.payloads.get(name)
     if rig is None or (fault is None and payload is None):
         yield
         return
@@ -151,7 +205,7 @@ def _injected_events(session: Session, name: str) -> Iterator[None]:
             rig.set_payload(0.0)
 
 
-def _drive_states(session: Session, group: DriveGroup) -> dict:
+def _drive_states(session: Session, group: DriveGroup) -> DriveStates:
     """CiA 402 state of every drive: read by the master over SDO, and the in-process rig's own."""
     master = {}
     for drive in group.drives:
@@ -159,60 +213,54 @@ def _drive_states(session: Session, group: DriveGroup) -> dict:
             master[drive.label] = drive.state
         except NodeError as exc:
             master[drive.label] = f"unknown ({exc})"
-    states = {"master": master}
-    if session.rig is not None:
-        states["rig"] = {f"node {d.id}": d.state for d in session.rig.drives}
-    return states
+    rig = None if session.rig is None else {f"node {d.id}": d.state for d in session.rig.drives}
+    return DriveStates(master, rig)
 
 
-def stream(session: Session, group: DriveGroup, planned: PlannedTrajectory, data: Path,
-           show_progress: bool, host: HostSettings = HostSettings()) -> Recording:
+def stream(session: Session, group: DriveGroup, planned: PlannedTrajectory, data: Path, inputs: CampaignInputs,
+           host: HostSettings = HostSettings()) -> Recording:
     """Move to the trajectory's start, stream its set-points (:func:`~ident_hw.experiment.plan.setpoints`,
     the array the campaign's check validated) at the SYNC period and record it into ``data``."""
-    config, traj = session.config, planned.trajectory
+    traj = planned.trajectory
+    if traj is None:
+        raise ValueError(f"trajectory {planned.config.name!r} was not built: {planned.error}")
     targets = setpoints(traj)
-    window = np.array([a.limits.following_error for a in config.robot.actuators])
-    if np.any(np.abs(group.positions() - targets[0]) > 0.5 * window):
+    if np.any(np.abs(group.positions() - targets[0]) > 0.5 * inputs.following_error):
         group.move_to(targets[0], speed_fraction=APPROACH_SPEED)
-    with _progress(session.network, traj.name, len(targets), show_progress), _injected_events(session, traj.name):
-        return group.run_cyclic(targets, sync_period(config), output=data / f"{traj.name}.npz",
-                                raw_log=data / f"{traj.name}{config.output.raw_log}",
-                                metadata=RecordingMetadata(trajectory=traj.name, config=Path(config.source).name,
-                                                           current=config.current),
+    with _progress(session.network, traj.name, len(targets)), _injected_events(session, inputs, traj.name):
+        return group.run_cyclic(targets, inputs.sync_period, output=data / f"{traj.name}.npz",
+                                raw_log=data / f"{traj.name}{inputs.raw_log}",
+                                metadata=RecordingMetadata(trajectory=traj.name, config=inputs.name,
+                                                           current=inputs.current),
                                 quiet=host.quiet)
 
 
-def record_campaign(config: Config, data: Path, planned: list[PlannedTrajectory], recordings: dict[str, Recording],
-                    states: dict, say: Callable[[str], None], show_progress: bool,
-                    online: CampaignEstimator | None, host: HostSettings) -> None:
+def record_campaign(session: Session, data: Path, planned: list[PlannedTrajectory], inputs: CampaignInputs,
+                    host: HostSettings) -> Iterator[tuple[str, Recording]]:
     """Bring the drives up (and home the simulated rig), stream every planned trajectory into
-    ``data`` and ``recordings`` (filled as each one ends: a stop keeps those already made), then
-    stop and disable the drives and put their states into ``states`` (and ``data/drives.json``),
-    whether the session ended or stopped."""
-    with host.pinned(), open_session(config) as session:
-        group = session.drive_group()
-        try:
-            say(f"bringing up {len(group.drives)} drives on {config.bus.interface}:{config.bus.channel}")
-            group.bring_up(timeout=config.bus.bring_up_timeout)
-            if config.simulated:
-                say("homing (the simulated rig powers up at the home pose)")
-                group.home()
-            for i, p in enumerate(planned, 1):
-                say(f"[{i}/{len(planned)}] {p.describe()}")
-                rec = stream(session, group, p, data, show_progress, host)
-                recordings[p.config.name] = rec
-                skipped = rec.metadata.sync_report.sync_slots_skipped or 0
-                say(f"    recorded {rec.metadata.n_cycles} cycles, {rec.n_invalid} incomplete"
-                    + (f", {skipped} SYNC slots skipped (the host woke the SYNC thread late)" if skipped else ""))
-                if online is not None:
-                    online.update(p.config.name, rec)
-        finally:
-            # quick stop and disable, then the drives stop watching the master's heartbeat before
-            # it ends; a signal arriving meanwhile waits for the states to be written
-            with shielded():
-                group.close()
-                states.update(_drive_states(session, group))
-                (data / "drives.json").write_text(json.dumps(states, indent=2))
+    ``data``, yielding each one's name and recording as it ends (a stop keeps those already made),
+    then, whether the session ended or stopped, stop and disable the drives and keep their states
+    in ``data/drives.json`` (:class:`DriveStates`)."""
+    group = session.drive_group()
+    try:
+        logger.info(f"bringing up {len(group.drives)} drives on {inputs.bus_label}")
+        group.bring_up(timeout=inputs.bring_up_timeout)
+        if inputs.simulated:
+            logger.info("homing (the simulated rig powers up at the home pose)")
+            group.home()
+        for i, p in enumerate(planned, 1):
+            logger.info(f"[{i}/{len(planned)}] {p.describe()}")
+            rec = stream(session, group, p, data, inputs, host)
+            skipped = rec.metadata.sync_report.sync_slots_skipped or 0
+            logger.info(f"    recorded {rec.metadata.n_cycles} cycles, {rec.n_invalid} incomplete"
+                        + (f", {skipped} SYNC slots skipped (the host woke the SYNC thread late)" if skipped else ""))
+            yield p.config.name, rec
+    finally:
+        # quick stop and disable, then the drives stop watching the master's heartbeat before
+        # it ends; a signal arriving meanwhile waits for the states to be written
+        with shielded():
+            group.close()
+            write_file(data / DRIVES_FILE, _drive_states(session, group))
 
 
 def stop_reason(exc: BaseException) -> str:
@@ -236,16 +284,15 @@ def conclude(folder: Path, results: Results, report: bool) -> None:
         build_report(folder)
 
 
-def identify_recordings(config: Config, recordings: dict[str, Recording], folder: str | Path, *,
-                        log: Callable[[str], None] | None = None, report: bool = True,
-                        imported: Mapping[str, ImportSummary] | None = None) -> Results:
+def identify_recordings(config: Config, recordings: Mapping[str, Recording], folder: str | Path, *,
+                        report: bool = True, imported: Mapping[str, ImportSummary] | None = None) -> Results:
     """Identify offline from recordings already read (``ident-hw identify``) into ``folder``,
     whose STATUS ends as a run's does (:func:`conclude`), or ``failed: <why>`` (:func:`stop_reason`)
     if anything, a signal included, stops it; the exception is raised again. ``imported``: how the
     recordings made elsewhere were read."""
     folder = Path(folder)
     try:
-        results = identify(config, recordings, progress=log, imported=imported)
+        results = identify(config, recordings, imported=imported)
         conclude(folder, results, report)
     except BaseException as exc:
         mark_status(folder, f"failed: {stop_reason(exc)}")
@@ -253,18 +300,16 @@ def identify_recordings(config: Config, recordings: dict[str, Recording], folder
     return results
 
 
-def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = True,
-                 log: Callable[[str], None] | None = None,
-                 online: CampaignEstimator | None = None,
+def run_campaign(config: Config, folder: str | Path, *, online: CampaignEstimator | None = None,
                  planned: list[PlannedTrajectory] | None = None,
                  host: HostSettings = HostSettings(), report: bool = True) -> Results:
     """Record every trajectory of ``config`` on its bus, identify, validate, save into ``folder``.
+    What it does is logged (:mod:`logging`, logger ``ident_hw``), each stream's SYNC cycles
+    reported as progress (:mod:`ident_hw.progress`).
 
     Args:
         config: a config whose :func:`ident_hw.experiment.plan.check_campaign` passed.
         folder: a results folder from :func:`ident_hw.experiment.folders.new_results_folder`.
-        show_progress: tqdm bars on stderr (the caller turns them off for --quiet / non-TTY).
-        log: where progress messages go (``None``: nowhere).
         online: an SVD-DLS estimator fed with each recording as it is made; its trace is saved.
         planned: the config's :func:`~ident_hw.experiment.plan.plan` with ``online=True`` if the
             caller has made it (for its checks); planned here otherwise. Without ``online``, its
@@ -276,26 +321,31 @@ def run_campaign(config: Config, folder: str | Path, *, show_progress: bool = Tr
         CampaignStopped: Ctrl-C or a fault; the folder is marked ``partial: <reason>``.
     """
     folder = Path(folder)
-    say = log or (lambda _message: None)
     if planned is None:
         planned = plan(config, online=online is not None)
     elif online is None:
         planned = [p for p in planned if not p.config.online_only]
+    inputs = campaign_inputs(config)
     recordings: dict[str, Recording] = {}
-    states: dict = {}
     try:
-        record_campaign(config, folder / "data", planned, recordings, states, say, show_progress, online, host)
+        with host.pinned(), open_session(config) as session:
+            with closing(record_campaign(session, folder / "data", planned, inputs, host)) as streams:
+                for name, rec in streams:
+                    recordings[name] = rec
+                    if online is not None:
+                        online.update(name, rec)
         mark_status(folder, "identifying")
-        results = identify(config, recordings, progress=say)
+        results = identify(config, recordings)
         if online is not None:
-            results.online = online.trace(results.base_fit)
+            results = replace(results, online=online.trace(results.base_fit))
         conclude(folder, results, report)
     except BusOpenError as exc:
         mark_status(folder, f"failed: {exc}; nothing moved, nothing recorded")
         raise
     except BaseException as exc:
         reason = stop_reason(exc)
-        master = states.get("master", {})
+        states = read_drive_states(folder / "data")
+        master = dict(states.master) if states is not None else {}
         mark_status(folder, f"partial: {reason}; complete recordings: {', '.join(recordings) or 'none'}"
                     + (f"; drives after the stop: {drives_after_stop(master)}" if master else ""))
         if isinstance(exc, (KeyboardInterrupt, DriveError)):

@@ -19,6 +19,7 @@ import can
 import canopen
 
 from drivers.affinity import one_cpu
+from drivers.axis import AxisConfig
 from drivers.bus import open_network
 from drivers.epos import DriveGroup
 from drivers.errors import BusOpenError
@@ -94,28 +95,53 @@ class HostSettings:
         return frozen_gc() if self.freeze_gc else nullcontext()
 
 
-def sync_source(config: Config) -> SyncSource:
-    """The SYNC producer of ``config``'s runs (``bus.sync``): the simulated rig's lockstep, or
-    the periodic SYNC of real drives."""
-    if config.sync_mode == "lockstep":
-        return LockstepSync(sync_period(config), timeout=config.bus.lockstep_timeout)
-    return PeriodicSync()
+@dataclass(frozen=True)
+class DriveSettings:
+    """How the session's drive group is made (:meth:`Session.drive_group`): each actuator's axis
+    settings (:func:`ident_hw.experiment.plan.drive_axes`), the bus's heartbeat period and timeout
+    and SDO timeout (s), and the SYNC producer: the simulated rig's lockstep at ``lockstep_period``
+    (s; None: the periodic SYNC of real drives) waiting at most ``lockstep_timeout`` (s)."""
+
+    axes: tuple[AxisConfig, ...]
+    heartbeat: float
+    heartbeat_timeout: float
+    sdo_timeout: float
+    lockstep_period: float | None
+    lockstep_timeout: float
+
+    @classmethod
+    def of(cls, config: Config) -> DriveSettings:
+        """The settings of a config with a bus."""
+        bus = config.bus
+        if bus is None:
+            raise ValueError(f"{config.source}: bus: missing section (needed to open the bus)")
+        lockstep = config.sync_mode == "lockstep"
+        return cls(axes=tuple(drive_axes(config)), heartbeat=bus.heartbeat, heartbeat_timeout=bus.heartbeat_timeout,
+                   sdo_timeout=bus.sdo_timeout, lockstep_period=sync_period(config) if lockstep else None,
+                   lockstep_timeout=bus.lockstep_timeout)
+
+    def sync_source(self) -> SyncSource:
+        """The SYNC producer of the runs (``bus.sync``): the simulated rig's lockstep, or the
+        periodic SYNC of real drives."""
+        if self.lockstep_period is not None:
+            return LockstepSync(self.lockstep_period, timeout=self.lockstep_timeout)
+        return PeriodicSync()
 
 
-@dataclass
+@dataclass(frozen=True)
 class Session:
-    """An open bus: ``network`` (the master), ``rig`` (the in-process simulated rig, or None)."""
+    """An open bus: ``network`` (the master), ``rig`` (the in-process simulated rig, or None), and
+    how its drive group is made (``drives``)."""
 
-    config: Config
     network: canopen.Network
     rig: SimulatedRig | None
+    drives: DriveSettings
 
     def drive_group(self) -> DriveGroup:
-        """The six actuators' drives (theta1..3, zeta1..3) with the bus settings of the config."""
-        bus = self.config.bus
-        return DriveGroup(self.network, drive_axes(self.config),
-                          heartbeat_period=bus.heartbeat, heartbeat_timeout=bus.heartbeat_timeout,
-                          sdo_timeout=bus.sdo_timeout, sync=sync_source(self.config))
+        """The robot's drives, in actuator order, with the bus settings of the config."""
+        d = self.drives
+        return DriveGroup(self.network, list(d.axes), heartbeat_period=d.heartbeat,
+                          heartbeat_timeout=d.heartbeat_timeout, sdo_timeout=d.sdo_timeout, sync=d.sync_source())
 
 
 @contextmanager
@@ -123,6 +149,7 @@ def open_session(config: Config) -> Iterator[Session]:
     """Open the config's bus (and start the in-process rig first when ``sim.in_process``)."""
     if config.bus is None:
         raise ValueError(f"{config.source}: bus: missing section (needed to open the bus)")
+    drives = DriveSettings.of(config)
     in_process = config.sim is not None and config.sim.in_process
     rig = None
     if in_process:
@@ -142,7 +169,7 @@ def open_session(config: Config) -> Iterator[Session]:
             rig.stop()
         raise
     try:
-        yield Session(config, network, rig)
+        yield Session(network, rig, drives)
     finally:
         network.disconnect()
         if rig is not None:

@@ -24,14 +24,6 @@ class ValidationMetrics:
     d_tau_percent: float
     j_rmse: float
 
-    def to_dict(self) -> dict:
-        return {
-            "rms": self.rms.tolist(),
-            "nrms_percent": self.nrms_percent.tolist(),
-            "d_tau_percent": float(self.d_tau_percent),
-            "j_rmse": float(self.j_rmse),
-        }
-
 
 def validation_metrics(tau: np.ndarray, tau_hat: np.ndarray) -> ValidationMetrics:
     """Compare measured ``tau`` (N, k) with predicted ``tau_hat`` (N, k)."""

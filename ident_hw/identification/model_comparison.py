@@ -5,7 +5,7 @@ three sets of linear equations in the robot's parameter vector ``pi`` (P,):
 
 - **dynamic model**: ``tau = Y pi``, one row per actuator and sample, ``Y`` built from the
   accelerations; rows and forces filtered in parallel and decimated
-  (:func:`ident_hw.experiment.offline.prepare`: exactly the rows the least-squares step fits);
+  (:func:`ident_hw.experiment.preparation.prepare`: exactly the rows the least-squares step fits);
 - **power model**: ``Thetadᵀ tau = dE/dt + Σ_j (f_vj qd_j² + f_cj qd_j tanh(qd_j / w))``, one
   scalar row per sample, no acceleration (``dH/dt`` of the energy regressor by fourth-order
   central differences); rows and actuated power filtered in parallel and decimated by the same
@@ -240,28 +240,6 @@ class ModelFit:
                               None if err is None else _finite(err[i]))
                 for i, e in enumerate(self.expressions)]
 
-    def to_dict(self) -> dict:
-        return {"model": self.model, "equation": EQUATIONS[self.model], "output_unit": OUTPUT_UNITS[self.model],
-                "method": self.method, "equations": self.equations, "rank": self.rank, "free": self.free,
-                "cond_scaled": self.cond, "residual_rms": self.residual_rms, "window_s": self.window,
-                "H": self.H.tolist(),
-                "rows": [{"base_parameter": r.expression, "estimate": r.estimate, "sigma": r.sigma,
-                          "rel_sigma_percent": r.rel_sigma_percent,
-                          **({} if r.truth is None else {"truth": r.truth, "error_percent": r.error_percent})}
-                         for r in self.rows()]}
-
-    @classmethod
-    def from_dict(cls, doc: dict) -> "ModelFit":
-        rows = doc["rows"]
-        has_truth = bool(rows) and all("truth" in r for r in rows)
-        return cls(model=doc["model"], method=doc["method"], expressions=tuple(r["base_parameter"] for r in rows),
-                   H=np.array(doc["H"], dtype=float).reshape(len(rows), -1),
-                   coef=np.array([r["estimate"] for r in rows], dtype=float),
-                   sigma=np.array([r["sigma"] for r in rows], dtype=float),
-                   truth=np.array([r["truth"] for r in rows], dtype=float) if has_truth else None,
-                   equations=int(doc["equations"]), rank=int(doc["rank"]), free=int(doc["free"]),
-                   cond=float(doc["cond_scaled"]), residual_rms=float(doc["residual_rms"]), window=doc.get("window_s"))
-
 
 @dataclass(frozen=True)
 class ModelComparison:
@@ -291,16 +269,6 @@ class ModelComparison:
         """The base parameters when every model identified the same ones, else None."""
         names = {f.expressions for f in self.fits}
         return names.pop() if len(names) == 1 else None
-
-    def to_dict(self) -> dict:
-        return {"step": self.step, "trajectories": list(self.trajectories), "held": list(self.held),
-                "threshold_rel_sigma_percent": self.threshold, "models": [f.to_dict() for f in self.fits]}
-
-    @classmethod
-    def from_dict(cls, doc: dict) -> "ModelComparison":
-        return cls(step=doc["step"], trajectories=tuple(doc["trajectories"]), held=tuple(doc["held"]),
-                   fits=tuple(ModelFit.from_dict(f) for f in doc["models"]),
-                   threshold=float(doc.get("threshold_rel_sigma_percent", POORLY_IDENTIFIED_PERCENT)))
 
 
 def compare_models(names: Sequence[str], rows: Sequence[ModelRows], *, free: Sequence[str] | None = None,

@@ -72,12 +72,10 @@ class BodyMargin:
     """A body of the consistent set: its mass (kg) and the smallest eigenvalue of its
     pseudo-inertia (kg·m², kg·m or kg: ≥ 0 when physical; 0 where a constraint is active)."""
 
-    name: str
+    body: str
     mass: float
     margin: float
 
-    def to_dict(self) -> dict:
-        return {"body": self.name, "mass": self.mass, "margin": self.margin}
 
 
 @dataclass(frozen=True)
@@ -130,33 +128,6 @@ class ConsistentSet:
             return None
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(self.truth != 0, 100.0 * (self.values - self.truth) / np.abs(self.truth), np.nan)
-
-    def to_dict(self) -> dict:
-        rows = []
-        for i, name in enumerate(self.names):
-            row = {"name": name, "unit": self.units[i], "value": float(self.values[i]),
-                   "prior": float(self.prior[i]), "sigma": float(self.sigma[i]),
-                   "prior_share": float(self.prior_share[i]), "decided_by": self.decided_by[i]}
-            if self.truth is not None:
-                row["truth"] = float(self.truth[i])
-            rows.append(row)
-        return {"metric": self.metric, "prior_relative_std": self.prior_relative, "base_count": self.base_count,
-                "chi2": self.chi2, "chi2_limit_95": self.chi2_limit, "reproduces_base": self.reproduces_base,
-                "physical": self.physical, "bodies": [b.to_dict() for b in self.bodies], "parameters": rows}
-
-    @classmethod
-    def from_dict(cls, doc: dict) -> ConsistentSet:
-        rows = doc["parameters"]
-
-        def col(key):
-            return np.array([r[key] for r in rows], dtype=float)
-        return cls(names=tuple(r["name"] for r in rows), units=tuple(r["unit"] for r in rows), values=col("value"),
-                   prior=col("prior"), sigma=col("sigma"), prior_share=col("prior_share"),
-                   decided_by=tuple(r["decided_by"] for r in rows),
-                   bodies=tuple(BodyMargin(b["body"], b["mass"], b["margin"]) for b in doc["bodies"]),
-                   chi2=float(doc["chi2"]), chi2_limit=float(doc["chi2_limit_95"]), base_count=int(doc["base_count"]),
-                   metric=doc["metric"], prior_relative=float(doc["prior_relative_std"]),
-                   truth=col("truth") if all("truth" in r for r in rows) else None)
 
 
 def _whitener(covariance: np.ndarray) -> np.ndarray:

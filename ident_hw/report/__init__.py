@@ -8,6 +8,8 @@ Built files::
     report.html      the summary and verdict first, then everything above on one page
     results.mat      parameters and fits for MATLAB (scipy.io.savemat)
 
+They are derived from the folder's own files (whose format version they follow) and carry none.
+
 Modules: :mod:`.terminal` (lines printed at the end of a run), :mod:`.verdict` (the quality
 verdict's figures against their limits, for both), :mod:`.plots`, :mod:`.html`
 (Jinja2 template ``templates/report.html``), :mod:`.matlab`. Imports :mod:`ident_hw.results`,
@@ -21,6 +23,7 @@ from pathlib import Path
 import yaml
 
 from ident_hw.results import load_results, metrics
+from ident_hw.storage import to_json
 
 from .terminal import coverage_text, online_lines, summary_lines
 
@@ -36,7 +39,7 @@ def build_report(folder: str | Path) -> Path:
     folder = Path(folder)
     results = load_results(folder)
     table = metrics(results)
-    (folder / "metrics.yaml").write_text(yaml.safe_dump({name: m.to_json() for name, m in table.items()},
+    (folder / "metrics.yaml").write_text(yaml.safe_dump({name: to_json(m) for name, m in table.items()},
                                                         sort_keys=False))
     folder_plots = folder / "plots"
     folder_plots.mkdir(exist_ok=True)

@@ -9,8 +9,9 @@ from pathlib import Path
 import jinja2
 
 from ident_hw.identification.model_comparison import EQUATIONS, OUTPUT_UNITS
-from ident_hw.records import TrajectoryMetrics
-from ident_hw.results import SETTLED, Results, read_status, validation_figures
+from ident_hw.records import GainsStep, SkippedStep, TrajectoryMetrics
+from ident_hw.storage import to_json
+from ident_hw.results import SETTLED, Results, ValidationFigures, estimator_summaries, read_status, validation_figures
 
 from .terminal import accuracy_line, coverage_text
 from .verdict import axis_table, status_line, trajectory_table
@@ -40,18 +41,44 @@ def render_html(folder: Path, results: Results, table: dict[str, TrajectoryMetri
     the force-prediction metrics per trajectory and the plots (``images``: title, PNG path)."""
     rows = results.parameter_rows()
     analysis = results.base_analysis
+    validation = validation_figures(results)
     return _ENV.get_template("report.html").render(
         status=read_status(folder), shown_status=status_line(read_status(folder), results.quality),
         axis_table=axis_table(results.quality) if results.quality is not None else None,
         trajectory_table=trajectory_table(results.quality) if results.quality is not None else None,
         results=results, rows=rows, base_rows=results.base_rows(),
+        thresholds=to_json(results.quality.thresholds) if results.quality and results.quality.thresholds else {},
         poor=[r.name for r in rows if r.poorly_identified],
         has_truth=results.parameters.truth is not None,
         accuracy=accuracy_line(rows, results.base_fit) if results.parameters.truth is not None else None,
         coverage={name: coverage_text(u) for name, u in results.trajectories.items()},
-        base_list=analysis if analysis is not None and analysis.expressions and results.base_fit is None else None,
-        online=results.online, comparison=results.online.comparison() if results.online is not None else [],
+        base_list=analysis if analysis is not None and analysis.base_parameters and results.base_fit is None else None,
+        online=results.online, comparison=estimator_summaries(results.online) if results.online is not None else [],
         settled_percent=100 * SETTLED, metrics=table, actuators=results.actuators,
-        equations=EQUATIONS, output_units=OUTPUT_UNITS, validation=validation_figures(results),
-        gains=[(s.name, s.drive_gains) for s in results.steps if s.drive_gains is not None],
+        equations=EQUATIONS, output_units=OUTPUT_UNITS, validation=validation,
+        validation_rows={name: validation_rows(v, results.compared_label) for name, v in validation.items()},
+        gains=[(s.name, s.drive_gains) for s in results.steps if isinstance(s, GainsStep)],
+        steps=[(s.name, f"not fitted ({s.skipped})" if isinstance(s, SkippedStep) else f"{s.method}; {', '.join(s.free)}")
+               for s in results.steps],
         images=[(title, str(path.relative_to(folder))) for title, path in images])
+
+
+def validation_rows(v: ValidationFigures, compared: str | None
+                    ) -> list[tuple[str, str, tuple[float | None, ...], float | None]]:
+    """The rows of a validation trajectory's table: (parameters, samples, one figure per actuator,
+    the mean of the whole trajectory's row or None), the identified parameters' then the compared
+    set's, each over all samples, those moving, those at rest and the residual's share at rest."""
+    parts = (("all", v.rre_percent), ("moving", v.rre_moving_percent), ("at rest", v.rre_at_rest_percent),
+             ("share of the residual at rest", v.residual_share_at_rest_percent))
+    out = []
+    for label, compared_set in (("identified", False), (compared or "compared", True)):
+        for part, pair in parts:
+            values = None if pair is None else (pair.compared if compared_set else pair.fit)
+            if values is None:
+                continue
+            mean = None
+            if part == "all":
+                finite = [x for x in values if x is not None]
+                mean = sum(finite) / len(values) if len(finite) == len(values) and values else math.nan
+            out.append((label, part, values, mean))
+    return out

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from ident_hw.experiment.study import (BIAS_TARGET, CHANCE_LEVEL, COVERAGE_TARGET, Z95, ParameterSummary,
+from ident_hw.results.study import (BIAS_TARGET, CHANCE_LEVEL, COVERAGE_TARGET, Z95, ParameterSummary,
                                        RunOutcome, Study)
 
 PLOTS = "plots"

@@ -8,9 +8,9 @@ from pathlib import Path
 
 from ident_hw.identification.model_comparison import EQUATIONS, ModelComparison, ModelFit
 from ident_hw.identification.physical import ConsistentSet
-from ident_hw.records import DriveGainsFigures, RecordingCoverage, Verdict
-from ident_hw.results import (SETTLED, BaseFit, BaseRow, OnlineTrace, ParameterRow, ValidationFigures, load_results,
-                              metrics, read_status, validation_figures)
+from ident_hw.records import DriveGainsFigures, GainsStep, RecordingCoverage, Verdict
+from ident_hw.results import (SETTLED, BaseFit, BaseRow, OnlineTrace, ParameterRow, ValidationFigures,
+                              estimator_summaries, load_results, metrics, read_status, validation_figures)
 
 from .verdict import axis_table, not_judged_notes, status_line, text_lines
 
@@ -48,7 +48,7 @@ def summary_lines(folder: str | Path) -> list[str]:
         lines += comparison_lines(results.model_comparison)
     if results.consistent is not None:
         lines += consistent_lines(results.consistent)
-    lines += [line for r in results.steps if r.drive_gains is not None
+    lines += [line for r in results.steps if isinstance(r, GainsStep)
               for line in gains_lines(r.name, r.drive_gains, results.actuators)]
     if truth:
         lines.append(accuracy_line(rows, results.base_fit))
@@ -59,8 +59,8 @@ def summary_lines(folder: str | Path) -> list[str]:
         if m.base_fit is not None:
             text += f"; base fit d_tau = {m.base_fit.d_tau_percent:.2f} %"
         lines.append(text)
-    for figures in validation_figures(results).values():
-        lines += rre_lines(figures, results.actuators, results.compared_label)
+    for name, figures in validation_figures(results).items():
+        lines += rre_lines(name, figures, results.actuators, results.compared_label)
     if results.quality is not None:
         lines += _verdict_lines(results.quality)
     return lines
@@ -83,8 +83,8 @@ def coverage_text(used: RecordingCoverage) -> str:
     """``107 of 266 cycles (40 % of the trajectory), 99.1 % complete, ...`` for one recording."""
     planned = used.cycles_planned
     text = f"{used.cycles} of {planned} cycles" if planned else f"{used.cycles} cycles"
-    if used.planned_fraction is not None and used.planned_fraction < 1.0:
-        text += f" ({100 * used.planned_fraction:.0f} % of the trajectory)"
+    if used.coverage is not None and used.coverage < 1.0:
+        text += f" ({100 * used.coverage:.0f} % of the trajectory)"
     text += f", {100 * used.valid_fraction:.1f} % complete"
     if used.longest_gap_s:
         text += f", longest gap {used.longest_gap_s:.3g} s"
@@ -102,8 +102,8 @@ def coverage_text(used: RecordingCoverage) -> str:
                 [f"{short.saturated} rows saturated (up to {short.peak_A:.3g} A, limit {short.limit_A:.3g} A)"]
                 if short.saturated else [])
             text += f"; {axis}: {', '.join(parts)}"
-        if used.uncounted_axes:
-            text += (f"; positions of {', '.join(used.uncounted_axes)} not in whole encoder counts: no encoder "
+        if used.positions_not_in_counts:
+            text += (f"; positions of {', '.join(used.positions_not_in_counts)} not in whole encoder counts: no encoder "
                      "draws, sigma without the encoders' resolution")
     status = used.recording_status
     if status.startswith("stopped"):
@@ -118,7 +118,7 @@ def coverage_text(used: RecordingCoverage) -> str:
 def online_lines(online: OnlineTrace) -> list[str]:
     """The comparison of the online estimators, for the terminal: J_RMSE and, after a payload
     change, the settling time of each tracked base parameter."""
-    summary = online.comparison()
+    summary = estimator_summaries(online)
     settles = bool(summary and summary[0].settling)
     lines = ["online estimators (J_RMSE: a-priori prediction error in units of the output noise"
              + (f"; settling to within {100 * SETTLED:g} % after the payload change at {online.change_time:.1f} s"
@@ -142,7 +142,7 @@ def accuracy_line(rows: list[ParameterRow], base_fit: BaseFit | None) -> str:
     judged = [(r.name, r) for r in rows if r.well_identified and r.error_percent is not None]
     parts = [_largest_errors(judged, "physical parameters")]
     if base_fit is not None:
-        base = [(r.expression, r) for r in base_fit.rows() if r.well_identified and r.error_percent is not None]
+        base = [(r.base_parameter, r) for r in base_fit.rows() if r.well_identified and r.error_percent is not None]
         parts.append(_largest_errors(base, "base parameters"))
         judged += base
     text = "accuracy vs truth, well identified only: " + ", ".join(parts)
@@ -230,7 +230,7 @@ def _base_fit_lines(fit: BaseFit) -> list[str]:
     head = f"  {'base parameter':<{width}} {'initial':>11} {'identified':>11} {'%sigma':>7}"
     lines.append(head + (f" {'truth':>11} {'error %':>8} {'err/sigma':>9}" if fit.truth is not None else ""))
     for row in fit.rows():
-        text = (f"  {row.expression:<{width}} {row.initial:>11.5g} {row.identified:>11.5g} "
+        text = (f"  {row.base_parameter:<{width}} {row.initial:>11.5g} {row.identified:>11.5g} "
                 f"{percent(row.rel_sigma_percent):>7}")
         if fit.truth is not None:
             text += f" {row.truth:>11.5g} {_or_nan(row.error_percent):>+8.2f} {_or_nan(row.error_sigmas):>+9.2f}"
@@ -251,7 +251,7 @@ def consistent_lines(c: ConsistentSet, listed: int = 12) -> list[str]:
              f"values): base parameters reproduced {verdict} their covariance (chi2 {c.chi2:.3g}, 95 % "
              f"quantile {c.chi2_limit:.3g} for {c.base_count})",
              "  bodies (mass kg, smallest eigenvalue of the pseudo-inertia; >= 0 physical): "
-             + ", ".join(f"{b.name} {b.mass:.4g} {b.margin:.3g}" for b in c.bodies)]
+             + ", ".join(f"{b.body} {b.mass:.4g} {b.margin:.3g}" for b in c.bodies)]
     errors = c.error_percent()
     width = max((len(n) for n in c.names), default=10)
     lines.append(f"  {'parameter':<{width}} {'CAD':>11} {'consistent':>11} {'%sigma':>7} {'prior %':>7}"
@@ -271,34 +271,34 @@ def consistent_lines(c: ConsistentSet, listed: int = 12) -> list[str]:
     return lines
 
 
-def rre_lines(figures: ValidationFigures, actuators: tuple[str, ...], compared: str | None) -> list[str]:
-    """A validation trajectory's per-actuator ``rre`` (the UR10e dataset's authors' measure,
+def rre_lines(name: str, figures: ValidationFigures, actuators: tuple[str, ...], compared: str | None) -> list[str]:
+    """Validation trajectory ``name``'s per-actuator ``rre`` (the UR10e dataset's authors' measure,
     :func:`ident_hw.results.relative_residual_percent`): the identified parameters' and, with
     ``identification.compare_with``, the set from elsewhere's, then the same over the samples where
     each actuator moves and where it is at rest, and the share of the residual the rest holds."""
     width = max(len(a) for a in actuators)
-    rows = [("identified", figures.rre_fit, figures.rre_fit_moving, figures.rre_fit_at_rest,
-             figures.residual_at_rest_fit)]
-    if figures.rre_compared is not None:
-        rows.append((compared or "compared", figures.rre_compared, figures.rre_compared_moving,
-                     figures.rre_compared_at_rest, figures.residual_at_rest_compared))
-    lines = [f"validation {figures.trajectory}: rre = 100 ||tau - tau_predicted|| / ||tau|| per actuator, %"
-             + (" (whole; moving; at rest; share of the squared residual at rest)" if figures.rre_fit_moving else "")]
+    parts = (("", figures.rre_percent), (" moving", figures.rre_moving_percent),
+             (" at rest", figures.rre_at_rest_percent), (" rest share", figures.residual_share_at_rest_percent))
+    rows = [("identified", [(part, None if pair is None else pair.fit) for part, pair in parts])]
+    if figures.rre_percent.compared is not None:
+        rows.append((compared or "compared", [(part, None if pair is None else pair.compared) for part, pair in parts]))
+    lines = [f"validation {name}: rre = 100 ||tau - tau_predicted|| / ||tau|| per actuator, %"
+             + (" (whole; moving; at rest; share of the squared residual at rest)" if figures.rre_moving_percent else "")]
     label = max(len(r[0]) for r in rows)
     lines.append(f"  {'':<{label}}  " + " ".join(f"{a:>{max(width, 6)}}" for a in actuators) + "    mean")
-    for name, whole, moving, rest, share in rows:
-        for part, values in (("", whole), (" moving", moving), (" at rest", rest), (" rest share", share)):
-            if values is None:
+    for who, values_of in rows:
+        for part, row in values_of:
+            if row is None:
                 continue
+            values = [math.nan if v is None else v for v in row]
             finite = [v for v in values if math.isfinite(v)]
             mean = f"{sum(finite) / len(finite):7.2f}" if finite and not part else ""
-            lines.append(f"  {(name if not part else part):<{label}}  "
+            lines.append(f"  {(who if not part else part):<{label}}  "
                          + " ".join(f"{v:>{max(width, 6)}.2f}" for v in values) + f" {mean}")
     if figures.at_rest_fraction is not None:
-        lines.append(f"  {'at rest':<{label}}  " + " ".join(f"{100 * v:>{max(width, 6)}.1f}"
+        lines.append(f"  {'at rest':<{label}}  " + " ".join(f"{100 * _or_nan(v):>{max(width, 6)}.1f}"
                                                             for v in figures.at_rest_fraction) + "  % of the samples")
     return lines
-
 
 def gains_lines(step: str, g: DriveGainsFigures, actuators: tuple[str, ...]) -> list[str]:
     """A ``gains`` step's drive gains beside the config's: identified, sigma (jackknife), config,

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ident_hw.config.identification import QualityConfig
+from ident_hw.records import Thresholds
 from ident_hw.records import AxisFigures, TrajectoryVerdict, Verdict
 
 
@@ -56,7 +56,7 @@ def not_judged_notes(q: Verdict) -> tuple[str, ...]:
 
 def axis_table(q: Verdict) -> Table:
     """Each judged axis's figures against the verdict's limits (:class:`AxisFigures`)."""
-    limits = q.thresholds or QualityConfig()
+    limits = q.thresholds or Thresholds()
     heads = ("axis", f"gain % (|g| ≤ {limits.max_axis_gain:g})",
              f"residual / noise floor (≤ {limits.max_residual_over_floor:g})",
              f"force lag ms (|lag| ≤ {1e3 * limits.max_force_lag:g} or < {100 * limits.min_lag_share:g} % of the residual)",
@@ -100,7 +100,7 @@ def trajectory_table(q: Verdict) -> Table:
     """Per trajectory: its recording's coverage, complete cycles and longest gap, and where the
     predictions are judged their d_tau and how far the two predictions are apart, against the
     verdict's limits."""
-    limits = q.thresholds or QualityConfig()
+    limits = q.thresholds or Thresholds()
     heads = ("trajectory", f"recorded (≥ {100 * limits.min_coverage:g} %)",
              f"complete cycles (≥ {100 * limits.min_valid_fraction:g} %)", f"longest gap s (≤ {limits.max_gap:g})",
              f"d_tau % step by step / base fit (≤ {limits.max_d_tau:g})",
@@ -108,7 +108,7 @@ def trajectory_table(q: Verdict) -> Table:
     rows = []
     for name, t in q.trajectories.items():
         rows.append((Cell(name if t.role is None else f"{name} ({t.role})"),
-                     _share(t.planned_fraction, limits.min_coverage, t),
+                     _share(t.coverage, limits.min_coverage, t),
                      _share(t.valid_fraction, limits.min_valid_fraction, t),
                      Cell("—") if t.longest_gap_s is None else Cell(f"{t.longest_gap_s:.3g}",
                                                                      t.longest_gap_s <= limits.max_gap),
@@ -122,7 +122,7 @@ def _share(value: float | None, least: float, t: TrajectoryVerdict) -> Cell:
     return Cell(f"{100 * value:.1f}", value >= least)
 
 
-def _d_tau(t: TrajectoryVerdict, limits: QualityConfig) -> Cell:
+def _d_tau(t: TrajectoryVerdict, limits: Thresholds) -> Cell:
     """The step-by-step and base-fit d_tau of a judged trajectory (``—``: none of that kind), both
     against the limit."""
     pair = (t.d_tau_percent, t.base_fit_d_tau_percent)
