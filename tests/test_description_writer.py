@@ -1,4 +1,4 @@
-"""Identified parameters written into a description file (:mod:`ident_hw.model.description_writer`).
+"""Identified parameters written into a description file (:mod:`ident_hw.experiment.description_writer`).
 
 Checked against computations independent of the writer:
 
@@ -38,7 +38,7 @@ from ident_hw.config import load_config, to_model
 from ident_hw.model import Delta, ThreePRRR
 from ident_hw.model.delta import DeltaGeometry
 from ident_hw.model.described import DescribedRobot, DescriptionError, load_description
-from ident_hw.model.description_writer import write_description
+from ident_hw.experiment.description_writer import write_description
 from ident_hw.model.parameters import ACTUATOR_NAMES as PRRR_ACTUATORS
 
 ROBOTS = dh.ROBOTS

@@ -1,5 +1,5 @@
 """``ident-hw export``: the physically consistent parameters of a results folder written into the
-robot's description file (:func:`ident_hw.model.description_writer.write_description`).
+robot's description file (:func:`ident_hw.experiment.description_writer.write_description`).
 
 The results folder holds what it needs: its ``config.yaml`` names the copy of the description
 file in ``description/`` (a described robot), ``parameters.json`` the consistent set
@@ -14,14 +14,14 @@ from drivers.errors import ConfigError, RecordingError
 from ident_hw.config import load_config
 from ident_hw.config.robots import model_of
 from ident_hw.model.described import DescribedRobot
-from ident_hw.model.description_writer import write_description
+from ident_hw.experiment.description_writer import write_description
 from ident_hw.results import load_results
 
 
 def export_description(results_folder: str | Path, to: str | Path, for_mujoco: bool = False) -> Path:
     """Write the robot of ``results_folder`` with its consistent parameters to ``to`` (MJCF or
     URDF, as the robot's file came); returns the path written. ``for_mujoco``: refuse bodies
-    MuJoCo cannot load (:func:`ident_hw.model.description_writer.write_description`).
+    MuJoCo cannot load (:func:`ident_hw.experiment.description_writer.write_description`).
 
     Raises:
         RecordingError: the folder holds no consistent parameters, or ones of another robot.

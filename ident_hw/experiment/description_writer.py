@@ -74,8 +74,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .described import BODY_PARAMS, DescribedRobot, DescriptionError, load_description
-from .pseudo_inertia import pseudo_inertia
+from ident_hw.model.described import BODY_PARAMS, DescribedRobot, DescriptionError, load_description
+from ident_hw.model.pseudo_inertia import pseudo_inertia
 
 MJCF, URDF = "MJCF", "URDF"
 SUFFIXES = {MJCF: (".xml", ".mjcf"), URDF: (".urdf",)}
@@ -686,7 +686,7 @@ def _header(name: str, fmt: str, dropped: list[str], geometry: list[str] = ()) -
     name = name.replace("--", "- -")
     if fmt == MJCF:
         lines = [
-            f"{_HEADER_START} from identified parameters (ident_hw.model.description_writer): a copy",
+            f"{_HEADER_START} from identified parameters (ident_hw.experiment.description_writer): a copy",
             f"of {name} in which each moving body carries its identified inertia (<inertial>: centre of",
             "mass, mass, inertia about the centre of mass, in the body frame); bodies without a joint of",
             "their own are massless (the identified inertia of the body that carries them holds them); the",
@@ -695,7 +695,7 @@ def _header(name: str, fmt: str, dropped: list[str], geometry: list[str] = ()) -
         ]
     else:
         lines = [
-            f"{_HEADER_START} from identified parameters (ident_hw.model.description_writer): a copy",
+            f"{_HEADER_START} from identified parameters (ident_hw.experiment.description_writer): a copy",
             f"of {name} in which each moving link carries its identified inertia (<inertial> in the link",
             "frame); links on fixed joints are massless (the identified inertia of the link that carries",
             "them holds them); the actuated joints carry the identified drive terms: <dynamics>",
