@@ -47,6 +47,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ident_hw.config.robots import model_of
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from drivers.recording import Recording  # noqa: E402
@@ -56,7 +58,7 @@ from ident_hw.config import load_config  # noqa: E402
 from ident_hw.experiment.inputs import identification_plan  # noqa: E402
 from ident_hw.experiment.offline import identify  # noqa: E402
 from ident_hw.experiment.preparation import prepare, trajectory_filter  # noqa: E402
-from ident_hw.experiment.plan import plan, robot_model  # noqa: E402
+from ident_hw.experiment.plan import plan  # noqa: E402
 from ident_hw.identification.base_params import column_scale, identify_base  # noqa: E402
 from ident_scenarios import follow_targets  # noqa: E402
 from ident_hw.config.robots import true_parameters
@@ -84,7 +86,7 @@ def base_only_config(config_path: Path, trajectory: str, cutoff: float | None, o
 def plant_motion(config, targets: np.ndarray, theta0: np.ndarray) -> dict:
     """The truth log of the config's plant following ``targets`` (N, a) at the SYNC rate."""
     sim = config.sim
-    plant = Plant(robot_model(config), true_parameters(config), theta0, bandwidth_hz=sim.bandwidth,
+    plant = Plant(model_of(config.robot), true_parameters(config), theta0, bandwidth_hz=sim.bandwidth,
                   damping=sim.damping, max_substep=sim.max_substep or DEFAULT_MAX_SUBSTEP)
     follow_targets(plant, targets[:-1], 1.0 / config.bus.sync_rate)
     return plant.truth()
@@ -200,7 +202,7 @@ def run_source(config, args, source: str, traj, motion: tuple) -> None:
     t = truth_log["t"]
     reference = np.column_stack([np.interp(t - args.delay, traj.t[:len(targets)], targets[:, j])
                                  for j in range(targets.shape[1])])
-    robot = robot_model(config)
+    robot = model_of(config.robot)
     rows = {"wls": ([], []), "iv": ([], [])}
     started = time.perf_counter()
     if args.draws_motion != "recorded":

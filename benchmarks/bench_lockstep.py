@@ -38,7 +38,7 @@ from drivers.sim.lockstep import LockstepSync
 from ident_hw.config import load_config
 from ident_hw.experiment.session import simulated_rig
 from ident_hw.config.to_drivers import axis_config
-from ident_hw.config.to_trajectories import actuator_limits
+from ident_hw.experiment.robot_trajectories import actuator_limits
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "sim-3prrr.yaml"
 #: the main job's sinusoid amplitudes (rad, m), as measured since the first figures

@@ -18,7 +18,7 @@ from ident_hw.config import load_config, to_model
 from ident_hw.model import ThreePRRR
 from trajectories import carriage_sweep, check_trajectory, five_squares, validation_triangle
 from trajectories.fourier import optimise_excitation, stacked_regressor
-from ident_hw.config.to_trajectories import feasibility_limits
+from ident_hw.experiment.robot_trajectories import feasibility_limits
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -46,7 +46,8 @@ RUNS = ("ur-20_02_05-20sec_12harm.csv", "ur-20_02_05-20sec_8harm.csv", "ur-20_02
 
 
 def rre(config, given=()) -> tuple[np.ndarray, np.ndarray]:
-    recordings, imported, _ = gather_recordings(config, list(given))
+    gathered = gather_recordings(config, list(given))
+    recordings, imported = gathered.recordings, gathered.imported
     figures = validation_figures(identify(config, recordings, imported=imported))["validation"]
     return (np.array(figures.rre_percent.fit, dtype=float),
             np.array(figures.rre_percent.compared, dtype=float))

@@ -102,12 +102,13 @@ def cmd_identify(args) -> int:
     if config.identification is None:
         raise ConfigError("identification: missing section (the steps to run on the recordings)",
                           file=config.source)
-    recordings, imported, notes = gather_recordings(config, args.data)
-    for note in notes:
+    gathered = gather_recordings(config, args.data)
+    for note in gathered.notes:
         print(note, file=sys.stderr)
-    require_trajectories(config.identification, config.source, recordings)
+    require_trajectories(config.identification, config.source, gathered.recordings)
     folder = new_results_folder(config, args.out, "identify")
-    results = identify_recordings(config, recordings, folder, report=not args.no_report, imported=imported)
+    results = identify_recordings(config, gathered.recordings, folder, report=not args.no_report,
+                                  imported=gathered.imported)
     print("\n".join(summary_lines(folder)))
     print(f"results: {folder}" + ("" if args.no_report else f"  (report: {folder / 'report.html'})"))
     return Exit.OK if results.passed else Exit.DEGRADED

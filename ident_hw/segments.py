@@ -28,6 +28,7 @@ gap or a row without data, and nothing is interpolated across one.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -67,7 +68,7 @@ class Stretch:
     ends: Ends
 
 
-@dataclass
+@dataclass(frozen=True)
 class Segments:
     """How the rows of one recording are used.
 
@@ -80,10 +81,10 @@ class Segments:
     """
 
     t: np.ndarray
-    stretches: list[Stretch]
+    stretches: tuple[Stretch, ...]
     skipped_slots: int
     gaps: int
-    left_out: dict[str, int] = field(default_factory=dict)
+    left_out: Mapping[str, int] = field(default_factory=dict)
 
     @property
     def slices(self) -> list[slice]:
@@ -156,7 +157,7 @@ def split(t: np.ndarray, period: float, valid: np.ndarray, current: np.ndarray, 
             start = None
         if i < n and not bad[i] and start is None:
             start = i
-    return Segments(t=t - t[0] if n else t, stretches=stretches,
+    return Segments(t=t - t[0] if n else t, stretches=tuple(stretches),
                     skipped_slots=int(slots[-1] + 1 - n) if n else 0, gaps=int(cut_before.sum()),
                     left_out=left_out)
 

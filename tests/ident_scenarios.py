@@ -23,7 +23,7 @@ from drivers.sim import Plant
 import nominal
 from drivers.sim.modes import Demand, cyclic_segment
 from drivers.sim.plant import DEFAULT_MAX_SUBSTEP
-from ident_hw.experiment.plan import robot_model
+from ident_hw.config.robots import model_of
 from ident_hw.model import InertialParams, ThreePRRR
 from ident_hw.config.robots import true_parameters
 from ident_hw.config.to_drivers import axis_scaling
@@ -250,7 +250,7 @@ def exact_recording(config, traj, max_substep: float | None) -> Recording:
     every period start: positions, velocities, forces as currents. No drive units, no noise."""
     period = 1.0 / config.bus.sync_rate
     sim = config.sim
-    plant = Plant(robot_model(config), true_parameters(config), traj.Theta[0], bandwidth_hz=sim.bandwidth,
+    plant = Plant(model_of(config.robot), true_parameters(config), traj.Theta[0], bandwidth_hz=sim.bandwidth,
                   damping=sim.damping, max_substep=max_substep or DEFAULT_MAX_SUBSTEP)
     axes = traj.Theta.shape[1]
     follow_targets(plant, traj.Theta[:-1], period)

@@ -31,7 +31,7 @@ from drivers.recording import Recording
 import nominal
 from drivers.sim.drive import EmulatedDrive
 from ident_hw.config import ConfigError, load_config
-from ident_hw.experiment.plan import drive_axes
+from ident_hw.experiment.plan import PlanInputs
 from ident_hw.filtering import running_average
 from ident_hw.config.robots import model_of, true_parameters
 from cli_runs import ident_hw
@@ -157,13 +157,13 @@ def test_bus_current_chooses_the_object_of_tpdo1_and_a_bad_value_names_file_and_
     """``bus.current: averaged`` maps the averaged current into TPDO1 on either generation, in the
     place and size of the instantaneous one; the default stays the instantaneous sample; a value
     that is neither is refused naming the file, the key and the choices."""
-    default = drive_axes(load_config(SIM))
+    default = list(PlanInputs.of(load_config(SIM)).axes)
     assert {layout.frames[0].entries[1][1].subindex for layout in master_layouts(default)} == {2}   # 0x30D1:02
     config = tmp_path / "averaged.yaml"
     config.write_text(f"extends: {SIM}\nbus: {{current: averaged}}\n")
     loaded = load_config(config)
     assert loaded.current == "averaged"
-    for axis in drive_axes(loaded):
+    for axis in PlanInputs.of(loaded).axes:
         first = master_layouts([axis])[0].frames[0]
         assert [(f, r.index, r.subindex) for f, r in first.entries] == [("position", 0x6064, 0), ("current", 0x30D1, 1)]
     epos2 = AxisConfig("zeta1", 4, "epos2", nominal.PRISMATIC, -0.1, 0.1, 0.05, 4.0, 0.002, current="averaged")

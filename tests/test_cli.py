@@ -15,7 +15,8 @@ from drivers.recording import Recording
 from drivers.recording_metadata import RecordingMetadata
 from ident_hw.config import load_config, to_model
 from ident_hw.experiment.offline import identify
-from ident_hw.experiment.plan import plan, robot_model
+from ident_hw.experiment.plan import plan
+from ident_hw.config.robots import model_of
 from ident_hw.config.to_drivers import axis_scaling
 from cli_runs import ident_hw
 
@@ -116,7 +117,7 @@ def test_run_refuses_hardware_without_arm(tmp_path):
 def synthetic_recordings(config, folder: Path) -> list[Path]:
     """Recordings of the campaign as the drives would report them for a perfectly tracked motion:
     true-parameter forces as whole mA plus noise, positions in encoder counts (model-made data)."""
-    robot = robot_model(config)
+    robot = model_of(config.robot)
     scal = [axis_scaling(a) for a in config.robot.actuators]
     fpa = np.array([s.force_per_amp for s in scal])
     cpu = np.array([s.counts_per_unit for s in scal])

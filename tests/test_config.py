@@ -11,7 +11,7 @@ import yaml
 from ident_hw.config import ConfigError, load_config, resolved_yaml, to_model
 from ident_hw.config.robots import initial_parameters, model_of
 from ident_hw.config.to_drivers import axis_scaling
-from ident_hw.config.to_trajectories import feasibility_limits
+from ident_hw.experiment.robot_trajectories import feasibility_limits
 from ident_hw.model import ThreePRRR
 from recorded_data import dataset, needs_datasets
 

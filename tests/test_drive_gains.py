@@ -63,7 +63,8 @@ def gains_config(tmp_path: Path, payload_runs: str = "[loaded]") -> Path:
 
 def test_the_drive_gains_come_back_within_their_sigma(tmp_path):
     config = load_config(gains_config(tmp_path))
-    recordings, imported, _ = gather_recordings(config, [])
+    gathered = gather_recordings(config, [])
+    recordings, imported = gathered.recordings, gathered.imported
     results = identify(config, recordings, imported=imported)
     gains = next(s for s in results.steps if s.name == "gains").drive_gains
     found, sigma = np.array(gains.gains), np.array(gains.sigma)

@@ -232,10 +232,12 @@ def test_name_equals_path_takes_the_place_of_the_configs_trajectory(tmp_path):
     other = tmp_path / "other.csv"
     other.write_text("\n".join(rows_of(uneven_times(700, seed=3))) + "\n")
     config = load_config(config_path)
-    recordings, imported, _ = gather_recordings(config, [f"run={other}"])
+    gathered = gather_recordings(config, [f"run={other}"])
+    recordings, imported = gathered.recordings, gathered.imported
     assert imported["run"].window is None                    # taken whole: the window is the config file's
     assert imported["run"].rows_used == 700 and recordings["run"].metadata.file == str(other)
-    recordings, imported, _ = gather_recordings(config, [])
+    gathered = gather_recordings(config, [])
+    recordings, imported = gathered.recordings, gathered.imported
     assert imported["run"].window == "rows 1..100"
     with pytest.raises(RecordingError, match="no trajectory 'walk'"):
         gather_recordings(config, [f"walk={other}"])

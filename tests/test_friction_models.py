@@ -144,7 +144,8 @@ def identified(tmp_path: Path, presliding: float):
     text = text.replace("steps: [{name: base", "encoder_draws: 0\n  min_speed: 0.0\n  steps: [{name: base")
     (tmp_path / "config.yaml").write_text(text)
     config = load_config(tmp_path / "config.yaml")
-    recordings, imported, _ = gather_recordings(config, [])
+    gathered = gather_recordings(config, [])
+    recordings, imported = gathered.recordings, gathered.imported
     fit = identify(config, recordings, imported=imported).base_fit
     robot = model_of(config.robot)
     truth = robot.nominal_parameters()

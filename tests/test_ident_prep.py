@@ -14,8 +14,9 @@ from ident_hw.experiment.inputs import identification_plan, trajectory_inputs
 from ident_hw.experiment.offline import identify
 from ident_hw.experiment.preparation import prepare
 from ident_hw.segments import split, uniform
-from ident_hw.experiment.plan import plan, robot_model
-from ident_hw.config.to_trajectories import excitation_of
+from ident_hw.experiment.plan import plan
+from ident_hw.config.robots import model_of
+from ident_hw.experiment.robot_trajectories import excitation_of
 from ident_hw.identification.least_squares import ols, output_noise_std, wls
 from ident_hw.filtering import (EVEN, ODD, POLYNOMIAL, Ends, FilterSettings, central_derivatives, lowpass, main_lobe,
                              near, near_rest, runs_at_least)
@@ -31,7 +32,7 @@ def _inputs(config, name):
     """The identification's inputs of trajectory ``name`` (the filter's own band for a name the
     config does not list)."""
     if any(t.name == name for t in config.trajectories):
-        return trajectory_inputs(config, name)
+        return trajectory_inputs(config.trajectory(name), config.identification, config.base_dir)
     return identification_plan(config).inputs_of(name)
 
 
@@ -110,7 +111,7 @@ def test_an_output_without_rows_weighs_nothing():
 def test_filter_bandwidth_per_trajectory():
     config = load_config(CONFIGS / "sim-3prrr.yaml")
     excitation = next(t for t in config.trajectories if t.kind == "fourier")
-    ex = excitation_of(config, excitation)
+    ex = excitation_of(config.base_dir, excitation)
     assert motion_bandwidth(config, excitation.name) == pytest.approx(ex.a.shape[1] * ex.base_frequency)
     assert motion_bandwidth(config, "square1") == config.identification.filter.bandwidth
     assert motion_bandwidth(config, "not-in-the-config") == config.identification.filter.bandwidth
@@ -237,7 +238,7 @@ def test_rows_of_axes_near_rest_are_left_out_of_the_fits():
     around it (the sweep's slow stretches are all stops: rest-to-rest moves); plots and metrics
     keep every row."""
     config = load_config(CONFIGS / "sim-3prrr.yaml")
-    robot = robot_model(config)
+    robot = model_of(config.robot)
     (planned,) = plan(config, ["sweep"])
     tr = planned.trajectory
     fpa = np.array([axis_scaling(a).force_per_amp for a in config.robot.actuators])

@@ -1,9 +1,14 @@
 """The project's import layers (developers' brief), checked on the source with ``ast``.
 
-* ``ident_hw.model`` is pure math: it imports nothing else of the project.
+* ``ident_hw.model`` is pure math: it imports nothing else of the project; ``ident_hw.storage``
+  (records to JSON) and ``ident_hw.progress`` neither.
 * ``trajectories`` and the simulated rig (``drivers.sim``) may import the model, nothing above it.
 * the drive driver (``drivers`` outside ``drivers.sim``) never imports ``ident_hw`` nor the rig.
-* only the experiment runner (``ident_hw.experiment``) and the CLI wire drivers and trajectories together.
+* only the experiment runner (``ident_hw.experiment``) and the CLI wire drivers and trajectories
+  together; the config maps YAML to the drivers' settings, and imports nothing of ``trajectories``.
+* the results (``ident_hw.records``, ``ident_hw.results``) and their report (``ident_hw.report``)
+  know nothing of the config, the runner, the drivers or the trajectories: a results folder is
+  read and rendered on its own; the results import nothing of the report.
 * nothing imports the CLI; no import cycles between modules.
 """
 
@@ -71,6 +76,25 @@ def test_model_imports_nothing_else_of_the_project():
     assert offenders("ident_hw.model", PACKAGES, allowed=("ident_hw.model",)) == []
 
 
+def test_storage_and_progress_import_nothing_of_the_project():
+    for module in ("ident_hw.storage", "ident_hw.progress"):
+        assert offenders(module, PACKAGES) == [], module
+
+
+def test_config_imports_no_trajectories_runner_results_or_report():
+    assert offenders("ident_hw.config", ("trajectories", "ident_hw.experiment", "ident_hw.results",
+                                         "ident_hw.records", "ident_hw.report")) == []
+
+
+def test_results_and_report_know_nothing_of_config_runner_drivers_or_trajectories():
+    """The report is the bottom of the upper half: it renders a results folder from its files alone."""
+    forbidden = ("ident_hw.config", "ident_hw.experiment", "drivers", "trajectories", "ident_hw.cli")
+    for layer in ("ident_hw.records", "ident_hw.results", "ident_hw.report"):
+        assert offenders(layer, forbidden) == [], layer
+    assert offenders("ident_hw.results", ("ident_hw.report",)) == []
+    assert offenders("ident_hw.records", ("ident_hw.results", "ident_hw.report")) == []
+
+
 def test_trajectories_import_only_the_model():
     assert offenders("trajectories", PACKAGES, allowed=("trajectories", "ident_hw.model")) == []
 
@@ -88,8 +112,8 @@ def test_simulated_rig_imports_only_the_model_and_drivers():
 def test_only_the_runner_and_cli_wire_drivers_and_trajectories():
     bad = [(m, i) for m, i in offenders("ident_hw", ("drivers", "trajectories"))
            if not (within(m, "ident_hw.experiment") or within(m, "ident_hw.cli"))]
-    # ident_hw.config maps YAML to the drivers' and trajectories' own settings classes: allowed
-    assert [(m, i) for m, i in bad if not within(m, "ident_hw.config")] == []
+    # ident_hw.config maps YAML to the drivers' own settings classes: allowed (the trajectories: not)
+    assert [(m, i) for m, i in bad if not (within(m, "ident_hw.config") and within(i, "drivers"))] == []
 
 
 def test_nothing_imports_the_cli():
@@ -155,3 +179,78 @@ def test_the_model_and_the_drivers_name_joint_kinds_alike():
     from drivers import units
     from ident_hw.model import interface
     assert (units.REVOLUTE, units.PRISMATIC) == (interface.REVOLUTE, interface.PRISMATIC)
+
+
+# ----------------------------------------------------------------------------- the runner's inputs
+#: the functions of ident_hw.experiment that take the whole Config: the commands' entry points
+#: (what ident_hw.cli calls), and the edge that makes the config into the typed inputs every other
+#: function takes parts of (an identification plan, a campaign's plan, its streaming, its drives)
+CONFIG_ENTRY_POINTS = {
+    "plan.plan", "plan.check_campaign", "runner.run_campaign", "runner.identify_recordings", "offline.identify",
+    "recordings.gather_recordings", "recordings.load_recording", "recordings.planned_cycles",
+    "external.read_external", "folders.new_results_folder", "session.open_session", "session.simulated_rig",
+    "session.HostSettings.for_command", "inspection.compare", "campaign_estimator.CampaignEstimator.__init__",
+    "inputs.identification_plan", "plan.PlanInputs.of", "runner.CampaignInputs.of", "session.DriveSettings.of",
+}
+
+
+def _functions(tree: ast.AST, prefix: str = ""):
+    """(qualified name, node) of every function of a module, methods as ``Class.method``."""
+    for node in getattr(tree, "body", []):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            yield f"{prefix}{node.name}", node
+        elif isinstance(node, ast.ClassDef):
+            yield from _functions(node, f"{prefix}{node.name}.")
+
+
+def test_only_the_runner_s_entry_points_take_the_whole_config():
+    """The config travels no further than the edge: every other function of the runner takes the
+    parts it uses (issue 49)."""
+    found = set()
+    for path in sorted((ROOT / "ident_hw" / "experiment").glob("*.py")):
+        for name, node in _functions(ast.parse(path.read_text())):
+            args = node.args.posonlyargs + node.args.args + node.args.kwonlyargs
+            if any(a.annotation is not None and ast.unparse(a.annotation).split("|")[0].strip() == "Config"
+                   for a in args):
+                found.add(f"{path.stem}.{name}")
+    assert found == CONFIG_ENTRY_POINTS
+
+
+#: public functions whose annotations hold a dict of text keys by what they are: a dataclass
+#: field's metadata (dataclasses' own API), a dataclass's field values by name (its keyword
+#: arguments: the config loader's ``given``), a JSON document (a file's, a record's older one)
+JSON_DOCUMENTS = {"ident_hw.config.schema.spec", "ident_hw.config.schema.build", "ident_hw.storage.stored",
+                  "ident_hw.storage.file_document",
+                  "ident_hw.records.RecordingCoverage.upgrade_json", "ident_hw.records.TrajectoryVerdict.upgrade_json",
+                  "ident_hw.records.Verdict.upgrade_json", "ident_hw.results.folder.ResultsFile.upgrade_json"}
+#: the robot model's protocol and a described robot's loader return triples; they are issue 48's
+#: (one model path), which reworks them
+MODEL_PROTOCOL = {"ident_hw.model.interface.RobotModel.plant_dynamics", "ident_hw.model.described.load_description"}
+
+
+def _bare_record(annotation: ast.expr) -> bool:
+    """A tuple of more than two items, or a dict with text keys of anything (a record in disguise)."""
+    for sub in ast.walk(annotation):
+        if isinstance(sub, ast.Subscript) and ast.unparse(sub.value) in ("tuple", "Tuple"):
+            items = sub.slice.elts if isinstance(sub.slice, ast.Tuple) else [sub.slice]
+            if len(items) > 2 and not any(isinstance(i, ast.Constant) and i.value is Ellipsis for i in items):
+                return True
+    text = ast.unparse(annotation).replace(" ", "")
+    return text in ("dict", "Dict", "Mapping") or any(text.startswith(f"{d}[str,Any]") or text.startswith(f"{d}[str,object]")
+                                                     for d in ("dict", "Mapping", "Dict"))
+
+
+def test_no_tuple_of_more_than_two_items_nor_dict_record_crosses_a_module_boundary():
+    """What a public function of ident_hw takes or returns is a record, not a bare tuple of three
+    or more items or a dict of text keys (issue 49); a module's own helpers (``_name``) may."""
+    found = []
+    for name, path in MODULES.items():
+        if not within(name, "ident_hw"):
+            continue
+        for qualified, node in _functions(ast.parse(path.read_text())):
+            if any(part.startswith("_") and part != "__init__" for part in qualified.split(".")):
+                continue
+            annotations = [node.returns] + [a.annotation for a in node.args.args + node.args.kwonlyargs]
+            if any(a is not None and _bare_record(a) for a in annotations):
+                found.append(f"{name}.{qualified}")
+    assert sorted(set(found) - JSON_DOCUMENTS - MODEL_PROTOCOL) == []

@@ -18,7 +18,8 @@ from ident_hw.config.to_drivers import axis_scaling
 from ident_hw.experiment.evidence import noise_floors
 from ident_hw.experiment.inputs import identification_plan
 from ident_hw.experiment.preparation import trajectory_filter
-from ident_hw.experiment.plan import check, plan, robot_model
+from ident_hw.experiment.plan import PlanInputs, check, plan
+from ident_hw.config.robots import model_of
 
 from ident_scenarios import CONFIGS
 
@@ -29,13 +30,13 @@ STILL = TrajectoryConfig(name="still", kind="standstill", duration=1.5)
 def test_a_standstill_holds_any_robot_at_its_home_pose(name):
     config = load_config(CONFIGS / name)
     config = dataclasses.replace(config, trajectories=tuple(config.trajectories) + (STILL,))
-    robot = robot_model(config)
+    robot = model_of(config.robot)
     (planned,) = plan(config, ["still"])
     traj = planned.trajectory
     assert len(traj.t) == round(1.5 * config.bus.sync_rate) + 1
     np.testing.assert_array_equal(traj.Theta, np.tile(robot.home_actuated(), (len(traj.t), 1)))
     assert not traj.Thetad.any() and not traj.Thetadd.any()
-    assert check(config, traj, robot).ok
+    assert check(PlanInputs.of(config), traj).ok
 
 
 def test_the_floor_is_the_filtered_noise_at_rest_and_the_draws_spread_in_squares():

@@ -26,7 +26,7 @@ from drivers.errors import ConfigError
 from drivers.profiles import make_object_dictionary
 from drivers.sim import SimulatedRig
 from ident_hw.config import load_config, to_model
-from ident_hw.experiment.plan import robot_model
+from ident_hw.config.robots import model_of
 from ident_hw.config.to_drivers import axis_config
 
 CONFIG = load_config(Path(__file__).resolve().parent.parent / "configs" / "sim-3prrr.yaml")
@@ -112,7 +112,7 @@ def spied_rig(axes, name: str):
     :class:`DriveGroup` on them (not brought up) and a :class:`SdoTraffic` spy, all on one fresh
     python-can virtual channel named after ``name``; yields ``(rig, group, spy)`` and closes all."""
     channel = f"{name}-{next(_channels)}"
-    rig = SimulatedRig.build(robot_model(CONFIG), to_model.inertial_params(CONFIG.sim.truth),
+    rig = SimulatedRig.build(model_of(CONFIG.robot), to_model.inertial_params(CONFIG.sim.truth),
                              [(a.node_id, a.profile, a.scaling) for a in axes], sync_period=PERIOD, seed=1,
                              lockstep=True, interface="virtual", channel=channel, ignore_config=True).start()
     spy_bus = can.Bus(interface="virtual", channel=channel, ignore_config=True)
@@ -171,7 +171,7 @@ def test_the_master_uses_the_drives_own_eds_and_names_what_it_lacks(tmp_path):
     axes = [dataclasses.replace(axis_config(a), profile="epos4") for a in CONFIG.robot.actuators]
     own = [dataclasses.replace(a, object_dictionary=str(_exported_eds(tmp_path, a.node_id))) for a in axes]
     channel = f"real-od-{next(_channels)}"
-    rig = SimulatedRig.build(robot_model(CONFIG), to_model.inertial_params(CONFIG.sim.truth),
+    rig = SimulatedRig.build(model_of(CONFIG.robot), to_model.inertial_params(CONFIG.sim.truth),
                              [(a.node_id, a.profile, a.scaling) for a in axes], sync_period=PERIOD,
                              lockstep=True, interface="virtual", channel=channel, ignore_config=True).start()
     network = open_network(BusConfig("virtual", channel, ignore_config=True))

@@ -20,7 +20,7 @@ from drivers.recording import Recording, decode_log
 from drivers.stream import setpoint_counts
 from drivers.units import AxesScaling
 from ident_hw.config import load_config
-from ident_hw.experiment.plan import drive_axes, plan, setpoints
+from ident_hw.experiment.plan import PlanInputs, plan, setpoints
 from ident_hw.config.to_drivers import axis_config
 from cli_runs import ident_hw
 
@@ -203,7 +203,7 @@ def test_a_hil_campaign_that_check_accepts_runs_to_its_end(tmp_path, hil):
     status = (tmp_path / "run" / "STATUS").read_text()
     assert run.returncode in (0, 6) and not status.startswith("partial"), status   # 6: the quality verdict
     loaded = load_config(config)
-    axes = drive_axes(loaded)
+    axes = PlanInputs.of(loaded).axes
     units = AxesScaling([a.scaling for a in axes])
     for planned in plan(loaded):
         rec = Recording.load(tmp_path / "run" / "data" / f"{planned.config.name}.npz")

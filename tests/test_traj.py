@@ -12,7 +12,7 @@ from trajectories import (InfeasibleTrajectory, Trajectory, TrajectoryFileError,
                           five_squares, load, pose_trajectory, save, validation_triangle)
 from trajectories.paths import home_actuators
 from trajectories.timing import rest_to_rest_path
-from ident_hw.config.to_trajectories import feasibility_limits
+from ident_hw.experiment.robot_trajectories import feasibility_limits
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "robot-3prrr.yaml"
 

@@ -12,7 +12,7 @@ from trajectories import carriage_sweep, check_trajectory, five_squares, validat
 from scipy.optimize._numdiff import approx_derivative
 
 from trajectories.fourier import FourierExcitation, _Problem, base_scaling, optimise_excitation, stacked_regressor
-from ident_hw.config.to_trajectories import feasibility_limits
+from ident_hw.experiment.robot_trajectories import feasibility_limits
 
 ROOT = Path(__file__).resolve().parents[1]
 CACHED = ROOT / "trajectories" / "data" / "fourier-nominal.json"

@@ -22,8 +22,9 @@ import trajectories
 from drivers.errors import ConfigError
 from drivers.stream import setpoint_counts
 from ident_hw.config import load_config
-from ident_hw.experiment.plan import build, check, drive_axes, plan, robot_model, setpoints, sync_period
-from ident_hw.config.to_trajectories import feasibility_limits
+from ident_hw.experiment.plan import PlanInputs, build, check, plan, setpoints, sync_period
+from ident_hw.config.robots import model_of
+from ident_hw.experiment.robot_trajectories import feasibility_limits
 from recorded_data import needs_datasets
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
@@ -51,12 +52,12 @@ def campaign(request):
 @pytest.mark.slow
 def test_check_accepts_every_trajectory_and_run_cyclic_streams_it_without_a_limit_stop(campaign):
     config, planned = campaign
-    axes = drive_axes(config)
+    axes = PlanInputs.of(config).axes
     for p in planned:
         assert p.ok, p.describe()
         targets = setpoints(p.trajectory)
         # one sample per SYNC period: the grid the set-points are checked on is the one streamed
-        np.testing.assert_allclose(np.diff(p.trajectory.t), sync_period(config), rtol=0, atol=1e-9)
+        np.testing.assert_allclose(np.diff(p.trajectory.t), sync_period(config.bus), rtol=0, atol=1e-9)
         # run_cyclic's check and conversion of the set-points (a ConfigError is the run's limit stop)
         counts = setpoint_counts(axes, targets)
         # whole counts within the drives' own software position limits (0x607D, written in counts)
@@ -80,16 +81,15 @@ def test_run_streams_byte_for_byte_the_set_points_check_validated(campaign):
 def test_check_and_run_cyclic_draw_each_limit_at_the_same_place():
     """A set-point on a drive's limit passes both; one ulp beyond fails both, naming the sample."""
     config = load_config(CONFIGS / "vcan-3prrr.yaml")
-    robot = robot_model(config)
-    sweep = build(config, config.trajectories[0], robot)
-    axes = drive_axes(config)
+    sweep = build(PlanInputs.of(config), config.trajectories[0])
+    axes = PlanInputs.of(config).axes
     k = 100
     for j, bound, beyond in ((3, axes[3].position_max, np.inf), (0, axes[0].position_min, -np.inf)):
         for value, outside in ((bound, False), (np.nextafter(bound, beyond), True)):
             Theta = sweep.Theta.copy()
             Theta[k, j] = value
             traj = dataclasses.replace(sweep, Theta=Theta)
-            found = [v for v in check(config, traj, robot).violations if v.quantity == "set-point"]
+            found = [v for v in check(PlanInputs.of(config), traj).violations if v.quantity == "set-point"]
             if not outside:
                 assert found == []
                 setpoint_counts(axes, setpoints(traj))
@@ -104,7 +104,7 @@ def test_check_refuses_a_carriage_move_beyond_the_drives_limits_within_the_strok
     taking carriage 1 to 0.095 m passes the stroke, not the drive: the check says so, at the
     sample and value ``run_cyclic`` would stop on."""
     config = load_config(CONFIGS / "hil-3prrr-epos4.yaml")
-    robot = robot_model(config)
+    robot = model_of(config.robot)
     home = trajectories.paths.home_actuators(robot)
     wide = home.copy()
     wide[3] = 0.095
@@ -123,4 +123,4 @@ def test_check_refuses_a_carriage_move_beyond_the_drives_limits_within_the_strok
     assert planned.describe().startswith(f"wide: INFEASIBLE: t = {planned.trajectory.t[k]:.4f} s: set-point zeta1 = ")
     assert planned.describe().endswith(" m exceeds limit 0.09 m")
     with pytest.raises(ConfigError, match=f"axis 'zeta1' sample {k} = .* outside its limits"):
-        setpoint_counts(drive_axes(config), setpoints(planned.trajectory))
+        setpoint_counts(PlanInputs.of(config).axes, setpoints(planned.trajectory))

@@ -40,13 +40,15 @@ def authors(ur10e, tmp_path_factory):
     """``configs/ur10e.yaml`` identified from the authors' run into a results folder (no report):
     ``(results, folder)``."""
     config = load_config(CONFIGS / "ur10e.yaml")
-    recordings, imported, _ = gather_recordings(config, [])
+    gathered = gather_recordings(config, [])
+    recordings, imported = gathered.recordings, gathered.imported
     folder = new_results_folder(config, tmp_path_factory.mktemp("ur10e") / "results", "identify")
     return identify_recordings(config, recordings, folder, report=False, imported=imported), folder
 
 
 def rre(config, given=()):
-    recordings, imported, _ = gather_recordings(config, list(given))
+    gathered = gather_recordings(config, list(given))
+    recordings, imported = gathered.recordings, gathered.imported
     results = identify(config, recordings, imported=imported)
     figures = validation_figures(results)["validation"]
     return np.array(figures.rre_percent.fit, dtype=float), np.array(figures.rre_percent.compared, dtype=float), imported, results
@@ -79,7 +81,8 @@ def test_the_datasets_corrupted_file_has_each_bad_row_cut_with_its_reason(ur10e)
     """The second loaded run of the dataset starts with rows of garbage and ends mid-row."""
     run = ur10e / "identification" / "ur-20_02_19_15harm50secLoad.csv"
     config = load_config(CONFIGS / "ur10e.yaml")
-    _, imported, _ = gather_recordings(config, [f"excitation={run}"])
+    gathered = gather_recordings(config, [f"excitation={run}"])
+    imported = gathered.imported
     cut = {c.reason: c for c in imported["excitation"].cut}
     assert cut["fields"].lines == (6107,)                 # the last line, cut short
     assert cut["absurd"].count == 8 and cut["absurd"].lines[:3] == (2, 3, 4)
@@ -130,7 +133,8 @@ def test_the_consistent_set_is_exported_as_a_urdf_that_pinocchio_and_mujoco_load
 @pytest.mark.slow
 def test_the_drive_gains_from_the_payload_pair_beside_the_published_ones(ur10e):
     config = load_config(CONFIGS / "ur10e-gains.yaml")
-    recordings, imported, _ = gather_recordings(config, [])
+    gathered = gather_recordings(config, [])
+    recordings, imported = gathered.recordings, gathered.imported
     results = identify(config, recordings, imported=imported)
     gains = next(s for s in results.steps if s.name == "gains").drive_gains
     found, sigma, published = (np.array(x) for x in (gains.gains, gains.sigma, gains.configured))
@@ -192,7 +196,8 @@ def test_the_verdict_fails_garbage_made_of_the_real_data_naming_the_axis(ur10e, 
     path = tmp_path / "garbage.yaml"
     path.write_text(text.replace(old, new).replace(shipped, CHOSEN))
     config = load_config(path)
-    recordings, imported, _ = gather_recordings(config, [])
+    gathered = gather_recordings(config, [])
+    recordings, imported = gathered.recordings, gathered.imported
     quality = identify(config, recordings, imported=imported).quality
     assert not quality.passed
     assert any(reason.startswith(f"{axis}:") for reason in quality.reasons), quality.reasons

@@ -122,7 +122,7 @@ def check_delta_trajectory(traj: Trajectory, robot, limits: ActuatorLimits, min_
     the singularity measures of :meth:`ident_hw.model.Delta.singularity` (serial at least
     ``min_serial``, parallel condition at most ``max_parallel``)."""
     report = check_actuator_limits(traj, limits)
-    found = report.violations
+    found = list(report.violations)
     try:
         serial, parallel = robot.singularity(traj.Theta)
     except KinematicsError as exc:
@@ -136,4 +136,4 @@ def check_delta_trajectory(traj: Trajectory, robot, limits: ActuatorLimits, min_
         cond = parallel[:, None]
         _first(found, traj.t, "cond(A)", cond > max_parallel, cond, [max_parallel], [measure], [""], [None])
     found.sort(key=lambda v: v.sample)
-    return report
+    return Report(report.trajectory, tuple(found))

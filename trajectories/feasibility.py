@@ -9,7 +9,7 @@ caught), and the singularity margins. The :class:`Report` names the first violat
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -100,12 +100,12 @@ class Violation:
                 f"{relation} limit {self.limit:.6g}{unit}")
 
 
-@dataclass
+@dataclass(frozen=True)
 class Report:
     """Result of :func:`check_trajectory`: the earliest violation of each kind, earliest first."""
 
     trajectory: str
-    violations: list[Violation] = field(default_factory=list)
+    violations: tuple[Violation, ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -181,7 +181,7 @@ def check_actuator_limits(traj: Trajectory, limits: ActuatorLimits) -> Report:
     rates = ([f"{u}/s" for u in limits.units], [f"{u}/s^2" for u in limits.units])
     _rate_violations(found, traj, limits.speed, limits.accel, (limits.names,) * 2, rates, chains)
     found.sort(key=lambda v: v.sample)
-    return Report(traj.name, found)
+    return Report(traj.name, tuple(found))
 
 
 def check_trajectory(traj: Trajectory, robot: ThreePRRR, limits: Limits) -> Report:
@@ -218,4 +218,4 @@ def check_trajectory(traj: Trajectory, robot: ThreePRRR, limits: Limits) -> Repo
                      tuple([n for n, _ in COLUMNS[key]] for key in ("Thetad", "Thetadd")),
                      (UNITS["Thetad"], UNITS["Thetadd"]), [1, 2, 3, 1, 2, 3])
     found.sort(key=lambda v: v.sample)
-    return Report(traj.name, found)
+    return Report(traj.name, tuple(found))

@@ -88,7 +88,7 @@ def check_described_trajectory(traj: Trajectory, robot, limits: ActuatorLimits, 
     actuated coordinates, else solved from the first sample on) and the condition number of the passive joints'
     closure Jacobian at most ``max_condition`` (a parallel singularity is infinite)."""
     report = check_actuator_limits(traj, limits)
-    found = report.violations
+    found = list(report.violations)
     cond = None
     if traj.X.shape[1] == robot.pose_size and np.array_equal(traj.X[:, robot.actuated_q], traj.Theta):
         # the trajectory's own poses (the excitation's): closed at every sample, or solved again
@@ -106,4 +106,4 @@ def check_described_trajectory(traj: Trajectory, robot, limits: ActuatorLimits, 
         _first(found, traj.t, "closure condition", cond[:, None] > max_condition, cond[:, None], [max_condition],
                ["passive joints' closure Jacobian"], [""], [None])
     found.sort(key=lambda v: v.sample)
-    return report
+    return Report(report.trajectory, tuple(found))

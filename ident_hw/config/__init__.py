@@ -10,9 +10,9 @@ The sections are plain data, one module per family (:mod:`.robot` and the robots
 :mod:`.trajectory`, :mod:`.identification`; the whole file :mod:`.file`), read by the generic
 :mod:`.schema` from what :mod:`.source` composes; their cross-field rules are :mod:`.checks`. The
 adapters turn them into the objects of the layers below, in those layers' own types:
-:mod:`.to_model`, :mod:`.to_drivers`, :mod:`.to_trajectories`, :mod:`.to_identification`, and the
-robot as a whole by its kind (:mod:`.robots`). The config imports nothing of the runner, the
-report or the CLI.
+:mod:`.to_model`, :mod:`.to_drivers`, :mod:`.to_identification`, and the robot as a whole by
+its kind (:mod:`.robots`). The config imports nothing of the trajectories (the runner builds them:
+:mod:`ident_hw.experiment.robot_trajectories`), the runner, the report or the CLI.
 """
 
 from __future__ import annotations

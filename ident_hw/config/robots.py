@@ -3,9 +3,11 @@
 A robot kind is everything the rest of the tool asks of a robot beyond its
 :class:`~ident_hw.model.interface.RobotModel`: which section of ``robot`` holds its settings and
 which key of ``sim`` its true parameters, its model, its CAD and true parameter vectors, the
-actuators it expects, its trajectory kinds with their builders and its feasibility check. The
-config, the campaign plan and the simulated rig's set-up look the kind up here instead of
-comparing ``robot.kind`` with names; this module is the only place that does (a test holds it).
+actuators it expects and the names of its trajectory kinds (their builders and feasibility
+checks are the runner's, :mod:`ident_hw.experiment.robot_trajectories`: the config imports
+nothing of :mod:`trajectories`). The config, the campaign plan and the simulated rig's set-up look
+the kind up here instead of comparing ``robot.kind`` with names; this module is the only place
+that does (a test holds it).
 
 Three kinds: ``3prrr`` and ``delta`` (hand-derived models, :mod:`ident_hw.model`) and
 ``described``: any robot from its description file (:class:`ident_hw.model.described.DescribedRobot`),
@@ -16,23 +18,19 @@ Adding a robot of this kind is a description file and a config, no code.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
-import trajectories
 from ident_hw.model import Delta, ThreePRRR
 from ident_hw.model.interface import RobotModel
 from ident_hw.model.pseudo_inertia import SPATIAL
-from trajectories import delta_paper, joint_space
 
 from . import to_model
 from .robot_described import ParameterSetConfig
 from .schema import FieldError
 from .sim import SeedStream
-from .to_trajectories import actuator_limits, excitation_of, feasibility_limits
 
 if TYPE_CHECKING:  # pinocchio, which described imports, is imported by described robots only
     from ident_hw.model.described import DescribedRobot
@@ -47,20 +45,18 @@ if TYPE_CHECKING:  # pinocchio, which described imports, is imported by describe
 @dataclass(frozen=True)
 class RobotKind:
     """One robot kind (see the module docstring). Its functions take the config's ``robot``
-    section (``truth`` also ``sim`` and the robot's model; ``build`` and ``check`` the whole
-    config) and never look at ``robot.kind``.
+    section (``truth`` also ``sim`` and the robot's model) and never look at ``robot.kind``.
 
     Attributes:
         name: the value of ``robot.kind``.
         sections: the keys of ``robot`` this kind needs.
         truth_key: the key of ``sim`` holding the simulated robot's true parameters.
-        trajectory_kinds: the generated trajectory kinds of this robot (``file`` is any robot's).
+        trajectory_kinds: the generated trajectory kinds of this robot (``file`` is any robot's;
+            :mod:`ident_hw.experiment.robot_trajectories` builds and checks them).
         model: ``robot -> RobotModel``.
         initial: ``robot -> (P,)`` the CAD parameters in the model's order.
         truth: ``(robot, sim, robot model) -> (P,)`` the true parameters in the model's order.
         actuators: ``robot -> (names, kinds)`` the actuators the robot expects, in order.
-        build: ``(config, trajectory, robot model, rate) -> Trajectory`` one generated trajectory.
-        check: ``(config, trajectory, robot model) -> Report`` its feasibility.
         validate: ``robot -> None`` checks beyond the schema (FieldError, key relative to ``robot``).
         friction_models: its model takes any friction model of ``robot.friction`` (else only the
             default Coulomb and viscous terms).
@@ -74,34 +70,11 @@ class RobotKind:
     initial: Callable[[Any], np.ndarray]
     truth: Callable[[Any, Any, RobotModel], np.ndarray]
     actuators: Callable[[Any], tuple[tuple[str, ...], tuple[str, ...]]]
-    build: Callable[[Any, Any, RobotModel, float], trajectories.Trajectory]
-    check: Callable[[Any, trajectories.Trajectory, RobotModel], trajectories.Report]
     validate: Callable[[Any], None] = lambda robot: None
     friction_models: bool = False
 
 
 # ---- the 3PRRR
-def _threeprrr_build(config, tcfg, robot, rate):
-    limits = feasibility_limits(config.robot)
-    k = tcfg.speed_scale
-    # a generated path keeps within the stroke and within the carriage drives' software position
-    # limits (those the set-points are checked against): the carriage schedule's bounds
-    room = min(min(-a.limits.position[0], a.limits.position[1]) for a in config.robot.actuators[3:])
-    timing = dataclasses.replace(limits, carriage_stroke=min(limits.carriage_stroke, room),
-                                 carriage_speed=limits.carriage_speed * k,
-                                 carriage_accel=limits.carriage_accel * k * k,
-                                 revolute_speed=limits.revolute_speed * k,
-                                 revolute_accel=limits.revolute_accel * k * k)
-    if tcfg.kind == "carriage_sweep":
-        return trajectories.carriage_sweep(robot, timing, amplitude=tcfg.size, rate=rate, dwell=tcfg.dwell)
-    if tcfg.kind == "square":
-        return trajectories.square(robot, timing, tcfg.rotation, side=tcfg.size, rate=rate, dwell=tcfg.dwell,
-                                   name=tcfg.name)
-    if tcfg.kind == "triangle":
-        return trajectories.validation_triangle(robot, timing, rate=rate, dwell=tcfg.dwell)
-    return excitation_of(config, tcfg).trajectory(robot, rate, name=tcfg.name)
-
-
 def _threeprrr_validate(robot) -> None:
     for key in ("geometry", "stroke", "cad"):
         if getattr(robot, key) is None:
@@ -115,8 +88,6 @@ THREE_PRRR = RobotKind(
     initial=lambda robot: to_model.inertial_params(robot.cad).as_vector(),
     truth=lambda robot, sim, model: to_model.inertial_params(sim.truth).as_vector(),
     actuators=lambda robot: (ThreePRRR.actuator_names, ThreePRRR.actuator_kinds),
-    build=_threeprrr_build,
-    check=lambda config, traj, robot: trajectories.check_trajectory(traj, robot, feasibility_limits(config.robot)),
     validate=_threeprrr_validate)
 
 
@@ -126,12 +97,6 @@ def _delta_validate(robot) -> None:
         raise FieldError("delta", "missing key: a Delta needs its delta section (geometry, cad)")
 
 
-def _delta_check(config, traj, robot):
-    safety = config.robot.safety
-    return delta_paper.check_delta_trajectory(traj, robot, actuator_limits(config.robot),
-                                              safety.min_serial_margin, safety.max_cond_A)
-
-
 DELTA = RobotKind(
     name="delta", sections=("delta", "safety"), truth_key="delta_truth",
     trajectory_kinds=("delta_training", "delta_verification", "delta_held_arm"),
@@ -139,9 +104,7 @@ DELTA = RobotKind(
     initial=lambda robot: to_model.delta_parameters(robot.delta.cad, to_model.delta_geometry(robot.delta.geometry)),
     truth=lambda robot, sim, model: to_model.delta_parameters(sim.delta_truth, to_model.delta_geometry(robot.delta.geometry)),
     actuators=lambda robot: (Delta.actuator_names, Delta.actuator_kinds),
-    build=lambda config, tcfg, robot, rate: delta_paper.delta_trajectory(
-        robot, tcfg.kind, tcfg.duration, rate, tcfg.fade, name=tcfg.name, amplitude=tcfg.amplitude),
-    check=_delta_check, validate=_delta_validate)
+    validate=_delta_validate)
 
 
 # ---- any robot from its description file
@@ -210,24 +173,12 @@ def _described_key(exc, robot) -> str:
     return _DESCRIBED_KEYS[exc.argument]
 
 
-def _described_build(config, tcfg, robot, rate):
-    # the motion's bandwidth: the trajectory's, else the identification filter's (what it is filtered at)
-    bandwidth = tcfg.bandwidth or (config.identification.filter.bandwidth if config.identification else 2.0)
-    return joint_space.joint_excitation(robot, actuator_limits(config.robot), tcfg.duration, rate,
-                                        bandwidth, fade=tcfg.fade,
-                                        seed=tcfg.seed, name=tcfg.name, amplitude=tcfg.amplitude,
-                                        harmonics=tcfg.harmonics)
-
-
 DESCRIBED = RobotKind(
     name="described", sections=("described",), truth_key="parameters", trajectory_kinds=("joint_excitation",),
     model=described_model,
     initial=lambda robot: to_model.described_parameters(robot.described.cad, described_model(robot)),
     truth=lambda robot, sim, model: to_model.described_parameters(sim.parameters, model),
     actuators=lambda robot: (tuple(a.name for a in robot.actuators), tuple(a.kind for a in robot.actuators)),
-    build=_described_build,
-    check=lambda config, traj, robot: joint_space.check_described_trajectory(
-        traj, robot, actuator_limits(config.robot), config.robot.described.max_condition),
     validate=_described_validate, friction_models=True)
 
 

@@ -42,8 +42,9 @@ from drivers.recording_metadata import RecordingMetadata
 from ident_hw.config import Config, TrajectoryConfig
 from ident_hw.config.recordings import (CURRENT_UNITS, POSITION_UNITS, TIME_UNITS, TORQUE_UNITS, VELOCITY_UNITS,
                                         RecordingsConfig)
-from ident_hw.config.to_drivers import axes_scaling
 from ident_hw.records import CUT_REASONS, CutRows, ImportSummary
+
+from .inputs import Axes
 
 #: s of rest kept next to the motion where an idle head or tail is left out (the filters' ends)
 IDLE_MARGIN = 0.5
@@ -109,7 +110,8 @@ def read_external(config: Config, tcfg: TrajectoryConfig, path: str | Path | Non
                                  f"{len(body)} data rows")
         body, first_row = body[first - 1:last], first - 1
         window_text = f"rows {first}..{min(last, first_row + len(body))}"
-    table, cut = _parse(spec, body, layout, path, spec.header + first_row + 1, config)
+    axes = Axes.of(config.robot.actuators)
+    table, cut = _parse(spec, body, layout, path, spec.header + first_row + 1, axes)
     t = table[:, 0]
     if use_window and tcfg.window is not None:
         start, end = tcfg.window
@@ -118,10 +120,10 @@ def read_external(config: Config, tcfg: TrajectoryConfig, path: str | Path | Non
         window_text = f"{start:g}..{end:g} s"
     if len(t) < 3:
         raise RecordingError(f"{path}: {len(t)} usable rows for trajectory {tcfg.name!r}: too few to identify from")
-    a = len(config.robot.actuators)
+    a = len(axes)
     position, force = table[:, 1:1 + a], table[:, 1 + a:1 + 2 * a]
     velocity = table[:, 1 + 2 * a:1 + 3 * a] if layout.velocity is not None else None
-    keep = idle_trimmed(t, position, config)
+    keep = idle_trimmed(t, position, axes, spec.idle_tolerance)
     head_s, tail_s = float(t[keep.start] - t[0]), float(t[-1] - t[keep.stop - 1])
     t, position, force = t[keep], position[keep], force[keep]
     velocity = velocity[keep] if velocity is not None else None
@@ -133,7 +135,7 @@ def read_external(config: Config, tcfg: TrajectoryConfig, path: str | Path | Non
     period = float(np.mean(steps[regular]))
     force = delayed(t, force, ~regular, spec.current_delay)
     grid, (position, force, velocity) = resample(t, period, ~regular, position, force, velocity)
-    current = force / axes_scaling(config.robot.actuators).force_per_amp if layout.force_kind == "torque" else force
+    current = force / axes.force_per_amp if layout.force_kind == "torque" else force
     summary = ImportSummary(
         data_rows=len(lines) - spec.header, window=window_text, rows_used=len(t), cut=cut,
         idle_head_s=round(head_s, 6), idle_tail_s=round(tail_s, 6), step_min_s=float(steps.min()),
@@ -195,11 +197,11 @@ def _scales(spec: RecordingsConfig, layout: _Layout, a: int) -> np.ndarray:
 
 
 def _parse(spec: RecordingsConfig, body: Sequence[str], layout: _Layout, path: Path, first_line: int,
-           config: Config) -> tuple[np.ndarray, tuple[CutRows, ...]]:
+           axes: Axes) -> tuple[np.ndarray, tuple[CutRows, ...]]:
     """The data rows as an (N, 1 + 3a) array in SI (time, positions, forces, velocities; NaN
-    velocities where the file has none) and the rows cut, per reason. ``first_line``: the file's
-    line number (1-based) of ``body[0]``."""
-    a = len(config.robot.actuators)
+    velocities where the file has none) and the rows cut, per reason, for the robot's ``axes``.
+    ``first_line``: the file's line number (1-based) of ``body[0]``."""
+    a = len(axes)
     columns = [layout.time, *layout.position, *layout.force, *(layout.velocity or [layout.time] * a)]
     fields_per_row = [len(_split(line, spec.delimiter)) for line in body]
     usual = max(set(fields_per_row), key=fields_per_row.count) if fields_per_row else 0
@@ -230,7 +232,7 @@ def _parse(spec: RecordingsConfig, body: Sequence[str], layout: _Layout, path: P
     if layout.velocity is None:
         table[:, 1 + 2 * a:] = np.nan
     lines = np.array(lines, dtype=np.int64)
-    far = beyond_reach(table, config, spec.absurd, layout.force_kind)
+    far = beyond_reach(table, axes, spec.absurd, layout.force_kind)
     for number in lines[far]:
         _reject(spec, rejected, "absurd", int(number), path, "a value beyond anything the robot can reach")
     table, lines = table[~far], lines[~far]
@@ -256,21 +258,19 @@ def _reject(spec: RecordingsConfig, rejected: dict[str, list[int]], reason: str,
     rejected[reason].append(line)
 
 
-def beyond_reach(table: np.ndarray, config: Config, absurd: float, force_kind: str) -> np.ndarray:
-    """(N,) bool: rows with a value further outside an actuator's limits than ``absurd`` times
-    their size: a position beyond ``absurd`` × its range outside it, a velocity or current (a
-    torque: through the force per ampere) above ``1 + absurd`` times its limit. ``table`` as
-    :func:`_parse` builds it (SI)."""
-    acts = config.robot.actuators
-    a = len(acts)
-    lo = np.array([x.limits.position[0] for x in acts])
-    hi = np.array([x.limits.position[1] for x in acts])
+def beyond_reach(table: np.ndarray, axes: Axes, absurd: float, force_kind: str) -> np.ndarray:
+    """(N,) bool: rows with a value further outside an actuator's limits (of the robot's
+    ``axes``) than ``absurd`` times their size: a position beyond ``absurd`` × its range outside
+    it, a velocity or current (a torque: through the force per ampere) above ``1 + absurd`` times
+    its limit. ``table`` as :func:`_parse` builds it (SI)."""
+    a = len(axes)
+    lo, hi = axes.position_low, axes.position_high
     margin = absurd * (hi - lo)
     position, force, velocity = table[:, 1:1 + a], table[:, 1 + a:1 + 2 * a], table[:, 1 + 2 * a:]
-    current_limit = np.array([x.limits.current for x in acts])
+    current_limit = axes.current_limit
     if force_kind == "torque":
-        current_limit = current_limit * axes_scaling(acts).force_per_amp
-    speed_limit = np.array([x.limits.velocity for x in acts])
+        current_limit = current_limit * axes.force_per_amp
+    speed_limit = axes.velocity_limit
     with np.errstate(invalid="ignore"):
         far = ((position < lo - margin) | (position > hi + margin)).any(axis=1)
         far |= (np.abs(force) > (1 + absurd) * current_limit).any(axis=1)
@@ -314,13 +314,12 @@ def isolated(t: np.ndarray, gap: float) -> np.ndarray:
     return np.concatenate([[True], far]) & np.concatenate([far, [True]])
 
 
-def idle_trimmed(t: np.ndarray, position: np.ndarray, config: Config) -> slice:
+def idle_trimmed(t: np.ndarray, position: np.ndarray, axes: Axes, idle_tolerance: float) -> slice:
     """The rows from the first motion to the last (:data:`IDLE_MARGIN` s of rest kept either
     side): an actuator moves when it leaves the first (last) row's position by more than
-    ``recordings.idle_tolerance`` of its position range. The whole span when nothing moves."""
-    acts = config.robot.actuators
-    tolerance = config.recordings.idle_tolerance * np.array([x.limits.position[1] - x.limits.position[0]
-                                                             for x in acts])
+    ``idle_tolerance`` (``recordings.idle_tolerance``) of its position range (of the robot's
+    ``axes``). The whole span when nothing moves."""
+    tolerance = idle_tolerance * (axes.position_high - axes.position_low)
     moved_from_start = np.flatnonzero((np.abs(position - position[0]) > tolerance).any(axis=1))
     moved_to_end = np.flatnonzero((np.abs(position - position[-1]) > tolerance).any(axis=1))
     if not len(moved_from_start):

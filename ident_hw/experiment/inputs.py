@@ -16,11 +16,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from drivers.profiles import AveragingFilter, get_profile
-from ident_hw.config import ActuatorConfig, Config, IdentificationConfig, RobotConfig
+from ident_hw.config import ActuatorConfig, Config, IdentificationConfig, RobotConfig, TrajectoryConfig
 from ident_hw.config.robots import initial_parameters, model_of, true_parameters
 from ident_hw.config.to_drivers import axes_scaling
 from ident_hw.config.to_identification import filter_settings
@@ -30,6 +31,7 @@ from ident_hw.model.interface import RobotModel
 from ident_hw.records import Thresholds
 
 from .quality import thresholds_of
+from .robot_trajectories import excitation_of
 
 
 def _frozen(values: Sequence[float] | np.ndarray) -> np.ndarray:
@@ -165,28 +167,24 @@ class IdentificationPlan:
         return filter_settings(self.identification.filter, sample_rate, inputs.bandwidth, inputs.position_margin)
 
 
-def trajectory_inputs(config: Config, name: str) -> TrajectoryInputs:
-    """The identification's inputs of the config's trajectory ``name`` (:class:`TrajectoryInputs`):
-    its ``bandwidth`` key, else a Fourier excitation's highest harmonic, else the identification
-    filter's band; its position margin: ``identification.filter.position_margin`` where given,
-    else :data:`ident_hw.filtering.POSITION_MARGIN` for the rest-to-rest kinds
+def trajectory_inputs(tcfg: TrajectoryConfig, ident: IdentificationConfig, base_dir: Path | None) -> TrajectoryInputs:
+    """The identification's inputs of the config's trajectory ``tcfg`` (:class:`TrajectoryInputs`;
+    ``ident``: the identification section, ``base_dir``: the config's folder): its ``bandwidth``
+    key, else a Fourier excitation's highest harmonic, else the identification filter's band; its
+    position margin: ``identification.filter.position_margin`` where given, else
+    :data:`ident_hw.filtering.POSITION_MARGIN` for the rest-to-rest kinds
     (:data:`ident_hw.config.trajectory.REST_TO_REST_KINDS`), whose force near the band edge would
     otherwise be biased, and 1 (one cut-off) for band-limited motions."""
-    from ident_hw.config.to_trajectories import excitation_of
-    ident = config.identification
-    if ident is None:
-        raise ValueError(f"{config.source}: identification: missing section")
-    tcfg = config.trajectory(name)
     if tcfg.bandwidth is not None:
         bandwidth = tcfg.bandwidth
     elif tcfg.kind == "fourier":
-        bandwidth = excitation_of(config, tcfg).bandwidth
+        bandwidth = excitation_of(base_dir, tcfg).bandwidth
     else:
         bandwidth = ident.filter.bandwidth
     margin = ident.filter.position_margin
     if margin is None:
         margin = POSITION_MARGIN if tcfg.kind in REST_TO_REST_KINDS else 1.0
-    return TrajectoryInputs(name, tcfg.kind, bandwidth, margin)
+    return TrajectoryInputs(tcfg.name, tcfg.kind, bandwidth, margin)
 
 
 def identification_plan(config: Config, cycles_planned: Mapping[str, int] | None = None) -> IdentificationPlan:
@@ -204,13 +202,10 @@ def identification_plan(config: Config, cycles_planned: Mapping[str, int] | None
             if n in listed]
     used += [t.name for t in config.trajectories if t.kind == "standstill" and t.name not in used]
     model = model_of(config.robot)
+    truth = true_parameters(config, model)
     return IdentificationPlan(source=config.source, axes=Axes.of(config.robot.actuators), identification=ident,
                               robot=config.robot, model=model, initial=_frozen(initial_parameters(config.robot)),
-                              truth=_truth(config, model), cycles_planned=dict(cycles_planned or {}),
-                              trajectories={t.name: trajectory_inputs(config, t.name)
+                              truth=None if truth is None else _frozen(truth), cycles_planned=dict(cycles_planned or {}),
+                              trajectories={t.name: trajectory_inputs(t, ident, config.base_dir)
                                             for t in config.trajectories if t.name in used})
 
-
-def _truth(config: Config, model: RobotModel) -> np.ndarray | None:
-    truth = true_parameters(config, model)
-    return None if truth is None else _frozen(truth)

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -9,15 +12,17 @@ import numpy as np
 
 import trajectories
 from drivers.axis import AxisConfig, outside_position_limits
-from ident_hw.config import Config, TrajectoryConfig
-from ident_hw.config.robots import kind_of, model_of
-from ident_hw.config.to_drivers import axis_config, axis_scaling
+from ident_hw.config import ActuatorConfig, BusConfig, Config, RobotConfig, SimFaultConfig, TrajectoryConfig
+from ident_hw.config.robots import model_of
+from ident_hw.config.to_drivers import axis_config
 from ident_hw.config.trajectory import STANDSTILL_S
 from ident_hw.model import KinematicsError
 from ident_hw.model.interface import POSITION_UNITS, RobotModel
 
+from .robot_trajectories import trajectories_of
 
-@dataclass
+
+@dataclass(frozen=True)
 class PlannedTrajectory:
     """One trajectory of the campaign, sampled at the SYNC rate, with its feasibility report."""
 
@@ -40,19 +45,57 @@ class PlannedTrajectory:
         return "\n    note: ".join([f"{self.config.name}: ok ({t.duration:.1f} s, {len(t.t)} samples)", *self.notes])
 
 
-def robot_model(config: Config) -> RobotModel:
-    """The model of the config's robot (``robot.kind``)."""
-    return model_of(config.robot)
+@dataclass(frozen=True)
+class PlanInputs:
+    """What planning a campaign takes of the config, made once (:meth:`of`): the config file
+    (``source``, for messages), its robot section and model, the SYNC rate (Hz; 250 without a
+    bus), the folder relative paths start from, the motor current the drives stream, the
+    identification filter's band (Hz, what a described robot's excitation is band-limited to
+    without a ``bandwidth`` of its own), the encoder draws the identification takes, the
+    simulated rig's fault, and whether there is a bus (homing matters only then). Each drive's
+    axis settings (:attr:`axes`) are made where a check needs them: a config of recordings made
+    elsewhere has no drives to name."""
+
+    source: str
+    robot: RobotConfig
+    model: RobotModel
+    rate: float
+    base_dir: Path | None
+    current: str
+    bandwidth: float
+    encoder_draws: int
+    fault: SimFaultConfig | None
+    has_bus: bool
+
+    @classmethod
+    def of(cls, config: Config) -> PlanInputs:
+        """The inputs of a config (its robot's model built)."""
+        ident = config.identification
+        return cls(source=config.source, robot=config.robot, model=model_of(config.robot),
+                   rate=sample_rate(config.bus), base_dir=config.base_dir,
+                   current=config.current,
+                   bandwidth=ident.filter.bandwidth if ident is not None else 2.0,
+                   encoder_draws=ident.encoder_draws if ident is not None else 0,
+                   fault=config.sim.fault if config.sim is not None else None, has_bus=config.bus is not None)
+
+    @functools.cached_property
+    def axes(self) -> tuple[AxisConfig, ...]:
+        """Each drive's axis settings (:func:`drive_axes`).
+
+        Raises:
+            ConfigError: an actuator without the drive data a run needs (its node-ID...).
+        """
+        return tuple(drive_axes(self.robot.actuators, self.base_dir, self.current))
 
 
-def sample_rate(config: Config) -> float:
+def sample_rate(bus: BusConfig | None) -> float:
     """Trajectory sample rate = the SYNC rate of the bus (250 Hz without a bus section)."""
-    return config.bus.sync_rate if config.bus is not None else 250.0
+    return bus.sync_rate if bus is not None else 250.0
 
 
-def sync_period(config: Config) -> float:
+def sync_period(bus: BusConfig | None) -> float:
     """The period (s) at which ``run`` streams the set-points: one SYNC, one sample of :func:`build`."""
-    return 1.0 / sample_rate(config)
+    return 1.0 / sample_rate(bus)
 
 
 def setpoints(traj: trajectories.Trajectory) -> np.ndarray:
@@ -62,24 +105,25 @@ def setpoints(traj: trajectories.Trajectory) -> np.ndarray:
     return traj.Theta
 
 
-def drive_axes(config: Config) -> list[AxisConfig]:
-    """The drives' axis settings of the config's actuators, their software position limits
+def drive_axes(actuators: Sequence[ActuatorConfig], base_dir: Path | None, current: str) -> list[AxisConfig]:
+    """The drives' axis settings of the config's ``actuators`` (``base_dir``: the config's folder;
+    ``current``: the motor current they stream, ``bus.current``), their software position limits
     included: those of the run's drive group (:meth:`ident_hw.experiment.session.Session.drive_group`)."""
-    return [axis_config(a, config.base_dir, config.current) for a in config.robot.actuators]
+    return [axis_config(a, base_dir, current) for a in actuators]
 
 
-def build(config: Config, tcfg: TrajectoryConfig, robot: RobotModel) -> trajectories.Trajectory:
-    """Generate one trajectory (all cycles) at the SYNC rate."""
-    rate = sample_rate(config)
+def build(inputs: PlanInputs, tcfg: TrajectoryConfig) -> trajectories.Trajectory:
+    """Generate one trajectory (all cycles) at the SYNC rate: a file's, a standstill, or one of
+    the robot kind's (:mod:`ident_hw.experiment.robot_trajectories`)."""
+    rate = inputs.rate
     if tcfg.kind == "file":
-        traj = trajectories.load(Path(config.base_dir or "") / tcfg.path).resample(rate)
+        traj = trajectories.load(Path(inputs.base_dir or "") / str(tcfg.path)).resample(rate)
     elif tcfg.kind == "standstill":
-        traj = trajectories.standstill(robot, tcfg.duration or STANDSTILL_S, rate, tcfg.name)
+        traj = trajectories.standstill(inputs.model, tcfg.duration or STANDSTILL_S, rate, tcfg.name)
     else:
-        traj = kind_of(config.robot).build(config, tcfg, robot, rate)
-    traj = repeat(traj, tcfg.cycles)
-    traj.name = tcfg.name
-    return traj
+        traj = trajectories_of(inputs.robot).build(inputs.robot, tcfg, inputs.model, rate, inputs.base_dir,
+                                                   inputs.bandwidth)
+    return dataclasses.replace(repeat(traj, tcfg.cycles), name=tcfg.name)
 
 
 def repeat(traj: trajectories.Trajectory, cycles: int) -> trajectories.Trajectory:
@@ -100,7 +144,7 @@ def plan(config: Config, names: list[str] | None = None, online: bool = False) -
     ``online_only`` ones where ``online`` (``ident-hw online``, ``check``) or named, after the others.
     ``recorded`` trajectories are recordings made elsewhere, not streamed: they are not planned
     (:func:`check_campaign` refuses to run a config that has them)."""
-    robot = robot_model(config)
+    inputs = PlanInputs.of(config)
     out = []
     streamed = [t for t in config.trajectories if not t.recorded]
     ordered = [t for t in streamed if not t.online_only] + [t for t in streamed if t.online_only]
@@ -110,53 +154,51 @@ def plan(config: Config, names: list[str] | None = None, online: bool = False) -
         if names is None and tcfg.online_only and not online:
             continue
         try:
-            traj = build(config, tcfg, robot)
-            report = check(config, traj, robot)
+            traj = build(inputs, tcfg)
+            report = check(inputs, traj)
         except (ValueError, KinematicsError, trajectories.TrajectoryFileError, OSError) as exc:
             out.append(PlannedTrajectory(tcfg, None, None, error=str(exc)))
             continue
-        if late := events_past_the_end(config, tcfg, traj.duration):
+        if late := events_past_the_end(tcfg, inputs.fault, traj.duration):
             out.append(PlannedTrajectory(tcfg, None, None, error=late))
             continue
-        out.append(PlannedTrajectory(tcfg, traj, report, notes=quantisation_notes(config, traj)))
+        out.append(PlannedTrajectory(tcfg, traj, report, notes=quantisation_notes(inputs, traj)))
     return out
 
 
-def events_past_the_end(config: Config, tcfg: TrajectoryConfig, duration: float) -> str:
+def events_past_the_end(tcfg: TrajectoryConfig, fault: SimFaultConfig | None, duration: float) -> str:
     """What the config sets to happen during trajectory ``tcfg`` (its ``payload``, the simulated
-    rig's ``sim.fault``) at or after its end (``duration`` s): it would never happen, and the run
+    rig's ``fault``) at or after its end (``duration`` s): it would never happen, and the run
     would look like one where it did. Empty if nothing."""
     events = []
     if tcfg.payload is not None:
         events.append(("payload.after", tcfg.payload.after))
-    fault = config.sim.fault if config.sim is not None else None
     if fault is not None and fault.trajectory == tcfg.name:
         events.append(("sim.fault.after", fault.after))
     return "; ".join(f"{key} {after:g} s is at or past its end ({duration:.3g} s): it would never happen"
                      for key, after in events if after >= duration)
 
 
-def check(config: Config, traj: trajectories.Trajectory, robot: RobotModel) -> trajectories.Report:
+def check(inputs: PlanInputs, traj: trajectories.Trajectory) -> trajectories.Report:
     """The feasibility report of ``traj`` on the config's robot: its kind's check (reach, safety
     margins, speeds and accelerations) and the set-points ``run`` streams checked as
     ``run_cyclic`` checks them (:func:`setpoint_violations`): a trajectory this accepts streams
     without a limit stop. The set-point check stands for the kind's ``position`` check (the
     actuators' limits, the same numbers, drawn here where ``run_cyclic`` draws them); the 3PRRR's
     ``stroke`` check of the guides stays."""
-    acts = config.robot.actuators
+    acts = inputs.robot.actuators
     if traj.Theta.shape[1] != len(acts):
         raise ValueError(f"trajectory {traj.name!r} moves {traj.Theta.shape[1]} actuators, the robot has {len(acts)}")
-    report = kind_of(config.robot).check(config, traj, robot)
-    found = [v for v in report.violations if v.quantity != "position"] + setpoint_violations(config, traj)
-    report.violations = sorted(found, key=lambda v: v.sample)
-    return report
+    report = trajectories_of(inputs.robot).check(inputs.robot, traj, inputs.model)
+    found = [v for v in report.violations if v.quantity != "position"] + setpoint_violations(inputs.axes, traj)
+    return dataclasses.replace(report, violations=tuple(sorted(found, key=lambda v: v.sample)))
 
 
-def setpoint_violations(config: Config, traj: trajectories.Trajectory) -> list[trajectories.Violation]:
+def setpoint_violations(axes: Sequence[AxisConfig], traj: trajectories.Trajectory) -> list[trajectories.Violation]:
     """Per drive, the first of the set-points ``run`` streams for ``traj`` (:func:`setpoints`)
     outside its software position limits, by the very test ``run_cyclic`` applies before it
-    streams (:func:`drivers.axis.outside_position_limits`, on the axes of :func:`drive_axes`)."""
-    axes, targets = drive_axes(config), setpoints(traj)
+    streams (:func:`drivers.axis.outside_position_limits`, on the drives' ``axes``, :func:`drive_axes`)."""
+    targets = setpoints(traj)
     outside = outside_position_limits(axes, targets)
     found = []
     for j in np.flatnonzero(outside.any(axis=0)):
@@ -168,7 +210,7 @@ def setpoint_violations(config: Config, traj: trajectories.Trajectory) -> list[t
     return found
 
 
-def quantisation_notes(config: Config, traj: trajectories.Trajectory) -> tuple[str, ...]:
+def quantisation_notes(inputs: PlanInputs, traj: trajectories.Trajectory) -> tuple[str, ...]:
     """Advice (not an error): the axes on which one encoder count per SYNC period, as a demand
     acceleration (``1 / (counts_per_unit T²)``), exceeds the trajectory's RMS acceleration. The
     set-points are whole counts, so the drives' interpolated demand ripples by that much: the
@@ -176,15 +218,15 @@ def quantisation_notes(config: Config, traj: trajectories.Trajectory) -> tuple[s
     user should act on it: with ``identification.encoder_draws`` (the default), every sigma and
     the verdict's noise floor hold the encoders' resolution, and nothing is said; without, the
     sigma would leave it out."""
-    if config.identification is not None and config.identification.encoder_draws:
+    if inputs.encoder_draws:
         return ()
-    period = 1.0 / sample_rate(config)
+    period = 1.0 / inputs.rate
     parts = []
-    for j, axis in enumerate(config.robot.actuators):
+    for j, axis in enumerate(inputs.axes):
         rms = float(np.sqrt(np.mean(traj.Thetadd[:, j] ** 2)))
-        quantum = 1.0 / (axis_scaling(axis).counts_per_unit * period**2)
+        quantum = 1.0 / (axis.scaling.counts_per_unit * period**2)
         if 0 < rms < quantum:
-            unit = "rad/s²" if axis.kind == "revolute" else "m/s²"
+            unit = f"{POSITION_UNITS[axis.scaling.kind]}/s²"
             parts.append(f"{axis.name} {quantum:.3g} {unit} = {quantum / rms:.1f}x its RMS")
     if not parts:
         return ()
@@ -201,7 +243,7 @@ HOME_ON_CURRENT_POSITION = (35, 37)
 HOME_TOLERANCE_COUNTS = 10
 
 
-def homing_problems(config: Config, robot: RobotModel | None = None) -> list[str]:
+def homing_problems(inputs: PlanInputs) -> list[str]:
     """Homing offsets that would stop a run or mislead the model, as messages: one outside its
     axis's position limits (the drive would stop on its software position limit at home), or,
     for a method homing on the current position (:data:`HOME_ON_CURRENT_POSITION`), one away
@@ -209,22 +251,21 @@ def homing_problems(config: Config, robot: RobotModel | None = None) -> list[str
     model would then disagree by the difference for the whole run) by more than
     :data:`HOME_TOLERANCE_COUNTS` encoder counts. None without a bus (no drive to home) or for an
     actuator without homing."""
-    if config.bus is None:
+    if not inputs.has_bus:
         return []
-    robot = robot_model(config) if robot is None else robot
-    home = robot.home_actuated()
+    home = inputs.model.home_actuated()
     problems = []
-    for j, (act, axis) in enumerate(zip(config.robot.actuators, drive_axes(config))):
+    for j, (act, axis) in enumerate(zip(inputs.robot.actuators, inputs.axes)):
         if act.homing is None:
             continue
         offset, unit = act.homing.offset, POSITION_UNITS[act.kind]
-        where = f"{config.source}: robot.actuators[{j}] ({act.name}) homing.offset {offset:.6g} {unit}"
+        where = f"{inputs.source}: robot.actuators[{j}] ({act.name}) homing.offset {offset:.6g} {unit}"
         if outside_position_limits([axis], np.array([[offset]]))[0, 0]:
             problems.append(f"{where} is outside its position limits [{axis.position_min:.6g}, "
                             f"{axis.position_max:.6g}] {unit}: the drive would stop on its software position limit "
                             "as soon as it is homed")
         elif act.homing.method in HOME_ON_CURRENT_POSITION:
-            tolerance = HOME_TOLERANCE_COUNTS / axis_scaling(act).counts_per_unit
+            tolerance = HOME_TOLERANCE_COUNTS / axis.scaling.counts_per_unit
             if abs(offset - home[j]) > tolerance:
                 problems.append(f"{where}: homing method {act.homing.method} takes the current position as home, "
                                 f"where the model puts {act.name} at {home[j]:.6g} {unit} ({offset - home[j]:+.4g} "
@@ -251,7 +292,7 @@ def check_campaign(config: Config, planned: list[PlannedTrajectory] | None = Non
     if config.identification is None:
         problems.append(f"{config.source}: identification: missing section (the steps that turn the "
                         "recordings into parameters; a run would move, record, then stop)")
-    problems += homing_problems(config)
+    problems += homing_problems(PlanInputs.of(config))
     for p in plan(config, online=True) if planned is None else planned:
         if not p.ok:
             problems.append(p.describe())

@@ -374,12 +374,23 @@ def lag_reasons(lags: dict[str, ForceLag], limits: Thresholds) -> tuple[list[str
     return reasons, notes
 
 
+@dataclass(frozen=True)
+class Predictions:
+    """The predictions judged (:func:`prediction_reasons`): each trajectory's verdict with the
+    figures of its predictions, and the reasons."""
+
+    trajectories: Mapping[str, TrajectoryVerdict]
+    reasons: tuple[str, ...]
+
+
 def prediction_reasons(results: Results, limits: Thresholds,
-                       per_traj: dict[str, TrajectoryVerdict]) -> list[str]:
+                       recorded: Mapping[str, TrajectoryVerdict]) -> Predictions:
     """On each validation trajectory (each identification one when there is none): the force
     prediction error d_tau of the step-by-step and the base-parameter values, and how far the two
-    predictions are apart; the figures go into ``per_traj`` (updated in place)."""
+    predictions are apart; ``recorded``: each trajectory's verdict of its recording, which the
+    figures join (a new record each)."""
     reasons: list[str] = []
+    per_traj = dict(recorded)
     stepwise = any(r.fitted for r in results.parameter_rows())   # else the table holds the CAD values only
     for fit in [f for f in results.fits if f.role == "validation"] or results.fits:
         figures: dict = {"role": fit.role}
@@ -400,7 +411,7 @@ def prediction_reasons(results: Results, limits: Thresholds,
                     reasons.append(f"{fit.name}: step-by-step and base-parameter predictions {apart:.1f} % apart "
                                    f"(> {limits.max_disagreement:g} %)")
         per_traj[fit.name] = dataclasses.replace(per_traj.get(fit.name, TrajectoryVerdict()), **figures)
-    return reasons
+    return Predictions(per_traj, tuple(reasons))
 
 
 @dataclass(frozen=True)
@@ -454,13 +465,24 @@ def prediction_reasons_per_axis(figures: Mapping[str, AxisFigures], limits: Thre
     return out
 
 
+@dataclass(frozen=True)
+class AxisChecks:
+    """What the per-axis checks found (:func:`axis_figures`): the figures per axis, the checks not
+    judged (and why), the reasons (a gain first, the cause; the floor's, folded into the gain's
+    when a gain was named: it is then that axis's error spread by the fit; the lags) and the
+    notes (what is seen and not failed on)."""
+
+    figures: Mapping[str, AxisFigures]
+    not_judged: Mapping[str, str]
+    reasons: tuple[str, ...]
+    notes: tuple[str, ...]
+
+
 def axis_figures(results: Results, limits: Thresholds, force_per_amp: np.ndarray | None,
-                 evidence: AxisEvidence) -> tuple[dict[str, AxisFigures], dict[str, str], list[str], list[str]]:
+                 evidence: AxisEvidence) -> AxisChecks:
     """The per-axis checks: each judged axis's gain against its own model refitted, its
     residual against its own noise floor, the lag of its forces; each axis on its own, none
-    against another. Returns the figures per axis, the checks not judged (and why), and the
-    reasons: a gain first (the cause), the floor's (folded into the gain's when a gain was
-    named: it is then that axis's error spread by the fit), the lags."""
+    against another (:class:`AxisChecks`)."""
     judged = evidence.judged
     over = floor_figures(results, force_per_amp, evidence.floors, judged) if force_per_amp is not None else {}
     beyond = {name: f for name, f in over.items() if f.ratio > limits.max_residual_over_floor}
@@ -504,7 +526,7 @@ def axis_figures(results: Results, limits: Thresholds, force_per_amp: np.ndarray
             rre_percent=None if prediction is None else prediction.rre,
             rre_consistent_percent=None if prediction is None else prediction.consistent,
             rre_trajectory=None if prediction is None else prediction.trajectory, failed=failed)
-    return figures, not_judged, reasons, notes
+    return AxisChecks(figures, not_judged, tuple(reasons), tuple(notes))
 
 
 def verdict(results: Results, limits: Thresholds, force_per_amp: np.ndarray | None = None,
@@ -520,8 +542,9 @@ def verdict(results: Results, limits: Thresholds, force_per_amp: np.ndarray | No
     reasons += more
     if evidence is None:
         evidence = AxisEvidence(judged=tuple(results.actuators), floor_missing="no noise floors given")
-    axes, not_judged, more, notes = axis_figures(results, limits, force_per_amp, evidence)
-    reasons += more             # an axis's drive data off: the cause of what follows
+    checks = axis_figures(results, limits, force_per_amp, evidence)
+    axes, not_judged, notes = checks.figures, dict(checks.not_judged), checks.notes
+    reasons += checks.reasons   # an axis's drive data off: the cause of what follows
     well, more = well_identified_reasons(results, limits)
     reasons += more
     noise_only = noise_dominated(axes, limits)
@@ -537,7 +560,9 @@ def verdict(results: Results, limits: Thresholds, force_per_amp: np.ndarray | No
                 f"prediction is judged instead (rre where each axis moves, <= {limits.max_axis_rre:g} %)")
     reasons += prediction_reasons_per_axis({name: figures for name, figures in axes.items()
                                             if figures.rre_percent is not None}, limits)
-    reasons += prediction_reasons(results, limits, per_traj)
+    predictions = prediction_reasons(results, limits, per_traj)
+    reasons += predictions.reasons
+    per_traj = dict(predictions.trajectories)
     return Verdict(passed=not reasons, reasons=tuple(dict.fromkeys(reasons)), thresholds=limits,
                    trajectories=per_traj, steps=steps, well_identified=tuple(well), axes=axes,
                    not_judged=not_judged, axes_judged=tuple(evidence.judged), notes=tuple(notes))

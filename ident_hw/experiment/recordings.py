@@ -14,15 +14,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Collection, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Collection, Sequence
 
 import numpy as np
 
 from drivers.errors import RecordingError
 from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log
 from drivers.recording_metadata import RecordingMetadata
-from ident_hw.config import Config, IdentificationConfig
+from ident_hw.config import ActuatorConfig, Config, IdentificationConfig
 from ident_hw.records import ImportSummary
 from ident_hw.config.to_drivers import axis_config, axis_scaling
 
@@ -81,16 +82,26 @@ def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
         meta = RecordingMetadata(trajectory=name, file=str(path), current=config.current, sync_period=period,
                                  n_targets=cycles)
         rec = decode_log(path, axes, max_cycles=cycles, metadata=meta, lockstep_period=lockstep_period)
-        check_log_nodes(path, rec, config)
+        check_log_nodes(path, rec, config.robot.actuators, config.source)
     else:
         rec = Recording.load(path)
-        rec.metadata = dataclasses.replace(rec.metadata, file=str(path))
-        check_axes(path, rec, config)
+        rec = dataclasses.replace(rec, metadata=dataclasses.replace(rec.metadata, file=str(path)))
+        check_axes(path, rec, config.robot.actuators, config.source)
     return rec.metadata.trajectory or path.stem, rec
 
 
-def gather_recordings(config: Config, given: list[str]
-                      ) -> tuple[dict[str, Recording], dict[str, ImportSummary], list[str]]:
+@dataclass(frozen=True)
+class Gathered:
+    """The recordings ``ident-hw identify`` works on (:func:`gather_recordings`): by trajectory
+    name; for those read from files made elsewhere, how they were read (``imported``); and the
+    notes to print (what a folder gave, what was skipped)."""
+
+    recordings: Mapping[str, Recording]
+    imported: Mapping[str, ImportSummary]
+    notes: tuple[str, ...]
+
+
+def gather_recordings(config: Config, given: Sequence[str]) -> Gathered:
     """The recordings ``ident-hw identify`` works on: each item ``given`` (``NAME=PATH``: the
     recording of trajectory NAME; a results folder or its ``data/``: its recordings,
     :func:`recording_paths`; else a decoded ``.npz`` or raw log named by its trajectory, or a file
@@ -98,7 +109,8 @@ def gather_recordings(config: Config, given: list[str]
     trajectory of the config not given, from its own file and window. A file given in a recorded
     trajectory's place is read as the config's ``recordings`` section says, whole (its window is
     the config's file's). Returns the recordings by trajectory name, for those read from files made
-    elsewhere how they were read, and the notes to print (what a folder gave, what was skipped).
+    elsewhere how they were read, and the notes to print (what a folder gave, what was skipped):
+    a :class:`Gathered`.
 
     Raises:
         RecordingError: an unreadable or mismatched file, two files for one trajectory, a folder
@@ -117,7 +129,7 @@ def gather_recordings(config: Config, given: list[str]
         recordings[name], files[name] = rec, str(path)
 
     for item in given:
-        name, path = _named(item, config)
+        name, path = _named(item, [t.name for t in config.trajectories], config.source)
         if name is None and (Path(path).is_dir() or Path(path).name == "drives.json"
                              or Path(path).name.endswith(NOT_RECORDINGS)):
             paths, more = recording_paths([path])
@@ -142,19 +154,20 @@ def gather_recordings(config: Config, given: list[str]
         if name not in recordings:
             external = read_external(config, tcfg)
             recordings[name], imported[name] = external.recording, external.summary
-    return recordings, imported, notes
+    return Gathered(recordings, imported, tuple(notes))
 
 
-def _named(item: str, config: Config) -> tuple[str | None, str]:
-    """``(NAME, PATH)`` of an argument ``NAME=PATH`` naming one of the config's trajectories, else
-    ``(None, item)``."""
+def _named(item: str, names: Sequence[str], source: str) -> tuple[str | None, str]:
+    """``(NAME, PATH)`` of an argument ``NAME=PATH`` naming one of the config's trajectories
+    ``names`` (of the config file ``source``), else ``(None, item)``."""
     name, sep, path = item.partition("=")
-    if sep and name in {t.name for t in config.trajectories} and not Path(item).exists():
+    if sep and name in names and not Path(item).exists():
         return name, path
     if sep and not Path(item).exists() and "/" not in name:
-        raise RecordingError(f"{item}: no trajectory {name!r} in {config.source} (its trajectories: "
-                             f"{', '.join(t.name for t in config.trajectories)})")
+        raise RecordingError(f"{item}: no trajectory {name!r} in {source} (its trajectories: {', '.join(names)})")
     return None, item
+
+
 #: what a results folder's ``data/`` holds beside the recordings, by name or ending (not recordings)
 NOT_RECORDINGS = ("drives.json", ".log.json", ".asc.json", ".blf.json")
 
@@ -208,24 +221,24 @@ def _folder_recordings(folder: Path) -> list[Path]:
     return [chosen[name] for name in sorted(chosen)]
 
 
-def check_axes(path: Path, rec: Recording, config: Config) -> None:
-    """The axes a decoded recording was made with (``metadata.axes``) are the config's: same
-    node-IDs, profiles and drive scaling. A recording without them is not checked."""
+def check_axes(path: Path, rec: Recording, acts: Sequence[ActuatorConfig], source: str) -> None:
+    """The axes a decoded recording was made with (``metadata.axes``) are the config's actuators
+    ``acts`` (of the config file ``source``): same node-IDs, profiles and drive scaling. A
+    recording without them is not checked."""
     recorded = rec.metadata.axes
     if not recorded:
         return
-    acts = config.robot.actuators
     if len(recorded) != len(acts):
-        raise RecordingError(f"{path}: recorded with {len(recorded)} axes, {config.source} has {len(acts)}")
+        raise RecordingError(f"{path}: recorded with {len(recorded)} axes, {source} has {len(acts)}")
     nodes = [f"{a.name} on node {r.node_id} (config: node {a.node_id})"
              for a, r in zip(acts, recorded) if r.node_id != a.node_id]
     if nodes:
-        raise RecordingError(f"{path} was recorded from other nodes than {config.source} configures: "
+        raise RecordingError(f"{path} was recorded from other nodes than {source} configures: "
                              f"{'; '.join(nodes)}. Identify with the run's own config (config.yaml of its "
                              "results folder)")
     differ = []
     for act, r in zip(acts, recorded):
-        if r.profile.lower() != act.profile:
+        if r.profile.lower() != (act.profile or ""):
             differ.append(f"{act.name} (node {act.node_id}) profile {r.profile!r} (config: {act.profile!r})")
         mine = axis_scaling(act)
         for key in SCALING_FIELDS:
@@ -234,23 +247,22 @@ def check_axes(path: Path, rec: Recording, config: Config) -> None:
                 differ.append(f"{act.name} (node {act.node_id}) {key} = {theirs} (config: {ours})")
     if differ:
         raise RecordingError(
-            f"{path} was converted to SI units with other drive data than {config.source}: {'; '.join(differ)}. "
+            f"{path} was converted to SI units with other drive data than {source}: {'; '.join(differ)}. "
             "Identify with the run's own config (config.yaml of its results folder), or from the raw CAN log "
             "of the run, which is decoded with this config's values")
 
 
-def check_log_nodes(path: Path, rec: Recording, config: Config) -> None:
-    """Every configured node has samples in a decoded raw log (else the log is of other nodes,
-    or holds no streaming at all)."""
+def check_log_nodes(path: Path, rec: Recording, acts: Sequence[ActuatorConfig], source: str) -> None:
+    """Every configured node (of the actuators ``acts`` of the config file ``source``) has samples
+    in a decoded raw log (else the log is of other nodes, or holds no streaming at all)."""
     heard = list(rec.metadata.nodes_heard)
     if not len(rec.t):
         raise RecordingError(f"{path}: no SYNC cycle of the configured nodes in the log (nodes heard: "
                              f"{heard or 'none'})")
     received = identification_valid(rec).any(axis=0)
-    silent = [f"node {a.node_id} ({a.name})" for a, any_valid in zip(config.robot.actuators, received)
-              if not any_valid]
+    silent = [f"node {a.node_id} ({a.name})" for a, any_valid in zip(acts, received) if not any_valid]
     if silent:
-        raise RecordingError(f"{path}: no sample of {', '.join(silent)} configured in {config.source}; the log "
+        raise RecordingError(f"{path}: no sample of {', '.join(silent)} configured in {source}; the log "
                              f"holds frames of nodes {heard or 'none'}")
 
 

@@ -132,18 +132,18 @@ class CampaignInputs:
     fault: SimFaultConfig | None = None
     payloads: Mapping[str, PayloadConfig] = field(default_factory=dict)
 
-
-def campaign_inputs(config: Config) -> CampaignInputs:
-    """The :class:`CampaignInputs` of a config whose campaign can run (it has a bus)."""
-    if config.bus is None:
-        raise ValueError(f"{config.source}: bus: missing section (needed to run)")
-    return CampaignInputs(name=Path(config.source).name, current=config.current, sync_period=sync_period(config),
-                          raw_log=config.output.raw_log,
-                          following_error=np.array([a.limits.following_error for a in config.robot.actuators]),
-                          bring_up_timeout=config.bus.bring_up_timeout,
-                          bus_label=f"{config.bus.interface}:{config.bus.channel}", simulated=config.simulated,
-                          fault=config.sim.fault if config.sim is not None else None,
-                          payloads={t.name: t.payload for t in config.trajectories if t.payload is not None})
+    @classmethod
+    def of(cls, config: Config) -> CampaignInputs:
+        """The inputs of a config whose campaign can run (it has a bus)."""
+        if config.bus is None:
+            raise ValueError(f"{config.source}: bus: missing section (needed to run)")
+        return cls(name=Path(config.source).name, current=config.current, sync_period=sync_period(config.bus),
+                   raw_log=config.output.raw_log,
+                   following_error=np.array([a.limits.following_error for a in config.robot.actuators]),
+                   bring_up_timeout=config.bus.bring_up_timeout,
+                   bus_label=f"{config.bus.interface}:{config.bus.channel}", simulated=config.simulated,
+                   fault=config.sim.fault if config.sim is not None else None,
+                   payloads={t.name: t.payload for t in config.trajectories if t.payload is not None})
 
 
 class _SyncCounter(can.Listener):
@@ -325,7 +325,7 @@ def run_campaign(config: Config, folder: str | Path, *, online: CampaignEstimato
         planned = plan(config, online=online is not None)
     elif online is None:
         planned = [p for p in planned if not p.config.online_only]
-    inputs = campaign_inputs(config)
+    inputs = CampaignInputs.of(config)
     recordings: dict[str, Recording] = {}
     try:
         with host.pinned(), open_session(config) as session:

@@ -30,7 +30,8 @@ from drivers.units import MA_PER_AMP
 from ident_hw.config import Config
 from ident_hw.config.robots import true_parameters
 from ident_hw.config.to_drivers import axis_scaling, bus_settings, encoder_edge_counts
-from ident_hw.experiment.plan import drive_axes, robot_model, sync_period
+from ident_hw.config.robots import model_of
+from ident_hw.experiment.plan import drive_axes, sync_period
 
 if TYPE_CHECKING:     # the rig (its compiled plant) is imported where one is built
     from drivers.sim import SimulatedRig
@@ -53,11 +54,11 @@ def simulated_rig(config: Config) -> SimulatedRig:
     sim, robot = config.sim, config.robot
     lockstep = config.sync_mode == "lockstep"
     axes = [(a.node_id, a.profile, axis_scaling(a)) for a in robot.actuators]
-    model = robot_model(config)
+    model = model_of(config.robot)
     return SimulatedRig.build(model, true_parameters(config, model), axes,
                               bandwidth_hz=sim.bandwidth, damping=sim.damping,
                               **({"max_substep": sim.max_substep} if sim.max_substep else {}),
-                              sync_period=sync_period(config) if lockstep else None,
+                              sync_period=sync_period(config.bus) if lockstep else None,
                               current_noise_ma=sim.current_noise * MA_PER_AMP, seed=sim.seed, lockstep=lockstep, brakes=sim.brakes,
                               encoder_edges=encoder_edge_counts(sim, len(axes)),
                               interface=config.bus.interface, channel=config.bus.channel, ignore_config=True)
@@ -116,8 +117,8 @@ class DriveSettings:
         if bus is None:
             raise ValueError(f"{config.source}: bus: missing section (needed to open the bus)")
         lockstep = config.sync_mode == "lockstep"
-        return cls(axes=tuple(drive_axes(config)), heartbeat=bus.heartbeat, heartbeat_timeout=bus.heartbeat_timeout,
-                   sdo_timeout=bus.sdo_timeout, lockstep_period=sync_period(config) if lockstep else None,
+        return cls(axes=tuple(drive_axes(config.robot.actuators, config.base_dir, config.current)), heartbeat=bus.heartbeat, heartbeat_timeout=bus.heartbeat_timeout,
+                   sdo_timeout=bus.sdo_timeout, lockstep_period=sync_period(bus) if lockstep else None,
                    lockstep_timeout=bus.lockstep_timeout)
 
     def sync_source(self) -> SyncSource:

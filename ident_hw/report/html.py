@@ -4,6 +4,7 @@ Jinja2 (every value escaped by the template engine, the page's layout readable i
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import jinja2
@@ -63,11 +64,22 @@ def render_html(folder: Path, results: Results, table: dict[str, TrajectoryMetri
         images=[(title, str(path.relative_to(folder))) for title, path in images])
 
 
-def validation_rows(v: ValidationFigures, compared: str | None
-                    ) -> list[tuple[str, str, tuple[float | None, ...], float | None]]:
-    """The rows of a validation trajectory's table: (parameters, samples, one figure per actuator,
-    the mean of the whole trajectory's row or None), the identified parameters' then the compared
-    set's, each over all samples, those moving, those at rest and the residual's share at rest."""
+@dataclass(frozen=True)
+class ValidationRow:
+    """One row of a validation trajectory's table: the ``parameters`` predicting (identified, or
+    the set compared), over which ``samples`` (all, moving, at rest, or the share of the residual
+    at rest), one figure per actuator (None: none), and the ``mean`` of the whole trajectory's
+    row (None: not shown; NaN: a figure missing)."""
+
+    parameters: str
+    samples: str
+    values: tuple[float | None, ...]
+    mean: float | None
+
+
+def validation_rows(v: ValidationFigures, compared: str | None) -> list[ValidationRow]:
+    """The rows of a validation trajectory's table, the identified parameters' then the compared
+    set's (:class:`ValidationRow`)."""
     parts = (("all", v.rre_percent), ("moving", v.rre_moving_percent), ("at rest", v.rre_at_rest_percent),
              ("share of the residual at rest", v.residual_share_at_rest_percent))
     out = []
@@ -80,5 +92,5 @@ def validation_rows(v: ValidationFigures, compared: str | None
             if part == "all":
                 finite = [x for x in values if x is not None]
                 mean = sum(finite) / len(values) if len(finite) == len(values) and values else math.nan
-            out.append((label, part, values, mean))
+            out.append(ValidationRow(label, part, values, mean))
     return out
