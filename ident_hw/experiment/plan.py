@@ -87,6 +87,11 @@ class PlanInputs:
         """
         return tuple(drive_axes(self.robot.actuators, self.base_dir, self.current))
 
+    @property
+    def columns(self) -> tuple[tuple[str, str], ...]:
+        """The robot's actuators as a trajectory file names its columns: (name, unit of position)."""
+        return tuple((a.name, POSITION_UNITS[a.kind]) for a in self.robot.actuators)
+
 
 def sample_rate(bus: BusConfig | None) -> float:
     """Trajectory sample rate = the SYNC rate of the bus (250 Hz without a bus section)."""
@@ -113,17 +118,28 @@ def drive_axes(actuators: Sequence[ActuatorConfig], base_dir: Path | None, curre
 
 
 def build(inputs: PlanInputs, tcfg: TrajectoryConfig) -> trajectories.Trajectory:
-    """Generate one trajectory (all cycles) at the SYNC rate: a file's, a standstill, or one of
-    the robot kind's (:mod:`ident_hw.experiment.robot_trajectories`)."""
+    """Generate one trajectory (all cycles) at the SYNC rate: a file's (its columns the robot's
+    actuators, :mod:`trajectories.files`), a standstill, or one of the robot kind's
+    (:mod:`ident_hw.experiment.robot_trajectories`)."""
     rate = inputs.rate
     if tcfg.kind == "file":
-        traj = trajectories.load(Path(inputs.base_dir or "") / str(tcfg.path)).resample(rate)
+        traj = _from_file(Path(inputs.base_dir or "") / str(tcfg.path), inputs.columns).resample(rate)
     elif tcfg.kind == "standstill":
         traj = trajectories.standstill(inputs.model, tcfg.duration or STANDSTILL_S, rate, tcfg.name)
     else:
         traj = trajectories_of(inputs.robot).build(inputs.robot, tcfg, inputs.model, rate, inputs.base_dir,
                                                    inputs.bandwidth)
     return dataclasses.replace(repeat(traj, tcfg.cycles), name=tcfg.name)
+
+
+def _from_file(path: Path, columns: tuple[tuple[str, str], ...]) -> trajectories.Trajectory:
+    """The trajectory of a file whose columns are the robot's actuators (``columns``: name, unit)."""
+    found = trajectories.read(path)
+    if found.actuators != columns:
+        raise trajectories.TrajectoryFileError(
+            f"{path}: its columns are the actuators {', '.join(f'{n}[{u}]' for n, u in found.actuators)}; the robot's "
+            f"are {', '.join(f'{n}[{u}]' for n, u in columns)} (trajectories.save(traj, path, actuators) writes them)")
+    return found.trajectory
 
 
 def repeat(traj: trajectories.Trajectory, cycles: int) -> trajectories.Trajectory:
