@@ -11,7 +11,10 @@ import errno
 import ipaddress
 import logging
 import math
+import os
 import queue
+import socket
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -158,12 +161,36 @@ def open_bus(config: BusConfig) -> can.BusABC:
         # udp_multicast refuses receive_own_messages, yet the kernel's multicast loopback (on
         # by default) hands every datagram a socket sends back to it, in sending order
         own = {} if config.interface == "udp_multicast" else {"receive_own_messages": config.receive_own_messages}
-        return can.Bus(interface=config.interface, channel=config.channel, **own,
-                       ignore_config=config.ignore_config, **kwargs)
+        bus = can.Bus(interface=config.interface, channel=config.channel, **own,
+                      ignore_config=config.ignore_config, **kwargs)
+        if config.interface == "udp_multicast":
+            only_its_own_group(bus)
+        return bus
     except (can.CanError, OSError, ValueError, ImportError) as exc:
         raise BusOpenError(
             f"cannot open CAN bus interface={config.interface!r} channel={config.channel!r}: {exc}"
             + _socketcan_hint(config, exc)) from exc
+
+
+#: Linux's ``IPV6_MULTICAST_ALL`` and ``IP_MULTICAST_ALL`` (Python's socket module has no names
+#: for them): level and option number by address family
+_MULTICAST_ALL = {socket.AF_INET6: (socket.IPPROTO_IPV6, 29), socket.AF_INET: (socket.IPPROTO_IP, 49)}
+
+
+def only_its_own_group(bus: can.BusABC) -> None:
+    """A ``udp_multicast`` bus hears its own group only. Linux hands a socket bound to a port the
+    datagrams of *every* group any socket of the host joined on that port (``IPV6_MULTICAST_ALL``,
+    on by default): python-can's buses all bind its one default port, so two rigs on two groups
+    of one host, or two test runs, would hear each other. The option is switched off on the
+    bus's socket (Linux 4.20 and later; elsewhere nothing changes)."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        with socket.socket(fileno=os.dup(bus.fileno())) as sock:
+            level, option = _MULTICAST_ALL[sock.family]
+            sock.setsockopt(level, option, 0)
+    except (OSError, KeyError, NotImplementedError, ValueError) as exc:
+        logger.debug("udp_multicast: hears every group of its port (%s)", exc)
 
 
 def _socketcan_hint(config: BusConfig, exc: BaseException) -> str:
