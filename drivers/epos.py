@@ -37,7 +37,7 @@ from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, load_object_dictionary,
 from drivers.recording import Recording
 from drivers.recording_metadata import RecordingMetadata
 from drivers.stream import CyclicStream
-from drivers.supervision import Supervisor
+from drivers.supervision import Supervisor, Watchdogs
 from drivers.sync import PeriodicSync, SyncSource
 
 logger = logging.getLogger(__name__)
@@ -415,19 +415,21 @@ class DriveGroup:
     """The drives of the rig, brought up, commanded and streamed together.
 
     Heartbeats run both ways once :meth:`bring_up` started: every drive produces one every
-    ``heartbeat_period`` and the master watches them (a silent node stops the run with a
-    :class:`HeartbeatTimeout`); the master produces its own (COB-ID ``0x700 + master_id``, state
-    OPERATIONAL, ``network.send_periodic``: the kernel BCM on SocketCAN, which ends with the
-    master's socket) and writes every drive's consumer heartbeat time 0x1016:01, so that a drive
-    stops itself (heartbeat error, EMCY 0x8130, fault reaction) when the master is lost.
+    ``watchdogs.heartbeat_period`` and the master watches them (a node silent for
+    ``watchdogs.drive_heartbeat`` stops the run with a :class:`HeartbeatTimeout`); the master
+    produces its own (COB-ID ``0x700 + master_id``, state OPERATIONAL, from the SYNC source:
+    ``network.send_periodic``, i.e. a timing process, the kernel BCM on SocketCAN, or a thread;
+    in lockstep every so many SYNC cycles) and writes every drive's consumer heartbeat time
+    0x1016:01 (``watchdogs.master_heartbeat``), so that a drive stops itself (heartbeat error,
+    EMCY 0x8130, fault reaction) when the master is lost.
 
     Args:
         network: the network opened by :func:`drivers.bus.open_network`; its
             :class:`~drivers.bus.BusConfig` gives the bitrate of the bus-load check
             (``None``: no check).
         axes: the axes in sample order (theta1..3, zeta1..3 on the rig).
-        heartbeat_period: producer heartbeat time of the drives and of the master (s).
-        heartbeat_timeout: consumer timeout on both sides (s); default 3.5 periods.
+        watchdogs: the heartbeat period and every time limit that stops a run
+            (:class:`drivers.supervision.Watchdogs`; default its defaults).
         master_id: node-ID under which the master produces its heartbeat (not a drive's).
         sdo_timeout: SDO response timeout (s).
         sync: the SYNC producer and the clock of every wait for the drives (homing, moves,
@@ -439,8 +441,7 @@ class DriveGroup:
     """
 
     def __init__(self, network: canopen.Network, axes: Sequence[AxisConfig],
-                 heartbeat_period: float = 0.1, heartbeat_timeout: float | None = None,
-                 master_id: int = 127,
+                 watchdogs: Watchdogs | None = None, master_id: int = 127,
                  sdo_timeout: float = 0.5, sync: SyncSource | None = None):
         bus_config = getattr(network, "config", None)
         if not isinstance(bus_config, BusConfig):
@@ -459,22 +460,17 @@ class DriveGroup:
                               f"{master_id!r} (drives: {sorted(seen)})")
         self.sync: SyncSource = sync or PeriodicSync()
         self._sync_attached = False
-        self.heartbeat_timeout = heartbeat_timeout or 3.5 * heartbeat_period
-        if not (0 < heartbeat_period and round(heartbeat_period * 1e3) >= 1
-                and 1 <= round(self.heartbeat_timeout * 1e3) <= 0xFFFF
-                and self.heartbeat_timeout > heartbeat_period):
-            raise ConfigError(f"heartbeat: need 1 ms <= period < timeout <= 65.535 s, got period "
-                              f"{heartbeat_period!r} s, timeout {self.heartbeat_timeout!r} s")
+        self.watchdogs = watchdogs or Watchdogs()
         self.network = network
         self.axes = list(axes)
         self.bitrate = bus_config.bitrate
-        self.heartbeat_period = heartbeat_period
+        self.heartbeat_period = self.watchdogs.heartbeat_period
         self.master_id = master_id
         self._master_heartbeat = None  # the periodic task, while running
-        self.supervisor = Supervisor()
+        self.supervisor = Supervisor(self.sync.watch_clock(), alive=getattr(network, "alive", None))
         self.drives = [EposDrive(network, a, self.supervisor, sdo_timeout, self.sync) for a in self.axes]
         for drive in self.drives:
-            self.supervisor.watch_heartbeat(drive.label, drive.node.nmt, self.heartbeat_timeout)
+            self.supervisor.watch_heartbeat(drive.label, drive.node.nmt, self.watchdogs.drive_heartbeat)
         self.layouts = master_layouts(self.axes)
 
     def __enter__(self) -> "DriveGroup":
@@ -488,22 +484,22 @@ class DriveGroup:
         """Start the master heartbeat, bring every drive up (each then watches the master), start
         them (NMT OPERATIONAL) and watch their heartbeats."""
         if self._master_heartbeat is None:
-            self._master_heartbeat = self.network.send_periodic(
-                0x700 + self.master_id, [NMT_OPERATIONAL], self.heartbeat_period)
-        consumer = self.master_id << 16 | round(self.heartbeat_timeout * 1e3)
+            self._master_heartbeat = self.sync.start_heartbeat(
+                self.network, 0x700 + self.master_id, bytes([NMT_OPERATIONAL]), self.heartbeat_period)
+        consumer = self.master_id << 16 | round(self.watchdogs.master_heartbeat * 1e3)
         for drive, layout in zip(self.drives, self.layouts):
             drive.bring_up(layout.frames, round(self.heartbeat_period * 1e3), consumer, timeout)
         for drive in self.drives:
             drive.node.nmt.state = "OPERATIONAL"
         for drive in self.drives:
             drive.wait_operational(timeout)
-        self.supervisor.start_heartbeat_monitoring()
-        self.supervisor.raise_if_fault()
         if not self._sync_attached:
             tpdos = {f.cob_id(d.axis.node_id): d.label for d, layout in zip(self.drives, self.layouts)
                      for f in layout.frames if f.direction == "tpdo" and f.per_sync}
             self.sync.attach(self.network, tpdos, self._barrier)
             self._sync_attached = True
+        self.supervisor.start_heartbeat_monitoring()
+        self.supervisor.raise_if_fault()
 
     def _barrier(self) -> None:
         """An SDO round trip to the first drive that answers: a device answers frames in the order

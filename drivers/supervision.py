@@ -11,11 +11,13 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from dataclasses import dataclass
+from typing import Callable
 
 from canopen.nmt import NMT_STATES
 
 from drivers.emcy import describe
-from drivers.errors import BusError, DriveFault, HeartbeatTimeout
+from drivers.errors import BusError, ConfigError, DriveFault, HeartbeatTimeout
 
 logger = logging.getLogger(__name__)
 
@@ -27,17 +29,97 @@ logger = logging.getLogger(__name__)
 MAX_UNWATCHED = 0.1
 
 
-class Supervisor:
-    """Thread-safe collector of the first fault, and the heartbeat consumer of the master."""
+#: heartbeat periods: the default of both heartbeat timeouts (:class:`Watchdogs`)
+HEARTBEAT_PERIODS = 3.5
 
-    def __init__(self) -> None:
+
+@dataclass(frozen=True)
+class Watchdogs:
+    """Every time limit that stops a run when one side goes silent, in s (``None``: the default
+    given with each).
+
+    Args:
+        heartbeat_period: the drives' producer heartbeat time (``0x1017``) and the master's.
+        drive_heartbeat: the master stops the run when a drive's heartbeat is this late on the
+            time it was running and watching (:class:`WatchClock`; in lockstep the simulated
+            time). Default :data:`HEARTBEAT_PERIODS` periods: three heartbeats lost in a row (a
+            drive's heartbeat comes from its firmware, on time).
+        master_heartbeat: every drive's consumer time of the master's heartbeat (``0x1016:01``):
+            a drive faults (EMCY 0x8130) when the master's heartbeat is this late. Default
+            :data:`HEARTBEAT_PERIODS` periods likewise: the master's heartbeat comes from a timer
+            outside its process where the bus allows (a timing process, the kernel's BCM).
+        sync_progress: the master stops a stream when no new SYNC cycle came for this long of the
+            time it was running and watching (a hold-up of its own process does not count).
+        master_progress: a timing process stops the SYNC, the set-points and the master's
+            heartbeat when the master's own loop made no progress for this long
+            (:class:`drivers.timing.TimingConfig`), so that the drives see a hung master.
+    """
+
+    heartbeat_period: float = 0.1
+    drive_heartbeat: float | None = None
+    master_heartbeat: float | None = None
+    sync_progress: float = 1.0
+    master_progress: float = 3.0
+
+    def __post_init__(self) -> None:
+        for name in ("drive_heartbeat", "master_heartbeat"):
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, HEARTBEAT_PERIODS * self.heartbeat_period)
+        period = self.heartbeat_period
+        if not (period > 0 and round(period * 1e3) >= 1):
+            raise ConfigError(f"heartbeat period: at least 1 ms, got {period!r} s")
+        for name in ("drive_heartbeat", "master_heartbeat"):
+            value = getattr(self, name)
+            if not (value > period and 1 <= round(value * 1e3) <= 0xFFFF):
+                raise ConfigError(f"{name} timeout: need heartbeat period < timeout <= 65.535 s, got {value!r} s "
+                                  f"(period {period!r} s)")
+        for name in ("sync_progress", "master_progress"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"{name}: a positive time in s, got {getattr(self, name)!r}")
+
+
+class WatchClock:
+    """The time the master was running and watching, s: wall-clock time of which a gap between
+    two :meth:`advance` calls counts at most ``cap`` s (:data:`MAX_UNWATCHED`), so that a
+    hold-up of the master's own process is not taken for a silence of what it watches."""
+
+    def __init__(self, cap: float = MAX_UNWATCHED) -> None:
+        self.cap = cap
+        self._watched = 0.0
+        self._last = time.monotonic()
+
+    def advance(self) -> float:
+        """The watch time now, advanced (the controlling thread's checks)."""
+        now = time.monotonic()
+        self._watched += min(now - self._last, self.cap)
+        self._last = now
+        return self._watched
+
+    def peek(self) -> float:
+        """The watch time now, without advancing it (any thread): the time since the last
+        :meth:`advance`, capped, added."""
+        return self._watched + min(time.monotonic() - self._last, self.cap)
+
+
+class Supervisor:
+    """Thread-safe collector of the first fault, and the heartbeat consumer of the master.
+
+    Args:
+        clock: the clock the drives' heartbeat timeouts count in (``advance()`` at a check,
+            ``peek()`` when a heartbeat comes): a :class:`WatchClock` (the default), or a
+            simulated rig's SYNC time (:meth:`drivers.sync.SyncSource.watch_clock`).
+        alive: called at every check of the controlling thread: the master's own loop made
+            progress (a timing process watches it, :meth:`drivers.bus.BusNetwork.alive`).
+    """
+
+    def __init__(self, clock=None, alive: Callable[[], None] | None = None) -> None:
         self._lock = threading.Lock()
         self._fault: DriveFault | None = None
         self.fault_event = threading.Event()
         self._heartbeats: dict[str, list] = {}  # label -> [timeout s, last reception (watch time) or None]
         self.heartbeat_active = False
-        self._watched = 0.0                     # s of watch time: checked time, gaps capped (MAX_UNWATCHED)
-        self._last_check = time.monotonic()
+        self.clock = clock if clock is not None else WatchClock()
+        self._alive = alive or (lambda: None)
 
     # -- reporting (any thread) ---------------------------------------------------------------
     def report(self, fault: DriveFault) -> None:
@@ -74,26 +156,15 @@ class Supervisor:
         entry = self._heartbeats[label] = [timeout, None]
 
         def on_heartbeat(state: int) -> None:
-            entry[1] = self._watch_time()
+            entry[1] = self.clock.peek()
             if self.heartbeat_active and state != 5:
                 self.report(DriveFault(label, None, "heartbeat reports NMT state "
                                        f"{NMT_STATES.get(state, state)} instead of OPERATIONAL"))
         nmt.add_heartbeat_callback(on_heartbeat)
 
-    def _watch_time(self) -> float:
-        """The watch clock now (s): the checked time so far plus the time since the last check,
-        capped at :data:`MAX_UNWATCHED` (read from any thread; only a check advances it)."""
-        return self._watched + min(time.monotonic() - self._last_check, MAX_UNWATCHED)
-
-    def _advance_watch(self) -> float:
-        now = time.monotonic()
-        self._watched += min(now - self._last_check, MAX_UNWATCHED)
-        self._last_check = now
-        return self._watched
-
     def start_heartbeat_monitoring(self) -> None:
         """Start counting the consumer timeouts from now."""
-        now = self._advance_watch()
+        now = self.clock.advance()
         for entry in self._heartbeats.values():
             entry[1] = now if entry[1] is None else max(entry[1], now)
         self.heartbeat_active = True
@@ -103,10 +174,12 @@ class Supervisor:
 
     def check_heartbeats(self) -> None:
         """Report a :class:`HeartbeatTimeout` for the first node whose heartbeat is overdue on the
-        watch clock (the time the master was running and checking, :data:`MAX_UNWATCHED`)."""
+        watch clock (the time the master was running and checking, :data:`MAX_UNWATCHED`; in
+        lockstep the simulated time). Every call is a sign of the master's progress (``alive``)."""
+        self._alive()
         if not self.heartbeat_active:
             return
-        now = self._advance_watch()
+        now = self.clock.advance()
         for label, (timeout, last) in self._heartbeats.items():
             if last is not None and now - last > timeout:
                 self.report(HeartbeatTimeout(label, 0x8130, f"no heartbeat for {now - last:.3f} s "

@@ -42,8 +42,10 @@ def cmd_check(args) -> int:
     for p in planned:
         print("  " + p.describe() + ("  (ident-hw online only)" if p.config.online_only else ""))
     if config.bus is not None:
+        from ident_hw.experiment.session import watchdog_lines
         where = "simulated rig" if config.simulated else "HARDWARE (motion needs --arm)"
         print(f"bus: {config.bus.interface} {config.bus.channel} at {config.bus.sync_rate:g} Hz SYNC: {where}")
+        print("\n".join(watchdog_lines(config)))
     problems = [m for m in check_campaign(config, planned) if m not in {p.describe() for p in planned}]
     for message in problems:
         print(message)

@@ -19,6 +19,7 @@ from drivers.errors import BusLoadError, ConfigError, RecordingError
 from drivers.recording import (FlushingLogger, Recording, SampleRecorder, decode_log, rows_to_arrays,
                                sidecar_path)
 from drivers.recording_metadata import RecordingMetadata
+from drivers.supervision import Watchdogs
 from drivers.sync import SyncReport
 from drivers.units import AxesScaling, AxisScaling
 
@@ -215,8 +216,10 @@ def test_drive_group_takes_bus_settings_from_the_network_and_checks_master_id():
         assert group.bitrate == 500_000 and network.config.bitrate == 500_000
         with pytest.raises(ConfigError, match=r"master_id .* \(drives: \[1, 2, 3\]\)"):
             DriveGroup(network, axes, master_id=2)
-        with pytest.raises(ConfigError, match="heartbeat"):
-            DriveGroup(network, axes, heartbeat_period=0.1, heartbeat_timeout=0.05)
+        with pytest.raises(ConfigError, match="drive_heartbeat timeout: need heartbeat period < timeout"):
+            DriveGroup(network, axes, Watchdogs(heartbeat_period=0.1, drive_heartbeat=0.05))
+        with pytest.raises(ConfigError, match="master_heartbeat timeout: .* 65.535 s"):
+            Watchdogs(master_heartbeat=70.0)
         # written out: per cycle a SYNC (0 bytes, 55 bits) and per EPOS4 drive TPDO1 (position +
         # current, 8 bytes: 135 bits), TPDO2 (velocity + statusword, 6 bytes: 115 bits) and RPDO1
         # (set-point + controlword, 6 bytes: 115 bits), at 250 Hz; plus four heartbeats (three

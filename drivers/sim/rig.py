@@ -30,8 +30,12 @@ again and nothing moves. A SYNC that finds set-points for only some of the strea
 (a frame lost on a lossy transport) is left unanswered until the master repeats it with them.
 Each SYNC's answer ends with the answer frame of :mod:`drivers.sim.lockstep` (the frames sent,
 or held), so that the master asks a cycle again as soon as one of its frames was lost.
-The RPDO deadline watch is off (the set-points come with every SYNC by construction); the
-heartbeat watch stays on the rig's clock.
+The RPDO deadline watch is off (the set-points come with every SYNC by construction). The
+heartbeats count SYNC periods both ways: each drive sends its heartbeat every producer period
+of simulated time (besides canopen's wall-clock one, which bring-up waits for) and watches the
+master's, which the master's :class:`~drivers.sim.lockstep.LockstepSync` sends by SYNC count, in
+simulated time; the master watches the drives' in simulated time too. A busy host, which slows
+the SYNC and the wall clock alike, never stops a simulated run.
 
 Fault injection (for tests and demos): :meth:`SimulatedRig.silence`, :meth:`~SimulatedRig.emcy`,
 :meth:`~SimulatedRig.sdo_abort`, :meth:`~SimulatedRig.frame_faults` and ``initial_states``;
@@ -176,8 +180,9 @@ class SimulatedRig:
         self.network._rng = np.random.default_rng(None if seed is None else seed + 1)
         self._lock = threading.RLock()
         self.time = 0.0    # s, the rig's clock (see the module docstring)
-        self.drives = [EmulatedDrive(node_id, profile, scaling, self.network, self._lock, lambda: self.time)
-                       for node_id, profile, scaling in nodes]
+        heartbeat_clock = (lambda: self.sync_time) if lockstep else None
+        self.drives = [EmulatedDrive(node_id, profile, scaling, self.network, self._lock, lambda: self.time,
+                                     heartbeat_clock) for node_id, profile, scaling in nodes]
         self._by_id = {d.id: d for d in self.drives}
         self._units = AxesScaling([n[2] for n in nodes])
         edges = np.zeros(len(nodes)) if encoder_edges is None else np.asarray(encoder_edges, dtype=float)
@@ -323,6 +328,9 @@ class SimulatedRig:
             self.syncs_done += 1
             self.sync_time += period
             if self.lockstep:
+                for drive in self.drives:            # the heartbeats in simulated time, both ways
+                    drive.heartbeat_by_sync(self.sync_time)
+                    drive.check_heartbeat(self.sync_time)
                 self._answer(data[0] if data else 0)
         self.step_seconds.append(time.perf_counter() - started)
 
@@ -411,8 +419,8 @@ class SimulatedRig:
                     self._last_tick = now
                     self.network.release_delayed(now)
                     for drive in self.drives:
-                        drive.check_heartbeat(self.time)
-                        if not self.lockstep:
+                        if not self.lockstep:            # in lockstep on SYNC, in simulated time
+                            drive.check_heartbeat(self.time)
                             drive.check_rpdo_timeout(self.time)
                         drive.send_event_tpdos(self.time)
                     if self.lockstep or self.sync_driven:
