@@ -33,7 +33,8 @@ from drivers.cia import (CW_CHANGE_IMMEDIATELY, CW_ENABLE_OPERATION, CW_FAULT_RE
 from drivers.cia import DISABLED, ENABLED, FAULT, FAULT_REACTION, FAULTED, NOT_READY, QUICK_STOP
 from drivers.emcy import describe
 from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, NodeError
-from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, load_object_dictionary, make_object_dictionary
+from drivers.firmware import REVISION, USES, absent, firmware_of, load_object_dictionary, objects_used, refusal
+from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, make_object_dictionary
 from drivers.recording import Recording
 from drivers.recording_metadata import RecordingMetadata
 from drivers.stream import CyclicStream
@@ -55,19 +56,22 @@ class EposDrive:
         sdo_timeout: SDO response timeout in s.
         timebase: the clock and the pause of the state waits (quick stop, fault reaction, mode
             switch): the drive group's SYNC source.
+        uses: what the run asks of the drive (:data:`drivers.firmware.USES`): its objects are
+            checked at bring-up (:meth:`check_objects`), and in its dictionary file if it has one.
     """
 
     def __init__(self, network: canopen.Network, axis: AxisConfig, supervisor: Supervisor,
-                 sdo_timeout: float = 0.5, timebase: SyncSource | None = None):
+                 sdo_timeout: float = 0.5, timebase: SyncSource | None = None, uses: Sequence[str] = USES):
         self.axis = axis
         self.profile = axis.drive_profile
         self.label = axis.label
         self.supervisor = supervisor
+        self.used = objects_used(self.profile, axis.current, uses)
         if axis.object_dictionary is None:
             od = make_object_dictionary(axis.profile, axis.node_id)
         else:
             try:
-                od = load_object_dictionary(axis.object_dictionary, axis.profile, axis.node_id)
+                od = load_object_dictionary(axis.object_dictionary, axis.profile, axis.node_id, axis.current, uses)
             except ValueError as exc:
                 raise ConfigError(f"{axis.label}: {exc}") from None
         self.node = canopen.RemoteNode(axis.node_id, od)
@@ -145,6 +149,25 @@ class EposDrive:
             raise BringUpError(self.label, f"device name {name!r} is not an {self.profile.name} "
                                f"(profile {self.axis.profile!r} in the configuration)")
 
+    def firmware(self) -> int | None:
+        """The drive's firmware version (``0x1018:03``, upper 16 bits), None if it does not say."""
+        try:
+            return firmware_of(int.from_bytes(self.node.sdo.upload(*REVISION)[:4], "little"))
+        except (SdoAbortedError, SdoCommunicationError):
+            return None
+
+    def check_objects(self) -> None:
+        """Ask the drive for every object the run uses (:func:`drivers.firmware.absent`): a
+        firmware without one of them is refused now, naming the node, the firmware and the
+        objects, instead of failing after homing and the move to the start."""
+        try:
+            missing = absent(self.node.sdo, self.used)
+        except SdoCommunicationError as exc:
+            raise NodeError(self.label, f"asking for the objects the run uses: {exc}") from exc
+        if missing:
+            raise BringUpError(self.label, refusal(self.profile, self.firmware(), missing, self.used)
+                               + "; nothing has moved")
+
     def write_limits(self) -> None:
         """Software position limits, current limit, max profile velocity, following-error window."""
         s, a, p = self.axis.scaling, self.axis, self.profile
@@ -185,7 +208,8 @@ class EposDrive:
 
     def bring_up(self, frames: Sequence[PdoFrame], heartbeat_ms: int, consumer_heartbeat: int,
                  timeout: float) -> None:
-        """Presence, PRE-OPERATIONAL, identity, fault reset, limits, PDOs, heartbeats.
+        """Presence, PRE-OPERATIONAL, identity, the objects the run uses, fault reset, limits,
+        PDOs, heartbeats.
 
         Args:
             frames: the PDOs to configure.
@@ -198,6 +222,7 @@ class EposDrive:
         try:
             self.node.nmt.state = "PRE-OPERATIONAL"
             self.check_identity()
+            self.check_objects()
             self.reset_fault()
             self.disable()
             self.write_limits()
@@ -430,6 +455,8 @@ class DriveGroup:
         axes: the axes in sample order (theta1..3, zeta1..3 on the rig).
         watchdogs: the heartbeat period and every time limit that stops a run
             (:class:`drivers.supervision.Watchdogs`; default its defaults).
+        uses: what the run asks of the drives (:data:`drivers.firmware.USES`, default all):
+            each drive's firmware is checked against the objects they read or write at bring-up.
         master_id: node-ID under which the master produces its heartbeat (not a drive's).
         sdo_timeout: SDO response timeout (s).
         sync: the SYNC producer and the clock of every wait for the drives (homing, moves,
@@ -442,7 +469,7 @@ class DriveGroup:
 
     def __init__(self, network: canopen.Network, axes: Sequence[AxisConfig],
                  watchdogs: Watchdogs | None = None, master_id: int = 127,
-                 sdo_timeout: float = 0.5, sync: SyncSource | None = None):
+                 sdo_timeout: float = 0.5, sync: SyncSource | None = None, uses: Sequence[str] = USES):
         bus_config = getattr(network, "config", None)
         if not isinstance(bus_config, BusConfig):
             raise ConfigError("DriveGroup: open the network with drivers.bus.open_network (its "
@@ -468,7 +495,7 @@ class DriveGroup:
         self.master_id = master_id
         self._master_heartbeat = None  # the periodic task, while running
         self.supervisor = Supervisor(self.sync.watch_clock(), alive=getattr(network, "alive", None))
-        self.drives = [EposDrive(network, a, self.supervisor, sdo_timeout, self.sync) for a in self.axes]
+        self.drives = [EposDrive(network, a, self.supervisor, sdo_timeout, self.sync, uses) for a in self.axes]
         for drive in self.drives:
             self.supervisor.watch_heartbeat(drive.label, drive.node.nmt, self.watchdogs.drive_heartbeat)
         self.layouts = master_layouts(self.axes)

@@ -246,7 +246,7 @@ def cmd_monitor(args) -> int:
     from ident_hw.experiment.session import open_session
     config = _load(args.config)
     with open_session(config) as session:
-        group = session.drive_group()
+        group = session.drive_group(uses=("bring_up",))
         end = time.monotonic() + (args.duration if args.duration is not None else float("inf"))
         tty = sys.stdout.isatty() and not args.once
         while True:
@@ -269,7 +269,7 @@ def cmd_home(args) -> int:
     if _needs_arm(config, args, "homing"):
         return Exit.CONFIG
     with HostSettings.for_command(config).pinned(), open_session(config) as session:
-        with session.drive_group() as group:
+        with session.drive_group(uses=("bring_up", "home")) as group:
             group.bring_up(timeout=config.bus.bring_up_timeout)
             group.home()
             positions = group.positions()

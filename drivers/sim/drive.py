@@ -80,13 +80,18 @@ class EmulatedDrive:
             times and the RPDO watch.
         heartbeat_clock: the clock of the heartbeat consumer (default ``clock``); in lockstep the
             simulated time, so that the watch of the master counts SYNC periods.
+        dictionary: the drive's object dictionary (default the profile's,
+            :func:`drivers.profiles.make_object_dictionary`): e.g. one of maxon's files, to emulate
+            a firmware with other objects (an SDO request for an object it lacks is aborted as
+            the drive would).
     """
 
     def __init__(self, node_id: int, profile_name: str, scaling: AxisScaling, network: canopen.Network,
-                 lock, clock, heartbeat_clock=None):
+                 lock, clock, heartbeat_clock=None, dictionary=None):
         self.profile = get_profile(profile_name)
         self.scaling = scaling
-        self.node = canopen.LocalNode(node_id, make_object_dictionary(profile_name, node_id))
+        self.node = canopen.LocalNode(node_id, dictionary if dictionary is not None
+                                      else make_object_dictionary(profile_name, node_id))
         self.id = node_id
         self._lock = lock
         self._clock = clock

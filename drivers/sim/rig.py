@@ -144,11 +144,13 @@ class SimulatedRig:
         encoder_edges: (n,) where each axis's encoder counts, in counts: an axis reads
             ``rint(position * counts_per_unit + encoder_edges[j])`` (each in [-0.5, 0.5]; default 0,
             count edges halfway between whole multiples of a count).
+        dictionaries: ``{node_id: EDS or DCF file}``: drives whose object dictionary is read from
+            a file (e.g. maxon's EDS of an older firmware) instead of their profile's.
     """
 
     def __init__(self, nodes, plant: Plant, *, bus=None, sync_period=None, current_noise_ma: float = 0.0,
                  seed=None, initial_states=None, lockstep: bool = False, brakes: bool = False,
-                 encoder_edges=None, **bus_kwargs):
+                 encoder_edges=None, dictionaries=None, **bus_kwargs):
         nodes = [(n.node_id, n.profile, n.scaling) if isinstance(n, AxisConfig) else tuple(n) for n in nodes]
         names = plant.robot.actuator_names
         if len(nodes) != len(names):
@@ -181,8 +183,14 @@ class SimulatedRig:
         self._lock = threading.RLock()
         self.time = 0.0    # s, the rig's clock (see the module docstring)
         heartbeat_clock = (lambda: self.sync_time) if lockstep else None
+        files = dict(dictionaries or {})
+        unknown = sorted(set(files) - set(ids))
+        if unknown:
+            raise ValueError(f"dictionaries: no drive with node-ID {unknown} (node-IDs {ids})")
         self.drives = [EmulatedDrive(node_id, profile, scaling, self.network, self._lock, lambda: self.time,
-                                     heartbeat_clock) for node_id, profile, scaling in nodes]
+                                     heartbeat_clock,
+                                     canopen.import_od(str(files[node_id]), node_id) if node_id in files else None)
+                       for node_id, profile, scaling in nodes]
         self._by_id = {d.id: d for d in self.drives}
         self._units = AxesScaling([n[2] for n in nodes])
         edges = np.zeros(len(nodes)) if encoder_edges is None else np.asarray(encoder_edges, dtype=float)

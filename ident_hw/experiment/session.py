@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from contextlib import AbstractContextManager, contextmanager, nullcontext
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Iterator
+from typing import TYPE_CHECKING, Iterator, Sequence
 
 import can
 import canopen
@@ -22,6 +22,7 @@ from drivers.affinity import one_cpu
 from drivers.bus import has_own_timer, open_network
 from drivers.epos import DriveGroup
 from drivers.errors import BusOpenError
+from drivers.firmware import USES
 from drivers.gc_freeze import frozen_gc
 from drivers.sim.lockstep import LockstepSync
 from drivers.sync import PeriodicSync, SyncSource
@@ -119,11 +120,13 @@ class Session:
     network: canopen.Network
     rig: SimulatedRig | None
 
-    def drive_group(self) -> DriveGroup:
-        """The six actuators' drives (theta1..3, zeta1..3) with the bus settings of the config."""
+    def drive_group(self, uses: Sequence[str] = USES) -> DriveGroup:
+        """The actuators' drives (on the 3PRRR theta1..3, zeta1..3) with the bus settings of the
+        config; ``uses``: what the command asks of them (:data:`drivers.firmware.USES`), whose
+        objects each drive's firmware must have."""
         bus = self.config.bus
         return DriveGroup(self.network, drive_axes(self.config), watchdogs=watchdogs(bus),
-                          sdo_timeout=bus.sdo_timeout, sync=sync_source(self.config))
+                          sdo_timeout=bus.sdo_timeout, sync=sync_source(self.config), uses=uses)
 
 
 @contextmanager
