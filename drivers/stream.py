@@ -169,7 +169,8 @@ class CyclicStream:
                                    bitrate=group.bitrate, n_targets=len(self.targets), sync=sync.name)
         self.recorder = SampleRecorder(group.axes, self.output, meta, maxsize=self.queue_size,
                                        layouts=group.layouts, setpoints=self.counts).start()
-        self.raw = (FlushingLogger(self.raw_log, layouts=group.layouts, setpoints=self.counts)
+        filters = [a.current_filter for a in RecordingMetadata().with_axes(group.axes).axes]
+        self.raw = (FlushingLogger(self.raw_log, layouts=group.layouts, setpoints=self.counts, current_filters=filters)
                     if self.raw_log else None)
         self.streamer = TargetStreamer(group.network, group.drives, self.counts, group.supervisor)
         answers = sync.answers_on_sync(group.network)

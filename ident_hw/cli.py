@@ -73,7 +73,7 @@ def cmd_identify(args) -> int:
                           file=config.source)
     recordings, files = {}, {}
     for path in args.data:
-        name, rec = load_recording(path, config)
+        name, rec = load_recording(path, config, layout=args.pdo_layout)
         if name in recordings:
             raise RecordingError(f"{files[name]} and {path} are both recordings of trajectory {name!r}: give one")
         recordings[name], files[name] = rec, path
@@ -371,6 +371,10 @@ def _add_offline_commands(command) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.add_argument("--no-report", action="store_true", help="no plots and no report.html (`ident-hw report DIR` "
                    "builds them later)")
+    p.add_argument("--pdo-layout", metavar="SOURCE", help="the PDO layout to decode a raw log without its sidecar "
+                   "(<log>.json) with: 'config' (the one this config maps, with its bus.current), a sidecar "
+                   "<run>.log.json or a decoded <recording>.npz of a run with the same drives; without it such a log "
+                   "is refused")
 
 
 def _add_rig_commands(command) -> None:

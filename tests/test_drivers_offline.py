@@ -178,8 +178,9 @@ def test_decode_log_reproduces_rows_from_hand_made_traffic(tmp_path, suffix):
             asm.on_message_received(m)
     logger.stop()
     live = Recording.from_chunks([rows_to_arrays(rows, axes)], 3, RecordingMetadata())
-    replay = decode_log(tmp_path / f"raw{suffix}", axes, max_cycles=40)
+    replay = decode_log(tmp_path / f"raw{suffix}", axes, max_cycles=40, layouts=layouts, layout_source="by hand")
     assert live.metadata.n_cycles == replay.metadata.n_cycles == 40
+    assert replay.metadata.pdo_layout_source == "given: by hand"
     for name in ("cycle", "position", "velocity", "current", "statusword", "target", "valid"):
         np.testing.assert_array_equal(getattr(live, name), getattr(replay, name), err_msg=name)
     np.testing.assert_allclose(live.t, replay.t, rtol=0, atol=1.01e-6)
@@ -303,7 +304,8 @@ def test_raw_logs_of_today_s_layout_and_of_a_changed_one_both_decode(tmp_path, s
     """Two runs' raw logs, one with today's PDO layout, one with another (objects in another
     order, another current object), each written with its sidecar: both decode to the values the
     drives sent (counts, mA, rpm converted by hand). Without its sidecar the changed log would be
-    read with today's layout, to wrong values, and the decoder says it assumed today's layout."""
+    read with today's layout, to wrong values marked valid: it is refused, unless a layout is given
+    (then the metadata says which)."""
     axes = _axes("epos4", 2)
     scaling = axes[0].scaling
     values = lambda k, i: {"position": 4096 * k + 7 * i, "current": 300 + 10 * k - 600 * i,  # noqa: E731
@@ -328,10 +330,12 @@ def test_raw_logs_of_today_s_layout_and_of_a_changed_one_both_decode(tmp_path, s
         np.testing.assert_allclose(rec.velocity, (60 * k + i) * 2 * np.pi / 60 / 26, rtol=1e-12, err_msg=label)
         assert scaling.counts_per_turn == 2048 and scaling.gear_ratio == 26.0
     sidecar_path(tmp_path / f"changed{suffix}").unlink()
-    caplog.clear()
-    with caplog.at_level("WARNING", logger="drivers.recording"):
-        wrong = decode_log(tmp_path / f"changed{suffix}", axes, max_cycles=n)
-    assert wrong.metadata.pdo_layout_source.startswith("assumed") and "no changed" in caplog.text
+    with pytest.raises(RecordingError, match=rf"changed{suffix}: no changed{suffix}\.json beside it with the PDO "
+                                             r"layout it was recorded with; .*wrong values marked valid"):
+        decode_log(tmp_path / f"changed{suffix}", axes, max_cycles=n)
+    wrong = decode_log(tmp_path / f"changed{suffix}", axes, max_cycles=n, layouts=master_layouts(axes),
+                       layout_source="today's")
+    assert wrong.metadata.pdo_layout_source == "given: today's"
     assert not np.allclose(wrong.position, rec.position)
 
 
