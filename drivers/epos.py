@@ -37,6 +37,7 @@ from drivers.firmware import REVISION, USES, absent, firmware_of, load_object_di
 from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, make_object_dictionary
 from drivers.recording import Recording
 from drivers.recording_metadata import RecordingMetadata
+from drivers.sdo import MasterNode
 from drivers.stream import CyclicStream
 from drivers.supervision import Supervisor, Watchdogs
 from drivers.sync import PeriodicSync, SyncSource
@@ -74,7 +75,7 @@ class EposDrive:
                 od = load_object_dictionary(axis.object_dictionary, axis.profile, axis.node_id, axis.current, uses)
             except ValueError as exc:
                 raise ConfigError(f"{axis.label}: {exc}") from None
-        self.node = canopen.RemoteNode(axis.node_id, od)
+        self.node = MasterNode(axis.node_id, od)
         self.node.sdo.RESPONSE_TIMEOUT = sdo_timeout
         network.add_node(self.node)
         self.node.emcy.add_callback(supervisor.emcy_callback(self.label, self.profile.name))
@@ -497,7 +498,8 @@ class DriveGroup:
         self.supervisor = Supervisor(self.sync.watch_clock(), alive=getattr(network, "alive", None))
         self.drives = [EposDrive(network, a, self.supervisor, sdo_timeout, self.sync, uses) for a in self.axes]
         for drive in self.drives:
-            self.supervisor.watch_heartbeat(drive.label, drive.node.nmt, self.watchdogs.drive_heartbeat)
+            self.supervisor.watch_heartbeat(drive.label, network, drive.axis.node_id, self.watchdogs.drive_heartbeat)
+        self._bus_time_listened = False
         self.layouts = master_layouts(self.axes)
 
     def __enter__(self) -> "DriveGroup":
@@ -510,6 +512,9 @@ class DriveGroup:
     def bring_up(self, timeout: float = 5.0) -> None:
         """Start the master heartbeat, bring every drive up (each then watches the master), start
         them (NMT OPERATIONAL) and watch their heartbeats."""
+        if not self._bus_time_listened:
+            self.network.notifier.add_listener(self.supervisor.bus_time)
+            self._bus_time_listened = True
         if self._master_heartbeat is None:
             self._master_heartbeat = self.sync.start_heartbeat(
                 self.network, 0x700 + self.master_id, bytes([NMT_OPERATIONAL]), self.heartbeat_period)
@@ -544,6 +549,9 @@ class DriveGroup:
         Best effort: errors are logged, not raised."""
         self.stop_motion()
         self.supervisor.stop_heartbeat_monitoring()
+        if self._bus_time_listened:
+            self.network.notifier.remove_listener(self.supervisor.bus_time)
+            self._bus_time_listened = False
         if self._sync_attached:
             self.sync.detach()
             self._sync_attached = False

@@ -3,9 +3,10 @@
 A :class:`drivers.epos.DriveGroup` is given one :class:`SyncSource`. The drives sample, take
 their set-points and move on the SYNC whenever it comes; the master's other waits (homing,
 profile moves, state transitions) count in the source's time. :class:`PeriodicSync` is the one
-for real drives: the SYNC from the bus's own timer where the interface has one (the kernel BCM on
-SocketCAN, an adapter's hardware), else from a thread on a time grid
-(:class:`drivers.bus.GridPeriodicTask`); the waits count in wall-clock time. Another source (a
+for real drives: the SYNC from a timing process beside the master's (:mod:`drivers.timing`), or from the bus's
+own timer where the interface has one (the kernel BCM on SocketCAN, an adapter's hardware), else
+from a thread on a time grid (:class:`drivers.bus.GridPeriodicTask`); the waits count in the time
+the master was running (:class:`drivers.supervision.WatchClock`). Another source (a
 simulated rig's, which paces the SYNC by the rig's answers) implements the same interface.
 
 Every SYNC may carry the CiA 301 SYNC counter (1..240, object ``0x1019`` on a device).
@@ -168,19 +169,23 @@ class PeriodicSync(SyncSource):
     bus's timer, or a :class:`~drivers.bus.GridPeriodicTask` thread that skips the slots it woke
     up too late for) and the master's notifier answers each SYNC with the next set-points; a
     thread-timed SYNC faster than :data:`THREAD_LATE_BELOW` is warned about before the stream
-    starts. The waits count in wall-clock time."""
+    starts. The waits count in the time the master was running (:meth:`now`)."""
 
     name = "periodic"
     free_running = True
 
     def __init__(self) -> None:
+        self._clock = WatchClock()
         self._task = None
         self._timed = None                   # the TimedBus streaming, if any
         self._report = SyncReport()
         self.warning: str | None = None    # the warning given before the last stream, if any
 
     def now(self) -> float:
-        return time.monotonic()
+        """The time the master was running (:class:`~drivers.supervision.WatchClock`): a wait's
+        deadline (a state change, homing, a move) does not run out during a hold-up of the
+        master's own process, when the drive's answers wait for it."""
+        return self._clock.advance()
 
     def wait(self, seconds: float) -> None:
         time.sleep(seconds)

@@ -1,5 +1,5 @@
-"""Where the master's timing comes from: its own process's threads, the bus's timer, or a timing
-process beside it (:mod:`drivers.timing_server`).
+"""Where the master's timers run: threads of its own process, the bus's timer, or a timing process
+beside it (:mod:`drivers.timing_server`).
 
 A bus without a timer of its own (python-can gives the adapters of most lab PCs, PCAN, Kvaser,
 Vector, slcan, only a Python thread, and ``udp_multicast`` too) would have the SYNC, the
@@ -8,13 +8,14 @@ a garbage collection or a busy core stops together with everything else: the dri
 heartbeat pause and fault. Where the kernel sends the SYNC and the heartbeat (SocketCAN's BCM)
 the set-points still come from the master's notifier, which answers each SYNC: held up, it
 leaves the drives on their last set-point, then sends the ones it owes in a burst, and the
-drive's target jumps by the hold-up's share of the trajectory. :class:`TimedBus` is such a bus seen through a timing process that
-owns it: the master's process sends and receives as on any python-can bus, the timing process
-keeps the timers and hands every frame over, nothing lost while the master is held up. It also
-watches the master's own loop (:meth:`TimedBus.alive`) and stops every timer when the loop has
-made no progress for :attr:`TimingConfig.master_progress` s.
+drive's target jumps by the hold-up's share of the trajectory.
 
-:func:`timing_for` says which arrangement a bus gets; :func:`drivers.bus.open_network` makes it.
+:class:`TimedBus` is a bus seen through a timing process that owns it: the master's process sends
+and receives as on any python-can bus, the timing process keeps the timers and hands every frame
+over, nothing lost while the master is held up. It also watches the master's own loop
+(:meth:`TimedBus.alive`) and stops every timer when the loop has made no progress for
+:attr:`TimingConfig.master_progress` s. :class:`TimingConfig` says which buses get one
+(:meth:`TimingConfig.uses_process`); :func:`drivers.bus.open_network` opens the bus through it.
 """
 
 from __future__ import annotations
@@ -28,14 +29,15 @@ import sys
 import threading
 import time
 from collections import deque
-from pathlib import Path
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Literal
 
 import can
 
 from drivers.bus import BusConfig, open_bus
 from drivers.errors import BusOpenError, ConfigError
+from drivers.supervision import MASTER_PROGRESS
 from drivers.timing_server import FRAME, FRAMES, RECORD, pack_frame, read_exactly, unpack_frames, write_message
 
 logger = logging.getLogger(__name__)
@@ -68,7 +70,7 @@ class TimingConfig:
     """
 
     where: Literal["auto", "process", "thread"] = "auto"
-    master_progress: float = 3.0
+    master_progress: float = MASTER_PROGRESS
     priority: int = PRIORITY
 
     def __post_init__(self) -> None:

@@ -58,9 +58,10 @@ LENGTH = struct.Struct("<I")
 #: s the timer sleeps at most: how often it looks at the master's last word while nothing is due
 WATCH_STEP = 0.01
 
-#: frames kept for the master at most while it does not read (about 30 min of a 250 Hz stream of
-#: six drives); more are dropped and counted
-MAX_PENDING = 8_000_000
+#: frames kept for the master at most while it does not read (44 MB, about 7 min of a 250 Hz
+#: stream of six drives; a master silent for longer than its limit has stopped the stream long
+#: before); more are dropped and counted
+MAX_PENDING = 2_000_000
 
 
 def pack_frame(msg: can.Message) -> bytes:

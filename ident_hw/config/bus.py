@@ -9,6 +9,7 @@ from typing import Literal
 import can
 
 import drivers.bus
+import drivers.supervision
 
 from .schema import in_range, positive, spec
 
@@ -38,16 +39,16 @@ class WatchdogsConfig:
                                 "(EMCY 0x8130) when the master's heartbeat is this late. Default 3.5 heartbeat "
                                 "periods: the master's heartbeat comes from a timer outside its process (a timing "
                                 "process, SocketCAN's BCM), not from a thread that the master's own hold-ups stop"))
-    sync_progress: float = field(default=1.0, metadata=spec(
+    sync_progress: float = field(default=drivers.supervision.SYNC_PROGRESS, metadata=spec(
         positive, unit="s", doc="the master stops a stream when no new SYNC cycle came for this long, counted in the "
                                 "time it was running and watching (a hold-up of its own process is no stall of the "
                                 "SYNC); the drives hold their last set-point meanwhile"))
-    master_progress: float = field(default=3.0, metadata=spec(
+    master_progress: float = field(default=drivers.supervision.MASTER_PROGRESS, metadata=spec(
         positive, unit="s", doc="a timing process (bus.timing) stops the SYNC, the set-points and the master's "
                                 "heartbeat when the master's own loop made no progress for this long, so that the "
-                                "drives fault within this plus master_heartbeat of a hung master. A longer hold-up "
-                                "of the master's process than this stops the run: longer than the 2.18 s a loaded lab "
-                                "PC froze a master (load 9)"))
+                                "drives fault within this plus master_heartbeat of a hung master; a longer hold-up of "
+                                "the master's process stops the run. Default 5 s: twice the longest hold-ups seen on "
+                                "loaded lab PCs (2.18 s at load 9; a 1 s GIL hold at load 8 once became 3 s)"))
 
 
 @dataclass(frozen=True)
