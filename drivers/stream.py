@@ -21,6 +21,7 @@ is a context entered while the SYNC runs (e.g. :func:`drivers.gc_freeze.frozen_g
 from __future__ import annotations
 
 import dataclasses
+import logging
 from contextlib import AbstractContextManager, ExitStack, nullcontext
 from typing import Callable, Sequence
 
@@ -33,9 +34,11 @@ from drivers.cia import CW_ENABLE_OPERATION, SW_FAULT
 from drivers.errors import ConfigError, DriveError, DriveFault
 from drivers.gc_freeze import GcPauses
 from drivers.recording import FlushingLogger, Recording, SampleRecorder
-from drivers.recording_metadata import RecordingMetadata
+from drivers.recording_metadata import RecordedAxis, RecordingMetadata
 from drivers.supervision import Supervisor, WatchClock
 from drivers.units import AxesScaling
+
+logger = logging.getLogger(__name__)
 
 
 def setpoint_counts(axes: Sequence, targets) -> np.ndarray:
@@ -169,7 +172,7 @@ class CyclicStream:
                                    bitrate=group.bitrate, n_targets=len(self.targets), sync=sync.name)
         self.recorder = SampleRecorder(group.axes, self.output, meta, maxsize=self.queue_size,
                                        layouts=group.layouts, setpoints=self.counts).start()
-        filters = [a.current_filter for a in RecordingMetadata().with_axes(group.axes).axes]
+        filters = [RecordedAxis.of(a).current_filter for a in group.axes]
         self.raw = (FlushingLogger(self.raw_log, layouts=group.layouts, setpoints=self.counts, current_filters=filters)
                     if self.raw_log else None)
         self.streamer = TargetStreamer(group.network, group.drives, self.counts, group.supervisor)
@@ -254,9 +257,13 @@ class CyclicStream:
 
 
 def _with_cause(error: DriveError, cause: str) -> DriveError:
-    """``error`` with ``cause`` added to its message (a fault keeps its node and code)."""
+    """``error`` with ``cause`` added to its message (a fault keeps its type, node and code); an
+    error of another kind is kept as it is, the cause logged."""
     if isinstance(error, DriveFault):
         extended = type(error).__new__(type(error))
         DriveFault.__init__(extended, error.node, error.code, f"{error.text}; {cause}")
         return extended
-    return DriveError(f"{error}; {cause}")
+    if type(error) is DriveError:
+        return DriveError(f"{error}; {cause}")
+    logger.error("%s", cause)
+    return error
