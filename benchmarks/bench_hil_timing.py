@@ -6,9 +6,10 @@
 
 For each config: its bus swapped for an interface-local ``udp_multicast`` group with a periodic SYNC
 (real time, as on a real bus), the main job's simulated truth served by ``ident-hw sim`` in its
-own process (its threads at real-time priority where the system grants it: real drives answer a
-SYNC in microseconds), a busy loop pinned to each of ``--busy`` CPUs (default all), and ``ident-hw
-run`` of the whole campaign with its process held ``--hold`` s by a GIL-holding C call every
+own process, on the last CPU (its threads at real-time priority 10 where the system grants it,
+unless ``--no-realtime``: real drives answer a SYNC in microseconds and take no CPU of the master's
+PC), a busy loop pinned to each of ``--busy`` CPUs (default all), and ``ident-hw run`` of the whole
+campaign with its process held ``--hold`` s by a GIL-holding C call every
 ``--every`` s. The master's SYNC, set-points and heartbeat come from its timing process
 (``bus.timing: auto``); ``--no-realtime`` runs that process at normal priority (what a lab PC
 without real-time rights gets).
@@ -47,6 +48,18 @@ def _as_master(argv: list[str]) -> None:
         import ident_hw.experiment.session as session
         settings = to_drivers.timing_settings
         session.timing_settings = lambda bus: dataclasses.replace(settings(bus), priority=0)
+    if os.environ.get("STALL_TRACE"):
+        # the threads' stacks whenever the master's loop has said nothing to its timing process for
+        # STALL_TRACE s (faulthandler: from a C thread, without the GIL)
+        import faulthandler
+
+        import drivers.timing as timing
+        after, alive = float(os.environ["STALL_TRACE"]), timing.TimedBus.alive
+
+        def traced(self) -> None:
+            faulthandler.dump_traceback_later(after, repeat=True)
+            alive(self)
+        timing.TimedBus.alive = traced
     every, hold = float(os.environ["HOLD_EVERY"]), float(os.environ["HOLD"])
     usleep = ctypes.PyDLL(None).usleep
 
@@ -73,10 +86,19 @@ def _config(folder: Path, hil: str) -> Path:
     return path
 
 
-def _realtime(pid: int) -> None:
+def _drives_apart(pid: int, realtime: bool) -> None:
+    """The emulated drives (``ident-hw sim``, process ``pid``) on the last CPU of their own; with
+    ``realtime`` their threads at ``SCHED_FIFO`` 10 (below the timing process's 20): real drives
+    answer a SYNC in microseconds and take no CPU of the master's PC, and an emulation starved by the
+    busy loops, or one at real-time priority starving the master, would be measured instead of the
+    master."""
+    cpus = sorted(os.sched_getaffinity(0))
     for task in Path(f"/proc/{pid}/task").glob("*"):
         try:
-            os.sched_setscheduler(int(task.name), os.SCHED_FIFO, os.sched_param(10))
+            if len(cpus) > 1:
+                os.sched_setaffinity(int(task.name), {cpus[-1]})
+            if realtime:
+                os.sched_setscheduler(int(task.name), os.SCHED_FIFO, os.sched_param(10))
         except (OSError, AttributeError):
             return
 
@@ -91,11 +113,12 @@ def run_one(hil: str, args, folder: Path) -> None:
         while not rig.stdout.readline().startswith("simulated rig:"):
             if rig.poll() is not None:
                 raise SystemExit(f"ident-hw sim ended: {rig.returncode}")
-        _realtime(rig.pid)
+        _drives_apart(rig.pid, not args.no_realtime)
         busy = [subprocess.Popen([sys.executable, "-c", f"import os\nos.sched_setaffinity(0, {{{cpu}}})\nwhile True: pass"])
                 for cpu in cpus]
         env = dict(os.environ, HOLD=str(args.hold), HOLD_EVERY=str(args.every),
-                   **({"NO_REALTIME": "1"} if args.no_realtime else {}))
+                   **({"NO_REALTIME": "1"} if args.no_realtime else {}),
+                   **({"STALL_TRACE": str(args.stall_trace)} if args.stall_trace else {}))
         started = time.monotonic()
         run = subprocess.run([sys.executable, __file__, "--as-master", "run", config, "--out", folder / "run",
                               "--no-report", "--quiet"], capture_output=True, text=True, env=env)
@@ -139,6 +162,8 @@ def main() -> None:
     parser.add_argument("--busy", type=int, default=len(os.sched_getaffinity(0)))
     parser.add_argument("--no-realtime", action="store_true")
     parser.add_argument("--keep", metavar="DIR", help="keep each run's folder in DIR/<config>")
+    parser.add_argument("--stall-trace", type=float, metavar="S", help="the master's thread stacks (in its stderr, "
+                        "kept with --keep) whenever its loop said nothing to the timing process for S s")
     args = parser.parse_args()
     print(f"load before: {os.getloadavg()}")
     for hil in args.configs:

@@ -413,21 +413,30 @@ class FlushingLogger(can.Listener):
         self.writer = can.Logger(path)
         self.interval = interval
         self._last = time.monotonic()
+        self._lock = threading.Lock()
+        self._stopped = False
 
     def on_message_received(self, msg: can.Message) -> None:
-        self.writer.on_message_received(msg)
-        now = time.monotonic()
-        if now - self._last > self.interval:
-            self._last = now
-            file = getattr(self.writer, "file", None)
-            if file is not None and not file.closed and not self.path.suffix.lower() == ".blf":
-                file.flush()
+        with self._lock:            # a frame the notifier was delivering when the stream closed is left out
+            if self._stopped:
+                return
+            self.writer.on_message_received(msg)
+            now = time.monotonic()
+            if now - self._last > self.interval:
+                self._last = now
+                file = getattr(self.writer, "file", None)
+                if file is not None and not file.closed and not self.path.suffix.lower() == ".blf":
+                    file.flush()
 
     def on_error(self, exc: Exception) -> None:
         pass  # reported by the assembler
 
     def stop(self) -> None:
-        self.writer.stop()
+        """Close the log; frames handed over afterwards are ignored (the notifier may still be
+        delivering one when the stream closes: removing a listener does not wait for it)."""
+        with self._lock:
+            self._stopped = True
+            self.writer.stop()
 
 
 def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], max_cycles: int | None = None,

@@ -184,7 +184,7 @@ class TimedBus(can.BusABC):
         self.description = f"a timing process of its own (pid {self.pid}, {self.scheduling})"
         if timing.priority > 0 and not self.scheduling.startswith("real-time"):
             logger.warning("the timing process runs at %s: on a busy host its SYNC comes late and slots are "
-                           "skipped (about 10 %% beside a busy loop per CPU, benchmarks/README.md). Allow it real-time "
+                           "skipped (about 6 %% beside a busy loop per CPU, benchmarks/README.md). Allow it real-time "
                            "priority: `ulimit -r` %d or more for the user (e.g. a line '<user> - rtprio %d' in "
                            "/etc/security/limits.d/), or run with CAP_SYS_NICE", self.scheduling, timing.priority,
                            timing.priority)

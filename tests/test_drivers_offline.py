@@ -453,3 +453,16 @@ def test_metadata_as_recordings_stored_it_before_loads_typed():
                                                                                       lockstep_waited_out=0)
     assert meta.axes[0].profile == "EPOS2" and meta.axes[0].scaling.gear_ratio == 26.0
     assert dict(meta.extra) == {"site": "lab 2"} and meta.pdo_layout == () and meta.file is None
+
+
+def test_a_raw_log_closed_while_the_notifier_delivers_a_frame_leaves_it_out(tmp_path):
+    """python-can's notifier may still be delivering a frame when a stream closes (removing a
+    listener does not wait for it; a master behind the bus after a hold-up often is): the closed
+    raw log leaves the frame out instead of raising in the notifier thread, which would end it."""
+    path = tmp_path / "raw.log"
+    logger = FlushingLogger(path)
+    frame = can.Message(arbitration_id=0x181, data=b"\x01\x02", is_extended_id=False, timestamp=1.7e9)
+    logger.on_message_received(frame)
+    logger.stop()
+    logger.on_message_received(frame)
+    assert len(path.read_text().splitlines()) == 1
