@@ -3,7 +3,7 @@
 SYNC (real time, as on a real bus), the master's SYNC, set-points and heartbeat from its timing
 process (``bus.timing: auto``).
 
-* Beside a busy loop on every CPU, with the master's whole process held 1 s at a time by a
+* Beside a busy loop on each CPU the test runs on, with the master's whole process held 1 s at a time by a
   GIL-holding call (``held_master.py``): no drive faults, every trajectory streams to its end,
   at most 5 % of the SYNC slots skipped, and the recordings say how long the master was held.
   (One square per config here; the whole campaigns are ``benchmarks/bench_hil_timing.py``.)
@@ -23,7 +23,6 @@ from pathlib import Path
 import pytest
 import yaml
 
-from cpus import ALL_CPUS, all_cpus
 from processes import stop_process, wait_for_line
 from udp_groups import interface_local_group, loopback_multicast_works
 
@@ -60,9 +59,10 @@ def hil_on_udp(tmp_path: Path, hil: str, **bus) -> Path:
 
 @contextmanager
 def busy_loops():
-    """A busy loop pinned to every CPU this test may use."""
+    """A busy loop pinned to each CPU this test runs on (under pytest-xdist its worker's one: the
+    other worker's tests keep theirs)."""
     procs = [subprocess.Popen([sys.executable, "-c", f"import os\nos.sched_setaffinity(0, {{{cpu}}})\nwhile True: pass"])
-             for cpu in sorted(ALL_CPUS) or [0]]
+             for cpu in sorted(os.sched_getaffinity(0))]
     try:
         yield
     finally:
@@ -73,16 +73,15 @@ def busy_loops():
 
 @contextmanager
 def rig_process(config: Path):
-    """``ident-hw sim`` of ``config``, once it serves the bus, its threads on the last CPU at
-    real-time priority where this test may give it: real drives answer a SYNC within
+    """``ident-hw sim`` of ``config``, once it serves the bus, its threads on the last CPU this test
+    runs on, at real-time priority where this test may give it: real drives answer a SYNC within
     microseconds and take no CPU of the master's PC; an emulation starved by the busy loops would
     send its frames late, one at real-time priority on the master's CPUs could starve the master,
     and neither is what is tested here."""
-    with all_cpus():
-        proc = subprocess.Popen([*IDENT_HW, "sim", config], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([*IDENT_HW, "sim", config], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         wait_for_line(proc, "simulated rig:", 600.0)
-        cpus = sorted(ALL_CPUS)
+        cpus = sorted(os.sched_getaffinity(0))
         for task in Path(f"/proc/{proc.pid}/task").glob("*"):
             try:
                 if len(cpus) > 1:          # a CPU of their own: a real-time rig must not starve the master
@@ -100,7 +99,7 @@ def rig_process(config: Path):
 def test_a_hil_campaign_streams_to_its_end_beside_busy_loops_with_its_master_held_1_s_at_a_time(tmp_path, hil):
     from drivers.recording import Recording
     config = hil_on_udp(tmp_path, hil)
-    with rig_process(config), busy_loops(), all_cpus():
+    with rig_process(config), busy_loops():
         run = subprocess.run([sys.executable, HELD_MASTER, "run", config, "--out", tmp_path / "run", "--no-report"],
                              capture_output=True, text=True, timeout=RUN_TIMEOUT,
                              env=dict(os.environ, HOLD_EVERY="3", HOLD="1"))
@@ -129,9 +128,8 @@ def test_a_master_stopped_longer_than_its_limit_faults_the_drives_within_the_lim
     config = load_config(path)
     rig = simulated_rig(config).start()        # the drives, here: their states are read as they change
     try:
-        with all_cpus():
-            master = subprocess.Popen([*IDENT_HW, "run", path, "--out", tmp_path / "run", "--no-report", "--quiet"],
-                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        master = subprocess.Popen([*IDENT_HW, "run", path, "--out", tmp_path / "run", "--no-report", "--quiet"],
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
             deadline = time.monotonic() + RUN_TIMEOUT
             while not (rig.sync_driven and rig.sync_count > 500):        # 2 s into the square
