@@ -31,7 +31,7 @@ from ident_hw.report.terminal import coverage_text
 from ident_hw.segments import SATURATION, Segments, slot_indices, split, uniform
 
 from .inputs import Axes, IdentificationPlan
-from .recordings import identification_valid
+from .recordings import identification_valid, recorded_currents
 
 logger = logging.getLogger(__name__)
 
@@ -77,12 +77,22 @@ def recording_period(rec: Recording) -> float:
     return float(np.median(np.diff(rec.t)))
 
 
-def current_averaging(axes: Axes, rec: Recording) -> tuple[AveragingFilter, ...] | None:
-    """Each actuator's running average (its drive generation's filter) when ``rec`` holds the
-    drives' averaged currents (``metadata.current``), else None."""
-    if rec.metadata.current != AVERAGED:
+#: the running average's step ``(A, B0, B1)`` of an axis with an instantaneous current: none
+UNFILTERED = (0.0, 0.0, 1.0)
+
+
+def current_averaging(axes: Axes, rec: Recording) -> tuple[AveragingFilter | None, ...] | None:
+    """Each actuator's running average when ``rec`` holds its drive's averaged current, None for an
+    axis with the instantaneous one; None when no axis has an averaged one. Both come from the
+    recording (per axis, :func:`~ident_hw.experiment.recordings.recorded_currents`; its filter the
+    recorded one, ``metadata.axes[i].current_filter``), the drive generation's filter (of the
+    robot's ``axes``) where a recording made before did not keep it."""
+    kinds = recorded_currents(rec, len(axes))
+    if AVERAGED not in kinds:
         return None
-    return axes.current_averaging
+    kept = [a.current_filter for a in rec.metadata.axes] if rec.metadata.axes else [None] * len(axes)
+    return tuple(None if kind != AVERAGED else own or generation
+                 for kind, own, generation in zip(kinds, kept, axes.current_averaging))
 
 
 def segments_of(axes: Axes, rec: Recording, trim: int = 0, min_kept: int = 1,
@@ -237,7 +247,8 @@ def prepare(plan: IdentificationPlan, robot: RobotModel, name: str, rec: Recordi
         regressor, X = robot.identification_regressor(samples.Theta, samples.Thetad, samples.Thetadd, guess[rows])
         if averaging is not None:   # forces from averaged currents: the regressor through the same average
             period = (t[-1] - t[0]) / (len(t) - 1)
-            regressor = running_average(regressor, [f.over_period(period) for f in averaging])
+            regressor = running_average(regressor, [UNFILTERED if f is None else f.over_period(period)
+                                                    for f in averaging])
         regressor, tau = through_position_lowpass(settings, samples.tau, regressor, coulomb, ends)
         Y, tau = parallel_decimate(settings, regressor, tau, ends=ends)
         kept = kept_samples(settings, len(t), ends)

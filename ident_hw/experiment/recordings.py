@@ -21,7 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from drivers.errors import RecordingError
-from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log
+from drivers.acquisition import master_layouts
+from drivers.axis import AxisConfig
+from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log, read_layouts, sidecar_path
 from drivers.recording_metadata import RecordingMetadata
 from ident_hw.config import ActuatorConfig, Config, IdentificationConfig
 from ident_hw.records import ImportSummary
@@ -57,36 +59,75 @@ def planned_cycles(config: Config, name: str) -> int | None:
     return len(planned[0].trajectory.t) if planned and planned[0].trajectory is not None else None
 
 
-def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
+#: what ``--pdo-layout`` may name besides a file: the layout the config's master maps today
+CONFIG_LAYOUT = "config"
+
+
+@dataclass(frozen=True)
+class GivenLayout:
+    """The PDO layouts to decode a raw log with (:func:`given_layout`) and where they come from,
+    in words."""
+
+    layouts: list
+    source: str
+
+
+def given_layout(source: str | Path, axes: Sequence[AxisConfig], config_file: str, current: str) -> GivenLayout:
+    """The PDO layouts ``source`` names (``ident-hw identify --pdo-layout``), to decode a raw log
+    without its sidecar with: :data:`CONFIG_LAYOUT` (the layout the master maps on the config's
+    drive ``axes``, of the file ``config_file``, with its ``bus.current``, ``current``), a sidecar
+    ``<log>.json`` or a decoded ``.npz`` recording of another run with the same drives."""
+    if str(source) == CONFIG_LAYOUT:
+        return GivenLayout(master_layouts(list(axes)),
+                           f"the layout {Path(config_file).name} maps (bus.current: {current})")
+    return GivenLayout(list(read_layouts(source)), f"that of {source}")
+
+
+def load_recording(path: str | Path, config: Config, layout: str | Path | None = None) -> tuple[str, Recording]:
     """A recording from a decoded ``.npz`` or a raw CAN log (``.log``/``.asc``/``.blf``), checked
     against ``config``; returns (trajectory name, recording).
 
     The trajectory name is the recording's ``metadata.trajectory``, else the file stem. A raw
     log is decoded up to the length of the config's trajectory of that name (the SYNC keeps
     running for a few cycles after the last set-point), on the config's SYNC period (in lockstep
-    the row times are the cycle times, as the run recorded them). The
-    metadata gets ``file`` (the path) and, for a raw log, ``n_targets`` (the planned cycles) and
-    ``current`` (the motor current the log's TPDOs carried: the config's ``bus.current``).
+    the row times are the cycle times, as the run recorded them), with the PDO layout of its
+    sidecar; a log without one only with ``layout`` (:func:`given_layout`, the command line's
+    ``--pdo-layout``). The metadata gets ``file`` (the path) and, for a raw log, ``n_targets``
+    (the planned cycles). Which current a recording holds (instantaneous or averaged, per axis)
+    and the running average behind an averaged one are the recording's own (the run's metadata;
+    a log's layout and sidecar): a config whose ``bus.current`` says otherwise is an error.
 
     Raises:
-        RecordingError: unreadable file, or a recording that does not fit the config (node-IDs,
-            profiles, drive scaling); the message names the file, the config and the axis.
+        RecordingError: unreadable file, a raw log without its layout and none given, or a
+            recording that does not fit the config (node-IDs, profiles, drive scaling, current);
+            the message names the file, the config and the axis.
     """
     path = Path(path)
     axes = [axis_config(a, current=config.current) for a in config.robot.actuators]
     if path.suffix.lower() in RAW_LOG_SUFFIXES:
         name = path.stem
+        if not sidecar_path(path).is_file() and layout is None:
+            raise RecordingError(
+                f"raw CAN log {path}: no {sidecar_path(path).name} beside it with the PDO layout it was recorded with "
+                f"(a candump, a log copied without it, or one written before sidecars), and decoded with another "
+                f"layout its frames give wrong values marked valid. Give the layout on the command line: "
+                f"--pdo-layout {CONFIG_LAYOUT} (the layout {Path(config.source).name} maps: bus.current "
+                f"{config.current}), --pdo-layout <run>.log.json (the sidecar of a run with the same drives and "
+                f"bus.current) or --pdo-layout <recording>.npz (a decoded recording of such a run)")
+        given = given_layout(layout, axes, config.source, config.current) if layout is not None else None
+        layouts, source = (given.layouts, given.source) if given is not None else (None, None)
         period = 1.0 / config.bus.sync_rate if config.bus is not None else None
         lockstep_period = period if period is not None and config.sync_mode == "lockstep" else None
         cycles = planned_cycles(config, name)
-        meta = RecordingMetadata(trajectory=name, file=str(path), current=config.current, sync_period=period,
-                                 n_targets=cycles)
-        rec = decode_log(path, axes, max_cycles=cycles, metadata=meta, lockstep_period=lockstep_period)
+        meta = RecordingMetadata(trajectory=name, file=str(path), sync_period=period, n_targets=cycles)
+        rec = decode_log(path, axes, max_cycles=cycles, metadata=meta, lockstep_period=lockstep_period,
+                         layouts=layouts, layout_source=source)
         check_log_nodes(path, rec, config.robot.actuators, config.source)
     else:
         rec = Recording.load(path)
         rec = dataclasses.replace(rec, metadata=dataclasses.replace(rec.metadata, file=str(path)))
         check_axes(path, rec, config.robot.actuators, config.source)
+    check_current(path, rec, config.robot.actuators, config.current, config.source)
     return rec.metadata.trajectory or path.stem, rec
 
 
@@ -101,7 +142,7 @@ class Gathered:
     notes: tuple[str, ...]
 
 
-def gather_recordings(config: Config, given: Sequence[str]) -> Gathered:
+def gather_recordings(config: Config, given: Sequence[str], layout: str | Path | None = None) -> Gathered:
     """The recordings ``ident-hw identify`` works on: each item ``given`` (``NAME=PATH``: the
     recording of trajectory NAME; a results folder or its ``data/``: its recordings,
     :func:`recording_paths`; else a decoded ``.npz`` or raw log named by its trajectory, or a file
@@ -135,7 +176,7 @@ def gather_recordings(config: Config, given: Sequence[str]) -> Gathered:
             paths, more = recording_paths([path])
             notes += more
             for found in paths:
-                keep(*load_recording(found, config), found)
+                keep(*load_recording(found, config, layout=layout), found)
             continue
         if name is None and Path(path).suffix.lower() not in (".npz", *RAW_LOG_SUFFIXES):
             stem = Path(path).stem
@@ -148,7 +189,7 @@ def gather_recordings(config: Config, given: Sequence[str]) -> Gathered:
             imported[name] = external.summary
             keep(name, external.recording, path)
         else:
-            loaded, rec = load_recording(path, config)
+            loaded, rec = load_recording(path, config, layout=layout)
             keep(name or loaded, rec, path)
     for name, tcfg in recorded.items():
         if name not in recordings:
@@ -219,6 +260,28 @@ def _folder_recordings(folder: Path) -> list[Path]:
         if path.stem not in chosen or kind == ".npz":
             chosen[path.stem] = path
     return [chosen[name] for name in sorted(chosen)]
+
+
+def recorded_currents(rec: Recording, n_axes: int) -> list[str]:
+    """Which current each axis of ``rec`` holds: its axes' own (``metadata.axes``), else the
+    recording's ``metadata.current`` for all."""
+    if rec.metadata.axes:
+        return [a.current for a in rec.metadata.axes]
+    return [rec.metadata.current] * n_axes
+
+
+def check_current(path: Path, rec: Recording, acts: Sequence[ActuatorConfig], current: str, source: str) -> None:
+    """The current the recording holds (per axis) is the one the config (the file ``source``, its
+    actuators ``acts``) names in ``bus.current`` (``current``): identified as the other kind, an
+    averaged current moves the estimates (docs/drives.md, *Which current*), so a disagreement is
+    an error, not a choice."""
+    differ = [f"{a.name} (node {a.node_id})" for a, kind in zip(acts, recorded_currents(rec, len(acts)))
+              if kind != current]
+    if differ:
+        kinds = sorted(set(recorded_currents(rec, len(acts))))
+        raise RecordingError(f"{path} holds the {' and '.join(kinds)} current of {', '.join(differ)}, "
+                             f"{source} says bus.current: {current}. Identify with the run's own config "
+                             f"(config.yaml of its results folder), or set bus.current to what the recording holds")
 
 
 def check_axes(path: Path, rec: Recording, acts: Sequence[ActuatorConfig], source: str) -> None:

@@ -56,6 +56,9 @@ logger = logging.getLogger(__name__)
 APPROACH_SPEED = 0.2
 #: where a run keeps its drives' states after the stop, in its data folder
 DRIVES_FILE = "drives.json"
+#: s: a hold-up of the master's process during a stream that the run's log mentions (a timing
+#: process kept the drives going meanwhile)
+HELD_UP = 0.25
 
 
 class CampaignStopped(Exception):
@@ -251,9 +254,13 @@ def record_campaign(session: Session, data: Path, planned: list[PlannedTrajector
         for i, p in enumerate(planned, 1):
             logger.info(f"[{i}/{len(planned)}] {p.describe()}")
             rec = stream(session, group, p, data, inputs, host)
-            skipped = rec.metadata.sync_report.sync_slots_skipped or 0
+            report = rec.metadata.sync_report
+            skipped = report.sync_slots_skipped or 0
+            held = report.master_longest_stall or 0.0
             logger.info(f"    recorded {rec.metadata.n_cycles} cycles, {rec.n_invalid} incomplete"
-                        + (f", {skipped} SYNC slots skipped (the host woke the SYNC thread late)" if skipped else ""))
+                        + (f", {skipped} SYNC slots skipped (the host woke the SYNC's timer late)" if skipped else "")
+                        + (f"; this process was held up to {held:.2f} s, the timing process kept the SYNC, the "
+                           f"set-points and the heartbeat going" if held >= HELD_UP else ""))
             yield p.config.name, rec
     finally:
         # quick stop and disable, then the drives stop watching the master's heartbeat before
