@@ -7,6 +7,7 @@ by error class with :class:`canopen.emcy.EmcyError`'s class table ("Current", "V
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from types import MappingProxyType
 
 from canopen.emcy import EmcyError
@@ -108,7 +109,7 @@ def describe(code: int, profile: str | None = None) -> str:
         profile: ``"EPOS2"`` or ``"EPOS4"`` (case-insensitive) to resolve the
             manufacturer-specific codes, which differ between the generations.
     """
-    table = _BY_PROFILE.get((profile or "").upper(), {})
+    table: Mapping[int, str] = _BY_PROFILE.get((profile or "").upper(), {})
     if code in table:
         return table[code]
     if code in COMMON_CODES:

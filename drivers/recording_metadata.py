@@ -164,7 +164,8 @@ class RecordingMetadata:
         """This metadata with ``axes`` (:class:`~drivers.axis.AxisConfig`, in sample order),
         streaming ``currents`` (one per axis; default each axis's own), ``current`` theirs where
         all agree."""
-        recorded = tuple(RecordedAxis.of(a, c) for a, c in zip(axes, currents or [None] * len(axes)))
+        chosen: Sequence[str | None] = currents if currents is not None else [None] * len(axes)
+        recorded = tuple(RecordedAxis.of(a, c) for a, c in zip(axes, chosen))
         kinds = {a.current for a in recorded}
         return dataclasses.replace(self, axes=recorded, current=kinds.pop() if len(kinds) == 1 else self.current)
 

@@ -19,7 +19,7 @@ import logging
 import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Callable, Mapping, Protocol
+from typing import Any, Callable, Mapping, Protocol
 
 import canopen
 
@@ -177,7 +177,7 @@ class PeriodicSync(SyncSource):
     def __init__(self) -> None:
         self._clock = WatchClock()
         self._task = None
-        self._timed = None                   # the TimedBus streaming, if any
+        self._timed: Any = None              # the TimedBus streaming, if any
         self._report = SyncReport()
         self.warning: str | None = None    # the warning given before the last stream, if any
 

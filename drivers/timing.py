@@ -296,7 +296,8 @@ class TimedBus(can.BusABC):
     def _end(self) -> None:
         self._closed = True
         try:
-            self._process.stdin.close()
+            if self._process.stdin is not None:
+                self._process.stdin.close()
         except OSError:
             pass
         try:
@@ -305,7 +306,8 @@ class TimedBus(can.BusABC):
             self._process.terminate()
             self._process.wait(STOP_TIMEOUT)
         self._reader.join(STOP_TIMEOUT)
-        self._process.stdout.close()
+        if self._process.stdout is not None:
+            self._process.stdout.close()
 
 
 #: the folder holding the package :mod:`drivers`, first on the timing process's path (so that it

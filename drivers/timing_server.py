@@ -249,11 +249,11 @@ class _Server:
                 self.next_slot = stream.due
         elif kind == "stream_stop":
             with self.timer_lock:
-                stream, self.stream = self.stream, None
+                stopped, self.stream = self.stream, None
                 self.next_slot = math.inf
             self.answer(("stream_stopped", {
-                "syncs_sent": stream.sent if stream else 0, "slots_skipped": stream.skipped if stream else 0,
-                "latest_sync": stream.latest if stream else 0.0, "latest_heartbeat": self.latest_periodic,
+                "syncs_sent": stopped.sent if stopped else 0, "slots_skipped": stopped.skipped if stopped else 0,
+                "latest_sync": stopped.latest if stopped else 0.0, "latest_heartbeat": self.latest_periodic,
                 "send_failures": self.send_failures, "first_send_error": self.first_send_error,
                 "longest_stall": self.longest_stall, "stopped_after": self.stopped_after,
                 "relay_dropped": self.relay_dropped}))

@@ -60,6 +60,7 @@ class AxisScaling:
         """Motor turns per rad (revolute) or per m (prismatic)."""
         if self.kind == REVOLUTE:
             return self.gear_ratio / (2.0 * math.pi)
+        assert self.screw_lead is not None      # a prismatic axis has one (__post_init__)
         return self.gear_ratio / self.screw_lead
 
     @property

@@ -480,7 +480,7 @@ def _add_results_commands(command) -> None:
                    "bodies, point masses, zero principal moments) instead of writing them for pinocchio")
 
 
-def exit_code(exc: BaseException) -> int:
+def exit_code(exc: BaseException) -> Exit:
     """The :class:`Exit` class of an exception."""
     from drivers.errors import BusError, BusOpenError, ConfigError, DriveError, RecordingError
     if isinstance(exc, KeyboardInterrupt):

@@ -214,7 +214,7 @@ def _record(cls: type[T], doc: Any, where: str) -> T:
     upgrade = getattr(cls, "upgrade_json", None)
     if upgrade is not None:
         doc = upgrade(dict(doc))
-    hints = _hints(cls)
+    hints = _hints(cls)    # type: ignore[arg-type]  # a record class: hashable
     values = {}
     for f in dataclasses.fields(cls):          # type: ignore[arg-type]
         if not f.init or not _rule(f).store:

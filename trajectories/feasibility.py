@@ -20,6 +20,7 @@ from .trajectory import COLUMNS, Trajectory
 
 if TYPE_CHECKING:
     from ident_hw.model import ThreePRRR
+    from ident_hw.model.kinematics import SingularityMargins
 
 ACTUATORS = [name for name, _ in COLUMNS["Theta"]]
 UNITS = {"Theta": [u for _, u in COLUMNS["Theta"]], "Thetad": [u for _, u in COLUMNS["Thetad"]],
@@ -193,6 +194,7 @@ def check_trajectory(traj: Trajectory, robot: ThreePRRR, limits: Limits) -> Repo
         _first(found, t, quantity, bad, value, limit, names, units, chains)
 
     reachable = len(t)
+    margins: SingularityMargins | None
     try:
         margins = robot.singularity_margins(traj.X, traj.zeta)
     except KinematicsError as exc:

@@ -24,6 +24,7 @@ import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -72,11 +73,11 @@ def save(traj: Trajectory, path: str | Path, actuators: Sequence[tuple[str, str]
         raise ValueError(f"trajectory {traj.name!r} moves {traj.Theta.shape[1]} actuators, the file's columns name "
                          f"{len(actuators)} ({', '.join(n for n, _ in actuators)})")
     first = actuators == THREE_PRRR_ACTUATORS and traj.X.shape[1] == len(COLUMNS["X"])
-    arrays = {key: getattr(traj, key) for key in COLUMNS}
+    arrays: dict[str, Any] = {key: getattr(traj, key) for key in COLUMNS}
     if "\n" in traj.name:
         raise ValueError(f"trajectory name {traj.name!r} must fit on one line")
     if path.suffix == ".npz":
-        extra = {} if first else {"actuators": np.array([f"{n}[{u}]" for n, u in actuators])}
+        extra: dict[str, Any] = {} if first else {"actuators": np.array([f"{n}[{u}]" for n, u in actuators])}
         np.savez(path, name=traj.name, metadata=json.dumps(traj.metadata), **arrays, **extra)
     elif path.suffix == ".csv":
         table = np.column_stack([a.reshape(len(traj.t), -1) for a in arrays.values()])

@@ -289,8 +289,8 @@ class _Problem:
         V = np.vstack([v, v + np.diag(step)])                               # (1 + p, p)
         motions = [self.home[k] + np.einsum("vp,pnj->vnj", V, self.unit[k]) for k in range(3)]
         try:
-            costs = self.cost_of(*_criterion(self.robot, self.limits, self.base,
-                                             *(m.reshape(-1, 6) for m in motions), len(V)))
+            q, qd, qdd = (m.reshape(-1, 6) for m in motions)
+            costs = self.cost_of(*_criterion(self.robot, self.limits, self.base, q, qd, qdd, len(V)))
         except KinematicsError:                   # some perturbed excitation out of reach: one by one
             costs = np.array([self.cost(x) for x in V])
         return (costs[1:] - costs[0]) / step

@@ -58,7 +58,7 @@ class Trajectory:
     metadata: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        widths = {}
+        widths: dict[str, int] = {}
         for key in COLUMNS:
             value = np.asarray(getattr(self, key), dtype=float)
             family = "Theta" if key.startswith("Theta") else key[:1]

@@ -20,7 +20,10 @@ class ObjectStore:
         try:
             return self.values[(index, subindex)]
         except KeyError:
-            value = find_variable(self.dictionary, index, subindex).default
+            variable = find_variable(self.dictionary, index, subindex)
+            if variable is None:
+                raise KeyError(f"0x{index:04X}:{subindex:02X} is not in the drive's object dictionary") from None
+            value = variable.default
             self.values[(index, subindex)] = value
             return value
 

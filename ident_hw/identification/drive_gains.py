@@ -118,12 +118,12 @@ def fit_gains(runs: Sequence[GainsRun], mass: float, start: np.ndarray, blocks: 
     kappa, weight = _fit(whole, 1.0 / np.asarray(start, dtype=float))
     _, squares = whole.solve(kappa, weight)
     _, at_start = whole.solve(1.0 / np.asarray(start, dtype=float), weight)
-    estimates = []
+    jackknifed = []
     for k in range(blocks):
         rows = pieces == k
         if rows.any():
-            estimates.append(1.0 / _fit(whole.minus(_Grams(A[rows], i[rows], c[rows])), kappa, weight)[0])
-    estimates = np.array(estimates)
+            jackknifed.append(1.0 / _fit(whole.minus(_Grams(A[rows], i[rows], c[rows])), kappa, weight)[0])
+    estimates = np.array(jackknifed)
     b = len(estimates)
     sigma = np.sqrt((b - 1) / b * np.sum((estimates - estimates.mean(axis=0)) ** 2, axis=0))
     rows = np.maximum(whole.rows, 1.0)

@@ -24,7 +24,7 @@ from scipy import special
 LEVEL = 0.95
 
 
-def effective_dof(sigma: np.ndarray, draws_sigma: np.ndarray, draws: int) -> np.ndarray:
+def effective_dof(sigma: np.ndarray | float, draws_sigma: np.ndarray | float, draws: int) -> np.ndarray:
     """Welch-Satterthwaite degrees of freedom (same shape as ``sigma``) of standard deviations
     ``sigma`` whose part ``draws_sigma`` (same unit) is the spread of ``draws`` draws and the rest
     exact: ``sigma^4 / (draws_sigma^4 / (draws - 1))``; ``inf`` where the draws add nothing or

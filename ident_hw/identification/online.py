@@ -82,6 +82,11 @@ class _RecursiveEstimator:
         self.n_samples_seen_ = 0
 
     @property
+    def covariance_(self) -> np.ndarray:
+        """(n, n) the current parameter covariance in physical units: each estimator's own."""
+        raise NotImplementedError
+
+    @property
     def coef_(self) -> np.ndarray:
         """Current estimate (n,), physical units."""
         return self._theta * self.scale

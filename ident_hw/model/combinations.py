@@ -18,7 +18,7 @@ def format_combination(row: np.ndarray, names, digits: int = 4) -> str:
     ``row`` (n,) coefficients of the parameters ``names`` (n,); terms below 1e-10 of the largest
     are dropped, a coefficient of magnitude 1 is not written, the others with ``digits``
     significant digits."""
-    terms = []
+    terms: list[str] = []
     big = np.max(np.abs(row))
     for c, nm in zip(row, names):
         if abs(c) <= 1e-10 * big:

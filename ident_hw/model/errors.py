@@ -25,8 +25,8 @@ def raise_at_first(bad: np.ndarray, error: type[KinematicsError], what: str, X: 
     if bad.ndim == 1:
         sample, chain = int(np.argmax(bad)), None
     else:
-        sample, col = np.unravel_index(int(np.argmax(bad)), bad.shape)
-        sample, chain = int(sample), int(col) + 1
+        row, col = np.unravel_index(int(np.argmax(bad)), bad.shape)
+        sample, chain = int(row), int(col) + 1
     where = f"chain {chain}, " if chain else ""
     pose = ""
     if X is not None:

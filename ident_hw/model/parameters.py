@@ -91,7 +91,7 @@ class InertialParams:
         v = np.asarray(vector, dtype=float)
         if v.shape != (len(cls.NAMES),):
             raise ValueError(f"expected a vector of {len(cls.NAMES)} parameters, got shape {v.shape}")
-        return cls(*v[:7], f_v=tuple(v[7:13]), f_c=tuple(v[13:19]))
+        return cls(**dict(zip(INERTIAL_NAMES, v[:7])), f_v=tuple(v[7:13]), f_c=tuple(v[13:19]))
 
     def replace(self, **changes) -> InertialParams:
         """A copy with some fields changed (for example a payload added to ``m_ee``)."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -48,7 +49,7 @@ class ThreePRRR:
         self.geometry = geometry
         self.coulomb_width = coulomb_width
         self.kinematics = Kinematics(geometry)
-        self._single = None  # the compiled one-state path, made by the plant's first call
+        self._single: Any = None  # the compiled one-state path (SingleState), made by the plant's first call
         self._plant_params: tuple[np.ndarray, InertialParams] | None = None
 
     # -- kinematics ---------------------------------------------------------------------------

@@ -32,6 +32,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -289,7 +290,7 @@ def _version(path: Path, f) -> int:
 
 def save_fit(path: str | Path, fit: TrajectoryFit) -> None:
     """Write a :class:`TrajectoryFit` (its arrays that are not None) as ``.npz``."""
-    arrays = {k: getattr(fit, k) for k in fit.ARRAYS if getattr(fit, k) is not None}
+    arrays: dict[str, Any] = {k: getattr(fit, k) for k in fit.ARRAYS if getattr(fit, k) is not None}
     np.savez_compressed(path, format=FORMAT, name=fit.name, role=fit.role, **arrays)
 
 
@@ -297,14 +298,14 @@ def load_fit(path: str | Path) -> TrajectoryFit:
     """Read back what :func:`save_fit` wrote."""
     with np.load(path) as f:
         _version(Path(path), f)
-        return TrajectoryFit(name=str(f["name"]), role=str(f["role"]),
-                             **{k: (f[k] if k in f else None) for k in TrajectoryFit.ARRAYS})
+        arrays: dict[str, Any] = {k: (f[k] if k in f else None) for k in TrajectoryFit.ARRAYS}
+        return TrajectoryFit(name=str(f["name"]), role=str(f["role"]), **arrays)
 
 
 def save_online(path: str | Path, trace: OnlineTrace) -> None:
     """Write an :class:`OnlineTrace` as ``.npz`` (an absent part as an empty array, NaN for a time)."""
     labels = list(trace.estimates)
-    arrays = {f"estimates_{i}": trace.estimates[k] for i, k in enumerate(labels)}
+    arrays: dict[str, Any] = {f"estimates_{i}": trace.estimates[k] for i, k in enumerate(labels)}
     np.savez_compressed(path, format=FORMAT, names=np.array(trace.names), t=trace.t, estimators=np.array(labels),
                         j_rmse=np.array([trace.j_rmse.get(k, np.nan) for k in labels]),
                         rank=trace.rank if trace.rank is not None else np.zeros(0),

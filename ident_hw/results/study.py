@@ -9,7 +9,7 @@ import functools
 import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Iterable
+from typing import Iterable, cast
 
 import numpy as np
 from scipy import special
@@ -57,7 +57,9 @@ class Estimate:
     @property
     def covered(self) -> bool:
         """The run's 95 % interval (``±k σ``, :func:`coverage_factor` of :attr:`dof`) holds the truth."""
-        k = coverage_factor(math.inf if self.dof is None else self.dof)
+        if self.sigma is None:
+            raise ValueError(f"{self.kind} {self.name}: no sigma, no interval to hold the truth")
+        k = float(coverage_factor(math.inf if self.dof is None else self.dof))
         return abs(self.value - self.truth) <= k * self.sigma
 
 
@@ -214,7 +216,7 @@ class Study:
         for outcome in self.outcomes:
             by_key = {(e.kind, e.name): e for e in outcome.estimates if _has_sigma(e)}
             if all(k in by_key for k in claimed):
-                z.append([(by_key[k].value - by_key[k].truth) / by_key[k].sigma for k in claimed])
+                z.append([(by_key[k].value - by_key[k].truth) / cast(float, by_key[k].sigma) for k in claimed])
         correlation = np.eye(len(claimed))
         if len(z) > 2:
             with np.errstate(invalid="ignore", divide="ignore"):
