@@ -487,7 +487,7 @@ class SimulatedRig:
                      jitter: float = 0.0, delayed_share: float = 1.0) -> None:
         """Drop (probability) or delay (``delay`` s plus up to ``jitter`` s, uniform; a share
         ``delayed_share`` of the frames) the PDO frames of ``node_ids`` (default: all drives);
-        see :class:`_RigNetwork`."""
+        see ``_RigNetwork``."""
         if not (0.0 <= drop_probability <= 1.0 and 0.0 <= delayed_share <= 1.0) or delay < 0 or jitter < 0:
             raise ValueError(f"drop_probability and delayed_share in [0, 1], delay >= 0 and jitter >= 0, "
                              f"got {drop_probability}, {delayed_share}, {delay}, {jitter}")

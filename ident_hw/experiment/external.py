@@ -262,7 +262,7 @@ def beyond_reach(table: np.ndarray, axes: Axes, absurd: float, force_kind: str) 
     """(N,) bool: rows with a value further outside an actuator's limits (of the robot's
     ``axes``) than ``absurd`` times their size: a position beyond ``absurd`` × its range outside
     it, a velocity or current (a torque: through the force per ampere) above ``1 + absurd`` times
-    its limit. ``table`` as :func:`_parse` builds it (SI)."""
+    its limit. ``table`` as ``_parse`` builds it (SI)."""
     a = len(axes)
     lo, hi = axes.position_low, axes.position_high
     margin = absurd * (hi - lo)

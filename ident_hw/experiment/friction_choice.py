@@ -32,7 +32,7 @@ logger = logging.getLogger(__name__)
 #: rad | m, the presliding distances tried (a lab's joints: 10 µrad to a few mrad behind a gear)
 PRESLIDING_GRID = (2e-5, 5e-5, 1e-4, 2e-4, 5e-4, 1e-3, 2e-3, 5e-3)
 #: a grid value whose residual is within this fraction of the least one fits as well
-#: (:func:`_parsimonious`)
+#: (``_parsimonious``)
 TOLERANCE = 0.1
 #: rad/s | m/s, the Stribeck velocities tried
 STRIBECK_GRID = (0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0)

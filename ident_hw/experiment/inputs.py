@@ -189,7 +189,7 @@ def trajectory_inputs(tcfg: TrajectoryConfig, ident: IdentificationConfig, base_
 
 def identification_plan(config: Config, cycles_planned: Mapping[str, int] | None = None) -> IdentificationPlan:
     """The identification plan of ``config`` (see the module docstring); ``cycles_planned``: the
-    set-points of trajectories whose recordings do not say (the runner's :func:`plan` counts them).
+    set-points of trajectories whose recordings do not say (the runner's :func:`ident_hw.experiment.plan.plan` counts them).
 
     Raises:
         ValueError: the config has no identification section (naming the file).

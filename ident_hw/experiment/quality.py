@@ -121,7 +121,7 @@ class FloorFigure:
 def floor_figures(results: Results, force_per_amp: np.ndarray, floors: Mapping[str, np.ndarray],
                   judged: Sequence[str] | None = None) -> dict[str, FloorFigure]:
     """Each judged axis's residual against its own noise floor, at its worst fitted trajectory:
-    the RMS of what the fit leaves of its measured forces (:func:`_residual`) over the rows the
+    the RMS of what the fit leaves of its measured forces (``_residual``) over the rows the
     fits used (``TrajectoryFit.moving``: at rest a joint's friction holds whatever the last
     motion left, which no rate-dependent friction model predicts, and the fits leave those rows
     out), in the drive's current, over ``floors`` (per fitted trajectory, (a,) A, on the same

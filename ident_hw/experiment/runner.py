@@ -116,7 +116,7 @@ def read_drive_states(data: Path) -> DriveStates | None:
 
 @dataclass(frozen=True)
 class CampaignInputs:
-    """What streaming a campaign takes of the config, made once at the edge (:func:`campaign_inputs`):
+    """What streaming a campaign takes of the config, made once at the edge (:meth:`of`):
     the config file's ``name`` (each recording's metadata says it), the motor ``current`` the drives
     stream (``bus.current``), the ``sync_period`` (s), the raw log's suffix, each actuator's
     ``following_error`` window (a,) (a drive standing further than half of it from a trajectory's

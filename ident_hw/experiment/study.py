@@ -211,7 +211,7 @@ def run_study(config_path: str | Path, folder: str | Path, runs: int, *, workers
     summarize all of them.
 
     Args:
-        config_path: a simulated config (:func:`check_config`).
+        config_path: a simulated config (:func:`check_simulated`).
         folder: the study folder (created; a folder holding this config's study is continued).
         runs: how many runs the study has (run ``i`` with seed ``sim.seed + i``).
         workers: worker processes of a Dask ``LocalCluster`` on this machine (default: the CPUs

@@ -15,8 +15,8 @@ Public API::
 - :func:`axis_gains`: each axis's gain against its own model refitted (a torque constant,
   gear ratio or screw lead off; the quality verdict's check).
 
-In a results folder, the figures of a least-squares or mass fit are a step's
-:class:`ident_hw.records.LeastSquaresFigures` or :class:`ident_hw.records.MassFitFigures`, and
+In a results folder, the figures of a least-squares or mass fit are those of a step's record
+(:class:`ident_hw.records.BaseStep`, :class:`ident_hw.records.MassFitStep`), and
 :class:`BaseParameters` is :class:`ident_hw.records.BaseAnalysis`. Imports :mod:`ident_hw.model` and :mod:`ident_hw.filtering`,
 nothing of the drivers, trajectories, config or runner.
 """

@@ -1,7 +1,7 @@
 """The Delta's dynamics state by state, compiled by numba: for a simulator's inner loop, and the
 regressor of a recording's every sample.
 
-Both start from the seven bodies' motion at one state (:func:`_bodies`).
+Both start from the seven bodies' motion at one state (``_bodies``).
 :meth:`.delta.Delta.plant_dynamics` is called once per SYNC period; the vectorised regressor costs
 about a millisecond for one state. :func:`one_state` computes the same ``M(q)``, bias
 ``tau(q, qd, 0)`` (gravity and velocity terms, with ``Jm`` but without ``fv``, ``fc``) and
@@ -316,7 +316,7 @@ def _add_body_rows(Y, col, Q, am, omega, alpha, Jv, Jw, qdd, phi, world):
     the actuated forces of its ten parameters ``m, m c (body axes), I (about its origin, body
     axes: xx, xy, xz, yy, yz, zz)`` at actuated acceleration ``qdd`` (3,), as
     :meth:`.delta.Delta.regressor` (its body-axes map ``phi`` (6, 10), then ``Q`` and ``J``ᵀ).
-    The motion arguments as :func:`_bodies` gives them; ``phi``, ``world`` (6, 10): scratch."""
+    The motion arguments as ``_bodies`` gives them; ``phi``, ``world`` (6, 10): scratch."""
     a0 = am[0] + Jv[0, 0] * qdd[0] + Jv[0, 1] * qdd[1] + Jv[0, 2] * qdd[2]
     a1 = am[1] + Jv[1, 0] * qdd[0] + Jv[1, 1] * qdd[1] + Jv[1, 2] * qdd[2]
     a2 = am[2] + Jv[2, 0] * qdd[0] + Jv[2, 1] * qdd[1] + Jv[2, 2] * qdd[2]
@@ -366,7 +366,7 @@ def _add_body_rows(Y, col, Q, am, omega, alpha, Jv, Jw, qdd, phi, world):
 def body_regressor(q, qd, qdd, geo, e, y, g, Y):
     """The bodies' columns ``Y[:, :, :70]`` (N, 3, 70 of 79) of the regressor at the samples
     ``q, qd, qdd`` (N, 3): added to ``Y`` (zeros there on entry). Returns -1, or the first sample
-    whose motion :func:`_bodies` refused (``Y`` then incomplete)."""
+    whose motion ``_bodies`` refused (``Y`` then incomplete)."""
     Qs, Jvs, Jws = np.empty((7, 3, 3)), np.empty((7, 3, 3)), np.empty((7, 3, 3))
     ams, omegas, alphas = np.empty((7, 3)), np.empty((7, 3)), np.empty((7, 3))
     p, phi, world = np.empty(3), np.empty((6, 10)), np.empty((6, 10))

@@ -59,7 +59,7 @@ DRIVE_PARAMS = ("fv", "fc", "Jm")
 #: SI units of the drive terms: (revolute, prismatic)
 _DRIVE_UNITS = {"fv": ("N·m·s/rad", "N·s/m"), "fc": ("N·m", "N"), "Jm": ("kg·m²", "kg"), "fs": ("N·m", "N"),
                 "f0": ("N·m", "N")}
-#: the motions whose tree regressor a robot keeps (:meth:`DescribedRobot._tree_regressor`)
+#: the motions whose tree regressor a robot keeps (``DescribedRobot._tree_regressor``)
 TREE_ROWS_KEPT = 4
 #: ``cond(J_p)`` of the passive joints' closure Jacobian beyond which a pose is a parallel singularity
 SINGULAR_CONDITION = 1e10

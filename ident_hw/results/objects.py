@@ -372,7 +372,7 @@ class Results:
 
     def parameter_rows(self) -> list[ParameterRow]:
         """The physical parameters, judged by this campaign's %σ threshold, each σ with its
-        degrees of freedom from the step that fitted it (:func:`_draws_dof`)."""
+        degrees of freedom from the step that fitted it (``_draws_dof``)."""
         records = {s.name: s for s in self.steps}
         return [replace(r, dof=_draws_dof(records.get(r.step), r.sigma, r.name)) if r.fitted else r
                 for r in self.parameters.rows(self.rel_sigma_threshold)]
