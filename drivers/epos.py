@@ -15,6 +15,7 @@ property does not know them).
 from __future__ import annotations
 
 import logging
+import os
 import time
 from contextlib import AbstractContextManager, nullcontext
 from typing import Any, Callable, Sequence
@@ -658,8 +659,8 @@ class DriveGroup:
         return DriveFault(error.node, code, f"{describe(code, drive.profile.name)} ({error.text})")
 
     # -- streaming ---------------------------------------------------------------------------------
-    def run_cyclic(self, targets: np.ndarray, period: float, output: str | None = None,
-                   raw_log: str | None = None, metadata: RecordingMetadata | None = None,
+    def run_cyclic(self, targets: np.ndarray, period: float, output: str | os.PathLike | None = None,
+                   raw_log: str | os.PathLike | None = None, metadata: RecordingMetadata | None = None,
                    queue_size: int = 100_000, sync_timeout: float | None = None,
                    quiet: Callable[[], AbstractContextManager] = nullcontext) -> Recording:
         """Stream ``targets`` (n_cycles, n_axes) in rad|m, one row per SYNC, and record.

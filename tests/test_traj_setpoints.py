@@ -21,6 +21,7 @@ import pytest
 import trajectories
 from drivers.errors import ConfigError
 from drivers.stream import setpoint_counts
+from trajectories.paths import home_actuators
 from ident_hw.config import load_config
 from ident_hw.experiment.plan import PlanInputs, build, check, plan, setpoints, sync_period
 from ident_hw.config.robots import model_of
@@ -105,7 +106,7 @@ def test_check_refuses_a_carriage_move_beyond_the_drives_limits_within_the_strok
     sample and value ``run_cyclic`` would stop on."""
     config = load_config(CONFIGS / "hil-3prrr-epos4.yaml")
     robot = model_of(config.robot)
-    home = trajectories.paths.home_actuators(robot)
+    home = home_actuators(robot)
     wide = home.copy()
     wide[3] = 0.095
     trajectories.save(trajectories.actuator_trajectory(robot, "wide", np.array([home, wide, home]),

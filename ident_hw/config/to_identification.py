@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import fnmatch
+from typing import Any
 
 from ident_hw.filtering import FilterSettings
 
@@ -20,7 +21,7 @@ def filter_settings(filter: FilterConfig, sample_rate: float, bandwidth: float |
     above the band (:attr:`ident_hw.filtering.FilterSettings.position_cutoff_hz`); ``cutoff`` and
     ``decimation`` override the defaults of :meth:`ident_hw.filtering.FilterSettings.for_sample_rate`."""
     base = FilterSettings.for_sample_rate(sample_rate, bandwidth or filter.bandwidth, filter.order)
-    overrides = {k: v for k, v in (("cutoff_hz", filter.cutoff), ("decimation", filter.decimation)) if v is not None}
+    overrides: dict[str, Any] = {k: v for k, v in (("cutoff_hz", filter.cutoff), ("decimation", filter.decimation)) if v is not None}
     return dataclasses.replace(base, position_margin=position_margin, **overrides)
 
 

@@ -63,8 +63,9 @@ def noise_floors(plan: IdentificationPlan, recordings: Mapping[str, Recording], 
             (filtered,) = parallel_decimate(band, current)
             squares, count = squares + np.sum(filtered ** 2, axis=0), count + len(filtered)
         if count:
-            rows = None if moving is None else moving.get(name)
-            floors[name] = np.sqrt(squares / count + _encoder_spread(draws, name, coef, rows) ** 2 / per_amp ** 2)
+            moving_rows = None if moving is None else moving.get(name)
+            floors[name] = np.sqrt(squares / count + _encoder_spread(draws, name, coef, moving_rows) ** 2
+                                   / per_amp ** 2)
     return floors
 
 

@@ -93,7 +93,7 @@ def read_external(config: Config, tcfg: TrajectoryConfig, path: str | Path | Non
     spec = config.recordings
     if spec is None:
         raise RecordingError(f"{config.source}: recordings: missing section (how a recorded file is read)")
-    path = Path(path if path is not None else Path(config.base_dir or "") / tcfg.path)
+    path = Path(path if path is not None else Path(config.base_dir or "") / str(tcfg.path))
     try:
         text = path.read_text(encoding="utf-8", errors="strict")
     except (OSError, UnicodeDecodeError) as exc:
@@ -231,17 +231,17 @@ def _parse(spec: RecordingsConfig, body: Sequence[str], layout: _Layout, path: P
     table = np.array(rows, dtype=float).reshape(len(rows), len(columns)) * _scales(spec, layout, a)
     if layout.velocity is None:
         table[:, 1 + 2 * a:] = np.nan
-    lines = np.array(lines, dtype=np.int64)
+    numbers = np.array(lines, dtype=np.int64)
     far = beyond_reach(table, axes, spec.absurd, layout.force_kind)
-    for number in lines[far]:
+    for number in numbers[far]:
         _reject(spec, rejected, "absurd", int(number), path, "a value beyond anything the robot can reach")
-    table, lines = table[~far], lines[~far]
+    table, numbers = table[~far], numbers[~far]
     back = out_of_order(table[:, 0])
-    for number in lines[back]:
+    for number in numbers[back]:
         _reject(spec, rejected, "time_back", int(number), path, "its time does not go forward")
-    table, lines = table[~back], lines[~back]
+    table, numbers = table[~back], numbers[~back]
     alone = isolated(table[:, 0], spec.gap)
-    for number in lines[alone]:
+    for number in numbers[alone]:
         _reject(spec, rejected, "absurd", int(number), path, "a time stamp far from every other row's")
     table = table[~alone]
     cut = tuple(CutRows(reason, len(found), tuple(sorted(found)[:NAMED_LINES]))

@@ -38,7 +38,7 @@ class PlannedTrajectory:
         return self.trajectory is not None and self.report is not None and self.report.ok
 
     def describe(self) -> str:
-        if self.error:
+        if self.error or self.report is None or self.trajectory is None:
             return f"{self.config.name}: cannot build: {self.error}"
         if not self.report.ok:
             return f"{self.config.name}: INFEASIBLE: {self.report.first}"
@@ -218,7 +218,7 @@ def setpoint_violations(axes: Sequence[AxisConfig], traj: trajectories.Trajector
     targets = setpoints(traj)
     outside = outside_position_limits(axes, targets)
     found = []
-    for j in np.flatnonzero(outside.any(axis=0)):
+    for j in map(int, np.flatnonzero(outside.any(axis=0))):
         k = int(np.argmax(outside[:, j]))
         axis, value = axes[j], float(targets[k, j])
         limit = axis.position_max if value > axis.position_max else axis.position_min

@@ -223,7 +223,7 @@ def prepare(plan: IdentificationPlan, robot: RobotModel, name: str, rec: Recordi
     where = f"{rec.metadata.file or 'recording'} (trajectory {name!r})"
     if len(rec.t) < 3:
         raise RecordingError(f"{where}: {len(rec.t)} samples, too few to identify from")
-    empty = [label for label, ok in zip(axes.labels, identification_valid(rec).any(axis=0)) if not ok]
+    empty = [label for label, ok in zip(axes.labels, np.asarray(identification_valid(rec).any(axis=0))) if not ok]
     if empty:
         raise RecordingError(f"{where}: no valid sample of {', '.join(empty)}")
     usable = usable_segments(plan, name, rec)
@@ -247,8 +247,8 @@ def prepare(plan: IdentificationPlan, robot: RobotModel, name: str, rec: Recordi
         regressor, X = robot.identification_regressor(samples.Theta, samples.Thetad, samples.Thetadd, guess[rows])
         if averaging is not None:   # forces from averaged currents: the regressor through the same average
             period = (t[-1] - t[0]) / (len(t) - 1)
-            regressor = running_average(regressor, [UNFILTERED if f is None else f.over_period(period)
-                                                    for f in averaging])
+            regressor = running_average(regressor, np.array([UNFILTERED if f is None else f.over_period(period)
+                                                             for f in averaging]))
         regressor, tau = through_position_lowpass(settings, samples.tau, regressor, coulomb, ends)
         Y, tau = parallel_decimate(settings, regressor, tau, ends=ends)
         kept = kept_samples(settings, len(t), ends)

@@ -577,7 +577,7 @@ def noise_dominated(axes: Mapping[str, AxisFigures], limits: Thresholds) -> bool
     missing = [name for name, r in ratios.items() if r is None]
     if missing or not ratios:
         return "no noise floor to tell the residual from noise (no standstill)"
-    above = {name: r for name, r in ratios.items() if r > limits.max_residual_over_floor}
+    above = {name: r for name, r in ratios.items() if r is not None and r > limits.max_residual_over_floor}
     if above:
         return "the residual is the model's own error, not noise: " + ", ".join(
             f"{name} {r:.1f} times its noise floor" for name, r in above.items())

@@ -40,7 +40,9 @@ def identification_valid(rec: Recording) -> np.ndarray:
     """(N, n_axes) bool: the rows of each axis whose values identification uses, its position
     and its current, were received in their cycle (a lost velocity or statusword frame does not
     matter here)."""
-    return rec.position_valid & rec.current_valid
+    position, current = rec.position_valid, rec.current_valid
+    assert position is not None and current is not None     # Recording.__post_init__ fills them
+    return position & current
 
 
 def require_trajectories(ident: IdentificationConfig, source: str, names: Collection[str]) -> None:
@@ -322,7 +324,7 @@ def check_log_nodes(path: Path, rec: Recording, acts: Sequence[ActuatorConfig], 
     if not len(rec.t):
         raise RecordingError(f"{path}: no SYNC cycle of the configured nodes in the log (nodes heard: "
                              f"{heard or 'none'})")
-    received = identification_valid(rec).any(axis=0)
+    received = np.asarray(identification_valid(rec).any(axis=0))
     silent = [f"node {a.node_id} ({a.name})" for a, any_valid in zip(acts, received) if not any_valid]
     if silent:
         raise RecordingError(f"{path}: no sample of {', '.join(silent)} configured in {source}; the log "

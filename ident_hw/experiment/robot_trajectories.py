@@ -118,9 +118,16 @@ def _delta_check(robot: RobotConfig, traj: trajectories.Trajectory, model: Robot
                                               safety.max_cond_A)
 
 
+def _duration(tcfg: TrajectoryConfig) -> float:
+    """The ``duration`` of a generated trajectory (s), which its kind requires (the config's check)."""
+    if tcfg.duration is None:
+        raise ValueError(f"trajectory {tcfg.name!r}: a {tcfg.kind} trajectory needs its duration")
+    return tcfg.duration
+
+
 DELTA = RobotTrajectories(
     build=lambda robot, tcfg, model, rate, base_dir, bandwidth: delta_paper.delta_trajectory(
-        model, tcfg.kind, tcfg.duration, rate, tcfg.fade, name=tcfg.name, amplitude=tcfg.amplitude),
+        model, tcfg.kind, _duration(tcfg), rate, tcfg.fade, name=tcfg.name, amplitude=tcfg.amplitude),
     check=_delta_check)
 
 
@@ -128,7 +135,7 @@ DELTA = RobotTrajectories(
 def _described_build(robot: RobotConfig, tcfg: TrajectoryConfig, model: RobotModel, rate: float,
                      base_dir: Path | None, bandwidth: float) -> trajectories.Trajectory:
     # the motion's bandwidth: the trajectory's, else the identification filter's (what it is filtered at)
-    return joint_space.joint_excitation(model, actuator_limits(robot), tcfg.duration, rate,
+    return joint_space.joint_excitation(model, actuator_limits(robot), _duration(tcfg), rate,
                                         tcfg.bandwidth or bandwidth, fade=tcfg.fade,
                                         seed=tcfg.seed, name=tcfg.name, amplitude=tcfg.amplitude,
                                         harmonics=tcfg.harmonics)

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Iterator, Mapping
+from collections.abc import Generator, Iterator, Mapping
 from contextlib import closing, contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -239,7 +239,7 @@ def stream(session: Session, group: DriveGroup, planned: PlannedTrajectory, data
 
 
 def record_campaign(session: Session, data: Path, planned: list[PlannedTrajectory], inputs: CampaignInputs,
-                    host: HostSettings) -> Iterator[tuple[str, Recording]]:
+                    host: HostSettings) -> Generator[tuple[str, Recording], None, None]:
     """Bring the drives up (and home the simulated rig), stream every planned trajectory into
     ``data``, yielding each one's name and recording as it ends (a stop keeps those already made),
     then, whether the session ended or stopped, stop and disable the drives and keep their states

@@ -91,13 +91,16 @@ def plot_forces(fit: TrajectoryFit, actuators: Actuators, plots: Path, model_lab
 def plot_compared(fit: TrajectoryFit, actuators: Actuators, plots: Path, label: str = "compared") -> Path:
     """The whole trajectory: measured forces, the identified parameters' prediction and the set
     from elsewhere's (``label``), the samples where each actuator is at rest shaded."""
+    compared = fit.tau_compared
+    if compared is None:
+        raise ValueError(f"{fit.name}: no prediction of the compared set to plot")
     fig = _figure(9)
     panels, bottom = _panels(fig, len(actuators.names))
     s = _every(len(fit.t))
     for j, ax in enumerate(panels):
         ax.plot(fit.t[s], fit.tau[s, j], lw=0.9, color="k", label="measured")
         ax.plot(fit.t[s], fit.tau_fit[s, j], lw=0.9, color="C3", label="identified")
-        ax.plot(fit.t[s], fit.tau_compared[s, j], lw=0.7, color="C0", label=label)
+        ax.plot(fit.t[s], compared[s, j], lw=0.7, color="C0", label=label)
         if fit.at_rest is not None and fit.at_rest[:, j].any():
             low, high = ax.get_ylim()
             ax.fill_between(fit.t[s], low, high, where=fit.at_rest[s, j], color="0.85", lw=0, label="at rest")
