@@ -4,14 +4,17 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from ident_hw.model.friction import MAXWELL_ELEMENTS, MODELS
 
 from .schema import positive, spec
 
 #: the type of :attr:`FrictionConfig.model`: one of :data:`ident_hw.model.friction.MODELS`
-FrictionKind = Literal[MODELS]
+if TYPE_CHECKING:     # a type checker sees text; the schema reads the models at run time
+    FrictionKind = str
+else:
+    FrictionKind = Literal[MODELS]
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,7 @@ robot's own controller or of another lab), for ``recorded`` trajectories
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from .schema import in_range, non_negative, positive, spec
 
@@ -35,15 +35,27 @@ class ColumnsConfig:
     torque: tuple[Column, ...] | None = None
 
 
+if TYPE_CHECKING:     # a type checker sees text; the schema reads the units at run time
+    TimeUnit = str
+    PositionUnit = str
+    VelocityUnit = str
+    CurrentUnit = str
+    TorqueUnit = str
+else:
+    TimeUnit, PositionUnit = Literal[tuple(TIME_UNITS)], Literal[tuple(POSITION_UNITS)]
+    VelocityUnit, CurrentUnit = Literal[tuple(VELOCITY_UNITS)], Literal[tuple(CURRENT_UNITS)]
+    TorqueUnit = Literal[tuple(TORQUE_UNITS)]
+
+
 @dataclass(frozen=True)
 class UnitsConfig:
     """The unit of each quantity in the file (converted to SI on reading)."""
 
-    time: Literal[tuple(TIME_UNITS)] = "s"
-    position: Literal[tuple(POSITION_UNITS)] = "rad"
-    velocity: Literal[tuple(VELOCITY_UNITS)] = "rad/s"
-    current: Literal[tuple(CURRENT_UNITS)] = "A"
-    torque: Literal[tuple(TORQUE_UNITS)] = "N m"
+    time: TimeUnit = "s"
+    position: PositionUnit = "rad"
+    velocity: VelocityUnit = "rad/s"
+    current: CurrentUnit = "A"
+    torque: TorqueUnit = "N m"
 
 
 @dataclass(frozen=True)

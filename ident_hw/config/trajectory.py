@@ -4,7 +4,7 @@ trajectory with the keys each reads (:data:`KEYS_OF_KIND`, the one list of the k
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from .schema import in_range, non_negative, positive, spec
 
@@ -42,7 +42,10 @@ STANDSTILL_SETTLE = 0.5
 #: identification filter's two ends (a quarter second each in a 15 Hz band) leave a little
 STANDSTILL_MIN_S = 2 * STANDSTILL_SETTLE
 #: the type of :attr:`TrajectoryConfig.kind`: one of the kinds of :data:`KEYS_OF_KIND`
-TrajectoryKind = Literal[tuple(KEYS_OF_KIND)]
+if TYPE_CHECKING:     # a type checker sees text; the schema reads the kinds at run time
+    TrajectoryKind = str
+else:
+    TrajectoryKind = Literal[tuple(KEYS_OF_KIND)]
 
 
 @dataclass(frozen=True)

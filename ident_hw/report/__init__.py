@@ -18,6 +18,7 @@ the model's names and the identification metrics; nothing of the runner or the d
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import yaml
@@ -43,7 +44,7 @@ def build_report(folder: str | Path) -> Path:
                                                         sort_keys=False))
     folder_plots = folder / "plots"
     folder_plots.mkdir(exist_ok=True)
-    jobs = []
+    jobs: list[tuple[str, Callable[..., Path], tuple]] = []
     actuators = plots.Actuators(results.actuators, results.actuator_kinds)
     for fit in results.fits:
         jobs.append((f"{fit.role}: {fit.name} — measured vs model", plots.plot_forces,

@@ -108,7 +108,7 @@ def plot_z_histograms(study: Study, path: Path) -> Path | None:
     for k, s in enumerate(claimed):
         ax = fig.add_subplot(rows, cols, k + 1)
         z = _z_scores(study.outcomes, s)
-        ax.hist(np.clip(z, -5, 5), bins=np.linspace(-5, 5, 21), density=True, color="tab:blue" if s.honest else "tab:red")
+        ax.hist(np.clip(z, -5, 5), bins=list(np.linspace(-5, 5, 21)), density=True, color="tab:blue" if s.honest else "tab:red")
         ax.plot(x, np.exp(-x ** 2 / 2) / math.sqrt(2 * math.pi), "k", lw=1)
         ax.set_title(s.name if len(s.name) < 28 else s.name[:25] + "…", fontsize=7)
         ax.tick_params(labelsize=6)

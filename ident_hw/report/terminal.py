@@ -139,10 +139,12 @@ def accuracy_line(rows: list[ParameterRow], base_fit: BaseFit | None) -> str:
     """Against the simulated truth: the largest error among the well-identified estimates, the
     largest in units of their own sigma, and those off by more than 2 sigma (whose sigma claims an
     accuracy their error does not have)."""
-    judged = [(r.name, r) for r in rows if r.well_identified and r.error_percent is not None]
+    judged: list[tuple[str, ParameterRow | BaseRow]] = [
+        (r.name, r) for r in rows if r.well_identified and r.error_percent is not None]
     parts = [_largest_errors(judged, "physical parameters")]
     if base_fit is not None:
-        base = [(r.base_parameter, r) for r in base_fit.rows() if r.well_identified and r.error_percent is not None]
+        base: list[tuple[str, ParameterRow | BaseRow]] = [
+            (r.base_parameter, r) for r in base_fit.rows() if r.well_identified and r.error_percent is not None]
         parts.append(_largest_errors(base, "base parameters"))
         judged += base
     text = "accuracy vs truth, well identified only: " + ", ".join(parts)
@@ -156,15 +158,17 @@ def accuracy_line(rows: list[ParameterRow], base_fit: BaseFit | None) -> str:
 
 
 def _largest_errors(judged: list[tuple[str, ParameterRow | BaseRow]], what: str) -> str:
-    """``13 physical parameters (largest error 1.16 % m_c; largest error/sigma 1.9 I_ee)``."""
+    """``13 physical parameters (largest error 1.16 % m_c; largest error/sigma 1.9 I_ee)``: of
+    rows with an error (``error_percent`` not None)."""
     text = f"{len(judged)} {what}"
-    if judged:
-        worst = max(judged, key=lambda j: abs(j[1].error_percent))
-        text += f" (largest error {abs(worst[1].error_percent):.2f} %, {worst[0]}"
-        with_sigma = [j for j in judged if j[1].error_sigmas is not None]
+    errors = [(name, r.error_percent) for name, r in judged if r.error_percent is not None]
+    if errors:
+        worst = max(errors, key=lambda j: abs(j[1]))
+        text += f" (largest error {abs(worst[1]):.2f} %, {worst[0]}"
+        with_sigma = [(name, r.error_sigmas) for name, r in judged if r.error_sigmas is not None]
         if with_sigma:
-            z = max(with_sigma, key=lambda j: abs(j[1].error_sigmas))
-            text += f"; largest |error|/sigma {abs(z[1].error_sigmas):.2f}, {z[0]}"
+            z = max(with_sigma, key=lambda j: abs(j[1]))
+            text += f"; largest |error|/sigma {abs(z[1]):.2f}, {z[0]}"
         text += ")"
     return text
 
@@ -261,7 +265,7 @@ def consistent_lines(c: ConsistentSet, listed: int = 12) -> list[str]:
             continue
         text = (f"  {name:<{width}} {c.prior[i]:>11.5g} {c.values[i]:>11.5g} {percent(c.rel_sigma_percent[i]):>7} "
                 f"{100 * c.prior_share[i]:>7.0f}")
-        if errors is not None:
+        if errors is not None and c.truth is not None:
             text += f" {c.truth[i]:>11.5g} {_or_nan(errors[i]):>+8.2f}"
         lines.append(text + f"  {c.decided_by[i]}")
     prior = [n for n, d in zip(c.names, c.decided_by) if d == "prior"]
