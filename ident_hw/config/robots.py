@@ -19,7 +19,7 @@ Adding a robot of this kind is a description file and a config, no code.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, cast
 
 import numpy as np
 
@@ -177,7 +177,7 @@ DESCRIBED = RobotKind(
     name="described", sections=("described",), truth_key="parameters", trajectory_kinds=("joint_excitation",),
     model=described_model,
     initial=lambda robot: to_model.described_parameters(robot.described.cad, described_model(robot)),
-    truth=lambda robot, sim, model: to_model.described_parameters(sim.parameters, model),
+    truth=lambda robot, sim, model: to_model.described_parameters(sim.parameters, cast("DescribedRobot", model)),
     actuators=lambda robot: (tuple(a.name for a in robot.actuators), tuple(a.kind for a in robot.actuators)),
     validate=_described_validate, friction_models=True)
 

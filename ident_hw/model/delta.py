@@ -157,8 +157,8 @@ class Delta:
         gravity: m/s², acting along ``-z``.
     """
 
-    actuator_names = ACTUATOR_NAMES
-    actuator_kinds = (REVOLUTE,) * 3
+    actuator_names: tuple[str, ...] = ACTUATOR_NAMES
+    actuator_kinds: tuple[str, ...] = (REVOLUTE,) * 3
     parameter_names = PARAM_NAMES
     pose_size = 3
 

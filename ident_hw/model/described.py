@@ -570,13 +570,13 @@ class DescribedRobot:
         """The tree's part ``W^T Y_tree`` (N, n, 10 bodies) of the regressor and the tree
         configurations (N, nq) of a motion, from the cache of the motions last asked for (the
         same arrays give the same rows; a copy with another friction model shares it)."""
-        key = None
-        if self._tree_rows is not None:
+        kept, key = self._tree_rows, None
+        if kept is not None:
             key = hashlib.sha1(b"".join(np.ascontiguousarray(x).tobytes()
                                         for x in (Theta, Thetad, Thetadd, guess))).digest()
-        if key is not None and key in self._tree_rows:
-            self._tree_rows.move_to_end(key)
-            rows, poses = self._tree_rows[key]
+        if kept is not None and key in kept:
+            kept.move_to_end(key)
+            rows, poses = kept[key]
             return rows.copy(), poses.copy()
         N, n = Theta.shape
         rows = np.zeros((N, n, self._n_body))
@@ -591,11 +591,11 @@ class DescribedRobot:
                 raise
             poses[k] = q
             rows[k] = W.T @ pin.computeJointTorqueRegressor(self.model, self.data, q, v, a)
-        if key is None:
+        if kept is None:
             return rows, poses
-        self._tree_rows[key] = (rows, poses)
-        while len(self._tree_rows) > TREE_ROWS_KEPT:
-            self._tree_rows.popitem(last=False)
+        kept[key] = (rows, poses)
+        while len(kept) > TREE_ROWS_KEPT:
+            kept.popitem(last=False)
         return rows.copy(), poses.copy()
 
     def energy_regressor(self, Theta, Thetad, guess=None) -> np.ndarray:

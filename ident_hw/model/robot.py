@@ -37,8 +37,8 @@ class ThreePRRR:
     carriages.
     """
 
-    actuator_names = ACTUATOR_NAMES
-    actuator_kinds = (REVOLUTE,) * 3 + (PRISMATIC,) * 3
+    actuator_names: tuple[str, ...] = ACTUATOR_NAMES
+    actuator_kinds: tuple[str, ...] = (REVOLUTE,) * 3 + (PRISMATIC,) * 3
     parameter_names = InertialParams.NAMES
     n_params = len(InertialParams.NAMES)
     pose_size = 3
