@@ -68,8 +68,10 @@ import os
 import re
 import textwrap
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -457,7 +459,7 @@ def _indent_of(parent: ET.Element, depth: int) -> tuple[str, str]:
     return "\n" + "  " * (depth + 1), "\n" + "  " * depth
 
 
-def _insert(parent: ET.Element, index: int, child: ET.Element, depth: int) -> None:
+def _insert(parent: ET.Element, index: int, child: ET.Element[Any], depth: int) -> None:
     """Insert ``child`` at ``index`` with the indentation of its siblings."""
     inner, outer = _indent_of(parent, depth)
     children = list(parent)
@@ -639,7 +641,7 @@ def _urdf_meshes(root: ET.Element, source: Path, to: Path, for_mujoco: bool) -> 
                 mesh = element.find("geometry/mesh")
                 if mesh is None or not mesh.get("filename"):
                     continue
-                name = mesh.get("filename")
+                name = mesh.get("filename") or ""
                 local = None if "://" in name else (source.parent / name)
                 if local is not None and local.is_file():
                     mesh.set("filename", os.path.relpath(local.resolve(), to.resolve().parent))
@@ -650,7 +652,7 @@ def _urdf_meshes(root: ET.Element, source: Path, to: Path, for_mujoco: bool) -> 
 
 
 def _assemble(source: Path, raw: bytes, root: ET.Element, fmt: str, dropped: list[str],
-              geometry: list[str] = ()) -> str:
+              geometry: Sequence[str] = ()) -> str:
     """The written text: the source's prolog with the header, the root, the source's epilog."""
     try:
         text = raw.decode("utf-8").replace("\r\n", "\n")
@@ -682,7 +684,7 @@ def _serialize(root: ET.Element) -> str:
     return "".join(part if k % 2 else part.replace(" />", "/>") for k, part in enumerate(parts))
 
 
-def _header(name: str, fmt: str, dropped: list[str], geometry: list[str] = ()) -> str:
+def _header(name: str, fmt: str, dropped: list[str], geometry: Sequence[str] = ()) -> str:
     name = name.replace("--", "- -")
     if fmt == MJCF:
         lines = [
@@ -732,12 +734,12 @@ def _read_back(robot: DescribedRobot, params: np.ndarray, path: Path, fmt: str, 
                 bad.append(f"{robot.body_names[j - 1]}.{name}: {g!r} instead of {w!r}")
     for drive in _drives(robot, params):
         v = model.joints[model.getJointId(drive.joint)].idx_v
-        read = [("fv", model.damping[v], drive.fv), ("fc", model.friction[v], drive.fc)]
+        read: list[tuple[str, Any, float]] = [("fv", model.damping[v], drive.fv), ("fc", model.friction[v], drive.fc)]
         if fmt == MJCF:
             read.append(("Jm", model.armature[v], drive.Jm))
-        for key, got, want in read:
-            if abs(got - want) > _READ_BACK * abs(want) + 1e-300:
-                bad.append(f"{key}_{drive.actuator}: {got!r} instead of {want!r}")
+        for key, value, expected in read:
+            if abs(value - expected) > _READ_BACK * abs(expected) + 1e-300:
+                bad.append(f"{key}_{drive.actuator}: {value!r} instead of {expected!r}")
     if bad:
         raise DescriptionError(f"{to}: pinocchio reads the written file back with other values (a reader quirk "
                                "the writer does not handle):\n  " + "\n  ".join(bad))
