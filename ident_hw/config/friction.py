@@ -10,7 +10,7 @@ from ident_hw.model.friction import MAXWELL_ELEMENTS, MODELS
 
 from .schema import positive, spec
 
-#: the type of :attr:`FrictionConfig.model`: one of :data:`ident_hw.model.friction.MODELS`
+# the type of FrictionConfig.model: one of ident_hw.model.friction.MODELS
 if TYPE_CHECKING:     # a type checker sees text; the schema reads the models at run time
     FrictionKind = str
 else:

@@ -11,7 +11,7 @@ from .schema import in_range, non_negative, positive, spec
 #: the keys every trajectory may have
 COMMON_KEYS = ("name", "kind", "cycles", "bandwidth", "online_only", "payload")
 #: the kinds of trajectory, each with the further keys it reads: any other is refused (it would
-#: be ignored). A kind added here is a value of ``trajectories[].kind`` (:data:`TrajectoryKind`)
+#: be ignored). A kind added here is a value of ``trajectories[].kind`` (``TrajectoryKind``)
 KEYS_OF_KIND = {
     "carriage_sweep": ("size", "speed_scale", "dwell"),
     "square": ("size", "rotation", "speed_scale", "dwell"),
@@ -41,7 +41,7 @@ STANDSTILL_SETTLE = 0.5
 #: s, the shortest standstill: as long again at rest after :data:`STANDSTILL_SETTLE`, of which the
 #: identification filter's two ends (a quarter second each in a 15 Hz band) leave a little
 STANDSTILL_MIN_S = 2 * STANDSTILL_SETTLE
-#: the type of :attr:`TrajectoryConfig.kind`: one of the kinds of :data:`KEYS_OF_KIND`
+# the type of TrajectoryConfig.kind: one of the kinds of KEYS_OF_KIND
 if TYPE_CHECKING:     # a type checker sees text; the schema reads the kinds at run time
     TrajectoryKind = str
 else:
