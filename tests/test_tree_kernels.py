@@ -155,3 +155,56 @@ def test_newton_continues_from_the_previous_sample():
     np.testing.assert_allclose(series[::20], alone, atol=1e-10)
     for k in range(0, 200, 20):
         assert np.max(np.abs(ref.closure(robot, series[k])[1])) <= 1e-12
+
+
+# ---------------------------------------------------------------- gravity from <option gravity>
+def test_gravity_comes_from_the_file(tmp_path):
+    """``<option gravity>`` along -y, in the five-bar's plane (pinocchio's reader ignores it): the
+    forces at rest are the gradient of the potential energy ``-M g . c`` (pinocchio's centre of
+    mass of each assembled configuration, by central differences along the actuated coordinates);
+    with gravity along -z, normal to the plane, there are none."""
+    import pinocchio as pin
+
+    robot = five_bar(tmp_path, gravity="0 -9.81 0")
+    np.testing.assert_array_equal(robot.model.gravity.linear, [0.0, -9.81, 0.0])
+    Theta = robot.home_actuated() + np.array([0.1, -0.05])
+    zero = np.zeros((1, 2))
+    Y, _ = robot.identification_regressor(Theta[None], zero, zero, None)
+    tau = Y[0] @ robot.nominal_parameters()
+
+    def potential(Th) -> float:
+        q = robot.pose(Th, None)
+        data = robot.model.createData()
+        com = pin.centerOfMass(robot.model, data, q)
+        return -data.mass[0] * np.dot([0.0, -9.81, 0.0], com)
+
+    h = 1e-6
+    grad = [(potential(Theta + h * e) - potential(Theta - h * e)) / (2 * h) for e in np.eye(2)]
+    np.testing.assert_allclose(tau, grad, rtol=1e-6, atol=1e-9)
+    assert np.abs(tau).max() > 0.1
+    flat = five_bar(tmp_path, gravity="0 0 -9.81")
+    Y, _ = flat.identification_regressor(Theta[None], zero, zero, None)
+    assert np.abs(Y[0] @ flat.nominal_parameters()).max() < 1e-12
+
+
+def test_a_bad_gravity_is_refused_naming_the_file(tmp_path):
+    from ident_hw.model.described import DescriptionError
+    with pytest.raises(DescriptionError, match=r"five_bar\.xml: <option gravity='0 -9\.81'>: expected three numbers"):
+        five_bar(tmp_path, gravity="0 -9.81")
+
+
+def test_a_moving_body_without_mass_is_named(tmp_path):
+    from ident_hw.model.described import MasslessBodyWarning
+    path = tmp_path / "five_bar.xml"
+    path.write_text(FIVE_BAR.format(gravity="0 0 -9.81").replace(
+        '<inertial pos="0.12 -0.01 0" mass="0.35" diaginertia="1e-4 1.8e-3 1.9e-3"/>', ""))
+    with pytest.warns(MasslessBodyWarning, match=r"five_bar\.xml: moving bodies without mass: dist2 \(MuJoCo refuses"):
+        robot = DescribedRobot(path, ("a1", "a2"), home=FIVE_BAR_HOME)
+    assert robot.massless_bodies == ("dist2",)
+
+
+def test_the_stewart_file_loads_in_mujoco():
+    """Its crosses and ball-joint bodies have masses: MuJoCo loads it, and no body is massless."""
+    mujoco = pytest.importorskip("mujoco")
+    mujoco.MjModel.from_xml_path(str(ROBOTS / "stewart.xml"))
+    assert _from_config("robot-stewart").massless_bodies == ()

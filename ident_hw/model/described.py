@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import warnings
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
@@ -111,12 +112,45 @@ def load_description(path: str | Path) -> tuple[pin.Model, list, list]:
     try:
         if suffix in (".xml", ".mjcf"):
             model, points, frames = pin.buildModelAndConstraintsFromMJCF(str(path))
+            model.gravity.linear = mjcf_gravity(path)
             return model, list(points), list(frames)
         if suffix == ".urdf":
             return pin.buildModelFromUrdf(str(path)), [], []
     except (RuntimeError, ValueError) as exc:
         raise DescriptionError(f"{path}: pinocchio cannot read it: {exc}") from exc
     raise DescriptionError(f"{path}: unknown description format {suffix!r}; expected MJCF (.xml, .mjcf) or URDF (.urdf)")
+
+
+def mjcf_gravity(path: str | Path) -> np.ndarray:
+    """The gravity vector (3,) (m/s², world axes) of an MJCF file: its ``<option gravity>``,
+    MuJoCo's default ``0 0 -9.81`` where it has none (pinocchio's MJCF reader ignores it).
+
+    Raises:
+        DescriptionError: a gravity that is not three numbers, naming the file.
+    """
+    from xml.etree import ElementTree
+
+    try:
+        root = ElementTree.parse(path).getroot()
+    except ElementTree.ParseError as exc:
+        raise DescriptionError(f"{path}: not XML: {exc}") from exc
+    gravity = np.array([0.0, 0.0, -9.81])
+    for option in root.iter("option"):
+        text = option.get("gravity")
+        if text is None:
+            continue
+        try:
+            value = np.array([float(x) for x in text.split()])
+        except ValueError:
+            value = np.zeros(0)
+        if value.shape != (3,) or not np.all(np.isfinite(value)):
+            raise DescriptionError(f"{path}: <option gravity={text!r}>: expected three numbers (m/s²)")
+        gravity = value
+    return gravity
+
+
+class MasslessBodyWarning(UserWarning):
+    """A description whose moving bodies have no mass (MuJoCo refuses such a file)."""
 
 
 def _joint_kind(joint: pin.JointModel) -> str | None:
@@ -214,6 +248,17 @@ class DescribedRobot:
         bodies = [model.inertias[j].toDynamicParameters() for j in range(1, model.njoints)]
         self._nominal = np.concatenate([*bodies, self.drive_parameters()])
         self._mobility_check()
+        if self.massless_bodies:
+            warnings.warn(MasslessBodyWarning(
+                f"{self.path}: moving bodies without mass: {', '.join(self.massless_bodies)} (MuJoCo refuses "
+                "them: give each its real mass and inertia, e.g. a universal joint's cross; pinocchio and the "
+                "identification take them as they are)"), stacklevel=2)
+
+    @property
+    def massless_bodies(self) -> tuple[str, ...]:
+        """The bodies that move (every body of the tree does) and have no mass in the file."""
+        return tuple(name for name, j in zip(self.body_names, range(1, self.model.njoints))
+                     if not self.model.inertias[j].mass > 0.0)
 
     def _set_parameter_names(self) -> None:
         """The parameter vector's names: the bodies' ten, then the drive terms of the friction model."""
@@ -651,7 +696,12 @@ def numerical_base(robot: DescribedRobot, samples: int = 60, seed: int = 0, rtol
     used = norms > 1e-12 * norms.max()             # a column of rounding errors: a parameter nothing moves
     cols = np.flatnonzero(used)
     As = A[:, cols] / norms[cols]
-    _, R, perm = qr(As, mode="economic", pivoting=True)
+    # columns equal to rounding (a rotor's inertia and its link's, one link's inertia and the next
+    # one's mass times a length squared) tie: the earlier parameter in the vector is kept, whatever
+    # the last bits of the regressor, so that a combination keeps its name from one build to the next
+    tie_break = 1.0 + 1e-9 * (len(cols) - np.arange(len(cols))) / len(cols)
+    _, _, perm = qr(As * tie_break, mode="economic", pivoting=True)
+    R = qr(As[:, perm], mode="r")[0][:len(cols)]
     diag = np.abs(np.diag(R))
     rank = int(np.sum(diag > rtol * diag[0]))
     independent, dependent = cols[perm[:rank]], cols[perm[rank:]]
