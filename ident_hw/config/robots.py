@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -210,13 +211,35 @@ def _described_key(exc, robot) -> str:
     return _DESCRIBED_KEYS[exc.argument]
 
 
+def excitation_bandwidth(config, tcfg) -> float:
+    """Hz, the highest frequency of a ``joint_excitation``: the trajectory's ``bandwidth``, else the
+    identification filter's (what it is filtered at)."""
+    return tcfg.bandwidth or (config.identification.filter.bandwidth if config.identification else 2.0)
+
+
+def joint_harmonics_of(config, tcfg, robot) -> joint_space.JointHarmonics | None:
+    """The sines a ``joint_excitation`` reads from its ``path`` (an optimised set,
+    :mod:`trajectories.joint_optimisation`; relative to the config), None where it draws them.
+
+    Raises:
+        ValueError: not such a file, not one row per actuator, or sines above the trajectory's
+            bandwidth (its identification filter would cut them), naming the file."""
+    if tcfg.path is None:
+        return None
+    path = Path(tcfg.path)                 # made relative to the config's folder when it was read
+    sines = joint_space.JointHarmonics.load(path, len(robot.home_actuated()))
+    bandwidth = excitation_bandwidth(config, tcfg)
+    top = float(np.max(sines.frequencies)) / (2 * np.pi)
+    if top > bandwidth * (1 + 1e-9):
+        raise ValueError(f"{path}: sines up to {top:.4g} Hz, above the trajectory's bandwidth {bandwidth:g} Hz")
+    return sines
+
+
 def _described_build(config, tcfg, robot, rate):
-    # the motion's bandwidth: the trajectory's, else the identification filter's (what it is filtered at)
-    bandwidth = tcfg.bandwidth or (config.identification.filter.bandwidth if config.identification else 2.0)
     return joint_space.joint_excitation(robot, actuator_limits(config.robot), tcfg.duration, rate,
-                                        bandwidth, fade=tcfg.fade,
+                                        excitation_bandwidth(config, tcfg), fade=tcfg.fade,
                                         seed=tcfg.seed, name=tcfg.name, amplitude=tcfg.amplitude,
-                                        harmonics=tcfg.harmonics)
+                                        harmonics=tcfg.harmonics, sines=joint_harmonics_of(config, tcfg, robot))
 
 
 DESCRIBED = RobotKind(

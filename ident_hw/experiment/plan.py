@@ -39,7 +39,12 @@ class PlannedTrajectory:
         if not self.report.ok:
             return f"{self.config.name}: INFEASIBLE: {self.report.first}"
         t = self.trajectory
-        return "\n    note: ".join([f"{self.config.name}: ok ({t.duration:.1f} s, {len(t.t)} samples)", *self.notes])
+        text = f"{self.config.name}: ok ({t.duration:.1f} s, {len(t.t)} samples"
+        optimised = t.metadata.get("optimised")
+        if optimised:
+            text += (f"; optimised excitation: scaled condition of the base regressor {optimised['cond_initial']:.3g} "
+                     f"drawn, {optimised['cond_final']:.3g} optimised")
+        return "\n    note: ".join([text + ")", *self.notes])
 
 
 def robot_model(config: Config) -> RobotModel:

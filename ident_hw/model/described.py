@@ -500,10 +500,16 @@ class DescribedRobot:
             return residual, cond
         ws = workspace(self.tree)
         views = ws.views(self.tree)
+        Jp = np.empty((len(poses), views.J.shape[0], len(self._pas_v)))
+        r = np.empty((len(poses), len(views.r)))
         for k, q in enumerate(poses):
             closure_at(self.tree.ints, self.tree.floats, ws.floats, ws.ints, np.ascontiguousarray(q))
-            residual[k] = np.max(np.abs(views.r))
-            cond[k] = self._condition_at(views.J)
+            r[k] = views.r
+            Jp[k] = views.J[:, self._pas_v]
+        residual = np.max(np.abs(r), axis=1)
+        s = np.linalg.svd(Jp, compute_uv=False)            # one call for the stack (same values)
+        with np.errstate(divide="ignore"):
+            cond = np.where(s[:, -1] * SINGULAR_CONDITION > s[:, 0], s[:, 0] / s[:, -1], np.inf)
         return residual, cond
 
     # ------------------------------------------------------------------ the robot interface
