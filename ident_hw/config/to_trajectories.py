@@ -48,7 +48,8 @@ def feasibility_limits(robot: RobotConfig) -> FeasibilityLimits:
 
 
 def excitation_of(config: Config, tcfg: TrajectoryConfig) -> trajectories.FourierExcitation:
-    """The coefficients of a 3PRRR ``fourier`` trajectory: its ``path`` (relative to the config's
-    :attr:`~ident_hw.config.file.Config.base_dir`) or the excitation shipped for the nominal rig."""
-    path = NOMINAL_EXCITATION if tcfg.path is None else Path(config.base_dir or "") / tcfg.path
+    """The coefficients of a 3PRRR ``fourier`` trajectory: its ``path`` (written relative to the
+    config file, made relative to the working directory when the config was read) or the
+    excitation shipped for the nominal rig."""
+    path = NOMINAL_EXCITATION if tcfg.path is None else Path(tcfg.path)   # relative to the config when read
     return trajectories.FourierExcitation.load(path)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -79,7 +78,7 @@ def build(config: Config, tcfg: TrajectoryConfig, robot: RobotModel) -> trajecto
     """Generate one trajectory (all cycles) at the SYNC rate."""
     rate = sample_rate(config)
     if tcfg.kind == "file":
-        traj = trajectories.load(Path(config.base_dir or "") / tcfg.path).resample(rate)
+        traj = trajectories.load(tcfg.path).resample(rate)     # relative to the config when it was read
     elif tcfg.kind == "standstill":
         traj = trajectories.standstill(robot, tcfg.duration or STANDSTILL_S, rate, tcfg.name)
     else:
