@@ -38,7 +38,7 @@ import can
 from canopen.objectdictionary import ODVariable, datatypes
 
 from drivers.cia import SW_BIT13, SW_FAULT, SYNC_COB_ID, pdo_cob_id
-from drivers.profiles import INSTANTANEOUS, DriveProfile, ObjectRef
+from drivers.profiles import CURRENTS, INSTANTANEOUS, DriveProfile, ObjectRef
 
 #: fields of a sample, in drive units
 FIELDS = ("position", "velocity", "current", "statusword", "target")
@@ -112,6 +112,28 @@ class AxisLayout:
 
     node_id: int
     frames: tuple[PdoFrame, ...]
+
+
+def current_of(layout: AxisLayout, profile: DriveProfile) -> str:
+    """Which motor current an axis's layout streams: :data:`~drivers.profiles.INSTANTANEOUS` or
+    :data:`~drivers.profiles.AVERAGED`, by the object its TPDO maps as ``current`` on a drive of
+    ``profile``.
+
+    Raises:
+        ValueError: no current mapped, or an object that is neither of the profile's currents
+            (a layout of another drive generation).
+    """
+    mapped = [ref for f in layout.frames if f.direction == "tpdo" for name, ref in f.entries if name == "current"]
+    if len(mapped) != 1:
+        raise ValueError(f"node {layout.node_id}: {len(mapped)} current objects mapped, expected one")
+    ref = mapped[0]
+    for kind in CURRENTS:
+        ours = profile.streamed_current(kind)
+        if ref.key == ours.key and ref.data_type == ours.data_type:
+            return kind
+    raise ValueError(f"node {layout.node_id}: the current mapped is {ref} ({ref.data_type}), neither of an "
+                     f"{profile.name}'s currents ({profile.current_actual} instantaneous, {profile.current_averaged} "
+                     f"averaged, {profile.current_actual.data_type}): a layout of another drive")
 
 
 def master_layouts(axes: Sequence) -> list[AxisLayout]:
@@ -316,6 +338,7 @@ class CycleAssembler(can.Listener):
         self.withdrawn_cells = 0  # cells holding one frame that was not provably their own
         self.unplaced_frames = 0  # extra frames with nothing owed
         self.error_frames = 0
+        self.wrong_length: dict[int, tuple[int, int]] = {}   # COB-ID -> (frames, their last length)
         self.done = False
         self._statusword = [None] * self.n_axes
         self._status_reported = [False] * self.n_axes
@@ -375,8 +398,10 @@ class CycleAssembler(can.Listener):
 
     def _tpdo_frame(self, cob_id: int, data: bytes) -> None:
         stream = self._streams[cob_id]
-        if len(data) != stream.size:
-            return  # wrong length: treated as not received
+        if len(data) != stream.size:   # another layout's frame: treated as not received, counted
+            count, _ = self.wrong_length.get(cob_id, (0, 0))
+            self.wrong_length[cob_id] = (count + 1, len(data))
+            return
         at = self._status_field.get(cob_id)
         if at is not None:     # the values themselves are decoded once, when the row leaves
             self._status(stream.axis, stream.unpack(data)[at])
@@ -501,16 +526,19 @@ class CycleAssembler(can.Listener):
 @dataclass(frozen=True)
 class CycleBooks:
     """The counts of misplaced frames of a :class:`CycleAssembler` (its attributes of the same
-    names), for a recording's metadata."""
+    names), for a recording's metadata; ``wrong_length_frames``: frames on a streamed TPDO's
+    COB-ID whose length is not the layout's (another layout's frames: not used)."""
 
     late_frames: int = 0
     lost_frames: int = 0
     withdrawn_cells: int = 0
     unplaced_frames: int = 0
     error_frames: int = 0
+    wrong_length_frames: int = 0
 
 
 def cycle_books(assembler: CycleAssembler) -> CycleBooks:
     """The assembler's counts of misplaced frames, for a recording's metadata."""
     return CycleBooks(assembler.late_frames, assembler.lost_frames, assembler.withdrawn_cells,
-                      assembler.unplaced_frames, assembler.error_frames)
+                      assembler.unplaced_frames, assembler.error_frames,
+                      sum(count for count, _ in assembler.wrong_length.values()))

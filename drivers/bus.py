@@ -8,10 +8,14 @@ adapter, or the in-process ``virtual`` bus).
 from __future__ import annotations
 
 import errno
+import importlib
 import ipaddress
 import logging
 import math
+import os
 import queue
+import socket
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -146,6 +150,18 @@ def is_local(interface: str, channel: str | int) -> bool:
     return interface == "virtual" or (interface == "socketcan" and channel.startswith("vcan"))
 
 
+def has_own_timer(interface: str) -> bool:
+    """python-can's ``interface`` sends periodic frames from a timer of its own (the kernel's BCM on
+    SocketCAN, an adapter's hardware), not from a Python thread: its bus class has its own
+    ``_send_periodic_internal``. An interface python-can does not know has none."""
+    try:
+        module, name = can.interfaces.BACKENDS[interface]
+        bus_class = getattr(importlib.import_module(module), name)
+    except (KeyError, ImportError, AttributeError):
+        return False
+    return bus_class._send_periodic_internal is not can.BusABC._send_periodic_internal
+
+
 def open_bus(config: BusConfig) -> can.BusABC:
     """Open the python-can bus described by ``config`` (``virtual``: :class:`VirtualBus`)."""
     kwargs = dict(config.options)
@@ -158,12 +174,36 @@ def open_bus(config: BusConfig) -> can.BusABC:
         # udp_multicast refuses receive_own_messages, yet the kernel's multicast loopback (on
         # by default) hands every datagram a socket sends back to it, in sending order
         own = {} if config.interface == "udp_multicast" else {"receive_own_messages": config.receive_own_messages}
-        return can.Bus(interface=config.interface, channel=config.channel, **own,
-                       ignore_config=config.ignore_config, **kwargs)
+        bus = can.Bus(interface=config.interface, channel=config.channel, **own,
+                      ignore_config=config.ignore_config, **kwargs)
+        if config.interface == "udp_multicast":
+            only_its_own_group(bus)
+        return bus
     except (can.CanError, OSError, ValueError, ImportError) as exc:
         raise BusOpenError(
             f"cannot open CAN bus interface={config.interface!r} channel={config.channel!r}: {exc}"
             + _socketcan_hint(config, exc)) from exc
+
+
+#: Linux's ``IPV6_MULTICAST_ALL`` and ``IP_MULTICAST_ALL`` (Python's socket module has no names
+#: for them): level and option number by address family
+_MULTICAST_ALL = {socket.AF_INET6: (socket.IPPROTO_IPV6, 29), socket.AF_INET: (socket.IPPROTO_IP, 49)}
+
+
+def only_its_own_group(bus: can.BusABC) -> None:
+    """A ``udp_multicast`` bus hears its own group only. Linux hands a socket bound to a port the
+    datagrams of *every* group any socket of the host joined on that port (``IPV6_MULTICAST_ALL``,
+    on by default): python-can's buses all bind its one default port, so two rigs on two groups
+    of one host, or two test runs, would hear each other. The option is switched off on the
+    bus's socket (Linux 4.20 and later; elsewhere nothing changes)."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        with socket.socket(fileno=os.dup(bus.fileno())) as sock:
+            level, option = _MULTICAST_ALL[sock.family]
+            sock.setsockopt(level, option, 0)
+    except (OSError, KeyError, NotImplementedError, ValueError) as exc:
+        logger.debug("udp_multicast: hears every group of its port (%s)", exc)
 
 
 def _socketcan_hint(config: BusConfig, exc: BaseException) -> str:
@@ -199,13 +239,32 @@ class BusNetwork(canopen.Network):
 
     @property
     def timer_periodic(self) -> bool:
-        """The bus sends periodic frames from its own timer (the kernel BCM on SocketCAN, an
-        adapter's hardware), not from a Python thread."""
-        return type(self.bus)._send_periodic_internal is not can.BusABC._send_periodic_internal
+        """The bus sends periodic frames from a timer outside the master's process: the kernel
+        BCM on SocketCAN, an adapter's hardware, or a timing process
+        (:class:`drivers.timing.TimedBus`), not from a thread of this process."""
+        return (getattr(self.bus, "own_timer", False)
+                or type(self.bus)._send_periodic_internal is not can.BusABC._send_periodic_internal)
+
+    @property
+    def timing(self) -> str:
+        """Where the periodic frames come from, in words (for the recordings' metadata)."""
+        return getattr(self.bus, "description", None) or (
+            "the bus's own timer" if self.timer_periodic else "a thread of the master's process")
+
+    def alive(self) -> None:
+        """The master's own loop made progress (its supervision calls this at every check): a
+        timing process (:meth:`drivers.timing.TimedBus.alive`) watches it; else nothing."""
+        alive = getattr(self.bus, "alive", None)
+        if alive is not None:
+            alive()
 
     def send_periodic(self, can_id: int, data: bytes, period: float, remote: bool = False):
         """Start sending a frame every ``period`` s (canopen's SYNC producer and heartbeats use
-        this): the bus' own timer where it has one, else a :class:`GridPeriodicTask`."""
+        this): a timing process where the bus has one, the bus' own timer where it has one, else
+        a :class:`GridPeriodicTask`."""
+        periodic = getattr(self.bus, "periodic", None)
+        if periodic is not None and not remote:
+            return periodic(can_id, data, period)
         if self.timer_periodic:
             return super().send_periodic(can_id, data, period, remote)
         return GridPeriodicTask(self, can_id, data, period, remote)
@@ -279,9 +338,12 @@ class GridPeriodicTask:
             self._stop.wait(due - time.perf_counter())
 
 
-def open_network(config: BusConfig) -> BusNetwork:
-    """Open the bus and connect a :class:`BusNetwork` (with its notifier thread) to it."""
-    network = BusNetwork(open_bus(config), config)
+def open_network(config: BusConfig, timing=None) -> BusNetwork:
+    """Open the bus and connect a :class:`BusNetwork` (with its notifier thread) to it; with
+    ``timing`` (:class:`drivers.timing.TimingConfig`) as it says: through a timing process where
+    it asks for one (:class:`drivers.timing.TimedBus`)."""
+    bus = open_bus(config) if timing is None else timing.open(config)
+    network = BusNetwork(bus, config)
     network.connect()
     return network
 

@@ -33,11 +33,13 @@ from drivers.cia import (CW_CHANGE_IMMEDIATELY, CW_ENABLE_OPERATION, CW_FAULT_RE
 from drivers.cia import DISABLED, ENABLED, FAULT, FAULT_REACTION, FAULTED, NOT_READY, QUICK_STOP
 from drivers.emcy import describe
 from drivers.errors import BringUpError, ConfigError, DriveError, DriveFault, NodeError
-from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, load_object_dictionary, make_object_dictionary
+from drivers.firmware import REVISION, USES, absent, firmware_of, load_object_dictionary, objects_used, refusal
+from drivers.profiles import VENDOR_ID_MAXON, ObjectRef, make_object_dictionary
 from drivers.recording import Recording
 from drivers.recording_metadata import RecordingMetadata
+from drivers.sdo import MasterNode
 from drivers.stream import CyclicStream
-from drivers.supervision import Supervisor
+from drivers.supervision import Supervisor, Watchdogs
 from drivers.sync import PeriodicSync, SyncSource
 
 logger = logging.getLogger(__name__)
@@ -55,22 +57,25 @@ class EposDrive:
         sdo_timeout: SDO response timeout in s.
         timebase: the clock and the pause of the state waits (quick stop, fault reaction, mode
             switch): the drive group's SYNC source.
+        uses: what the run asks of the drive (:data:`drivers.firmware.USES`): its objects are
+            checked at bring-up (:meth:`check_objects`), and in its dictionary file if it has one.
     """
 
     def __init__(self, network: canopen.Network, axis: AxisConfig, supervisor: Supervisor,
-                 sdo_timeout: float = 0.5, timebase: SyncSource | None = None):
+                 sdo_timeout: float = 0.5, timebase: SyncSource | None = None, uses: Sequence[str] = USES):
         self.axis = axis
         self.profile = axis.drive_profile
         self.label = axis.label
         self.supervisor = supervisor
+        self.used = objects_used(self.profile, axis.current, uses)
         if axis.object_dictionary is None:
             od = make_object_dictionary(axis.profile, axis.node_id)
         else:
             try:
-                od = load_object_dictionary(axis.object_dictionary, axis.profile, axis.node_id)
+                od = load_object_dictionary(axis.object_dictionary, axis.profile, axis.node_id, axis.current, uses)
             except ValueError as exc:
                 raise ConfigError(f"{axis.label}: {exc}") from None
-        self.node = canopen.RemoteNode(axis.node_id, od)
+        self.node = MasterNode(axis.node_id, od)
         self.node.sdo.RESPONSE_TIMEOUT = sdo_timeout
         network.add_node(self.node)
         self.node.emcy.add_callback(supervisor.emcy_callback(self.label, self.profile.name))
@@ -145,6 +150,25 @@ class EposDrive:
             raise BringUpError(self.label, f"device name {name!r} is not an {self.profile.name} "
                                f"(profile {self.axis.profile!r} in the configuration)")
 
+    def firmware(self) -> int | None:
+        """The drive's firmware version (``0x1018:03``, upper 16 bits), None if it does not say."""
+        try:
+            return firmware_of(int.from_bytes(self.node.sdo.upload(*REVISION)[:4], "little"))
+        except (SdoAbortedError, SdoCommunicationError):
+            return None
+
+    def check_objects(self) -> None:
+        """Ask the drive for every object the run uses (:func:`drivers.firmware.absent`): a
+        firmware without one of them is refused now, naming the node, the firmware and the
+        objects, instead of failing after homing and the move to the start."""
+        try:
+            missing = absent(self.node.sdo, self.used)
+        except SdoCommunicationError as exc:
+            raise NodeError(self.label, f"asking for the objects the run uses: {exc}") from exc
+        if missing:
+            raise BringUpError(self.label, refusal(self.profile, self.firmware(), missing, self.used)
+                               + "; nothing has moved")
+
     def write_limits(self) -> None:
         """Software position limits, current limit, max profile velocity, following-error window."""
         s, a, p = self.axis.scaling, self.axis, self.profile
@@ -185,7 +209,8 @@ class EposDrive:
 
     def bring_up(self, frames: Sequence[PdoFrame], heartbeat_ms: int, consumer_heartbeat: int,
                  timeout: float) -> None:
-        """Presence, PRE-OPERATIONAL, identity, fault reset, limits, PDOs, heartbeats.
+        """Presence, PRE-OPERATIONAL, identity, the objects the run uses, fault reset, limits,
+        PDOs, heartbeats.
 
         Args:
             frames: the PDOs to configure.
@@ -198,6 +223,7 @@ class EposDrive:
         try:
             self.node.nmt.state = "PRE-OPERATIONAL"
             self.check_identity()
+            self.check_objects()
             self.reset_fault()
             self.disable()
             self.write_limits()
@@ -415,19 +441,23 @@ class DriveGroup:
     """The drives of the rig, brought up, commanded and streamed together.
 
     Heartbeats run both ways once :meth:`bring_up` started: every drive produces one every
-    ``heartbeat_period`` and the master watches them (a silent node stops the run with a
-    :class:`HeartbeatTimeout`); the master produces its own (COB-ID ``0x700 + master_id``, state
-    OPERATIONAL, ``network.send_periodic``: the kernel BCM on SocketCAN, which ends with the
-    master's socket) and writes every drive's consumer heartbeat time 0x1016:01, so that a drive
-    stops itself (heartbeat error, EMCY 0x8130, fault reaction) when the master is lost.
+    ``watchdogs.heartbeat_period`` and the master watches them (a node silent for
+    ``watchdogs.drive_heartbeat`` stops the run with a :class:`HeartbeatTimeout`); the master
+    produces its own (COB-ID ``0x700 + master_id``, state OPERATIONAL, from the SYNC source:
+    ``network.send_periodic``, i.e. a timing process, the kernel BCM on SocketCAN, or a thread;
+    in lockstep every so many SYNC cycles) and writes every drive's consumer heartbeat time
+    0x1016:01 (``watchdogs.master_heartbeat``), so that a drive stops itself (heartbeat error,
+    EMCY 0x8130, fault reaction) when the master is lost.
 
     Args:
         network: the network opened by :func:`drivers.bus.open_network`; its
             :class:`~drivers.bus.BusConfig` gives the bitrate of the bus-load check
             (``None``: no check).
         axes: the axes in sample order (theta1..3, zeta1..3 on the rig).
-        heartbeat_period: producer heartbeat time of the drives and of the master (s).
-        heartbeat_timeout: consumer timeout on both sides (s); default 3.5 periods.
+        watchdogs: the heartbeat period and every time limit that stops a run
+            (:class:`drivers.supervision.Watchdogs`; default its defaults).
+        uses: what the run asks of the drives (:data:`drivers.firmware.USES`, default all):
+            each drive's firmware is checked against the objects they read or write at bring-up.
         master_id: node-ID under which the master produces its heartbeat (not a drive's).
         sdo_timeout: SDO response timeout (s).
         sync: the SYNC producer and the clock of every wait for the drives (homing, moves,
@@ -439,9 +469,8 @@ class DriveGroup:
     """
 
     def __init__(self, network: canopen.Network, axes: Sequence[AxisConfig],
-                 heartbeat_period: float = 0.1, heartbeat_timeout: float | None = None,
-                 master_id: int = 127,
-                 sdo_timeout: float = 0.5, sync: SyncSource | None = None):
+                 watchdogs: Watchdogs | None = None, master_id: int = 127,
+                 sdo_timeout: float = 0.5, sync: SyncSource | None = None, uses: Sequence[str] = USES):
         bus_config = getattr(network, "config", None)
         if not isinstance(bus_config, BusConfig):
             raise ConfigError("DriveGroup: open the network with drivers.bus.open_network (its "
@@ -459,22 +488,18 @@ class DriveGroup:
                               f"{master_id!r} (drives: {sorted(seen)})")
         self.sync: SyncSource = sync or PeriodicSync()
         self._sync_attached = False
-        self.heartbeat_timeout = heartbeat_timeout or 3.5 * heartbeat_period
-        if not (0 < heartbeat_period and round(heartbeat_period * 1e3) >= 1
-                and 1 <= round(self.heartbeat_timeout * 1e3) <= 0xFFFF
-                and self.heartbeat_timeout > heartbeat_period):
-            raise ConfigError(f"heartbeat: need 1 ms <= period < timeout <= 65.535 s, got period "
-                              f"{heartbeat_period!r} s, timeout {self.heartbeat_timeout!r} s")
+        self.watchdogs = watchdogs or Watchdogs()
         self.network = network
         self.axes = list(axes)
         self.bitrate = bus_config.bitrate
-        self.heartbeat_period = heartbeat_period
+        self.heartbeat_period = self.watchdogs.heartbeat_period
         self.master_id = master_id
         self._master_heartbeat = None  # the periodic task, while running
-        self.supervisor = Supervisor()
-        self.drives = [EposDrive(network, a, self.supervisor, sdo_timeout, self.sync) for a in self.axes]
+        self.supervisor = Supervisor(self.sync.watch_clock(), alive=getattr(network, "alive", None))
+        self.drives = [EposDrive(network, a, self.supervisor, sdo_timeout, self.sync, uses) for a in self.axes]
         for drive in self.drives:
-            self.supervisor.watch_heartbeat(drive.label, drive.node.nmt, self.heartbeat_timeout)
+            self.supervisor.watch_heartbeat(drive.label, network, drive.axis.node_id, self.watchdogs.drive_heartbeat)
+        self._bus_time_listened = False
         self.layouts = master_layouts(self.axes)
 
     def __enter__(self) -> "DriveGroup":
@@ -487,23 +512,26 @@ class DriveGroup:
     def bring_up(self, timeout: float = 5.0) -> None:
         """Start the master heartbeat, bring every drive up (each then watches the master), start
         them (NMT OPERATIONAL) and watch their heartbeats."""
+        if not self._bus_time_listened:
+            self.network.notifier.add_listener(self.supervisor.bus_time)
+            self._bus_time_listened = True
         if self._master_heartbeat is None:
-            self._master_heartbeat = self.network.send_periodic(
-                0x700 + self.master_id, [NMT_OPERATIONAL], self.heartbeat_period)
-        consumer = self.master_id << 16 | round(self.heartbeat_timeout * 1e3)
+            self._master_heartbeat = self.sync.start_heartbeat(
+                self.network, 0x700 + self.master_id, bytes([NMT_OPERATIONAL]), self.heartbeat_period)
+        consumer = self.master_id << 16 | round(self.watchdogs.master_heartbeat * 1e3)
         for drive, layout in zip(self.drives, self.layouts):
             drive.bring_up(layout.frames, round(self.heartbeat_period * 1e3), consumer, timeout)
         for drive in self.drives:
             drive.node.nmt.state = "OPERATIONAL"
         for drive in self.drives:
             drive.wait_operational(timeout)
-        self.supervisor.start_heartbeat_monitoring()
-        self.supervisor.raise_if_fault()
         if not self._sync_attached:
             tpdos = {f.cob_id(d.axis.node_id): d.label for d, layout in zip(self.drives, self.layouts)
                      for f in layout.frames if f.direction == "tpdo" and f.per_sync}
             self.sync.attach(self.network, tpdos, self._barrier)
             self._sync_attached = True
+        self.supervisor.start_heartbeat_monitoring()
+        self.supervisor.raise_if_fault()
 
     def _barrier(self) -> None:
         """An SDO round trip to the first drive that answers: a device answers frames in the order
@@ -521,6 +549,9 @@ class DriveGroup:
         Best effort: errors are logged, not raised."""
         self.stop_motion()
         self.supervisor.stop_heartbeat_monitoring()
+        if self._bus_time_listened:
+            self.network.notifier.remove_listener(self.supervisor.bus_time)
+            self._bus_time_listened = False
         if self._sync_attached:
             self.sync.detach()
             self._sync_attached = False

@@ -58,15 +58,12 @@ specification (re-check against the "EPOS2 Firmware Specification" when it is in
 
 from __future__ import annotations
 
-import dataclasses
 import math
-import os
 from dataclasses import dataclass
 from functools import cached_property
 from types import MappingProxyType
 from typing import Mapping, Optional
 
-import canopen
 from canopen.objectdictionary import (
     ObjectDictionary,
     ODArray,
@@ -174,6 +171,30 @@ class AveragingFilter:
         return a_n, b0, 1.0 - a_n - b0
 
 
+@dataclass(frozen=True)
+class FirmwareGap:
+    """Objects a generation's older firmware lacks, as maxon's own files show them.
+
+    Args:
+        lacks: ``(index, sub-index)`` of the objects missing.
+        known_without: the firmware version (``0x1018:03 >> 16``) of a maxon file without them.
+        known_with: the firmware version of a maxon file with them (they came in between).
+        source: the files, in words.
+    """
+
+    lacks: tuple[tuple[int, int], ...]
+    known_without: int
+    known_with: int
+    source: str
+
+    def says(self, firmware: int | None) -> str | None:
+        """What the files say of these objects on ``firmware`` (None: nothing, it is as new as
+        the file that has them)."""
+        if firmware is not None and firmware >= self.known_with:
+            return None
+        return f"{self.source}: update the drive's firmware"
+
+
 #: which motor current an axis streams: the drive's instantaneous sample (its "current actual
 #: value") or its running average (its "current actual value averaged", a 50 Hz first-order
 #: low-pass: :class:`AveragingFilter`)
@@ -242,6 +263,8 @@ class DriveProfile:
     pdo_event_timer: bool = False
     #: entries of the error history 0x1003
     error_history: int = 5
+    #: objects an older firmware of the generation lacks (maxon's files)
+    firmware_gaps: tuple[FirmwareGap, ...] = ()
 
     def streamed_current(self, which: str) -> ObjectRef:
         """The current object an axis streams: :data:`INSTANTANEOUS` ``current_actual``, or
@@ -333,6 +356,11 @@ EPOS4 = DriveProfile(
     # 0x1014 read-only
     communication_access=MappingProxyType({0x1005: "const", 0x1008: "ro", 0x1014: "ro"}),
     current_averaging=AveragingFilter(AVERAGING_CUTOFF, 25_000.0),   # PI current controller: 25 kHz
+    # the CSP interpolation period, which every cyclic stream writes: absent from maxon's EDS of
+    # firmware 0x0110 (the EPOS4 Module 50/8), present in its DCF of firmware 0x0170
+    firmware_gaps=(FirmwareGap(((0x60C2, 1), (0x60C2, 2)), 0x0110, 0x0170,
+                               "maxon's EDS of the EPOS4 for firmware 0x0110 has no 0x60C2 either, its DCF for "
+                               "firmware 0x0170 has it"),),
     **_COMMON,
 )
 
@@ -562,46 +590,4 @@ def make_object_dictionary(profile_name: str | DriveProfile, node_id: int) -> Ob
     od.device_information.product_number = prof.product_code
     _add_communication_objects(od, prof, node_id)
     _add_drive_objects(od, prof)
-    return od
-
-
-def required_objects(prof: DriveProfile) -> list[tuple[int, int]]:
-    """``(index, sub-index)`` of every object the master reads or writes on a drive of ``prof``:
-    the profile's objects and the communication objects of bring-up (heartbeats, identity, PDO
-    parameters and mappings) and of naming a fault (the error register)."""
-    keys = set()
-    for f in dataclasses.fields(prof):
-        value = getattr(prof, f.name)
-        for ref in value if isinstance(value, tuple) else (value,):
-            if isinstance(ref, ObjectRef):
-                keys.add((ref.index, ref.subindex))
-    keys |= {(0x1001, 0), (0x1008, 0), (0x1016, 1), (0x1017, 0), (0x1018, 1), (0x1018, 2)}
-    for n in range(prof.tpdo_count):
-        keys |= {(0x1800 + n, 1), (0x1800 + n, 2), (0x1A00 + n, 0)}
-    for n in range(prof.rpdo_count):
-        keys |= {(0x1400 + n, 1), (0x1400 + n, 2), (0x1600 + n, 0)}
-    return sorted(keys)
-
-
-def load_object_dictionary(path: str | os.PathLike, profile_name: str, node_id: int) -> ObjectDictionary:
-    """A drive's own object dictionary from an EDS or DCF file (maxon's, or one saved from the
-    drive), for the master to use instead of the built-in one.
-
-    Raises:
-        ValueError: the file cannot be read, or lacks objects the master uses on a drive of
-            that profile (all of them listed), so that nothing moves on a dictionary that
-            does not fit.
-    """
-    prof = get_profile(profile_name)
-    if not os.path.isfile(path):
-        raise ValueError(f"object dictionary {path}: no such file")
-    try:
-        od = canopen.import_od(os.fspath(path), node_id)
-    except Exception as exc:   # canopen raises what its parsers raise
-        raise ValueError(f"object dictionary {path}: not a readable EDS/DCF ({exc})") from exc
-    missing = [f"0x{index:04X}:{sub:02X}" for index, sub in required_objects(prof)
-               if find_variable(od, index, sub) is None]
-    if missing:
-        raise ValueError(f"object dictionary {path} lacks {', '.join(missing)}, which the master uses "
-                         f"on an {prof.name}")
     return od

@@ -48,10 +48,11 @@ from typing import Sequence
 import can
 import numpy as np
 
-from drivers.acquisition import (AxisLayout, CycleAssembler, Row, cycle_books, layout_from_record, layout_record,
-                                 master_layouts)
+from drivers.acquisition import (AxisLayout, CycleAssembler, Row, current_of, cycle_books, layout_from_record,
+                                 layout_record, master_layouts)
 from drivers.axis import AxisConfig
 from drivers.errors import ConfigError, RecordingError
+from drivers.profiles import AveragingFilter
 from drivers.recording_metadata import RecordingMetadata
 from drivers.units import AxesScaling
 
@@ -331,6 +332,7 @@ class LogSidecar:
 
     layouts: tuple[AxisLayout, ...]
     setpoints: np.ndarray | None = None
+    current_filters: tuple[AveragingFilter | None, ...] | None = None
 
     FORMAT = "ident_hw raw CAN log sidecar"
     VERSION = 1
@@ -341,6 +343,8 @@ class LogSidecar:
         doc = {"format": self.FORMAT, "version": self.VERSION, "log": Path(log).name,
                "pdo_layout": layout_record(self.layouts),
                "setpoints": None if self.setpoints is None else np.asarray(self.setpoints, dtype=np.int64).tolist()}
+        if self.current_filters is not None:
+            doc["current_filters"] = [None if f is None else dataclasses.asdict(f) for f in self.current_filters]
         tmp = path.with_name(path.name + ".tmp")
         tmp.write_text(json.dumps(doc, separators=(",", ":")))
         os.replace(tmp, path)
@@ -366,9 +370,14 @@ class LogSidecar:
                 setpoints = np.array(setpoints, dtype=np.int64)
                 if setpoints.ndim != 2 or setpoints.shape[1] != len(layouts):
                     raise ValueError(f"set-points of shape {setpoints.shape} for {len(layouts)} axes")
-        except (OSError, ValueError, KeyError) as exc:
+            filters = doc.get("current_filters")
+            if filters is not None:
+                filters = tuple(None if f is None else AveragingFilter(**f) for f in filters)
+                if len(filters) != len(layouts):
+                    raise ValueError(f"{len(filters)} current filters for {len(layouts)} axes")
+        except (OSError, ValueError, KeyError, TypeError) as exc:
             raise RecordingError(f"{path}: damaged sidecar of the raw CAN log ({_why(exc)})") from exc
-        return cls(layouts, setpoints)
+        return cls(layouts, setpoints, filters)
 
 
 def sidecar_path(log: str | os.PathLike) -> Path:
@@ -383,49 +392,67 @@ class FlushingLogger(can.Listener):
     The flush happens in the thread that delivers the messages, so the writer is never used
     from two threads at once. With ``layouts`` (the PDO layout the master configured, per axis)
     the log's :class:`LogSidecar` is written first, with ``setpoints`` (counts the master
-    sends, (n_targets, n_axes)), so that :func:`decode_log` decodes the log as recorded.
+    sends, (n_targets, n_axes)) and ``current_filters`` (each axis's running average behind an
+    averaged current, None for an instantaneous one), so that :func:`decode_log` decodes the log
+    as recorded.
     """
 
     def __init__(self, path: str | os.PathLike, interval: float = 0.5,
-                 layouts: Sequence[AxisLayout] | None = None, setpoints: np.ndarray | None = None):
+                 layouts: Sequence[AxisLayout] | None = None, setpoints: np.ndarray | None = None,
+                 current_filters: Sequence[AveragingFilter | None] | None = None):
         suffix = Path(path).suffix.lower()
         if suffix not in RAW_LOG_SUFFIXES:
             raise ConfigError(f"raw CAN log {path}: suffix must be one of {RAW_LOG_SUFFIXES}, "
                               f"got {suffix!r}")
         self.path = Path(path)
         if layouts is not None:
-            LogSidecar(tuple(layouts), setpoints).write(self.path)
+            LogSidecar(tuple(layouts), setpoints,
+                       None if current_filters is None else tuple(current_filters)).write(self.path)
         elif sidecar_path(self.path).exists():
             sidecar_path(self.path).unlink()     # a previous log's, which this one would be read with
         self.writer = can.Logger(path)
         self.interval = interval
         self._last = time.monotonic()
+        self._lock = threading.Lock()
+        self._stopped = False
 
     def on_message_received(self, msg: can.Message) -> None:
-        self.writer.on_message_received(msg)
-        now = time.monotonic()
-        if now - self._last > self.interval:
-            self._last = now
-            file = getattr(self.writer, "file", None)
-            if file is not None and not file.closed and not self.path.suffix.lower() == ".blf":
-                file.flush()
+        with self._lock:            # a frame the notifier was delivering when the stream closed is left out
+            if self._stopped:
+                return
+            self.writer.on_message_received(msg)
+            now = time.monotonic()
+            if now - self._last > self.interval:
+                self._last = now
+                file = getattr(self.writer, "file", None)
+                if file is not None and not file.closed and not self.path.suffix.lower() == ".blf":
+                    file.flush()
 
     def on_error(self, exc: Exception) -> None:
         pass  # reported by the assembler
 
     def stop(self) -> None:
-        self.writer.stop()
+        """Close the log; frames handed over afterwards are ignored (the notifier may still be
+        delivering one when the stream closes: removing a listener does not wait for it)."""
+        with self._lock:
+            self._stopped = True
+            self.writer.stop()
 
 
 def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], max_cycles: int | None = None,
-               metadata: RecordingMetadata | None = None, lockstep_period: float | None = None) -> Recording:
+               metadata: RecordingMetadata | None = None, lockstep_period: float | None = None,
+               layouts: Sequence[AxisLayout] | None = None, layout_source: str | None = None) -> Recording:
     """Replay a raw CAN log through the acquisition decoder.
 
     The log decodes with the PDO layout of its :class:`LogSidecar` (the one it was recorded
-    with), and its rows get the set-points the sidecar holds (:func:`take_sent_setpoints`); a
-    log without a sidecar (a ``candump``, or one written before the sidecar existed) decodes
-    with today's layout of ``axes`` and the RPDO echoes, and a warning and the metadata
-    (``pdo_layout_source``) say so. The metadata holds the layout used (``pdo_layout``).
+    with), and its rows get the set-points the sidecar holds (:func:`take_sent_setpoints`). A
+    log without a sidecar (a ``candump``, or one written before the sidecar existed) decodes only
+    with ``layouts`` given (``layout_source`` says where they come from, for the metadata's
+    ``pdo_layout_source``), and to the RPDO echoes: read with another layout its frames would
+    decode to wrong values marked valid (another drive generation's current: kiloamperes).
+    The metadata holds the layout used (``pdo_layout``) and, per axis, the current its TPDOs
+    carried as the layout says (instantaneous or averaged, :func:`drivers.acquisition.current_of`)
+    with the running average behind an averaged one (the sidecar's, else the generation's).
 
     A log cut short (copied or killed while written) is read up to its last complete frame: a
     text log's last line without its newline is left out (it would parse as a shorter frame),
@@ -439,20 +466,33 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], max_cycles: 
         metadata: the caller's part of the result's metadata (the trajectory, the SYNC period...).
         lockstep_period: the SYNC period (s) of a run in lockstep, whose row times are the cycle
             index times the period (the simulated time); ``None``: the SYNCs' bus time stamps.
+        layouts: the PDO layout of each axis to decode a log without a sidecar with.
+        layout_source: where ``layouts`` come from, in words.
 
     Raises:
-        RecordingError: the file is missing or is not a CAN log of that format, or its sidecar is
-            damaged or names other nodes than ``axes``.
+        RecordingError: the file is missing or is not a CAN log of that format; its sidecar is
+            damaged or names other nodes than ``axes``; it has no sidecar and no ``layouts`` were
+            given; or frames of a streamed TPDO have another length than the layout says (the log
+            was recorded with another layout).
     """
     path = Path(path)
     if not path.is_file():
         raise RecordingError(f"raw CAN log {path}: no such file")
-    sidecar, layouts, source = _log_layouts(path, axes)
+    sidecar, layouts, source = _log_layouts(path, axes, layouts, layout_source)
+    try:
+        currents = [current_of(layout, axis.drive_profile) for layout, axis in zip(layouts, axes)]
+    except ValueError as exc:
+        raise RecordingError(f"raw CAN log {path}: its PDO layout ({source}) does not fit the axes given: {exc}") from None
     rows: list[Row] = []
     assembler = CycleAssembler(layouts, rows.append, max_cycles=max_cycles, period=lockstep_period)
     heard, truncated = _replay(path, assembler)
     assembler.flush()
-    meta = dataclasses.replace((metadata or RecordingMetadata()).with_axes(axes), source=str(path), status="decoded",
+    _refuse_other_layouts(path, assembler, layouts, source)
+    meta = (metadata or RecordingMetadata()).with_axes(axes, currents)
+    if sidecar is not None and sidecar.current_filters is not None:
+        meta = dataclasses.replace(meta, axes=tuple(dataclasses.replace(a, current_filter=f)
+                                                    for a, f in zip(meta.axes, sidecar.current_filters)))
+    meta = dataclasses.replace(meta, source=str(path), status="decoded",
                                books=cycle_books(assembler), format_version=FORMAT_VERSION, log_truncated=truncated,
                                nodes_heard=tuple(sorted(heard)), pdo_layout=tuple(layouts), pdo_layout_source=source)
     chunks = [rows_to_arrays(rows, axes)] if rows else []
@@ -462,27 +502,74 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], max_cycles: 
     return rec
 
 
-def _log_layouts(path: Path, axes: Sequence[AxisConfig]) -> tuple[LogSidecar | None, list[AxisLayout], str]:
-    """The PDO layouts a log decodes with: its sidecar's (checked against the node-IDs of
-    ``axes``), else the ones the master maps today (with a warning). Returns the sidecar (or
-    None), the layouts and where they came from (``pdo_layout_source`` of the metadata)."""
+def _refuse_other_layouts(path: Path, assembler: CycleAssembler, layouts: Sequence[AxisLayout], source: str) -> None:
+    """A streamed TPDO's frames of another length than the layout says were recorded with another
+    layout: the log is refused, naming the node, the PDO and both lengths."""
+    if not assembler.wrong_length:
+        return
+    sizes = {f.cob_id(a.node_id): (a.node_id, f) for a in layouts for f in a.frames if f.direction == "tpdo"}
+    differ = []
+    for cob_id, (count, length) in sorted(assembler.wrong_length.items()):
+        node, frame = sizes[cob_id]
+        differ.append(f"node {node}'s TPDO{frame.number} (COB-ID 0x{cob_id:03X}): {count} frames of {length} bytes, "
+                      f"the layout says {frame.size}")
+    raise RecordingError(f"raw CAN log {path} was recorded with another PDO layout than its decoding's ({source}): "
+                         f"{'; '.join(differ)} (another drive generation, or another bus.current)")
+
+
+def _log_layouts(path: Path, axes: Sequence[AxisConfig], given: Sequence[AxisLayout] | None = None,
+                 given_source: str | None = None) -> tuple[LogSidecar | None, list[AxisLayout], str]:
+    """The PDO layouts a log decodes with: its sidecar's, else the ``given`` ones (either checked
+    against the node-IDs of ``axes``). Returns the sidecar (or None), the layouts and where they
+    came from (``pdo_layout_source`` of the metadata)."""
     sidecar = LogSidecar.read(path)
     if sidecar is not None:
         layouts = list(sidecar.layouts)
-        recorded, configured = [a.node_id for a in layouts], [a.node_id for a in axes]
-        if recorded != configured:
-            differ = [f"{a.label} is node {r} in the log" for a, r in zip(axes, recorded) if a.node_id != r]
-            if len(recorded) != len(configured):
-                differ.append(f"{len(recorded)} axes in the log, {len(configured)} given")
-            raise RecordingError(f"raw CAN log {path}: recorded from nodes {recorded} ({sidecar_path(path).name}), "
-                                 f"the axes given are nodes {configured}: {'; '.join(differ)}")
         source = f"stored ({sidecar_path(path).name})"
+        if given is not None:
+            logger.warning("raw CAN log %s: decoded with the PDO layout of its own %s, not the one given (%s)",
+                           path, sidecar_path(path).name, given_source or "given")
+    elif given is not None:
+        layouts = list(given)
+        source = f"given: {given_source or 'by the caller'}"
     else:
-        layouts = master_layouts(axes)
-        source = "assumed: the layout the master maps today (the log has no sidecar)"
-        logger.warning("raw CAN log %s: no %s beside it; decoded with the PDO layout the master maps today, "
-                       "which may not be the one it was recorded with", path, sidecar_path(path).name)
+        raise RecordingError(f"raw CAN log {path}: no {sidecar_path(path).name} beside it with the PDO layout it was "
+                             f"recorded with; decoded with another layout its frames give wrong values marked valid. "
+                             f"Give the layout it was recorded with (decode_log's layouts)")
+    recorded, configured = [a.node_id for a in layouts], [a.node_id for a in axes]
+    if recorded != configured:
+        differ = [f"{a.label} is node {r} in the log" for a, r in zip(axes, recorded) if a.node_id != r]
+        if len(recorded) != len(configured):
+            differ.append(f"{len(recorded)} axes in the log, {len(configured)} given")
+        raise RecordingError(f"raw CAN log {path}: recorded from nodes {recorded} ({source}), "
+                             f"the axes given are nodes {configured}: {'; '.join(differ)}")
     return sidecar, layouts, source
+
+
+def read_layouts(path: str | os.PathLike) -> tuple[AxisLayout, ...]:
+    """The PDO layouts a file holds: a raw log's sidecar (``<log>.json``, :class:`LogSidecar`) or a
+    decoded recording (``.npz``, its metadata's ``pdo_layout``), e.g. of another run with the same
+    drives, to decode a log that lost its own sidecar with.
+
+    Raises:
+        RecordingError: not such a file, or one without a layout.
+    """
+    path = Path(path)
+    if path.suffix.lower() == ".npz":
+        layouts = Recording.load(path).metadata.pdo_layout
+        if not layouts:
+            raise RecordingError(f"{path}: a recording without its PDO layout (made before it was kept)")
+        return layouts
+    if path.suffix.lower() != ".json" or not path.is_file():
+        raise RecordingError(f"{path}: no PDO layout here (a raw log's sidecar <log>.json or a decoded .npz "
+                             f"recording has one)")
+    try:
+        doc = json.loads(path.read_text())
+        if not isinstance(doc, dict) or doc.get("format") != LogSidecar.FORMAT:
+            raise ValueError(f"not a {LogSidecar.FORMAT}")
+        return layout_from_record(doc["pdo_layout"])
+    except (OSError, ValueError, KeyError) as exc:
+        raise RecordingError(f"{path}: no PDO layout read ({_why(exc)})") from exc
 
 
 def _replay(path: Path, assembler: CycleAssembler) -> tuple[set[int], bool]:

@@ -18,7 +18,7 @@ from typing import Any, Mapping, Sequence
 
 from drivers.acquisition import AxisLayout, CycleBooks, layout_from_record, layout_record
 from drivers.axis import AxisConfig
-from drivers.profiles import INSTANTANEOUS
+from drivers.profiles import AVERAGED, INSTANTANEOUS, AveragingFilter
 from drivers.sync import SyncReport
 from drivers.units import REVOLUTE, AxisScaling
 
@@ -36,6 +36,10 @@ class RecordedAxis:
         profile: the drive profile's name (``EPOS2``, ``EPOS4``).
         scaling: drive units to SI (:class:`~drivers.units.AxisScaling`).
         current: the motor current streamed: ``instantaneous`` or ``averaged``.
+        current_filter: the drive's running average behind an averaged current
+            (:class:`~drivers.profiles.AveragingFilter`: cut-off and loop rate), which the
+            identification matches; None for an instantaneous one (and in recordings made before
+            it was kept: then the generation's, :attr:`~drivers.profiles.DriveProfile.current_averaging`).
     """
 
     name: str
@@ -43,10 +47,14 @@ class RecordedAxis:
     profile: str
     scaling: AxisScaling
     current: str = INSTANTANEOUS
+    current_filter: AveragingFilter | None = None
 
     @classmethod
-    def of(cls, axis: AxisConfig) -> RecordedAxis:
-        return cls(axis.name, axis.node_id, axis.drive_profile.name, axis.scaling, axis.current)
+    def of(cls, axis: AxisConfig, current: str | None = None) -> RecordedAxis:
+        """The axis as recorded, streaming ``current`` (default the axis's own, ``axis.current``)."""
+        current = axis.current if current is None else current
+        averaging = axis.drive_profile.current_averaging if current == AVERAGED else None
+        return cls(axis.name, axis.node_id, axis.drive_profile.name, axis.scaling, current, averaging)
 
     @property
     def units(self) -> dict[str, str]:
@@ -57,13 +65,15 @@ class RecordedAxis:
 
     def to_json(self) -> dict[str, Any]:
         return {"name": self.name, "node_id": self.node_id, "profile": self.profile,
-                "scaling": dataclasses.asdict(self.scaling), "units": self.units, "current": self.current}
+                "scaling": dataclasses.asdict(self.scaling), "units": self.units, "current": self.current,
+                "current_filter": None if self.current_filter is None else dataclasses.asdict(self.current_filter)}
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> RecordedAxis:
         """The axis of a stored recording (its ``units`` follow from the scaling)."""
+        averaging = doc.get("current_filter")
         return cls(str(doc["name"]), int(doc["node_id"]), str(doc["profile"]), AxisScaling(**doc["scaling"]),
-                   str(doc.get("current", INSTANTANEOUS)))
+                   str(doc.get("current", INSTANTANEOUS)), None if averaging is None else AveragingFilter(**averaging))
 
 
 @dataclass(frozen=True)
@@ -84,7 +94,8 @@ class RecordingMetadata:
         format_version: the NPZ format (:data:`drivers.recording.FORMAT_VERSION`).
         axes: the axes in sample order, as the samples were converted.
         pdo_layout: the PDO layout of each axis the frames were decoded with.
-        pdo_layout_source: where a decoded log's layout came from (stored beside it, or assumed).
+        pdo_layout_source: where a decoded log's layout came from (stored beside it, or given by the
+            caller, e.g. on the command line).
         sync: the SYNC source's name (``periodic``, ``lockstep``).
         sync_period: the nominal SYNC period, s.
         bus_load: the worst-case bus load of the run, fraction of the bitrate.
@@ -149,9 +160,13 @@ class RecordingMetadata:
         object.__setattr__(self, "pdo_layout", tuple(self.pdo_layout))
         object.__setattr__(self, "nodes_heard", tuple(self.nodes_heard))
 
-    def with_axes(self, axes: Sequence[AxisConfig]) -> RecordingMetadata:
-        """This metadata with ``axes`` (:class:`~drivers.axis.AxisConfig`, in sample order)."""
-        return dataclasses.replace(self, axes=tuple(RecordedAxis.of(a) for a in axes))
+    def with_axes(self, axes: Sequence[AxisConfig], currents: Sequence[str] | None = None) -> RecordingMetadata:
+        """This metadata with ``axes`` (:class:`~drivers.axis.AxisConfig`, in sample order),
+        streaming ``currents`` (one per axis; default each axis's own), ``current`` theirs where
+        all agree."""
+        recorded = tuple(RecordedAxis.of(a, c) for a, c in zip(axes, currents or [None] * len(axes)))
+        kinds = {a.current for a in recorded}
+        return dataclasses.replace(self, axes=recorded, current=kinds.pop() if len(kinds) == 1 else self.current)
 
     def to_json(self) -> str:
         """The JSON form (see the module docstring)."""

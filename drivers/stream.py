@@ -21,7 +21,7 @@ is a context entered while the SYNC runs (e.g. :func:`drivers.gc_freeze.frozen_g
 from __future__ import annotations
 
 import dataclasses
-import time
+import logging
 from contextlib import AbstractContextManager, ExitStack, nullcontext
 from typing import Callable, Sequence
 
@@ -34,9 +34,11 @@ from drivers.cia import CW_ENABLE_OPERATION, SW_FAULT
 from drivers.errors import ConfigError, DriveError, DriveFault
 from drivers.gc_freeze import GcPauses
 from drivers.recording import FlushingLogger, Recording, SampleRecorder
-from drivers.recording_metadata import RecordingMetadata
-from drivers.supervision import Supervisor
+from drivers.recording_metadata import RecordedAxis, RecordingMetadata
+from drivers.supervision import Supervisor, WatchClock
 from drivers.units import AxesScaling
+
+logger = logging.getLogger(__name__)
 
 
 def setpoint_counts(axes: Sequence, targets) -> np.ndarray:
@@ -83,6 +85,16 @@ class TargetStreamer:
     def on_sync(self, k: int) -> None:
         self.send(k + 1)
 
+    def table(self) -> tuple[list[int], list[int], bytes]:
+        """Every cycle's RPDO frames, for a SYNC source that sends them itself (a timing
+        process): their COB-IDs, their lengths in bytes, and the data of all cycles, row k the
+        frames of cycle k one after the other (:class:`drivers.sync.SetpointFrames`)."""
+        cob_ids = [cob_id for cob_id, _ in self.rpdos]
+        rows = [b"".join(pack(value, CW_ENABLE_OPERATION) for (_, pack), value in zip(self.rpdos, row))
+                for row in self.counts]
+        sizes = [len(pack(0, CW_ENABLE_OPERATION)) for _, pack in self.rpdos]
+        return cob_ids, sizes, b"".join(rows)
+
 
 class CyclicStream:
     """The set-points ``targets`` (n_cycles, n_axes) in rad|m streamed by ``group`` (a
@@ -100,7 +112,7 @@ class CyclicStream:
         self.period = period
         self.output, self.raw_log, self.metadata = output, raw_log, metadata
         self.queue_size = queue_size
-        self.sync_timeout = sync_timeout or max(0.5, 50 * period)
+        self.sync_timeout = sync_timeout or group.watchdogs.sync_progress
         self.counts: np.ndarray | None = None
         self.load = 0.0
         self.hold_at_end = False
@@ -160,11 +172,13 @@ class CyclicStream:
                                    bitrate=group.bitrate, n_targets=len(self.targets), sync=sync.name)
         self.recorder = SampleRecorder(group.axes, self.output, meta, maxsize=self.queue_size,
                                        layouts=group.layouts, setpoints=self.counts).start()
-        self.raw = (FlushingLogger(self.raw_log, layouts=group.layouts, setpoints=self.counts)
+        filters = [RecordedAxis.of(a).current_filter for a in group.axes]
+        self.raw = (FlushingLogger(self.raw_log, layouts=group.layouts, setpoints=self.counts, current_filters=filters)
                     if self.raw_log else None)
         self.streamer = TargetStreamer(group.network, group.drives, self.counts, group.supervisor)
+        answers = sync.answers_on_sync(group.network)
         self.assembler = CycleAssembler(
-            group.layouts, self.recorder.put, on_sync=self.streamer.on_sync if sync.free_running else None,
+            group.layouts, self.recorder.put, on_sync=self.streamer.on_sync if answers else None,
             period=sync.row_period,
             on_status=lambda i, sw: group.supervisor.report(DriveFault(
                 group.drives[i].label, None, f"statusword 0x{sw:04X}: " +
@@ -178,25 +192,29 @@ class CyclicStream:
     def stream(self) -> None:
         """The SYNC source's part (:meth:`drivers.sync.SyncSource.stream`): a stepped one runs
         every cycle here, a free-running one starts its timer after the first set-points."""
-        self.sync.stream(self.group.network, self.period, len(self.targets), self.streamer.send,
+        self.sync.stream(self.group.network, self.period, len(self.targets), self.streamer,
                          self.group.supervisor.raise_if_fault)
 
     def wait(self) -> None:
         """While a free-running SYNC runs: until the last cycle is recorded, watching faults,
-        heartbeats and a stall (no new cycle for ``sync_timeout`` s)."""
+        heartbeats and a stall (no new cycle for ``sync_timeout`` s of the time the master was
+        running and watching, :class:`~drivers.supervision.WatchClock`: a hold-up of the master's
+        own process is no stall of the SYNC; its notifier catches up afterwards)."""
         group, assembler = self.group, self.assembler
-        last_count, last_progress = -1, time.monotonic()
+        watch = WatchClock()
+        last_count, last_progress = -1, watch.advance()
         while not assembler.done and self.sync.free_running:
             if group.supervisor.fault_event.wait(min(0.05, 10 * self.period)):
                 break
             group.supervisor.check_heartbeats()
             progress = assembler.progress
-            now = time.monotonic()
+            now = watch.advance()
             if progress != last_count:
                 last_count, last_progress = progress, now
             elif now - last_progress > self.sync_timeout:
                 hint = " (is the bus opened with receive_own_messages=True?)" if progress == 0 else ""
-                raise DriveError(f"no SYNC cycle seen for {now - last_progress:.2f} s{hint}")
+                raise DriveError(f"no SYNC cycle seen for {now - last_progress:.2f} s (bus.watchdogs.sync_progress "
+                                 f"{self.sync_timeout:g} s){hint}")
         group.supervisor.raise_if_fault()
 
     def hold(self) -> None:
@@ -215,6 +233,11 @@ class CyclicStream:
         self._host.close()
         if error is not None:
             error = group.with_error_code(error)
+            stopped = self.sync.report().timers_stopped_after
+            if stopped is not None and isinstance(error, DriveError):
+                error = _with_cause(error, f"the timing process had stopped SYNC, set-points and the master's "
+                                           f"heartbeat after the master made no progress for {stopped:.2f} s "
+                                           f"(bus.watchdogs.master_progress)")
             group.stop_motion()
         group.network.notifier.remove_listener(self.assembler)
         self.assembler.flush()
@@ -231,3 +254,16 @@ class CyclicStream:
                 error.recording = self.output
             raise error
         return recording
+
+
+def _with_cause(error: DriveError, cause: str) -> DriveError:
+    """``error`` with ``cause`` added to its message (a fault keeps its type, node and code); an
+    error of another kind is kept as it is, the cause logged."""
+    if isinstance(error, DriveFault):
+        extended = type(error).__new__(type(error))
+        DriveFault.__init__(extended, error.node, error.code, f"{error.text}; {cause}")
+        return extended
+    if type(error) is DriveError:
+        return DriveError(f"{error}; {cause}")
+    logger.error("%s", cause)
+    return error

@@ -3,9 +3,10 @@
 A :class:`drivers.epos.DriveGroup` is given one :class:`SyncSource`. The drives sample, take
 their set-points and move on the SYNC whenever it comes; the master's other waits (homing,
 profile moves, state transitions) count in the source's time. :class:`PeriodicSync` is the one
-for real drives: the SYNC from the bus's own timer where the interface has one (the kernel BCM on
-SocketCAN, an adapter's hardware), else from a thread on a time grid
-(:class:`drivers.bus.GridPeriodicTask`); the waits count in wall-clock time. Another source (a
+for real drives: the SYNC from a timing process beside the master's (:mod:`drivers.timing`), or from the bus's
+own timer where the interface has one (the kernel BCM on SocketCAN, an adapter's hardware), else
+from a thread on a time grid (:class:`drivers.bus.GridPeriodicTask`); the waits count in the time
+the master was running (:class:`drivers.supervision.WatchClock`). Another source (a
 simulated rig's, which paces the SYNC by the rig's answers) implements the same interface.
 
 Every SYNC may carry the CiA 301 SYNC counter (1..240, object ``0x1019`` on a device).
@@ -13,15 +14,17 @@ Every SYNC may carry the CiA 301 SYNC counter (1..240, object ``0x1019`` on a de
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Callable, Mapping
+from typing import Callable, Mapping, Protocol
 
 import canopen
 
 from drivers.cia import SYNC_COB_ID
+from drivers.supervision import WatchClock
 
 logger = logging.getLogger(__name__)
 
@@ -48,6 +51,22 @@ class SyncSource(ABC):
 
     name: str = ""
     free_running: bool = True
+
+    def watch_clock(self):
+        """The clock the master's watch of the drives' heartbeats counts in
+        (:class:`drivers.supervision.Supervisor`): here the time the master was running and
+        watching (:class:`~drivers.supervision.WatchClock`)."""
+        return WatchClock()
+
+    def start_heartbeat(self, network: canopen.Network, cob_id: int, data: bytes, period: float):
+        """Start the master's heartbeat, every ``period`` s; returns what ``stop()`` ends it:
+        here ``network.send_periodic`` (a timing process, the bus's timer, or a thread)."""
+        return network.send_periodic(cob_id, data, period)
+
+    def answers_on_sync(self, network: canopen.Network) -> bool:
+        """Whether the master sends the set-points of cycle k+1 when it sees SYNC k (from its
+        notifier thread); ``False`` where the source sends them itself."""
+        return self.free_running
 
     def attach(self, network: canopen.Network, tpdos: Mapping[int, str],
                barrier: Callable[[], None]) -> None:
@@ -81,12 +100,13 @@ class SyncSource(ABC):
 
     @abstractmethod
     def stream(self, network: canopen.Network, period: float, cycles: int,
-               send: Callable[[int], None], poll: Callable[[], None]) -> None:
+               setpoints: SetpointFrames, poll: Callable[[], None]) -> None:
         """Start (free-running) or run (stepped) the SYNC of a stream of ``cycles`` cycles at
-        ``period`` s; ``send(k)`` sends the set-points of cycle k, ``poll()`` raises a pending
-        fault. A free-running source sends those of cycle 0 and starts its timer; the caller sends
-        the others when it sees each SYNC. A stepped one returns after ``cycles + 1`` SYNCs (the
-        last one closes the last row)."""
+        ``period`` s; ``setpoints.send(k)`` sends the set-points of cycle k (``setpoints.table()``
+        all of them as frames), ``poll()`` raises a pending fault. A free-running source sends
+        those of cycle 0 and starts its timer; the caller sends the others when it sees each SYNC
+        (:meth:`answers_on_sync`), or the source sends them itself. A stepped one returns after
+        ``cycles + 1`` SYNCs (the last one closes the last row)."""
 
     def stop(self) -> None:
         """Stop the SYNC of the stream (a no-op for a stepped source)."""
@@ -94,6 +114,17 @@ class SyncSource(ABC):
     def report(self) -> SyncReport:
         """What the last stream's SYNC did, for the recording's metadata."""
         return SyncReport()
+
+
+class SetpointFrames(Protocol):
+    """The set-points of a stream as RPDO frames (:class:`drivers.stream.TargetStreamer`)."""
+
+    def send(self, k: int) -> None:
+        """Send the set-points of cycle k (the last ones past the end)."""
+
+    def table(self) -> tuple[list[int], list[int], bytes]:
+        """Every cycle's RPDO frames: their COB-IDs, their lengths (bytes) and the data of all
+        cycles, row k the frames of cycle k one after the other."""
 
 
 @dataclass(frozen=True)
@@ -106,30 +137,55 @@ class SyncReport:
         sync_warning: the warning given before the stream (a thread-timed SYNC too fast).
         lockstep_retries: cycles a lockstep SYNC asked again (answers missing in time).
         lockstep_waited_out: cycles a lockstep SYNC gave up asking again and moved on from.
+        timing: where the SYNC came from, in words (a timing process with its pid and
+            scheduling, the bus's own timer, a thread of the master's process).
+        master_longest_stall: s, the longest the master's own loop made no progress while a
+            timing process streamed (what it survived).
+        latest_sync: s, the latest a timing process sent a SYNC after its slot.
+        latest_heartbeat: s, the latest it sent the master's heartbeat after its slot.
+        timers_stopped_after: s the master's loop had made no progress when the timing process
+            stopped the SYNC, the set-points and the heartbeat (None: it did not).
+        sync_send_failures: SYNC and set-point frames the bus refused to the timing process.
+        relay_dropped: frames the timing process could not keep for the master.
     """
 
     sync_slots_skipped: int | None = None
     sync_warning: str | None = None
     lockstep_retries: int | None = None
     lockstep_waited_out: int | None = None
+    timing: str | None = None
+    master_longest_stall: float | None = None
+    latest_sync: float | None = None
+    latest_heartbeat: float | None = None
+    timers_stopped_after: float | None = None
+    sync_send_failures: int | None = None
+    relay_dropped: int | None = None
 
 
 class PeriodicSync(SyncSource):
-    """The SYNC of real drives: ``network.send_periodic`` (the bus's timer, else a
-    :class:`~drivers.bus.GridPeriodicTask` thread that skips the slots it woke up too late for);
-    the waits count in wall-clock time. A thread-timed SYNC faster than
-    :data:`THREAD_LATE_BELOW` is warned about before the stream starts."""
+    """The SYNC of real drives, free-running on a time grid. On a bus opened through a timing
+    process (:class:`drivers.timing.TimedBus`) that process sends the SYNC and every set-point
+    from the stream's table, outside the master's process. Else ``network.send_periodic`` (the
+    bus's timer, or a :class:`~drivers.bus.GridPeriodicTask` thread that skips the slots it woke
+    up too late for) and the master's notifier answers each SYNC with the next set-points; a
+    thread-timed SYNC faster than :data:`THREAD_LATE_BELOW` is warned about before the stream
+    starts. The waits count in the time the master was running (:meth:`now`)."""
 
     name = "periodic"
     free_running = True
 
     def __init__(self) -> None:
+        self._clock = WatchClock()
         self._task = None
-        self._skipped: int | None = None   # the slots the last stream's thread-timed SYNC skipped
+        self._timed = None                   # the TimedBus streaming, if any
+        self._report = SyncReport()
         self.warning: str | None = None    # the warning given before the last stream, if any
 
     def now(self) -> float:
-        return time.monotonic()
+        """The time the master was running (:class:`~drivers.supervision.WatchClock`): a wait's
+        deadline (a state change, homing, a move) does not run out during a hold-up of the
+        master's own process, when the drive's answers wait for it."""
+        return self._clock.advance()
 
     def wait(self, seconds: float) -> None:
         time.sleep(seconds)
@@ -137,24 +193,47 @@ class PeriodicSync(SyncSource):
     def tick(self) -> None:
         time.sleep(TICK)
 
-    def stream(self, network, period, cycles, send, poll) -> None:
-        self.warning, self._skipped = None, None
+    def answers_on_sync(self, network) -> bool:
+        return not _streams_itself(network)
+
+    def stream(self, network, period, cycles, setpoints, poll) -> None:
+        self.warning, self._report = None, SyncReport(timing=getattr(network, "timing", None))
+        if _streams_itself(network):
+            self._timed = network.bus
+            self._timed.start_stream(period, SYNC_COB_ID, *setpoints.table())
+            return
         if period < THREAD_LATE_BELOW and not getattr(network, "timer_periodic", True):
             self.warning = (f"the SYNC at {1 / period:g} Hz is sent by a Python thread (this bus has no "
                             f"timer of its own): a thread is known to come late below "
                             f"{THREAD_LATE_BELOW * 1e3:g} ms; skipped slots are counted, a drive may "
-                            f"see a following error. SocketCAN (the kernel's BCM) or an adapter with "
-                            f"a hardware timer sends it on time.")
+                            f"see a following error. SocketCAN (the kernel's BCM), an adapter with "
+                            f"a hardware timer or a timing process (bus.timing: process) sends it on time.")
             logger.warning("%s", self.warning)
-        send(0)
+        setpoints.send(0)
         self._task = network.send_periodic(SYNC_COB_ID, b"", period)
 
     def stop(self) -> None:
+        if self._timed is not None:
+            done = self._timed.stop_stream()
+            self._report = dataclasses.replace(
+                self._report, sync_slots_skipped=done.slots_skipped, master_longest_stall=done.longest_stall,
+                latest_sync=done.latest_sync, latest_heartbeat=done.latest_heartbeat,
+                timers_stopped_after=done.stopped_after, sync_send_failures=done.send_failures,
+                relay_dropped=done.relay_dropped)
+            if done.first_send_error:
+                logger.warning("the bus refused %d SYNC or set-point frames to the timing process, the first: %s",
+                               done.send_failures, done.first_send_error)
+            self._timed = None
         if self._task is not None:
             self._task.stop()
-            self._skipped = getattr(self._task, "skipped", None)
+            self._report = dataclasses.replace(self._report, sync_slots_skipped=getattr(self._task, "skipped", None),
+                                               sync_warning=self.warning)
             self._task = None
 
     def report(self) -> SyncReport:
-        return SyncReport(sync_slots_skipped=self._skipped, sync_warning=self.warning)
+        return self._report
 
+
+def _streams_itself(network) -> bool:
+    """The network's bus streams a SYNC and its set-points itself (a timing process)."""
+    return hasattr(getattr(network, "bus", None), "start_stream")

@@ -46,8 +46,10 @@ def cmd_check(args) -> int:
     for p in planned:
         print("  " + p.describe() + ("  (ident-hw online only)" if p.config.online_only else ""))
     if config.bus is not None:
+        from ident_hw.experiment.session import watchdog_lines
         where = "simulated rig" if config.simulated else "HARDWARE (motion needs --arm)"
         print(f"bus: {config.bus.interface} {config.bus.channel} at {config.bus.sync_rate:g} Hz SYNC: {where}")
+        print("\n".join(watchdog_lines(config)))
     problems = [m for m in check_campaign(config, planned) if m not in {p.describe() for p in planned}]
     for message in problems:
         print(message)
@@ -94,7 +96,7 @@ def cmd_identify(args) -> int:
     if config.identification is None:
         raise ConfigError("identification: missing section (the steps to run on the recordings)",
                           file=config.source)
-    recordings, imported, notes = gather_recordings(config, args.data)
+    recordings, imported, notes = gather_recordings(config, args.data, layout=args.pdo_layout)
     for note in notes:
         print(note, file=sys.stderr)
     require_trajectories(config, recordings)
@@ -267,7 +269,7 @@ def cmd_monitor(args) -> int:
     from ident_hw.experiment.session import open_session
     config = _load(args.config)
     with open_session(config) as session:
-        group = session.drive_group()
+        group = session.drive_group(uses=("bring_up",))
         end = time.monotonic() + (args.duration if args.duration is not None else float("inf"))
         tty = sys.stdout.isatty() and not args.once
         while True:
@@ -290,7 +292,7 @@ def cmd_home(args) -> int:
     if _needs_arm(config, args, "homing"):
         return Exit.CONFIG
     with HostSettings.for_command(config).pinned(), open_session(config) as session:
-        with session.drive_group() as group:
+        with session.drive_group(uses=("bring_up", "home")) as group:
             group.bring_up(timeout=config.bus.bring_up_timeout)
             group.home()
             positions = group.positions()
@@ -395,6 +397,10 @@ def _add_offline_commands(command) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.add_argument("--no-report", action="store_true", help="no plots and no report.html (`ident-hw report DIR` "
                    "builds them later)")
+    p.add_argument("--pdo-layout", metavar="SOURCE", help="the PDO layout to decode a raw log without its sidecar "
+                   "(<log>.json) with: 'config' (the one this config maps, with its bus.current), a sidecar "
+                   "<run>.log.json or a decoded <recording>.npz of a run with the same drives; without it such a log "
+                   "is refused")
 
 
 def _add_rig_commands(command) -> None:

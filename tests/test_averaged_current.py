@@ -263,10 +263,16 @@ def test_a_campaign_on_averaged_currents_records_the_average_and_identifies_the_
     matched = _rows(tmp_path / "averaged")
     for name in ("m_c", "fv_zeta1", "fv_zeta2", "fv_zeta3", "fc_zeta1", "fc_zeta2", "fc_zeta3"):
         assert abs(matched[name]["identified"] - truth[name]) <= 3 * matched[name]["sigma"], (name, matched[name])
-    averaged.metadata = dataclasses.replace(averaged.metadata, current="instantaneous")
+    # the recording says which current it holds: identified by a config saying instantaneous, it is refused
+    out = ident_hw("identify", tmp_path / "instantaneous" / "config.yaml", tmp_path / "averaged" / "data" / "sweep.npz",
+                   "--out", tmp_path / "refused", "--quiet", "--no-report", cwd=tmp_path)
+    assert out.returncode == 5 and "holds the averaged current" in out.stderr, out.stderr
+    # made to say instantaneous, it is identified without the matched filter
+    averaged.metadata = dataclasses.replace(averaged.metadata, current="instantaneous", axes=tuple(
+        dataclasses.replace(a, current="instantaneous", current_filter=None) for a in averaged.metadata.axes))
     (tmp_path / "unmatched").mkdir()
     averaged.save(tmp_path / "unmatched" / "sweep.npz")
-    out = ident_hw("identify", tmp_path / "averaged" / "config.yaml", tmp_path / "unmatched" / "sweep.npz",
+    out = ident_hw("identify", tmp_path / "instantaneous" / "config.yaml", tmp_path / "unmatched" / "sweep.npz",
                    "--out", tmp_path / "unmatched-result", "--quiet", "--no-report", cwd=tmp_path)
     assert out.returncode in (0, 6), out.stderr
     unmatched = _rows(tmp_path / "unmatched-result")

@@ -3,7 +3,6 @@ and ``ident-hw run`` meet on python-can's ``udp_multicast`` bus, on an interface
 bus that cannot reach hardware: lockstep, no --arm). UDP may drop a frame; lockstep asks the cycle
 again, so the answer is the one of the same config with the rig in the master's process."""
 
-import secrets
 import socket
 import subprocess
 from pathlib import Path
@@ -11,26 +10,12 @@ from pathlib import Path
 import pytest
 
 from rig_runs import RunInOneProcess, assert_same_in_one_process, assert_step_identified, parameter_rows
+from udp_groups import interface_local_group, loopback_multicast_works
 
 pytest.importorskip("msgpack", reason="python-can's udp_multicast interface needs msgpack (pip install -e '.[test]')")
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
 RUN_TIMEOUT = 300.0  # s, bounds a hang
-
-
-def interface_local_group() -> str:
-    """A fresh interface-local IPv6 multicast group (scope 1), so that parallel runs do not meet."""
-    return f"ff11::4944:{secrets.randbits(16):x}:{secrets.randbits(16):x}"
-
-
-def loopback_multicast_works(group: str) -> bool:
-    import can
-    try:
-        with can.Bus(interface="udp_multicast", channel=group) as a, can.Bus(interface="udp_multicast", channel=group) as b:
-            a.send(can.Message(arbitration_id=0x7FF, data=b"", is_extended_id=False))
-            return b.recv(2.0) is not None
-    except (OSError, can.CanError):
-        return False
 
 
 @pytest.mark.slow

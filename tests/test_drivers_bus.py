@@ -106,3 +106,22 @@ def test_the_virtual_bus_queues_its_own_echo_before_another_bus_gets_the_frame(o
         earlier.shutdown()
         sender.shutdown()
     assert echo_queued == [ours] * 3
+
+
+def test_a_udp_multicast_bus_hears_its_own_group_only():
+    """Linux hands a socket the datagrams of every group joined on its port unless told not to:
+    two rigs (or two test runs) on two groups of one host must not hear each other."""
+    pytest.importorskip("msgpack", reason="python-can's udp_multicast interface needs msgpack")
+    from udp_groups import interface_local_group, loopback_multicast_works
+    mine, other = interface_local_group(), interface_local_group()
+    if not loopback_multicast_works(mine):
+        pytest.skip("this host does not loop IPv6 multicast back to its own sockets")
+    buses = [open_bus(BusConfig("udp_multicast", g)) for g in (mine, mine, other)]
+    try:
+        sender, same, elsewhere = buses
+        sender.send(can.Message(arbitration_id=0x123, data=b"\x01", is_extended_id=False))
+        assert same.recv(1.0).arbitration_id == 0x123
+        assert elsewhere.recv(0.3) is None
+    finally:
+        for bus in buses:
+            bus.shutdown()

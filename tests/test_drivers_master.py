@@ -533,7 +533,7 @@ def test_wrong_profile_is_refused_at_bring_up(rig_factory):
 
 
 def test_master_heartbeat_is_produced_and_watched_by_every_drive(rig_factory):
-    rig, group = rig_factory(up=False)
+    rig, group = rig_factory(up=False, sync="periodic")
     listener = can.Bus(interface="virtual", channel=rig._bus_kwargs["channel"], ignore_config=True)
     master_cob = 0x700 + group.master_id
 
@@ -548,7 +548,7 @@ def test_master_heartbeat_is_produced_and_watched_by_every_drive(rig_factory):
 
     try:
         group.bring_up()
-        consumer = group.master_id << 16 | round(group.heartbeat_timeout * 1e3)
+        consumer = group.master_id << 16 | round(group.watchdogs.master_heartbeat * 1e3)
         assert consumer == 127 << 16 | 350
         assert [d.get(0x1016, 1) for d in rig.drives] == [consumer] * 6
         frames = heartbeats(1.0)
@@ -561,9 +561,59 @@ def test_master_heartbeat_is_produced_and_watched_by_every_drive(rig_factory):
         heartbeats(0.05)  # frames already queued before the stop
         assert heartbeats(0.5) == []
         # ... and, their consumer switched off first, no drive took the end for a lost master
-        assert 0.55 > group.heartbeat_timeout and [d.state for d in rig.drives] == ["SWITCH ON DISABLED"] * 6
+        assert 0.55 > group.watchdogs.master_heartbeat and [d.state for d in rig.drives] == ["SWITCH ON DISABLED"] * 6
     finally:
         listener.shutdown()
+
+
+def test_in_lockstep_the_heartbeats_count_sync_periods_both_ways(rig_factory):
+    """The simulated rig in lockstep: the master's heartbeat goes out by SYNC count (none while no
+    SYNC runs), every drive sends one per heartbeat period of simulated time, and both watches count
+    simulated time: a host that holds the whole process for longer than every timeout between two
+    SYNCs stops nothing."""
+    rig, group = rig_factory(up=False)
+    listener = can.Bus(interface="virtual", channel=rig._bus_kwargs["channel"], ignore_config=True)
+    master_cob = 0x700 + group.master_id
+    try:
+        group.bring_up()
+        assert all(d.get(0x1016, 1) == group.master_id << 16 | 350 for d in rig.drives)
+        time.sleep(0.3)
+        while listener.recv(0) is not None:
+            pass
+        time.sleep(0.5)            # no SYNC: the master's heartbeat is not sent by a wall clock
+        idle = []
+        while (msg := listener.recv(0)) is not None:
+            idle.append(msg.arbitration_id)
+        assert master_cob not in idle
+        cycles = round(1.0 / PERIOD)
+        group.sync.run(cycles)     # 1 s of simulated time
+        seen = []
+        while (msg := listener.recv(0)) is not None:
+            seen.append(msg.arbitration_id)
+        # one heartbeat per 0.1 s of simulated time from the master, and from every drive by SYNC count
+        assert 10 <= seen.count(master_cob) <= 11, seen.count(master_cob)
+        for d in rig.drives:
+            assert seen.count(0x700 + d.id) >= 10, d.id
+        # the whole process held for 1 s (three times either timeout) between two SYNCs: nothing faults
+        time.sleep(1.0)
+        group.sync.run(cycles)
+        group.supervisor.raise_if_fault()
+        assert not rig.faulted()
+        # a master whose heartbeat stops while the SYNC runs is lost to the drives after their
+        # consumer time of simulated time
+        group.sync._heartbeat.stop()
+        ran = 0
+        with pytest.raises(DriveFault, match="heartbeat") as fault:
+            for ran in range(cycles):
+                group.sync.run(1)
+                group.supervisor.raise_if_fault()
+    finally:
+        listener.shutdown()
+    assert fault.value.code == 0x8130 and ran * PERIOD == pytest.approx(0.35, abs=0.11)
+    deadline = time.monotonic() + 2.0     # the master raised at the first EMCY; the rig's cycle ends meanwhile
+    while len(rig.faulted()) < len(rig.drives) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert sorted(rig.faulted()) == [d.id for d in rig.drives]
 
 
 def test_drives_stop_themselves_when_the_master_is_lost(rig_factory):
@@ -576,7 +626,7 @@ def test_drives_stop_themselves_when_the_master_is_lost(rig_factory):
     group.enable()
     assert all(d.state == "OPERATION ENABLED" for d in rig.drives)
     network.disconnect()  # the master process is gone: no heartbeat, no SDO, no stop command
-    time.sleep(group.heartbeat_timeout + 0.3)
+    time.sleep(group.watchdogs.master_heartbeat + 0.3)
     assert [d.state for d in rig.drives] == ["FAULT"] * 6
     # heartbeat error: 0x603F of the EPOS4, the newest error 0x1003:01 of the EPOS2 (it has no 0x603F)
     assert all(d.get(d.profile.error_code.index, d.profile.error_code.subindex) == 0x8130 for d in rig.drives)

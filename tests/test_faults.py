@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 import yaml
 
-from drivers.recording import Recording
+from drivers.recording import Recording, sidecar_path
 from ident_hw.config import load_config
 from cli_runs import ident_hw
 
@@ -132,6 +132,7 @@ def test_identify_on_a_truncated_raw_log_says_how_much_was_used(recorded, tmp_pa
     text = (recorded / "data" / "square.log").read_bytes()
     cut = text[: int(0.4 * len(text))]          # 40 % of the bytes: ends inside a line
     (tmp_path / "square.log").write_bytes(cut)
+    sidecar_path(tmp_path / "square.log").write_bytes(sidecar_path(recorded / "data" / "square.log").read_bytes())
     syncs = sum(1 for line in cut.decode().splitlines() if re.search(r"\s080#([0-9A-F]{2})?(\s+[RT])?\s*$", line))
     out = ident_hw("identify", recorded / "config.yaml", tmp_path / "square.log", "--out", tmp_path / "res",
                    "--no-report", cwd=tmp_path)

@@ -17,6 +17,7 @@ import functools
 import json
 import logging
 import re
+import shutil
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -24,7 +25,7 @@ import numpy as np
 from scipy import stats
 import pytest
 
-from drivers.recording import Recording
+from drivers.recording import Recording, sidecar_path
 from ident_hw.config import load_config, to_model
 from ident_hw.experiment import runner
 from ident_hw.experiment.campaign_estimator import CampaignEstimator
@@ -459,6 +460,7 @@ def test_identify_from_raw_logs_with_late_and_lost_frames_is_right_or_degraded(m
         with can.Logger(path) as logger:
             for msg in out:
                 logger.on_message_received(msg)
+        shutil.copy(sidecar_path(folder / "data" / f"{name}.log"), sidecar_path(path))   # the run's PDO layout
         # the run's metadata (SYNC period, targets) from its .npz, the samples from the log
         rec_name, rec = load_recording(path, config)
         recordings[name] = rec

@@ -183,8 +183,8 @@ def test_the_master_uses_the_drives_own_eds_and_names_what_it_lacks(tmp_path):
         group.close()
         lacking = dataclasses.replace(axes[4], object_dictionary=str(_exported_eds(tmp_path, axes[4].node_id,
                                                                                    without=(0x30D1, 2))))
-        with pytest.raises(ConfigError, match=rf"node {axes[4].node_id} \(zeta2\).*node{axes[4].node_id}\.eds "
-                                              r"lacks 0x30D1:02"):
+        with pytest.raises(ConfigError, match=rf"node {axes[4].node_id} \(zeta2\).*node{axes[4].node_id}\.eds: "
+                                              r"EPOS4 firmware 0x0170 \(the file\) lacks 0x30D1:02"):
             DriveGroup(network, axes[:4] + [lacking] + axes[5:], sync=LockstepSync(PERIOD))
     finally:
         network.disconnect()
@@ -194,3 +194,79 @@ def test_the_master_uses_the_drives_own_eds_and_names_what_it_lacks(tmp_path):
 def test_a_configs_object_dictionary_is_relative_to_the_config_file(tmp_path):
     actuator = dataclasses.replace(CONFIG.robot.actuators[3], object_dictionary="drives/zeta1.dcf")
     assert axis_config(actuator, tmp_path).object_dictionary == str(tmp_path / "drives" / "zeta1.dcf")
+
+
+def _maxon_file(name: str) -> Path:
+    folder = os.environ.get("IDENT_HW_MAXON_REFERENCE")
+    if not folder or not (Path(folder) / name).is_file():
+        pytest.skip(f"IDENT_HW_MAXON_REFERENCE (a folder with maxon's {name}) not set")
+    return Path(folder) / name
+
+
+def test_a_drive_whose_firmware_lacks_an_object_the_run_needs_is_refused_at_bring_up():
+    """An EPOS4 whose dictionary is maxon's EDS of firmware 0x0110, which has no interpolation
+    period 0x60C2 (the cyclic stream writes it): the master asks each drive for the objects the run
+    uses and refuses that one at bring-up, naming the node, its firmware and the object, before any
+    drive is enabled. For homing only (``ident-hw home``) it needs nothing the drive lacks: brought up
+    and homed."""
+    from drivers.errors import BringUpError
+    eds = _maxon_file("EPOS4_0110h_6551h.eds")
+    axes = [dataclasses.replace(axis_config(a), profile="epos4") for a in CONFIG.robot.actuators]
+    channel = f"real-od-{next(_channels)}"
+    rig = SimulatedRig.build(robot_model(CONFIG), to_model.inertial_params(CONFIG.sim.truth),
+                             [(a.node_id, a.profile, a.scaling) for a in axes], sync_period=PERIOD,
+                             lockstep=True, interface="virtual", channel=channel, ignore_config=True,
+                             dictionaries={5: eds}).start()
+    network = open_network(BusConfig("virtual", channel, ignore_config=True))
+    try:
+        start = rig.plant.Theta.copy()
+        group = DriveGroup(network, axes, sync=LockstepSync(PERIOD))
+        with pytest.raises(BringUpError, match=r"node 5 \(zeta2\): EPOS4 firmware 0x0110 lacks 0x60C2:01 "
+                                               r"\(interpolation time period \(the cyclic stream writes it: CSP\)\); "
+                                               r"0x60C2:02 .*maxon.s EDS of the EPOS4 for firmware 0x0110 has no 0x60C2 either.*update the drive.s firmware\); nothing has moved"):
+            group.bring_up()
+        assert all(d.state == "SWITCH ON DISABLED" for d in rig.drives)
+        np.testing.assert_array_equal(rig.plant.Theta, start)
+        group.close()
+        homing = DriveGroup(network, axes, sync=LockstepSync(PERIOD), uses=("bring_up", "home"))
+        homing.bring_up()
+        homing.home()
+        homing.close()
+    finally:
+        network.disconnect()
+        rig.stop()
+
+
+def test_maxons_older_eds_is_accepted_as_a_drive_dictionary_where_the_command_needs_nothing_it_lacks():
+    """The same EDS as the master's dictionary of an axis (``object_dictionary``): refused for a run
+    (its file lacks 0x60C2), accepted for homing; ``check`` says both."""
+    from drivers.firmware import load_object_dictionary
+    from ident_hw.experiment.plan import dictionary_problems
+    eds = _maxon_file("EPOS4_0110h_6551h.eds")
+    with pytest.raises(ValueError, match=r"EPOS4_0110h_6551h\.eds: EPOS4 firmware 0x0110 \(the file\) lacks 0x60C2:01"):
+        load_object_dictionary(eds, "epos4", 4)
+    od = load_object_dictionary(eds, "epos4", 4, uses=("bring_up", "home"))
+    assert 0x60C2 not in od and od[0x1018][3].default == 0x01100000
+    hil = load_config(Path(__file__).resolve().parent.parent / "configs" / "hil-3prrr-epos4.yaml")
+    actuators = list(hil.robot.actuators)
+    actuators[3] = dataclasses.replace(actuators[3], object_dictionary=str(eds))
+    config = dataclasses.replace(hil, robot=dataclasses.replace(hil.robot, actuators=tuple(actuators)))
+    problems = dictionary_problems(config)
+    assert len(problems) == 1 and problems[0].startswith("node 4 (zeta1): object dictionary") and \
+        "lacks 0x60C2:01" in problems[0] and "`ident-hw home` works on it" in problems[0], problems
+
+
+def test_the_firmware_gaps_agree_with_maxons_files():
+    """What the EPOS4 profile says an older firmware lacks is what maxon's files show: the EDS of
+    firmware 0x0110 lacks exactly those of the objects a run uses, the DCF of 0x0170 has them all."""
+    from drivers.firmware import objects_used
+    from drivers.profiles import EPOS4, find_variable
+    eds = canopen.import_od(str(_maxon_file("EPOS4_0110h_6551h.eds")), 1)
+    dcf = canopen.import_od(str(_maxon_file("epos4_50_15_fw0170_node1.dcf")), 1)
+    (gap,) = EPOS4.firmware_gaps
+    for current in ("instantaneous", "averaged"):
+        used = objects_used(EPOS4, current)
+        assert sorted(k for k in used if find_variable(eds, *k) is None) == sorted(gap.lacks)
+        assert [k for k in used if find_variable(dcf, *k) is None] == []
+    assert eds[0x1018][3].default >> 16 == gap.known_without
+    assert dcf[0x1018][3].value >> 16 == gap.known_with

@@ -19,7 +19,8 @@ import pytest
 from canopen.sdo import SdoAbortedError
 
 from drivers.errors import DriveFault
-from drivers.profiles import EPOS2, find_variable, make_object_dictionary, required_objects
+from drivers.firmware import objects_used
+from drivers.profiles import EPOS2, find_variable, make_object_dictionary
 from ident_hw.config import load_config
 
 from test_real_od import PERIOD, _variables, _writable, spied_rig
@@ -43,6 +44,7 @@ EPOS2_FACTS = {
     (0x1017, 0): ("UNSIGNED16", "rw", False),         # producer heartbeat time
     (0x1018, 1): ("UNSIGNED32", "ro", False),         # vendor-ID
     (0x1018, 2): ("UNSIGNED32", "ro", False),         # product code
+    (0x1018, 3): ("UNSIGNED32", "ro", False),         # revision number: the firmware in its upper 16 bits
     (0x2027, 0): ("INTEGER16", "ro", True),           # current actual value averaged, mA
     (0x2062, 0): ("INTEGER32", "rww", True),          # position mode setting value (mode -1)
     (0x2081, 0): ("INTEGER32", "rww", True),          # home position
@@ -152,7 +154,7 @@ def test_the_epos2_profile_and_dictionary_hold_the_facts_the_master_depends_on()
     objects; the profile names, for each fact the master needs, the object the EPOS2 has."""
     od = make_object_dictionary("epos2", 1)
     assert {key: _fact(find_variable(od, *key)) for key in EPOS2_FACTS if find_variable(od, *key)} == EPOS2_FACTS
-    assert set(required_objects(EPOS2)) <= set(EPOS2_FACTS)
+    assert set(objects_used(EPOS2, "instantaneous")) | set(objects_used(EPOS2, "averaged")) <= set(EPOS2_FACTS)
     assert [key for key in sorted(ABSENT_ON_EPOS2) if find_variable(od, *key) is not None] == []
     p = EPOS2
     assert (p.error_code.index, p.error_code.subindex, p.error_code.data_type) == (0x1003, 1, "UNSIGNED32")

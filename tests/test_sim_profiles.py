@@ -15,7 +15,8 @@ def _refs(profile):
             yield field.name, value
         elif isinstance(value, tuple):
             for i, item in enumerate(value):
-                yield f"{field.name}[{i}]", item
+                if isinstance(item, ObjectRef):      # not the firmware gaps: objects a firmware lacks
+                    yield f"{field.name}[{i}]", item
 
 
 @pytest.mark.parametrize("name", sorted(PROFILES))

@@ -77,17 +77,26 @@ class EmulatedDrive:
         network: the rig's network (the node is added to it).
         lock: the rig's lock, held by every handler.
         clock: ``clock() -> float`` seconds (monotonic; the rig's clock), for event timers, inhibit
-            times and the heartbeat and RPDO watches.
+            times and the RPDO watch.
+        heartbeat_clock: the clock of the heartbeat consumer (default ``clock``); in lockstep the
+            simulated time, so that the watch of the master counts SYNC periods.
+        dictionary: the drive's object dictionary (default the profile's,
+            :func:`drivers.profiles.make_object_dictionary`): e.g. one of maxon's files, to emulate
+            a firmware with other objects (an SDO request for an object it lacks is aborted as
+            the drive would).
     """
 
     def __init__(self, node_id: int, profile_name: str, scaling: AxisScaling, network: canopen.Network,
-                 lock, clock):
+                 lock, clock, heartbeat_clock=None, dictionary=None):
         self.profile = get_profile(profile_name)
         self.scaling = scaling
-        self.node = canopen.LocalNode(node_id, make_object_dictionary(profile_name, node_id))
+        self.node = canopen.LocalNode(node_id, dictionary if dictionary is not None
+                                      else make_object_dictionary(profile_name, node_id))
         self.id = node_id
         self._lock = lock
         self._clock = clock
+        self._heartbeat_clock = heartbeat_clock or clock
+        self._counted_heartbeat: float | None = None   # simulated time of the last heartbeat sent by SYNC count
         network.add_node(self.node)
         self.network = network
         self.store = ObjectStore(self.node.object_dictionary)
@@ -213,7 +222,21 @@ class EmulatedDrive:
 
     def _on_consumed_heartbeat(self, can_id, data, timestamp) -> None:
         with self._lock:
-            self._consumer_last = self._clock()
+            self._consumer_last = self._heartbeat_clock()
+
+    def heartbeat_by_sync(self, now: float) -> None:
+        """In lockstep: the producer heartbeat (``0x1017``) in simulated time ``now`` (s), sent when
+        a producer period or more has passed since the last one sent so, so that the master, whose
+        watch counts SYNC periods too, sees one in every period of simulated time, however the
+        host schedules the rig's wall-clock heartbeat."""
+        ms = self.optional(0x1017)
+        if not ms or self.silent:
+            self._counted_heartbeat = None
+            return
+        if self._counted_heartbeat is not None and now - self._counted_heartbeat < ms * 1e-3 - 1e-9:
+            return
+        self._counted_heartbeat = now
+        self.network.send_message(0x700 + self.id, bytes([self.node.nmt._state]))
 
     def check_heartbeat(self, now: float) -> None:
         """Heartbeat error (EMCY 0x8130, fault reaction) when the watched producer is overdue."""

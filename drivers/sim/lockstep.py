@@ -102,8 +102,23 @@ class LockstepSync(SyncSource, can.Listener):
         self._complete = False
         self._again = False          # the rig's answer calls for asking the cycle again
         self._wake = threading.Event()
+        self._heartbeat: _CountedHeartbeat | None = None
 
     # -- SyncSource -----------------------------------------------------------------------------
+    def watch_clock(self) -> _SimulatedClock:
+        """The simulated time of the cycles completed: the master's watch of the drives'
+        heartbeats counts SYNC periods, so that a busy host never stops a simulated run (the rig
+        sends its heartbeats by SYNC count too, :mod:`drivers.sim.rig`)."""
+        return _SimulatedClock(self)
+
+    def start_heartbeat(self, network: canopen.Network, cob_id: int, data: bytes, period: float) -> _CountedHeartbeat:
+        """The master's heartbeat in simulated time: sent before the SYNC of every cycle that
+        starts ``period`` s or more of simulated time after the last one (the first one with the
+        first SYNC), never by a wall clock."""
+        self._heartbeat = _CountedHeartbeat(self, can.Message(arbitration_id=cob_id, data=bytes(data),
+                                                               is_extended_id=False), period)
+        return self._heartbeat
+
     def attach(self, network: canopen.Network, tpdos: Mapping[int, str],
                barrier: Callable[[], None]) -> None:
         self.network, self.expected, self.barrier = network, dict(tpdos), barrier
@@ -144,15 +159,16 @@ class LockstepSync(SyncSource, can.Listener):
     def row_period(self) -> float:
         return self.period
 
-    def stream(self, network, period, cycles, send, poll) -> None:
+    def stream(self, network, period, cycles, setpoints, poll) -> None:
         """SYNC k goes out once cycle k-1 is answered; one more closes the last row (the drives
         get the last set-points again)."""
         for k in range(cycles + 1):
-            self.step(lambda k=k: send(k), poll=poll)
+            self.step(lambda k=k: setpoints.send(k), poll=poll)
             poll()
 
     def report(self) -> SyncReport:
-        return SyncReport(lockstep_retries=self.retries, lockstep_waited_out=self.waited_out)
+        return SyncReport(lockstep_retries=self.retries, lockstep_waited_out=self.waited_out,
+                          timing="lockstep: the SYNC paced by the simulated rig's answers")
 
     # -- notifier thread ----------------------------------------------------------------------
     def on_message_received(self, msg: can.Message) -> None:
@@ -201,6 +217,9 @@ class LockstepSync(SyncSource, can.Listener):
         started = time.monotonic()
         asked = 0
         last_ask = 0.0
+        heartbeat = self._heartbeat
+        if heartbeat is not None and heartbeat.due(self.cycles * self.period):
+            self.network.send_message(heartbeat.msg.arbitration_id, heartbeat.msg.data)
         while True:
             self._again = False
             self._wake.clear()
@@ -234,3 +253,38 @@ class LockstepSync(SyncSource, can.Listener):
         """``cycles`` steps without set-points (homing, profile moves, stopping)."""
         for _ in range(cycles):
             self.step()
+
+
+class _SimulatedClock:
+    """The watch clock of a lockstep run: the simulated time of the cycles completed, s (it
+    stands still between streams and while the master does anything else)."""
+
+    def __init__(self, sync: LockstepSync):
+        self._sync = sync
+
+    def advance(self) -> float:
+        return self._sync.cycles * self._sync.period
+
+    peek = advance
+
+
+class _CountedHeartbeat:
+    """The master's heartbeat of a lockstep run, due every ``period`` s of simulated time."""
+
+    def __init__(self, sync: LockstepSync, msg: can.Message, period: float):
+        self._sync, self.msg, self.period = sync, msg, period
+        self._last: float | None = None
+
+    def due(self, now: float) -> bool:
+        """Whether the heartbeat goes out with the cycle starting at simulated time ``now``."""
+        if self._last is not None and now - self._last < self.period - 1e-9:
+            return False
+        self._last = now
+        return True
+
+    def update(self, data: bytes) -> None:
+        self.msg = can.Message(arbitration_id=self.msg.arbitration_id, data=bytes(data), is_extended_id=False)
+
+    def stop(self) -> None:
+        if self._sync._heartbeat is self:
+            self._sync._heartbeat = None

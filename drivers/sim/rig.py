@@ -30,8 +30,12 @@ again and nothing moves. A SYNC that finds set-points for only some of the strea
 (a frame lost on a lossy transport) is left unanswered until the master repeats it with them.
 Each SYNC's answer ends with the answer frame of :mod:`drivers.sim.lockstep` (the frames sent,
 or held), so that the master asks a cycle again as soon as one of its frames was lost.
-The RPDO deadline watch is off (the set-points come with every SYNC by construction); the
-heartbeat watch stays on the rig's clock.
+The RPDO deadline watch is off (the set-points come with every SYNC by construction). The
+heartbeats count SYNC periods both ways: each drive sends its heartbeat every producer period
+of simulated time (besides canopen's wall-clock one, which bring-up waits for) and watches the
+master's, which the master's :class:`~drivers.sim.lockstep.LockstepSync` sends by SYNC count, in
+simulated time; the master watches the drives' in simulated time too. A busy host, which slows
+the SYNC and the wall clock alike, never stops a simulated run.
 
 Fault injection (for tests and demos): :meth:`SimulatedRig.silence`, :meth:`~SimulatedRig.emcy`,
 :meth:`~SimulatedRig.sdo_abort`, :meth:`~SimulatedRig.frame_faults` and ``initial_states``;
@@ -140,11 +144,13 @@ class SimulatedRig:
         encoder_edges: (n,) where each axis's encoder counts, in counts: an axis reads
             ``rint(position * counts_per_unit + encoder_edges[j])`` (each in [-0.5, 0.5]; default 0,
             count edges halfway between whole multiples of a count).
+        dictionaries: ``{node_id: EDS or DCF file}``: drives whose object dictionary is read from
+            a file (e.g. maxon's EDS of an older firmware) instead of their profile's.
     """
 
     def __init__(self, nodes, plant: Plant, *, bus=None, sync_period=None, current_noise_ma: float = 0.0,
                  seed=None, initial_states=None, lockstep: bool = False, brakes: bool = False,
-                 encoder_edges=None, **bus_kwargs):
+                 encoder_edges=None, dictionaries=None, **bus_kwargs):
         nodes = [(n.node_id, n.profile, n.scaling) if isinstance(n, AxisConfig) else tuple(n) for n in nodes]
         names = plant.robot.actuator_names
         if len(nodes) != len(names):
@@ -176,7 +182,14 @@ class SimulatedRig:
         self.network._rng = np.random.default_rng(None if seed is None else seed + 1)
         self._lock = threading.RLock()
         self.time = 0.0    # s, the rig's clock (see the module docstring)
-        self.drives = [EmulatedDrive(node_id, profile, scaling, self.network, self._lock, lambda: self.time)
+        heartbeat_clock = (lambda: self.sync_time) if lockstep else None
+        files = dict(dictionaries or {})
+        unknown = sorted(set(files) - set(ids))
+        if unknown:
+            raise ValueError(f"dictionaries: no drive with node-ID {unknown} (node-IDs {ids})")
+        self.drives = [EmulatedDrive(node_id, profile, scaling, self.network, self._lock, lambda: self.time,
+                                     heartbeat_clock,
+                                     canopen.import_od(str(files[node_id]), node_id) if node_id in files else None)
                        for node_id, profile, scaling in nodes]
         self._by_id = {d.id: d for d in self.drives}
         self._units = AxesScaling([n[2] for n in nodes])
@@ -323,6 +336,9 @@ class SimulatedRig:
             self.syncs_done += 1
             self.sync_time += period
             if self.lockstep:
+                for drive in self.drives:            # the heartbeats in simulated time, both ways
+                    drive.heartbeat_by_sync(self.sync_time)
+                    drive.check_heartbeat(self.sync_time)
                 self._answer(data[0] if data else 0)
         self.step_seconds.append(time.perf_counter() - started)
 
@@ -411,8 +427,8 @@ class SimulatedRig:
                     self._last_tick = now
                     self.network.release_delayed(now)
                     for drive in self.drives:
-                        drive.check_heartbeat(self.time)
-                        if not self.lockstep:
+                        if not self.lockstep:            # in lockstep on SYNC, in simulated time
+                            drive.check_heartbeat(self.time)
                             drive.check_rpdo_timeout(self.time)
                         drive.send_event_tpdos(self.time)
                     if self.lockstep or self.sync_driven:

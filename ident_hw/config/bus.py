@@ -9,6 +9,7 @@ from typing import Literal
 import can
 
 import drivers.bus
+import drivers.supervision
 
 from .schema import in_range, positive, spec
 
@@ -23,6 +24,34 @@ def _python_can_interface(name: str) -> None:
 
 
 @dataclass(frozen=True)
+class WatchdogsConfig:
+    """The ``bus.watchdogs`` section: every time limit that stops a run when one side goes silent
+    (:class:`drivers.supervision.Watchdogs`); ``ident-hw check`` prints what each one is for a
+    config."""
+
+    drive_heartbeat: float | None = field(default=None, metadata=spec(
+        positive, unit="s", doc="the master stops the run when a drive's heartbeat is this late, counted in the time "
+                                "the master was running and watching (in lockstep the simulated time). Default 3.5 "
+                                "heartbeat periods: three heartbeats lost in a row (a drive's heartbeat comes from "
+                                "its firmware, on time)"))
+    master_heartbeat: float | None = field(default=None, metadata=spec(
+        positive, unit="s", doc="every drive's consumer time of the master's heartbeat (0x1016:01): a drive faults "
+                                "(EMCY 0x8130) when the master's heartbeat is this late. Default 3.5 heartbeat "
+                                "periods: the master's heartbeat comes from a timer outside its process (a timing "
+                                "process, SocketCAN's BCM), not from a thread that the master's own hold-ups stop"))
+    sync_progress: float = field(default=drivers.supervision.SYNC_PROGRESS, metadata=spec(
+        positive, unit="s", doc="the master stops a stream when no new SYNC cycle came for this long, counted in the "
+                                "time it was running and watching (a hold-up of its own process is no stall of the "
+                                "SYNC); the drives hold their last set-point meanwhile"))
+    master_progress: float = field(default=drivers.supervision.MASTER_PROGRESS, metadata=spec(
+        positive, unit="s", doc="a timing process (bus.timing) stops the SYNC, the set-points and the master's "
+                                "heartbeat when the master's own loop made no progress for this long, so that the "
+                                "drives fault within this plus master_heartbeat of a hung master; a longer hold-up of "
+                                "the master's process stops the run. Default 5 s: twice the longest hold-ups seen on "
+                                "loaded lab PCs (2.18 s at load 9; a 1 s GIL hold at load 8 once became 3 s)"))
+
+
+@dataclass(frozen=True)
 class BusConfig:
     """The CAN bus (python-can) and the SYNC rate of the cyclic exchange."""
 
@@ -34,9 +63,19 @@ class BusConfig:
                                     "config extended onto a virtual bus inherits its hardware's)"))
     sync_rate: float = field(default=250.0, metadata=spec(in_range(1.0, 2000.0), unit="Hz"))
     sdo_timeout: float = field(default=0.5, metadata=spec(positive, unit="s"))
-    heartbeat: float = field(default=0.1, metadata=spec(positive, unit="s"))
+    heartbeat: float = field(default=0.1, metadata=spec(
+        positive, unit="s", doc="producer heartbeat period of the drives (0x1017) and of the master"))
     heartbeat_timeout: float | None = field(default=None, metadata=spec(
-        positive, unit="s", doc="consumer heartbeat timeout on both sides (default 3.5 heartbeat periods)"))
+        positive, unit="s", doc="retired: one timeout for both sides; now bus.watchdogs.drive_heartbeat and "
+                                "bus.watchdogs.master_heartbeat"))
+    watchdogs: WatchdogsConfig = field(default=WatchdogsConfig(), metadata=spec(
+        doc="the time limits that stop a run when one side goes silent"))
+    timing: Literal["auto", "process", "thread"] = field(default="auto", metadata=spec(
+        doc="where a periodic SYNC, the set-points and the master's heartbeat are timed: 'process' (a timing process "
+            "of their own beside the master's, which owns the bus: no GIL hold, garbage collection or busy core of the "
+            "master's process stops them), 'thread' (the bus's own timer where it has one, SocketCAN's BCM, else "
+            "threads of the master's process; the set-points from its notifier), 'auto' (a process on every bus "
+            "another process can open: all but python-can's 'virtual')"))
     bring_up_timeout: float = field(default=5.0, metadata=spec(
         positive, unit="s", doc="time for every drive to answer and reach PRE-OPERATIONAL at bring-up"))
     sync: Literal["periodic", "lockstep"] | None = field(default=None, metadata=spec(

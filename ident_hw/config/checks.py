@@ -14,6 +14,7 @@ import difflib
 import fnmatch
 from typing import Callable
 
+import drivers.errors
 from drivers.units import PRISMATIC, REVOLUTE
 from ident_hw.model.delta import BODIES, BODY_PARAMS
 from ident_hw.model.interface import RobotModel
@@ -28,6 +29,7 @@ from .robots import COMMON_TRAJECTORY_KINDS, RobotKind, check_parameter_set, kin
 from .scales import check_scales, drive_term, parameter_kind
 from .schema import FieldError, ordered_pair
 from .sim import TRUTH_KEYS
+from .to_drivers import bus_settings, timing_settings, watchdogs
 from .to_identification import filter_settings
 from .trajectory import COMMON_KEYS, KEYS_OF_KIND, STANDSTILL_MIN_S, STANDSTILL_SETTLE, TrajectoryConfig
 
@@ -158,6 +160,12 @@ def check_config(config: Config, written: frozenset = frozenset()) -> None:
     names = _check_trajectory_names(config)
     bus = config.bus
     _check_drives(config)
+    if bus is not None and bus.heartbeat_timeout is not None:
+        raise FieldError("bus.heartbeat_timeout", "retired: the two sides have a timeout each now, "
+                         "bus.watchdogs.drive_heartbeat (the master's watch of the drives) and "
+                         "bus.watchdogs.master_heartbeat (the drives' watch of the master, 0x1016:01)")
+    if bus is not None:
+        _check_watchdogs(bus)
     if bus is not None and bus.sync == "lockstep" and not config.simulated:
         raise FieldError("bus.sync", f"lockstep paces the SYNC by the simulated rig's answers; "
                          f"{bus.interface}:{bus.channel} may carry real drives, which "
@@ -227,6 +235,20 @@ def _check_drives(config: Config) -> None:
             if getattr(act, key) is None:
                 raise FieldError(f"robot.actuators[{i}].{key}", f"missing key: actuator {act.name!r} is driven on "
                                  f"bus {config.bus.interface}:{config.bus.channel}, which needs its drive's {key}")
+
+
+def _check_watchdogs(bus) -> None:
+    """The heartbeat timeouts longer than the heartbeat period and within what ``0x1016:01`` holds;
+    a timing process on a bus another process can reach."""
+    try:
+        watchdogs(bus)
+    except drivers.errors.ConfigError as exc:
+        key = "master_heartbeat" if "master_heartbeat" in str(exc) else "drive_heartbeat"
+        raise FieldError(f"bus.watchdogs.{key}", str(exc)) from None
+    try:
+        timing_settings(bus).uses_process(bus_settings(bus))
+    except drivers.errors.ConfigError as exc:
+        raise FieldError("bus.timing", str(exc)) from None
 
 
 def _check_filter(config: Config) -> None:

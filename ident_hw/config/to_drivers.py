@@ -11,6 +11,8 @@ import numpy as np
 
 import drivers.axis
 import drivers.bus
+import drivers.supervision
+import drivers.timing
 from drivers.units import AxesScaling, AxisScaling
 
 from .actuators import ActuatorConfig
@@ -62,3 +64,16 @@ def encoder_edge_counts(sim: SimConfig, axes: int) -> np.ndarray:
     if sim.encoder_edges == "fixed":
         return np.zeros(axes)
     return SeedStream.ENCODER_EDGES.rng(sim.seed).uniform(-0.5, 0.5, axes)
+
+
+def watchdogs(bus: BusConfig) -> drivers.supervision.Watchdogs:
+    """The heartbeat period and the time limits of ``bus.watchdogs`` (defaults filled in)."""
+    w = bus.watchdogs
+    return drivers.supervision.Watchdogs(heartbeat_period=bus.heartbeat, drive_heartbeat=w.drive_heartbeat,
+                                         master_heartbeat=w.master_heartbeat, sync_progress=w.sync_progress,
+                                         master_progress=w.master_progress)
+
+
+def timing_settings(bus: BusConfig) -> drivers.timing.TimingConfig:
+    """Where the bus's timers run (``bus.timing``) and the timing process's watch of the master."""
+    return drivers.timing.TimingConfig(where=bus.timing, master_progress=bus.watchdogs.master_progress)

@@ -58,7 +58,7 @@ from .encoder import count_shifts, reread, smoothed_positions, spread_covariance
 from .friction_choice import friction_robot
 from .plan import motion_bandwidth, position_margin
 from .quality import AxisEvidence, verdict
-from .recordings import identification_valid, planned_cycles, require_trajectories
+from .recordings import identification_valid, planned_cycles, recorded_currents, require_trajectories
 
 #: rows a stretch needs beyond the filters' support at its two ends
 MIN_FILTERED = 8
@@ -102,12 +102,23 @@ def recording_period(rec: Recording) -> float:
     return float(np.median(np.diff(rec.t)))
 
 
-def current_averaging(config: Config, rec: Recording) -> list[AveragingFilter] | None:
-    """Each actuator's running average (its drive generation's filter) when ``rec`` holds the
-    drives' averaged currents (``metadata.current``), else None."""
-    if rec.metadata.current != AVERAGED:
+#: the running average's step ``(A, B0, B1)`` of an axis with an instantaneous current: none
+UNFILTERED = (0.0, 0.0, 1.0)
+
+
+def current_averaging(config: Config, rec: Recording) -> list[AveragingFilter | None] | None:
+    """Each actuator's running average when ``rec`` holds its drive's averaged current, None for an
+    axis with the instantaneous one; None when no axis has an averaged one. Both come from the
+    recording (per axis, :func:`~ident_hw.experiment.recordings.recorded_currents`; its filter the
+    recorded one, ``metadata.axes[i].current_filter``), the drive generation's filter where a
+    recording made before did not keep it."""
+    acts = config.robot.actuators
+    kinds = recorded_currents(rec, len(acts))
+    if AVERAGED not in kinds:
         return None
-    return [get_profile(a.profile).current_averaging for a in config.robot.actuators]
+    kept = [a.current_filter for a in rec.metadata.axes] if rec.metadata.axes else [None] * len(acts)
+    return [None if kind != AVERAGED else own or get_profile(a.profile).current_averaging
+            for a, kind, own in zip(acts, kinds, kept)]
 
 
 def segments_of(config: Config, rec: Recording, trim: int = 0, min_kept: int = 1,
@@ -250,7 +261,8 @@ def prepare(config: Config, robot: RobotModel, name: str, rec: Recording, scalar
         regressor, X = robot.identification_regressor(samples.Theta, samples.Thetad, samples.Thetadd, guess[rows])
         if averaging is not None:   # forces from averaged currents: the regressor through the same average
             period = (t[-1] - t[0]) / (len(t) - 1)
-            regressor = running_average(regressor, [f.over_period(period) for f in averaging])
+            regressor = running_average(regressor, [UNFILTERED if f is None else f.over_period(period)
+                                                    for f in averaging])
         regressor, tau = through_position_lowpass(settings, samples.tau, regressor, coulomb, ends)
         Y, tau = parallel_decimate(settings, regressor, tau, ends=ends)
         kept = kept_samples(settings, len(t), ends)

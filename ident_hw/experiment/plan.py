@@ -8,6 +8,7 @@ import numpy as np
 
 import trajectories
 from drivers.axis import AxisConfig, outside_position_limits
+from drivers.firmware import load_object_dictionary
 from ident_hw.config import Config, TrajectoryConfig
 from ident_hw.config.robots import kind_of, model_of
 from ident_hw.config.to_drivers import axis_config, axis_scaling
@@ -287,4 +288,28 @@ def check_campaign(config: Config, planned: list[PlannedTrajectory] | None = Non
     for p in plan(config, online=True) if planned is None else planned:
         if not p.ok:
             problems.append(p.describe())
+    problems += dictionary_problems(config)
+    return problems
+
+
+def dictionary_problems(config: Config) -> list[str]:
+    """Each actuator's own object dictionary file (``object_dictionary``) held to the objects a
+    run uses on its drive (:func:`drivers.firmware.load_object_dictionary`): what a file lacks,
+    and that ``ident-hw home`` works on it where homing needs nothing it lacks."""
+    problems = []
+    if config.bus is None:             # no drives to hold to them (recordings made elsewhere)
+        return problems
+    for axis in drive_axes(config):
+        if axis.object_dictionary is None:
+            continue
+        try:
+            load_object_dictionary(axis.object_dictionary, axis.profile, axis.node_id, axis.current)
+        except ValueError as exc:
+            try:
+                load_object_dictionary(axis.object_dictionary, axis.profile, axis.node_id, axis.current,
+                                       ("bring_up", "home"))
+                homing = "; `ident-hw home` works on it"
+            except ValueError:
+                homing = ""
+            problems.append(f"{axis.label}: {exc}: `run` would be refused at bring-up{homing}")
     return problems

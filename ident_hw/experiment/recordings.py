@@ -20,7 +20,8 @@ from typing import Sequence
 import numpy as np
 
 from drivers.errors import RecordingError
-from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log
+from drivers.acquisition import master_layouts
+from drivers.recording import RAW_LOG_SUFFIXES, Recording, decode_log, read_layouts, sidecar_path
 from drivers.recording_metadata import RecordingMetadata
 from ident_hw.config import Config
 from ident_hw.records import ImportSummary
@@ -56,40 +57,69 @@ def planned_cycles(config: Config, name: str) -> int | None:
     return len(planned[0].trajectory.t) if planned and planned[0].trajectory is not None else None
 
 
-def load_recording(path: str | Path, config: Config) -> tuple[str, Recording]:
+#: what ``--pdo-layout`` may name besides a file: the layout the config's master maps today
+CONFIG_LAYOUT = "config"
+
+
+def given_layout(source: str | Path, config: Config) -> tuple[list, str]:
+    """The PDO layouts ``source`` names (``ident-hw identify --pdo-layout``), to decode a raw log
+    without its sidecar with: :data:`CONFIG_LAYOUT` (the layout the config's master maps, with
+    its ``bus.current``), a sidecar ``<log>.json`` or a decoded ``.npz`` recording of another run
+    with the same drives. Returns the layouts and where they come from, in words."""
+    if str(source) == CONFIG_LAYOUT:
+        return (master_layouts([axis_config(a, current=config.current) for a in config.robot.actuators]),
+                f"the layout {Path(config.source).name} maps (bus.current: {config.current})")
+    return list(read_layouts(source)), f"that of {source}"
+
+
+def load_recording(path: str | Path, config: Config, layout: str | Path | None = None) -> tuple[str, Recording]:
     """A recording from a decoded ``.npz`` or a raw CAN log (``.log``/``.asc``/``.blf``), checked
     against ``config``; returns (trajectory name, recording).
 
     The trajectory name is the recording's ``metadata.trajectory``, else the file stem. A raw
     log is decoded up to the length of the config's trajectory of that name (the SYNC keeps
     running for a few cycles after the last set-point), on the config's SYNC period (in lockstep
-    the row times are the cycle times, as the run recorded them). The
-    metadata gets ``file`` (the path) and, for a raw log, ``n_targets`` (the planned cycles) and
-    ``current`` (the motor current the log's TPDOs carried: the config's ``bus.current``).
+    the row times are the cycle times, as the run recorded them), with the PDO layout of its
+    sidecar; a log without one only with ``layout`` (:func:`given_layout`, the command line's
+    ``--pdo-layout``). The metadata gets ``file`` (the path) and, for a raw log, ``n_targets``
+    (the planned cycles). Which current a recording holds (instantaneous or averaged, per axis)
+    and the running average behind an averaged one are the recording's own (the run's metadata;
+    a log's layout and sidecar): a config whose ``bus.current`` says otherwise is an error.
 
     Raises:
-        RecordingError: unreadable file, or a recording that does not fit the config (node-IDs,
-            profiles, drive scaling); the message names the file, the config and the axis.
+        RecordingError: unreadable file, a raw log without its layout and none given, or a
+            recording that does not fit the config (node-IDs, profiles, drive scaling, current);
+            the message names the file, the config and the axis.
     """
     path = Path(path)
     axes = [axis_config(a, current=config.current) for a in config.robot.actuators]
     if path.suffix.lower() in RAW_LOG_SUFFIXES:
         name = path.stem
+        if not sidecar_path(path).is_file() and layout is None:
+            raise RecordingError(
+                f"raw CAN log {path}: no {sidecar_path(path).name} beside it with the PDO layout it was recorded with "
+                f"(a candump, a log copied without it, or one written before sidecars), and decoded with another "
+                f"layout its frames give wrong values marked valid. Give the layout on the command line: "
+                f"--pdo-layout {CONFIG_LAYOUT} (the layout {Path(config.source).name} maps: bus.current "
+                f"{config.current}), --pdo-layout <run>.log.json (the sidecar of a run with the same drives and "
+                f"bus.current) or --pdo-layout <recording>.npz (a decoded recording of such a run)")
+        layouts, source = given_layout(layout, config) if layout is not None else (None, None)
         period = 1.0 / config.bus.sync_rate if config.bus is not None else None
         lockstep_period = period if period is not None and config.sync_mode == "lockstep" else None
         cycles = planned_cycles(config, name)
-        meta = RecordingMetadata(trajectory=name, file=str(path), current=config.current, sync_period=period,
-                                 n_targets=cycles)
-        rec = decode_log(path, axes, max_cycles=cycles, metadata=meta, lockstep_period=lockstep_period)
+        meta = RecordingMetadata(trajectory=name, file=str(path), sync_period=period, n_targets=cycles)
+        rec = decode_log(path, axes, max_cycles=cycles, metadata=meta, lockstep_period=lockstep_period,
+                         layouts=layouts, layout_source=source)
         check_log_nodes(path, rec, config)
     else:
         rec = Recording.load(path)
         rec.metadata = dataclasses.replace(rec.metadata, file=str(path))
         check_axes(path, rec, config)
+    check_current(path, rec, config)
     return rec.metadata.trajectory or path.stem, rec
 
 
-def gather_recordings(config: Config, given: list[str]
+def gather_recordings(config: Config, given: list[str], layout: str | Path | None = None
                       ) -> tuple[dict[str, Recording], dict[str, ImportSummary], list[str]]:
     """The recordings ``ident-hw identify`` works on: each item ``given`` (``NAME=PATH``: the
     recording of trajectory NAME; a results folder or its ``data/``: its recordings,
@@ -123,7 +153,7 @@ def gather_recordings(config: Config, given: list[str]
             paths, more = recording_paths([path])
             notes += more
             for found in paths:
-                keep(*load_recording(found, config), found)
+                keep(*load_recording(found, config, layout=layout), found)
             continue
         if name is None and Path(path).suffix.lower() not in (".npz", *RAW_LOG_SUFFIXES):
             stem = Path(path).stem
@@ -136,7 +166,7 @@ def gather_recordings(config: Config, given: list[str]
             imported[name] = external.summary
             keep(name, external.recording, path)
         else:
-            loaded, rec = load_recording(path, config)
+            loaded, rec = load_recording(path, config, layout=layout)
             keep(name or loaded, rec, path)
     for name, tcfg in recorded.items():
         if name not in recordings:
@@ -155,6 +185,8 @@ def _named(item: str, config: Config) -> tuple[str | None, str]:
         raise RecordingError(f"{item}: no trajectory {name!r} in {config.source} (its trajectories: "
                              f"{', '.join(t.name for t in config.trajectories)})")
     return None, item
+
+
 #: what a results folder's ``data/`` holds beside the recordings, by name or ending (not recordings)
 NOT_RECORDINGS = ("drives.json", ".log.json", ".asc.json", ".blf.json")
 
@@ -206,6 +238,28 @@ def _folder_recordings(folder: Path) -> list[Path]:
         if path.stem not in chosen or kind == ".npz":
             chosen[path.stem] = path
     return [chosen[name] for name in sorted(chosen)]
+
+
+def recorded_currents(rec: Recording, n_axes: int) -> list[str]:
+    """Which current each axis of ``rec`` holds: its axes' own (``metadata.axes``), else the
+    recording's ``metadata.current`` for all."""
+    if rec.metadata.axes:
+        return [a.current for a in rec.metadata.axes]
+    return [rec.metadata.current] * n_axes
+
+
+def check_current(path: Path, rec: Recording, config: Config) -> None:
+    """The current the recording holds (per axis) is the one the config's ``bus.current`` names:
+    identified as the other kind, an averaged current moves the estimates (docs/drives.md, *Which
+    current*), so a disagreement is an error, not a choice."""
+    acts = config.robot.actuators
+    differ = [f"{a.name} (node {a.node_id})" for a, kind in zip(acts, recorded_currents(rec, len(acts)))
+              if kind != config.current]
+    if differ:
+        kinds = sorted(set(recorded_currents(rec, len(acts))))
+        raise RecordingError(f"{path} holds the {' and '.join(kinds)} current of {', '.join(differ)}, "
+                             f"{config.source} says bus.current: {config.current}. Identify with the run's own config "
+                             f"(config.yaml of its results folder), or set bus.current to what the recording holds")
 
 
 def check_axes(path: Path, rec: Recording, config: Config) -> None:

@@ -51,6 +51,9 @@ from .session import HostSettings, Session, open_session
 
 #: profile-position moves to a trajectory's start run at this fraction of each axis' speed limit
 APPROACH_SPEED = 0.2
+#: s: a hold-up of the master's process during a stream that the run's log mentions (a timing
+#: process kept the drives going meanwhile)
+HELD_UP = 0.25
 
 
 #: CiA 402 states in which a drive's power stage is off
@@ -201,9 +204,13 @@ def record_campaign(config: Config, data: Path, planned: list[PlannedTrajectory]
                 say(f"[{i}/{len(planned)}] {p.describe()}")
                 rec = stream(session, group, p, data, show_progress, host)
                 recordings[p.config.name] = rec
-                skipped = rec.metadata.sync_report.sync_slots_skipped or 0
+                report = rec.metadata.sync_report
+                skipped = report.sync_slots_skipped or 0
+                held = report.master_longest_stall or 0.0
                 say(f"    recorded {rec.metadata.n_cycles} cycles, {rec.n_invalid} incomplete"
-                    + (f", {skipped} SYNC slots skipped (the host woke the SYNC thread late)" if skipped else ""))
+                    + (f", {skipped} SYNC slots skipped (the host woke the SYNC's timer late)" if skipped else "")
+                    + (f"; this process was held up to {held:.2f} s, the timing process kept the SYNC, the "
+                       f"set-points and the heartbeat going" if held >= HELD_UP else ""))
                 if online is not None:
                     online.update(p.config.name, rec)
         finally:

@@ -13,22 +13,24 @@ from __future__ import annotations
 
 from contextlib import AbstractContextManager, contextmanager, nullcontext
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Iterator
+from typing import TYPE_CHECKING, Iterator, Sequence
 
 import can
 import canopen
 
 from drivers.affinity import one_cpu
-from drivers.bus import open_network
+from drivers.bus import has_own_timer, open_network
 from drivers.epos import DriveGroup
 from drivers.errors import BusOpenError
+from drivers.firmware import USES
 from drivers.gc_freeze import frozen_gc
 from drivers.sim.lockstep import LockstepSync
 from drivers.sync import PeriodicSync, SyncSource
+from drivers.timing import TimingConfig
 from drivers.units import MA_PER_AMP
 from ident_hw.config import Config
 from ident_hw.config.robots import true_parameters
-from ident_hw.config.to_drivers import axis_scaling, bus_settings, encoder_edge_counts
+from ident_hw.config.to_drivers import axis_scaling, bus_settings, encoder_edge_counts, timing_settings, watchdogs
 from ident_hw.experiment.plan import drive_axes, robot_model, sync_period
 
 if TYPE_CHECKING:     # the rig (its compiled plant) is imported where one is built
@@ -102,6 +104,14 @@ def sync_source(config: Config) -> SyncSource:
     return PeriodicSync()
 
 
+def timing_of(config: Config) -> TimingConfig | None:
+    """Where the config's timers run (``bus.timing``): a periodic SYNC may get a timing process;
+    lockstep is its own timing (the SYNC paced by the rig's answers), so it gets none."""
+    if config.sync_mode == "lockstep":
+        return None
+    return timing_settings(config.bus)
+
+
 @dataclass
 class Session:
     """An open bus: ``network`` (the master), ``rig`` (the in-process simulated rig, or None)."""
@@ -110,12 +120,13 @@ class Session:
     network: canopen.Network
     rig: SimulatedRig | None
 
-    def drive_group(self) -> DriveGroup:
-        """The six actuators' drives (theta1..3, zeta1..3) with the bus settings of the config."""
+    def drive_group(self, uses: Sequence[str] = USES) -> DriveGroup:
+        """The actuators' drives (on the 3PRRR theta1..3, zeta1..3) with the bus settings of the
+        config; ``uses``: what the command asks of them (:data:`drivers.firmware.USES`), whose
+        objects each drive's firmware must have."""
         bus = self.config.bus
-        return DriveGroup(self.network, drive_axes(self.config),
-                          heartbeat_period=bus.heartbeat, heartbeat_timeout=bus.heartbeat_timeout,
-                          sdo_timeout=bus.sdo_timeout, sync=sync_source(self.config))
+        return DriveGroup(self.network, drive_axes(self.config), watchdogs=watchdogs(bus),
+                          sdo_timeout=bus.sdo_timeout, sync=sync_source(self.config), uses=uses)
 
 
 @contextmanager
@@ -136,7 +147,7 @@ def open_session(config: Config) -> Iterator[Session]:
             raise BusOpenError(f"simulated rig: cannot open CAN bus interface={config.bus.interface!r} "
                                f"channel={config.bus.channel!r}: {exc}") from exc
     try:
-        network = open_network(bus_settings(config.bus))
+        network = open_network(bus_settings(config.bus), timing_of(config))
     except BaseException:
         if rig is not None:
             rig.stop()
@@ -147,3 +158,54 @@ def open_session(config: Config) -> Iterator[Session]:
         network.disconnect()
         if rig is not None:
             rig.stop()
+
+
+def watchdog_lines(config: Config) -> list[str]:
+    """What ``ident-hw check`` says of the config's timing and of each of its watchdogs
+    (``bus.timing``, ``bus.watchdogs``): the value, and what it does on this bus."""
+    bus = config.bus
+    w = watchdogs(bus)
+    lockstep = config.sync_mode == "lockstep"
+    timing = timing_of(config)
+    settings = bus_settings(bus)
+    if lockstep:
+        where = ("lockstep: the master sends SYNC k+1 once the simulated rig answered SYNC k; the heartbeats go "
+                 "out and are watched by SYNC count, in simulated time, both ways")
+        unit = " of simulated time"
+    elif timing.uses_process(settings):
+        where = (f"a timing process of its own beside the master's (bus.timing: {bus.timing}) sends the SYNC, the "
+                 f"set-points and the master's heartbeat, with real-time priority where the system grants it")
+        unit = ""
+    elif has_own_timer(bus.interface):
+        where = (f"the bus's own timer ({bus.interface}: the kernel's BCM) sends the SYNC and the master's "
+                 f"heartbeat; the master's notifier answers each SYNC with the set-points (bus.timing: thread)")
+        unit = ""
+    else:
+        where = "threads of the master's process send the SYNC, the set-points and the master's heartbeat"
+        unit = ""
+    periods = w.heartbeat_period
+    lines = [f"timing: {where}",
+             "watchdogs (bus.watchdogs):",
+             f"  drive_heartbeat {w.drive_heartbeat:g} s{unit}: the master stops the run when a drive's heartbeat "
+             f"(every {periods:g} s) is this late ({w.drive_heartbeat / periods:g} periods)",
+             f"  master_heartbeat {w.master_heartbeat:g} s{unit}: every drive faults (EMCY 0x8130) when the "
+             f"master's heartbeat is this late (0x1016:01)"]
+    if lockstep:
+        lines.append(f"  sync_progress: not used in lockstep (a cycle the rig does not answer is a fault after "
+                     f"bus.lockstep_timeout, {bus.lockstep_timeout:g} s)")
+        lines.append("  master_progress: not used in lockstep (without SYNC nothing moves)")
+        return lines
+    lines.append(f"  sync_progress {w.sync_progress:g} s: the master stops a stream when no SYNC cycle came for this "
+                 f"long (of the time it was running: a hold-up of its own process does not count)")
+    if timing.uses_process(settings):
+        lines.append(f"  master_progress {w.master_progress:g} s: the timing process stops the SYNC, the set-points "
+                     f"and the heartbeat when the master's loop made no progress for this long: a hung master's "
+                     f"drives fault within {w.master_progress + w.master_heartbeat:g} s, a shorter hold-up is survived")
+    elif has_own_timer(bus.interface):
+        lines.append("  master_progress: not watched: the kernel sends the SYNC and the heartbeat on while the "
+                     "master's process hangs (the drives hold their last set-point, then get those it owes in a "
+                     "burst) and stops with the process; bus.timing: process watches it")
+    else:
+        lines.append("  master_progress: not needed: the SYNC and the heartbeat stop with the master's process, "
+                     "and a hold-up of it longer than master_heartbeat faults the drives")
+    return lines

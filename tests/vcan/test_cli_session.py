@@ -44,6 +44,7 @@ def test_cli_run_against_rig_process_matches_candump(vcan_rig, candump, tmp_path
     # imported here, not at collection: numpy/scipy cost ~25 s in the guest even when the test is skipped
     import numpy as np
 
+    from drivers.acquisition import master_layouts
     from drivers.recording import Recording, decode_log
     from ident_hw.config import load_config
 
@@ -115,7 +116,9 @@ def test_cli_run_against_rig_process_matches_candump(vcan_rig, candump, tmp_path
     # on where it stands against the SYNC frames; the master's socket gets its own SYNC and RPDO frames
     # looped back, so near a SYNC boundary its interleaving can differ from candump's: a cell one observer
     # assembled may be incomplete for the other, and a set-point may count from the neighbouring cycle.
-    decoded = decode_log(dumped, [axis_config(a) for a in actuators], max_cycles=n)
+    dumped_axes = [axis_config(a) for a in actuators]
+    decoded = decode_log(dumped, dumped_axes, max_cycles=n, layouts=master_layouts(dumped_axes),
+                         layout_source="the master's")
     np.testing.assert_array_equal(decoded.cycle, recorded.cycle)
     both = decoded.valid & recorded.valid
     # at least half of the master's cells are compared, so the comparison cannot pass on nothing

@@ -37,7 +37,9 @@ def test_master_streams_from_rig_process_and_raw_logs_replay(start_process, cand
 
     from drivers.bus import BusConfig, open_network
     from drivers.epos import DriveGroup
+    from drivers.acquisition import master_layouts
     from drivers.recording import decode_log
+    from drivers.supervision import Watchdogs
     from ident_hw.config import load_config
 
     # the rig of the vcan config, free-running: the plant moves by the time between two SYNCs, in
@@ -49,8 +51,8 @@ def test_master_streams_from_rig_process_and_raw_logs_replay(start_process, cand
     axes = [axis_config(a) for a in config.robot.actuators]
     start_process(["ident-hw", "sim", str(free_running)], ready="simulated rig:")
     network = open_network(BusConfig("socketcan", VCAN_CHANNEL, bitrate=1_000_000))
-    group = DriveGroup(network, axes, heartbeat_period=HEARTBEAT, heartbeat_timeout=8 * HEARTBEAT,
-                       sdo_timeout=SDO_TIMEOUT)
+    group = DriveGroup(network, axes, Watchdogs(heartbeat_period=HEARTBEAT, drive_heartbeat=8 * HEARTBEAT,
+                                                master_heartbeat=8 * HEARTBEAT), sdo_timeout=SDO_TIMEOUT)
     raw_log = tmp_path / "master.log"
     try:
         group.bring_up(timeout=BRING_UP_TIMEOUT)
@@ -99,7 +101,7 @@ def test_master_streams_from_rig_process_and_raw_logs_replay(start_process, cand
     rpdo1 = tuple(f" {VCAN_CHANNEL} {0x200 + a.node_id:03X}#" for a in axes)
     first = next(i for i, line in enumerate(lines) if any(key in line for key in rpdo1))
     dumped.write_text("\n".join(lines[first:]) + "\n")
-    seen = decode_log(dumped, axes, max_cycles=n)
+    seen = decode_log(dumped, axes, max_cycles=n, layouts=master_layouts(axes), layout_source="the master's")
     # (candump's log has no sidecar: its set-points are the RPDOs as seen, the run's the ones sent)
     compared = ("cycle", "position", "velocity", "current", "valid") + (("target",) if not rec.metadata.late_setpoints
                                                                          else ())
