@@ -307,6 +307,31 @@ def test_path_only_for_file_and_fourier_trajectories(tmp_path):
     assert not planned.ok and "missing.json" in planned.describe()
 
 
+def test_trajectory_files_of_a_config_read_by_a_relative_path(tmp_path, monkeypatch):
+    """A ``fourier`` and a ``file`` trajectory's ``path`` is relative to the config that writes it,
+    also where the config itself is named relative to the working directory (``ident-hw run
+    configs/x.yaml``): the files are found once, not under the config's folder twice."""
+    import shutil
+
+    import trajectories
+    from ident_hw.experiment.plan import plan
+
+    folder = tmp_path / "configs"
+    folder.mkdir()
+    write(folder, "robot-3prrr.yaml", ROBOT_TEXT)
+    shutil.copy(Path(trajectories.__file__).parent / "data" / "fourier-nominal.json", folder / "excitation.json")
+    text = SIM_TEXT.replace("kind: fourier, cycles: 10}", "kind: fourier, path: excitation.json}")
+    text = text.replace("{name: triangle, kind: triangle}", "{name: triangle, kind: file, path: square.npz}")
+    write(folder, "sim.yaml", text)
+    monkeypatch.chdir(tmp_path)
+    config = load_config(Path("configs") / "sim.yaml")
+    (square,) = plan(config, ["square1"])
+    trajectories.save(square.trajectory, folder / "square.npz")
+    (fourier, loaded) = plan(config, ["excitation", "triangle"])
+    assert fourier.ok and loaded.ok, (fourier.describe(), loaded.describe())
+    assert len(loaded.trajectory.t) == len(square.trajectory.t)
+
+
 def test_one_least_squares_step_only(tmp_path):
     write(tmp_path, "robot-3prrr.yaml", ROBOT_TEXT)
     text = SIM_TEXT.replace("      parameters: [I_ee]\n      method: sqp", "      parameters: [I_ee]\n      method: ols")

@@ -19,9 +19,11 @@ SIM_2R = (CONFIGS / "sim-2r.yaml").read_text()
 
 
 def setup(tmp_path: Path, robot: str = ROBOT_2R, sim: str = SIM_2R) -> Path:
-    """The 2R configs, possibly changed, in ``tmp_path`` beside a copy of the description."""
+    """The 2R configs, possibly changed, in ``tmp_path`` beside a copy of the description and
+    of the optimised excitations."""
     (tmp_path / "robots").mkdir()
     shutil.copy(CONFIGS / "robots" / "2r.urdf", tmp_path / "robots" / "2r.urdf")
+    shutil.copytree(CONFIGS / "excitations", tmp_path / "excitations")
     (tmp_path / "robot-2r.yaml").write_text(robot)
     (tmp_path / "sim-2r.yaml").write_text(sim)
     return tmp_path / "sim-2r.yaml"
@@ -112,7 +114,8 @@ def test_robot_mistakes_name_file_key_and_line(tmp_path, old, new, key, needle, 
     ("  parameters:               #", "  truth:                    #", "sim.truth.factors", "factors:",
      ("unknown key",)),
     # (without the excitation's keys: those a square does not read are refused first, each by its key)
-    ("kind: joint_excitation, duration: 60.0, bandwidth: 1.5, seed: 1", "kind: square, size: 0.1, bandwidth: 1.5",
+    ("kind: joint_excitation, duration: 60.0, bandwidth: 1.5, seed: 1, path: excitations/2r.json",
+     "kind: square, size: 0.1, bandwidth: 1.5",
      "trajectories[1].kind",
      "square", ("not one of the described's", "joint_excitation")),
     ("duration: 20.0, bandwidth: 1.5, seed: 2}", "duration: 20.0, bandwidth: 1.5, seed: 2, amplitude: [1, 1, 1]}",

@@ -36,6 +36,10 @@ from ident_hw.model.kinematics import wrap
 from ident_hw.model.parameters import ACTUATOR_NAMES as PRRR_ACTUATORS
 from ident_hw.model.parameters import InertialParams
 
+#: configs/robots/delta.xml has the hand model's massless elbows and wrists (the described Delta is held
+#: equal to it), which the description loader warns of (MasslessBodyWarning, what MuJoCo refuses)
+pytestmark = pytest.mark.filterwarnings(r"ignore:.*delta\.xml. moving bodies without mass")
+
 ROBOT_3PRRR = dh.ROBOTS.parent / "robot-3prrr.yaml"
 N = 16          # random states per test
 TOL = 1e-9      # relative agreement with the hand models

@@ -119,7 +119,9 @@ def torque_constant_5_percent_off_is_named(results: Path, doc: dict) -> None:
     quality = identify(wrong, recordings).quality
     assert not quality.passed
     (reason,) = quality.reasons
-    assert reason.startswith(("elbow: forces +5.0", "shoulder: forces -4.")), reason
+    # the two explain the data equally well: which is named first is the last bits' choice (the
+    # elbow at +5.0 % with the shoulder's -5.0 % as its alternative, or the other way round)
+    assert reason.startswith(("elbow: forces +5.0", "shoulder: forces -5.0")), reason
     assert ("or shoulder's (off by about -" in reason) or ("or elbow's (off by about +5" in reason), reason
     assert quality.axes["elbow"].residual_over_floor > 10 * limits["max_residual_over_floor"], quality.axes
 
@@ -205,5 +207,89 @@ identification: {encoder_draws: 0}
             row = rows[name]
             assert row["well_identified"] and within(row["identified"], row["sigma"], truth[name]), (name, row)
     assert doc["quality"]["trajectories"]["validation"]["base_fit_d_tau_percent"] <= 2.0
-    # its universal-joint crosses and ball-joint bodies are point masses, which MuJoCo refuses
-    exported_forces_match_the_base_fit(out, tmp_path / "stewart-identified.xml", mujoco_loads=False)
+    # its universal-joint crosses and ball-joint bodies have their masses: MuJoCo loads the export
+    exported_forces_match_the_base_fit(out, tmp_path / "stewart-identified.xml")
+
+
+FIVE_BAR_ROBOT = """
+robot:
+  kind: described
+  described:
+    description: five_bar.xml
+    home: {a1: 1.8, p1: -0.8504, a2: 1.3416, p2: 0.8504}
+    end_effector: dist1
+    cad: {Jm: [0.001, 0.001]}
+  coulomb_width: 0.01
+  actuators:
+    - &joint
+      name: left
+      joint: a1
+      kind: revolute
+      node_id: 1
+      profile: epos4
+      torque_constant: 0.5
+      gear_ratio: 1.0
+      counts_per_turn: 1048576
+      limits: {position: [1.5, 2.1], velocity: 2.0, acceleration: 20.0, current: 15.0, following_error: 0.05}
+      homing: {method: 37, offset: 1.8, switch_speed: 0.2, zero_speed: 0.02, acceleration: 1.0}
+    - <<: *joint
+      name: right
+      joint: a2
+      node_id: 2
+      limits: {position: [1.04, 1.64], velocity: 2.0, acceleration: 20.0, current: 15.0, following_error: 0.05}
+      homing: {method: 37, offset: 1.3416, switch_speed: 0.2, zero_speed: 0.02, acceleration: 1.0}
+bus: {interface: virtual, channel: ident-hw-sim-five-bar, sync_rate: 250.0, sdo_timeout: 0.5, heartbeat: 0.1}
+sim:
+  in_process: true
+  seed: 1
+  parameters: {factors: {dist2.m: 1.1, dist2.mx: 1.1, dist2.Izz: 1.1}, fv: [0.02, 0.03], fc: [0.05, 0.04],
+               Jm: [0.0012, 0.0009]}
+  current_noise: 0.002
+  bandwidth: 20.0
+trajectories:
+  - {name: standstill, kind: standstill, duration: 2.0}
+  - {name: excitation, kind: joint_excitation, duration: 30.0, bandwidth: 1.5, seed: 1}
+  - {name: validation, kind: joint_excitation, duration: 10.0, bandwidth: 1.5, seed: 2}
+identification:
+  steps:
+    - {name: base, trajectories: [excitation], parameters: [all], method: wls}
+  validation: [validation]
+  filter: {bandwidth: 1.5}
+output: {dir: results}
+"""
+
+
+@pytest.mark.slow
+def test_gravity_along_another_axis_is_simulated_and_identified(tmp_path):
+    """A planar five-bar whose file puts gravity along -y, in its plane: ``ident-hw run`` simulates
+    it with that gravity and identifies its base parameters within max(2 %, 3 sigma) of the
+    truth (the model's numerical base of the configured truth), gravity's first moments among
+    them; the same recordings identified with the file's gravity along -z (normal to the plane,
+    no gravity torque) leave the forces far from the model."""
+    from test_tree_kernels import FIVE_BAR
+
+    (tmp_path / "five_bar.xml").write_text(FIVE_BAR.format(gravity="0 -9.81 0"))
+    config = tmp_path / "sim-five-bar.yaml"
+    config.write_text(FIVE_BAR_ROBOT)
+    out = tmp_path / "run"
+    done = run(config, out, "--no-report")
+    assert done.returncode == 0, done.stderr[-3000:]
+    doc = json.loads((out / "parameters.json").read_text())
+    cfg = load_config(config)
+    robot = model_of(cfg.robot)
+    kept, H = robot.readable_base()
+    truth = H @ true_parameters(cfg)
+    rows = {r["base_parameter"]: r for r in doc["base_fit"]["rows"]}
+    well = [r for r in rows.values() if r["well_identified"]]
+    assert len(well) >= 8, rows
+    for r in well:
+        assert within(r["identified"], r["sigma"], r["truth"]), r
+    assert sorted(abs(t) for t in truth)[-1] > 0
+    gravity_moments = [r for r in well if r["base_parameter"].split(" ")[0].endswith((".mx", ".my"))]
+    assert gravity_moments, rows
+    # the recordings with the file's gravity normal to the plane: the fit no longer explains them
+    (tmp_path / "five_bar.xml").write_text(FIVE_BAR.format(gravity="0 0 -9.81"))
+    recordings = {path.stem: Recording.load(path) for path in sorted((out / "data").glob("*.npz"))}
+    flat = identify(load_config(config), recordings)
+    assert not flat.quality.passed
+    assert max(a.residual_over_floor for a in flat.quality.axes.values()) > 10, flat.quality.axes

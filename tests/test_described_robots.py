@@ -165,7 +165,8 @@ def test_stewart_file_is_the_design_and_closes_at_home():
     assert np.allclose(L0, L0[0]) and abs(L0[0] - 0.3821826744870) < 1e-12
     masses = {model.names[j]: model.inertias[j].mass for j in range(1, model.njoints)}
     assert masses["sph_z"] == 3.0 and all(masses[f"{leg}_u2"] == 1.2 and masses[leg] == 0.6 for leg in LEGS)
-    assert sum(masses.values()) == pytest.approx(6 * 1.8 + 3.0, abs=1e-12)
+    assert all(masses[f"{leg}_u1"] == 0.15 for leg in LEGS) and masses["sph_x"] == masses["sph_y"] == 0.08
+    assert sum(masses.values()) == pytest.approx(6 * (1.8 + 0.15) + 3.0 + 2 * 0.08, abs=1e-12)
 
     # this file's inverse kinematics at home: every joint at 0
     theta, q = stewart_ik(model, *POSES[0])

@@ -111,7 +111,7 @@ def test_an_output_without_rows_weighs_nothing():
 def test_filter_bandwidth_per_trajectory():
     config = load_config(CONFIGS / "sim-3prrr.yaml")
     excitation = next(t for t in config.trajectories if t.kind == "fourier")
-    ex = excitation_of(config.base_dir, excitation)
+    ex = excitation_of(excitation)
     assert motion_bandwidth(config, excitation.name) == pytest.approx(ex.a.shape[1] * ex.base_frequency)
     assert motion_bandwidth(config, "square1") == config.identification.filter.bandwidth
     assert motion_bandwidth(config, "not-in-the-config") == config.identification.filter.bandwidth

@@ -191,6 +191,7 @@ CONFIG_ENTRY_POINTS = {
     "external.read_external", "folders.new_results_folder", "session.open_session", "session.simulated_rig",
     "session.HostSettings.for_command", "inspection.compare", "campaign_estimator.CampaignEstimator.__init__",
     "inputs.identification_plan", "plan.PlanInputs.of", "runner.CampaignInputs.of", "session.DriveSettings.of",
+    "excitation.optimised_sines",
 }
 
 

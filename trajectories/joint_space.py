@@ -11,7 +11,9 @@ and phases ``phi_jk`` drawn from ``seed`` (the same trajectory on every host), t
 amplitudes equal (``1 / w``), ``e(t)`` the fade window of :func:`trajectories.delta_paper.faded`
 (from and back to home at rest) and ``s_j`` the largest scale that keeps the motion within
 ``fraction`` of the actuator's position room about home, its speed and its acceleration limits.
-Exact rates by the product rule.
+Exact rates by the product rule. The frequencies, phases and relative weights of the sines
+(:class:`JointHarmonics`) are drawn from ``seed``, or read from a file written by the
+optimisation of :mod:`trajectories.joint_optimisation` (weights ``c_jk`` then multiply each sine).
 
 :func:`check_described_trajectory` is the feasibility check of such a robot: the actuator limits,
 reach (the loops close at every sample) and the distance to a parallel singularity (the
@@ -19,6 +21,10 @@ condition number of the passive joints' closure Jacobian).
 """
 
 from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -33,20 +39,98 @@ from .trajectory import Trajectory
 CLOSED = 1e-9
 
 
-def _harmonics(t, w, phi):
-    """``sum_k sin(w_k t + phi_k) / w_k`` per actuator (w, phi: (n, K)) and its two rates, (N, n) each."""
-    arg = w[None] * t[:, None, None] + phi[None]
-    return (np.sum(np.sin(arg) / w, axis=2), np.sum(np.cos(arg), axis=2), -np.sum(w * np.sin(arg), axis=2))
+@dataclass(frozen=True)
+class JointHarmonics:
+    """The sines of a joint excitation, per actuator and harmonic (n, K) each: angular
+    ``frequencies`` (rad/s), ``phases`` (rad) and relative velocity ``weights`` (1: the drawn
+    excitation; the scale that fits the limits is applied afterwards). An optimised set also
+    carries the scaled condition number of the base regressor before and after the
+    optimisation (:mod:`trajectories.joint_optimisation`), and what it was optimised for."""
+
+    frequencies: np.ndarray
+    phases: np.ndarray
+    weights: np.ndarray
+    cond_initial: float | None = None
+    cond_final: float | None = None
+    optimised_for: dict | None = None
+
+    @classmethod
+    def drawn(cls, n: int, bandwidth: float, harmonics: int, seed: int) -> "JointHarmonics":
+        """``harmonics`` frequencies per actuator in ``[bandwidth / 8, bandwidth]`` (Hz) and phases
+        drawn from ``seed`` (the same on every host), weights 1."""
+        rng = np.random.default_rng(seed)
+        w = 2 * np.pi * bandwidth * np.sort(rng.uniform(1 / 8, 1.0, (n, harmonics)), axis=1)
+        phi = rng.uniform(0, 2 * np.pi, (n, harmonics))
+        return cls(w, phi, np.ones_like(w))
+
+    def motion(self, t: np.ndarray):
+        """``sum_k c_k sin(w_k t + phi_k) / w_k`` per actuator and its two rates, (N, n) each."""
+        w, c = self.frequencies, self.weights
+        arg = w[None] * t[:, None, None] + self.phases[None]
+        s, co = np.sin(arg), np.cos(arg)
+        if np.all(c == 1.0):                  # the drawn excitation: the same bits as ever
+            return np.sum(s / w, axis=2), np.sum(co, axis=2), -np.sum(w * s, axis=2)
+        return np.sum(c * s / w, axis=2), np.sum(c * co, axis=2), -np.sum(c * w * s, axis=2)
+
+    def save(self, path: str | Path) -> Path:
+        """Write the set as JSON (numbers written in full: the same trajectory when read back)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        doc = {"kind": "joint_harmonics", "frequencies_rad_s": self.frequencies.tolist(),
+               "phases_rad": self.phases.tolist(), "weights": self.weights.tolist(),
+               "cond_initial": self.cond_initial, "cond_final": self.cond_final,
+               "optimised_for": self.optimised_for}
+        path.write_text(json.dumps(doc, indent=1) + "\n")
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path, actuators: int | None = None) -> "JointHarmonics":
+        """Read a set written by :meth:`save`.
+
+        Raises:
+            ValueError: not such a file, or (``actuators`` given) not one row per actuator,
+                naming the file.
+        """
+        try:
+            doc = json.loads(Path(path).read_text())
+            if doc.get("kind") != "joint_harmonics":
+                raise ValueError(f"kind {doc.get('kind')!r}, expected 'joint_harmonics'")
+            arrays = [np.array(doc[k], dtype=float) for k in ("frequencies_rad_s", "phases_rad", "weights")]
+        except (OSError, json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise ValueError(f"{path}: not a joint excitation file ({type(exc).__name__}: {exc})") from None
+        if arrays[0].ndim != 2 or any(a.shape != arrays[0].shape for a in arrays) or not np.all(arrays[0] > 0):
+            raise ValueError(f"{path}: frequencies, phases and weights must be (actuators, harmonics) arrays "
+                             "of the same shape, the frequencies positive")
+        if actuators is not None and len(arrays[0]) != actuators:
+            raise ValueError(f"{path}: {len(arrays[0])} rows of sines, the robot has {actuators} actuators")
+        return cls(*arrays, doc.get("cond_initial"), doc.get("cond_final"), doc.get("optimised_for"))
+
+
+def fitted_scale(home: np.ndarray, limits: ActuatorLimits, q, qd, qdd, fraction: float) -> np.ndarray:
+    """The largest factor per actuator (n,) that keeps the motion ``home + s q`` within ``fraction``
+    of its position room about home, its speed and its acceleration limits.
+
+    Raises:
+        ValueError: a home not inside its actuator's limits, naming the actuator."""
+    room = np.minimum(home - limits.low, limits.high - home)
+    if np.any(room <= 0):
+        j = int(np.argmin(room))
+        raise ValueError(f"actuator {limits.names[j]}: home {home[j]:.6g} {limits.units[j]} is not inside its "
+                         f"limits [{limits.low[j]:.6g}, {limits.high[j]:.6g}]")
+    peak = [np.max(np.abs(x), axis=0) for x in (q, qd, qdd)]
+    return fraction * np.min([room / peak[0], limits.speed / peak[1], limits.accel / peak[2]], axis=0)
 
 
 def joint_excitation(robot, limits: ActuatorLimits, duration: float, rate: float, bandwidth: float,
                      harmonics: int = 5, fraction: float = 0.8, fade: float = 1.0, seed: int = 0,
-                     name: str = "excitation", amplitude=1.0) -> Trajectory:
+                     name: str = "excitation", amplitude=1.0, sines: JointHarmonics | None = None) -> Trajectory:
     """The excitation of the module docstring, ``duration`` s at ``rate`` Hz, as a
     :class:`~trajectories.Trajectory` whose pose is the robot's (``robot.pose_series``; its
     rates by central differences: the pose is for plots and the assembly mode, the drives follow
     ``Theta``). ``amplitude`` (a factor, or one per actuator) scales the motion after it has
-    been fitted to the limits (at most 1 keeps it within them).
+    been fitted to the limits (at most 1 keeps it within them). ``sines``: the frequencies,
+    phases and weights (default: drawn from ``seed``, ``harmonics`` per actuator up to
+    ``bandwidth``).
 
     Raises:
         ValueError: a duration shorter than the two fades, a bandwidth the rate cannot carry.
@@ -58,27 +142,20 @@ def joint_excitation(robot, limits: ActuatorLimits, duration: float, rate: float
         raise ValueError(f"bandwidth {bandwidth} Hz must be positive and below a quarter of the rate {rate} Hz")
     home = robot.home_actuated()
     n = len(home)
-    rng = np.random.default_rng(seed)
-    w = 2 * np.pi * bandwidth * np.sort(rng.uniform(1 / 8, 1.0, (n, harmonics)), axis=1)
-    phi = rng.uniform(0, 2 * np.pi, (n, harmonics))
+    sines = JointHarmonics.drawn(n, bandwidth, harmonics, seed) if sines is None else sines
     t = np.arange(int(np.floor(duration * rate + 1e-9)) + 1) / rate
-    q, qd, qdd = faded(lambda time: _harmonics(time, w, phi), t, fade)
-    room = np.minimum(home - limits.low, limits.high - home)
-    if np.any(room <= 0):
-        j = int(np.argmin(room))
-        raise ValueError(f"actuator {limits.names[j]}: home {home[j]:.6g} {limits.units[j]} is not inside its "
-                         f"limits [{limits.low[j]:.6g}, {limits.high[j]:.6g}]")
-    peak = [np.max(np.abs(x), axis=0) for x in (q, qd, qdd)]
-    scale = fraction * np.min([room / peak[0], limits.speed / peak[1], limits.accel / peak[2]], axis=0)
-    scale = scale * np.asarray(amplitude, dtype=float)
+    q, qd, qdd = faded(sines.motion, t, fade)
+    scale = fitted_scale(home, limits, q, qd, qdd, fraction) * np.asarray(amplitude, dtype=float)
     Theta, Thetad, Thetadd = home + scale * q, scale * qd, scale * qdd
     X = robot.pose_series(Theta, robot.pose(home, None))
     Xd = np.gradient(X, t, axis=0)
     Xdd = np.gradient(Xd, t, axis=0)
     return Trajectory(name, t, X, Xd, Xdd, Theta, Thetad, Thetadd,
                       metadata={"generator": "joint_excitation", "duration_s": duration, "rate_hz": rate,
-                                "bandwidth_hz": bandwidth, "harmonics": harmonics, "fraction": fraction,
-                                "fade_s": fade, "seed": seed, "scale": scale.tolist()})
+                                "bandwidth_hz": bandwidth, "harmonics": sines.frequencies.shape[1], "fraction": fraction,
+                                "fade_s": fade, "seed": seed, "scale": scale.tolist(),
+                                **({} if sines.cond_final is None else
+                                   {"optimised": {"cond_initial": sines.cond_initial, "cond_final": sines.cond_final}})})
 
 
 def check_described_trajectory(traj: Trajectory, robot, limits: ActuatorLimits, max_condition: float) -> Report:

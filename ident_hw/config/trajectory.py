@@ -21,7 +21,7 @@ KEYS_OF_KIND = {
     "delta_training": ("duration", "fade", "amplitude"),
     "delta_verification": ("duration", "fade", "amplitude"),
     "delta_held_arm": ("duration", "fade", "amplitude"),
-    "joint_excitation": ("duration", "fade", "amplitude", "harmonics", "seed"),
+    "joint_excitation": ("duration", "fade", "amplitude", "harmonics", "seed", "path"),
     "standstill": ("duration",),
     "recorded": ("path", "rows", "window"),
 }
@@ -82,7 +82,9 @@ class TrajectoryConfig:
     A described robot's excitation (:func:`trajectories.joint_space.joint_excitation`):
     ``joint_excitation``, ``duration`` s of ``harmonics`` sines per actuator up to ``bandwidth``
     Hz (default: ``identification.filter.bandwidth``) about home, phases and frequencies drawn from ``seed``, fitted to 0.8 of
-    each actuator's limits and scaled by ``amplitude`` (one factor, or one per actuator).
+    each actuator's limits and scaled by ``amplitude`` (one factor, or one per actuator);
+    ``path``: the sines' frequencies, phases and weights from a file instead (an excitation
+    optimised for the base regressor's condition, ``python -m ident_hw.experiment.excitation``).
     Any robot's ``standstill``: ``duration`` s (default :data:`STANDSTILL_S`) held at the home
     pose, the drives enabled: their currents at rest, the noise floor the quality verdict holds
     each axis's residual against (``identification.quality.max_residual_over_floor``).

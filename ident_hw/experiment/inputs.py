@@ -178,7 +178,7 @@ def trajectory_inputs(tcfg: TrajectoryConfig, ident: IdentificationConfig, base_
     if tcfg.bandwidth is not None:
         bandwidth = tcfg.bandwidth
     elif tcfg.kind == "fourier":
-        bandwidth = excitation_of(base_dir, tcfg).bandwidth
+        bandwidth = excitation_of(tcfg).bandwidth
     else:
         bandwidth = ident.filter.bandwidth
     margin = ident.filter.position_margin

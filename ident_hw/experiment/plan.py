@@ -43,7 +43,12 @@ class PlannedTrajectory:
         if not self.report.ok:
             return f"{self.config.name}: INFEASIBLE: {self.report.first}"
         t = self.trajectory
-        return "\n    note: ".join([f"{self.config.name}: ok ({t.duration:.1f} s, {len(t.t)} samples)", *self.notes])
+        text = f"{self.config.name}: ok ({t.duration:.1f} s, {len(t.t)} samples"
+        optimised = t.metadata.get("optimised")
+        if optimised:
+            text += (f"; optimised excitation: scaled condition of the base regressor {optimised['cond_initial']:.3g} "
+                     f"drawn, {optimised['cond_final']:.3g} optimised")
+        return "\n    note: ".join([text + ")", *self.notes])
 
 
 @dataclass(frozen=True)
@@ -124,7 +129,7 @@ def build(inputs: PlanInputs, tcfg: TrajectoryConfig) -> trajectories.Trajectory
     (:mod:`ident_hw.experiment.robot_trajectories`)."""
     rate = inputs.rate
     if tcfg.kind == "file":
-        traj = _from_file(Path(inputs.base_dir or "") / str(tcfg.path), inputs.columns).resample(rate)
+        traj = _from_file(Path(str(tcfg.path)), inputs.columns).resample(rate)   # relative to the config when read
     elif tcfg.kind == "standstill":
         traj = trajectories.standstill(inputs.model, tcfg.duration or STANDSTILL_S, rate, tcfg.name)
     else:

@@ -57,12 +57,36 @@ def feasibility_limits(robot: RobotConfig) -> FeasibilityLimits:
         max_cond_A=robot.safety.max_cond_A)
 
 
-def excitation_of(base_dir: Path | None, tcfg: TrajectoryConfig) -> trajectories.FourierExcitation:
-    """The coefficients of a 3PRRR ``fourier`` trajectory: its ``path`` (relative to the config's
-    folder ``base_dir``, :attr:`~ident_hw.config.file.Config.base_dir`) or the excitation shipped
-    for the nominal rig."""
-    path = NOMINAL_EXCITATION if tcfg.path is None else Path(base_dir or "") / tcfg.path
+def excitation_of(tcfg: TrajectoryConfig) -> trajectories.FourierExcitation:
+    """The coefficients of a 3PRRR ``fourier`` trajectory: its ``path`` (written relative to the
+    config file, made relative to the working directory when the config was read) or the
+    excitation shipped for the nominal rig."""
+    path = NOMINAL_EXCITATION if tcfg.path is None else Path(tcfg.path)   # relative to the config when read
     return trajectories.FourierExcitation.load(path)
+
+
+def excitation_bandwidth(tcfg: TrajectoryConfig, filter_band: float) -> float:
+    """Hz, the highest frequency of a ``joint_excitation``: the trajectory's ``bandwidth``, else
+    ``filter_band``, the identification filter's (what it is filtered at; 2 Hz without one)."""
+    return tcfg.bandwidth or filter_band
+
+
+def joint_harmonics_of(tcfg: TrajectoryConfig, model: RobotModel, bandwidth: float) -> joint_space.JointHarmonics | None:
+    """The sines a ``joint_excitation`` reads from its ``path`` (an optimised set,
+    :mod:`trajectories.joint_optimisation`; relative to the config), None where it draws them;
+    ``bandwidth``: the trajectory's (:func:`excitation_bandwidth`).
+
+    Raises:
+        ValueError: not such a file, not one row per actuator, or sines above the trajectory's
+            bandwidth (its identification filter would cut them), naming the file."""
+    if tcfg.path is None:
+        return None
+    path = Path(tcfg.path)                 # made relative to the config's folder when it was read
+    sines = joint_space.JointHarmonics.load(path, len(model.home_actuated()))
+    top = float(np.max(sines.frequencies)) / (2 * np.pi)
+    if top > bandwidth * (1 + 1e-9):
+        raise ValueError(f"{path}: sines up to {top:.4g} Hz, above the trajectory's bandwidth {bandwidth:g} Hz")
+    return sines
 
 
 @dataclass(frozen=True)
@@ -101,7 +125,7 @@ def _threeprrr_build(robot: RobotConfig, tcfg: TrajectoryConfig, model: RobotMod
                                    name=tcfg.name)
     if tcfg.kind == "triangle":
         return trajectories.validation_triangle(model, timing, rate=rate, dwell=tcfg.dwell)
-    return excitation_of(base_dir, tcfg).trajectory(model, rate, name=tcfg.name)
+    return excitation_of(tcfg).trajectory(model, rate, name=tcfg.name)
 
 
 THREE_PRRR = RobotTrajectories(
@@ -134,11 +158,10 @@ DELTA = RobotTrajectories(
 # ---- any robot from its description file
 def _described_build(robot: RobotConfig, tcfg: TrajectoryConfig, model: RobotModel, rate: float,
                      base_dir: Path | None, bandwidth: float) -> trajectories.Trajectory:
-    # the motion's bandwidth: the trajectory's, else the identification filter's (what it is filtered at)
-    return joint_space.joint_excitation(model, actuator_limits(robot), _duration(tcfg), rate,
-                                        tcfg.bandwidth or bandwidth, fade=tcfg.fade,
+    band = excitation_bandwidth(tcfg, bandwidth)
+    return joint_space.joint_excitation(model, actuator_limits(robot), _duration(tcfg), rate, band, fade=tcfg.fade,
                                         seed=tcfg.seed, name=tcfg.name, amplitude=tcfg.amplitude,
-                                        harmonics=tcfg.harmonics)
+                                        harmonics=tcfg.harmonics, sines=joint_harmonics_of(tcfg, model, band))
 
 
 def _described_check(robot: RobotConfig, traj: trajectories.Trajectory, model: RobotModel) -> trajectories.Report:

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import warnings
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,6 +50,9 @@ from .errors import KinematicsError, SingularityError
 from .friction import FrictionModel
 from .interface import PRISMATIC, REVOLUTE
 from .pseudo_inertia import SPATIAL, PhysicalBody
+from .tree_kernels import (OK, PRISMATIC_JOINT, REVOLUTE_JOINT, SINGULAR, closure_at, motion_batch, tree_arrays,
+                           workspace)
+from .tree_kernels import plant_dynamics as tree_plant_dynamics
 
 #: the ten inertial parameters of a body, pinocchio's order: mass (kg), first moment ``m c``
 #: (kg·m) and inertia about the joint frame's origin (kg·m²), in the joint frame
@@ -108,12 +112,45 @@ def load_description(path: str | Path) -> tuple[pin.Model, list, list]:
     try:
         if suffix in (".xml", ".mjcf"):
             model, points, frames = pin.buildModelAndConstraintsFromMJCF(str(path))
+            model.gravity.linear = mjcf_gravity(path)
             return model, list(points), list(frames)
         if suffix == ".urdf":
             return pin.buildModelFromUrdf(str(path)), [], []
     except (RuntimeError, ValueError) as exc:
         raise DescriptionError(f"{path}: pinocchio cannot read it: {exc}") from exc
     raise DescriptionError(f"{path}: unknown description format {suffix!r}; expected MJCF (.xml, .mjcf) or URDF (.urdf)")
+
+
+def mjcf_gravity(path: str | Path) -> np.ndarray:
+    """The gravity vector (3,) (m/s², world axes) of an MJCF file: its ``<option gravity>``,
+    MuJoCo's default ``0 0 -9.81`` where it has none (pinocchio's MJCF reader ignores it).
+
+    Raises:
+        DescriptionError: a gravity that is not three numbers, naming the file.
+    """
+    from xml.etree import ElementTree
+
+    try:
+        root = ElementTree.parse(path).getroot()
+    except ElementTree.ParseError as exc:
+        raise DescriptionError(f"{path}: not XML: {exc}") from exc
+    gravity = np.array([0.0, 0.0, -9.81])
+    for option in root.iter("option"):
+        text = option.get("gravity")
+        if text is None:
+            continue
+        try:
+            value = np.array([float(x) for x in text.split()])
+        except ValueError:
+            value = np.zeros(0)
+        if value.shape != (3,) or not np.all(np.isfinite(value)):
+            raise DescriptionError(f"{path}: <option gravity={text!r}>: expected three numbers (m/s²)")
+        gravity = value
+    return gravity
+
+
+class MasslessBodyWarning(UserWarning):
+    """A description whose moving bodies have no mass (MuJoCo refuses such a file)."""
 
 
 def _joint_kind(joint: pin.JointModel) -> str | None:
@@ -186,7 +223,7 @@ class DescribedRobot:
 
         self.closures = tuple(self._closures(points, frames))
         self._rows = sum(c.rows for c in self.closures)
-        self._set_dynamics_models()
+        self.data = self.model.createData()
         n = len(actuated)
         self.pose_size = model.nq
         self._n_body = 10 * (model.njoints - 1)
@@ -200,14 +237,28 @@ class DescribedRobot:
         self.end_effector = end_effector
         if end_effector is not None and not model.existFrame(end_effector):
             raise DescriptionError(f"{where}: no body or site {end_effector!r} to carry a payload", "end_effector")
-        self._pi_cache: np.ndarray | None = None
-        self._last_jacobian: tuple[np.ndarray, np.ndarray] = (np.full(model.nq, np.nan), np.zeros((0, model.nv)))
-        self._act_columns = np.zeros((model.nv, n))         # W's actuated rows: v[act] = Thetad
-        self._act_columns[self._act_v, np.arange(n)] = 1.0
-        self._last_motion = (np.full(len(actuated), np.nan), np.full(model.nq, np.nan), np.zeros((model.nv, len(actuated))))
+        # the compiled model of the tree and its closures, immutable, and two workspaces: the
+        # identification's motions and the plant's periods each carry their own closure state
+        self.tree = tree_arrays(model, [(c.frame1, c.frame2, c.rigid) for c in self.closures], self._act_v,
+                                self._pas_v, self._home_q, self.tolerance, SINGULAR_CONDITION,
+                                [REVOLUTE_JOINT if kinds[name] == REVOLUTE else PRISMATIC_JOINT
+                                 for name in self.joint_names])
+        self._workspace = workspace(self.tree)
+        self._plant_workspace = workspace(self.tree)
         bodies = [model.inertias[j].toDynamicParameters() for j in range(1, model.njoints)]
         self._nominal = np.concatenate([*bodies, self.drive_parameters()])
         self._mobility_check()
+        if self.massless_bodies:
+            warnings.warn(MasslessBodyWarning(
+                f"{self.path}: moving bodies without mass: {', '.join(self.massless_bodies)} (MuJoCo refuses "
+                "them: give each its real mass and inertia, e.g. a universal joint's cross; pinocchio and the "
+                "identification take them as they are)"), stacklevel=2)
+
+    @property
+    def massless_bodies(self) -> tuple[str, ...]:
+        """The bodies that move (every body of the tree does) and have no mass in the file."""
+        return tuple(name for name, j in zip(self.body_names, range(1, self.model.njoints))
+                     if not self.model.inertias[j].mass > 0.0)
 
     def _set_parameter_names(self) -> None:
         """The parameter vector's names: the bodies' ten, then the drive terms of the friction model."""
@@ -220,6 +271,7 @@ class DescribedRobot:
         if self._tree_rows is None:
             self._tree_rows = OrderedDict()
         other = copy.copy(self)
+        other._workspace, other._plant_workspace = workspace(self.tree), workspace(self.tree)
         other.friction = friction
         other._set_parameter_names()
         bodies = self._nominal[:self._n_body]
@@ -250,17 +302,6 @@ class DescribedRobot:
         self._pas_v = np.setdiff1d(np.arange(model.nv), self._act_v)
         self._pas_q = np.array([model.joints[j].idx_q for j in range(1, model.njoints)
                                 if model.joints[j].idx_v in set(self._pas_v.tolist())])
-
-    def _set_dynamics_models(self) -> None:
-        """pinocchio's data of the description's model (its closure frames added) and the plant's
-        own copy of the model, without the file's joint armature."""
-        self.data = self.model.createData()
-        # the plant's own copy, whose body inertias it sets: ``model`` keeps the description's
-        self._dynamics_model = pin.Model(self.model)
-        # pinocchio's crba and rnea add the file's joint armature; the rotor inertias are the
-        # parameter vector's Jm (plant_dynamics adds them), so the plant's model has none
-        self._dynamics_model.armature[:] = 0.0
-        self._dynamics_data = self._dynamics_model.createData()
 
     def _set_home(self, home: Mapping[str, float] | None, home_actuated: Sequence[float] | None,
                   kinds: Mapping[str, str], where: str, n: int) -> None:
@@ -312,7 +353,7 @@ class DescribedRobot:
         except KinematicsError as exc:
             raise DescriptionError(f"{self.path}: home does not assemble ({exc}); give robot.described.home, "
                                    "the tree joint values of a configuration near it", "home") from None
-        J, _ = self._closure_jacobian(q)
+        J, _ = self.closure_jacobian(q)
         rank = np.linalg.matrix_rank(J, tol=1e-9 * max(1.0, np.abs(J).max())) if J.size else 0
         if self.model.nv - rank != n:
             raise DescriptionError(f"{self.path}: the tree has {self.model.nv} joints and its closures "
@@ -349,44 +390,61 @@ class DescribedRobot:
         return np.concatenate([model.damping[v], model.friction[v], model.armature[v], extra]).astype(float)
 
     # ------------------------------------------------------------------ closure layer
-    def _closure_residual(self, q) -> np.ndarray:
-        """(m,) the closures' position (m) and orientation (rad) mismatch at ``q`` (frames placed)."""
-        out = np.empty(self._rows)
-        row = 0
-        oMf = self.data.oMf
-        for c in self.closures:
-            a, b = oMf[c.frame1], oMf[c.frame2]
-            out[row:row + 3] = a.translation - b.translation
-            if c.rigid:
-                out[row + 3:row + 6] = -a.rotation @ pin.log3(a.rotation.T @ b.rotation)
-            row += c.rows
-        return out
+    def _batch(self, Theta, Thetad, Thetadd, guess, has_guess, want_rows: bool, workspace_=None,
+               max_iterations: int = 50):
+        """The compiled closure layer over a motion (:func:`~ident_hw.model.tree_kernels.motion_batch`):
+        ``(Q (N, nq), V, A (N, nv), W (N, nv, n), rows (N, n, 10 nb) or None)``. Sample ``k``
+        starts Newton from ``guess[k]`` where ``has_guess[k]``, else from sample ``k - 1``.
 
-    def _closure_jacobian(self, q) -> tuple[np.ndarray, np.ndarray]:
-        """``J`` (m, nv) of the closure residuals and the residuals (m,) at ``q``."""
-        model, data = self.model, self.data
-        pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacements(model, data)
-        J = np.empty((self._rows, model.nv))
-        row = 0
-        for c in self.closures:
-            d = (pin.getFrameJacobian(model, data, c.frame1, pin.LOCAL_WORLD_ALIGNED)
-                 - pin.getFrameJacobian(model, data, c.frame2, pin.LOCAL_WORLD_ALIGNED))
-            J[row:row + c.rows] = d[:c.rows]
-            row += c.rows
-        return J, self._closure_residual(q)
+        Raises:
+            KinematicsError: a sample no assembly closes (``sample`` its index).
+            SingularityError: a sample at a parallel singularity.
+        """
+        ws = self._workspace if workspace_ is None else workspace_
+        N, n, nq = len(Theta), len(self._act_v), self.model.nq
+        Q, V, A, Ws = np.empty((N, nq)), np.empty((N, nq)), np.empty((N, nq)), np.empty((N, nq, n))
+        rows = np.empty((N, n, self._n_body)) if want_rows else np.empty((0, n, self._n_body))
+        motion_batch(self.tree.ints, self.tree.floats, ws.floats, ws.ints, np.ascontiguousarray(Theta, dtype=float), np.ascontiguousarray(Thetad, dtype=float),
+                     np.ascontiguousarray(Thetadd, dtype=float), np.ascontiguousarray(guess, dtype=float),
+                     np.ascontiguousarray(has_guess, dtype=np.bool_), want_rows, max_iterations, Q, V, A, Ws, rows)
+        self._raise_status(ws, Theta, N > 1)
+        return Q, V, A, Ws, (rows if want_rows else None)
 
-    def _drift(self, q, v) -> np.ndarray:
-        """``gamma = Jdot v`` (m,): the closures' relative classical acceleration at zero joint
-        acceleration (``J a + gamma = 0`` along any motion that keeps them closed)."""
-        model, data = self.model, self.data
-        pin.forwardKinematics(model, data, q, v, np.zeros(model.nv))
-        out = []
-        for c in self.closures:
-            a = (pin.getFrameClassicalAcceleration(model, data, c.frame1, pin.LOCAL_WORLD_ALIGNED)
-                 - pin.getFrameClassicalAcceleration(model, data, c.frame2, pin.LOCAL_WORLD_ALIGNED))
-            out.append(a.vector if c.rigid else a.linear)
-        return np.concatenate(out) if out else np.zeros(0)
+    def _raise_status(self, ws, Theta, batch: bool) -> None:
+        """Raises the error a kernel's status in ``ws`` says (nothing where it solved)."""
+        code, k = ws.status
+        if code == OK:
+            return
+        where = np.round(np.asarray(Theta, float).reshape(-1, len(self._act_v))[k], 6).tolist()
+        sample = k if batch else None
+        if code == SINGULAR:
+            raise SingularityError(f"{self.path.name}: the closures lose rank at Theta = {where} "
+                                   "(a parallel singularity)", sample=sample)
+        raise KinematicsError(f"{self.path.name}: no assembly closes the loops at Theta = {where} "
+                              f"(residual {ws.views(self.tree).residual[0]:.3g})", sample=sample)
+
+    def _guesses(self, N: int, guess) -> tuple[np.ndarray, np.ndarray]:
+        """Per-sample Newton starts (N, nq) and whether each is given: a row of ``guess`` that is
+        all zeros (or ``guess`` None) continues from the previous sample, the first from home."""
+        nq = self.model.nq
+        if guess is None:
+            G, has = np.zeros((N, nq)), np.zeros(N, dtype=bool)
+        else:
+            G = np.array(np.broadcast_to(np.asarray(guess, dtype=float), (N, nq)))
+            has = np.any(G != 0.0, axis=1)
+        if N and not has[0]:
+            G[0], has[0] = self._home_q, True
+        return G, has
+
+    def closure_jacobian(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """``J`` (m, nv) of the closure residuals and the residuals (m,) at a tree configuration
+        ``q`` (nq,): per closure, frame 1's Jacobian minus frame 2's (the linear velocity of its
+        origin, then for a weld the angular velocity; world axes), and the position (m) and
+        orientation (``-R1 log3(R1^T R2)``, rad) mismatch."""
+        ws = workspace(self.tree)
+        closure_at(self.tree.ints, self.tree.floats, ws.floats, ws.ints, np.ascontiguousarray(q, dtype=float))
+        views = ws.views(self.tree)
+        return views.J.copy(), views.r.copy()
 
     def tree_configuration(self, Theta, guess=None, max_iterations: int = 50) -> np.ndarray:
         """The tree configuration ``q`` (nq,) that closes every loop at actuated coordinates
@@ -397,103 +455,35 @@ class DescribedRobot:
             KinematicsError: no configuration closes the loops from this guess (out of reach).
             SingularityError: the passive joints lose rank (a parallel singularity).
         """
-        q = self._home_q.copy() if guess is None or not np.any(guess) else np.array(guess, dtype=float)
-        q[self._act_q] = Theta
-        if not self.closures:
-            return q
-        for _ in range(max_iterations):
-            J, r = self._closure_jacobian(q)
-            if np.max(np.abs(r)) <= self.tolerance:
-                self._last_jacobian = (q.copy(), J)
-                return q
-            Jp = J[:, self._pas_v]
-            try:
-                if Jp.shape[0] == Jp.shape[1]:
-                    dq = np.linalg.solve(Jp, -r)
-                else:
-                    dq, _, rank, _ = np.linalg.lstsq(Jp, -r, rcond=1e-10)
-                    if rank < Jp.shape[1]:
-                        raise np.linalg.LinAlgError
-            except np.linalg.LinAlgError:
-                raise SingularityError(f"{self.path.name}: the closures lose rank at Theta = "
-                                       f"{np.round(np.asarray(Theta, float), 6).tolist()} (a parallel singularity)")
-            q[self._pas_q] += dq
-            if not np.all(np.isfinite(q)) or float(np.max(np.abs(dq))) > 10.0:
-                break
-        J, r = self._closure_jacobian(q)
-        if np.max(np.abs(r)) <= max(self.tolerance, 1e-10):
-            self._last_jacobian = (q.copy(), J)
-            return q
-        raise KinematicsError(f"{self.path.name}: no assembly closes the loops at Theta = "
-                              f"{np.round(np.asarray(Theta, float), 6).tolist()} (residual {np.max(np.abs(r)):.3g})")
+        Theta = np.asarray(Theta, dtype=float).reshape(1, -1)
+        G, has = self._guesses(1, None if guess is None else np.asarray(guess, dtype=float)[None])
+        zero = np.zeros_like(Theta)
+        return self._batch(Theta, zero, zero, G, has, False, max_iterations=max_iterations)[0][0]
 
-    def _velocity_map(self, q) -> tuple[np.ndarray, np.ndarray]:
-        """``W`` (nv, n) with ``v = W Thetad`` and ``J_p^+`` (p, m) at a closed ``q``: the inverse of
-        ``J_p`` where the closures fix the passive joints exactly (``J_p`` square: one LU, a
-        quarter of an SVD's time, per sample of the plant and of the regressor), else its
-        pseudo-inverse. Raises :class:`SingularityError` at a parallel singularity: ``cond(J_p)``
-        beyond :data:`SINGULAR_CONDITION` (square: by the 1-norm, within a factor ``p`` of the
-        2-norm's)."""
-        W = self._act_columns.copy()
-        if not self.closures:
-            return W, np.zeros((0, 0))
-        J = self._jacobian_at(q)
-        Jp = J[:, self._pas_v]
-        if Jp.shape[0] == Jp.shape[1]:
-            try:
-                pinv = np.linalg.inv(Jp)
-                singular = not (np.abs(Jp).sum(axis=0).max() * np.abs(pinv).sum(axis=0).max() < SINGULAR_CONDITION)
-            except np.linalg.LinAlgError:
-                singular = True
-        else:
-            U, s, Vt = np.linalg.svd(Jp, full_matrices=False)
-            singular = not s[-1] * SINGULAR_CONDITION > s[0]
-            pinv = (Vt.T / s) @ U.T
-        if singular:
-            raise SingularityError(f"{self.path.name}: the closures lose rank at q = {np.round(q, 6).tolist()} "
-                                   "(a parallel singularity)")
-        W[self._pas_v] = -pinv @ J[:, self._act_v]
-        return W, pinv
-
-    def _jacobian_at(self, q) -> np.ndarray:
-        """The closure Jacobian (m, nv) at ``q``: the last one computed if it was at ``q``."""
-        last_q, J = self._last_jacobian
-        if not np.array_equal(last_q, q):
-            J, _ = self._closure_jacobian(q)
-        return J
-
-    def _condition(self, q) -> float:
-        """``cond(J_p)`` (2-norm) at a closed ``q``; infinite at a parallel singularity."""
+    def _condition_at(self, J) -> float:
+        """``cond(J_p)`` (2-norm) of a closure Jacobian; infinite at a parallel singularity."""
         if not self.closures:
             return 1.0
-        s = np.linalg.svd(self._jacobian_at(q)[:, self._pas_v], compute_uv=False)
+        s = np.linalg.svd(J[:, self._pas_v], compute_uv=False)
         return float(s[0] / s[-1]) if s[-1] * SINGULAR_CONDITION > s[0] else np.inf
 
     def tree_motion(self, Theta, Thetad, Thetadd, guess=None):
         """``(q, v, a, W)`` of one sample: the tree's configuration (nq,), rates (nv,) and
-        accelerations (nv,) of an actuated motion (each (n,)), and ``W`` (nv, n)."""
-        Theta = np.asarray(Theta, dtype=float)
-        last_Theta, last_q, last_W = self._last_motion
-        if guess is not None and self.closures and np.array_equal(guess, last_q):
-            # continuing from this model's last answer (the plant, period after period): start
-            # Newton from its first-order prediction, one iteration from the solution
-            guess = last_q + last_W @ (Theta - last_Theta)
-        q = self.tree_configuration(Theta, guess)
-        W, pinv = self._velocity_map(q)
-        v = W @ np.asarray(Thetad, dtype=float)
-        a = W @ np.asarray(Thetadd, dtype=float)
-        if self.closures:
-            a[self._pas_v] -= pinv @ self._drift(q, v)
-        self._last_motion = (Theta.copy(), q.copy(), W)
-        return q, v, a, W
+        accelerations (nv,) of an actuated motion (each (n,)), and ``W`` (nv, n). Newton starts
+        from ``guess`` carried to ``Theta`` by the last sample's velocity map where it is near."""
+        rows = [np.asarray(x, dtype=float).reshape(1, -1) for x in (Theta, Thetad, Thetadd)]
+        G, has = self._guesses(1, None if guess is None else np.asarray(guess, dtype=float)[None])
+        Q, V, A, Ws, _ = self._batch(*rows, G, has, False)
+        return Q[0], V[0], A[0], Ws[0]
 
     def condition(self, Theta, guess=None) -> float:
         """``cond(J_p)`` of the passive joints' closure Jacobian at ``Theta`` (1 for a serial
         robot; infinite at a parallel singularity): the distance to a singularity."""
         try:
-            return self._condition(self.tree_configuration(Theta, guess))
+            q = self.tree_configuration(Theta, guess)
         except SingularityError:
             return np.inf
+        return self._condition_at(self.closure_jacobian(q)[0])
 
     def conditions(self, poses) -> np.ndarray:
         """:meth:`condition` (N,) at closed tree configurations ``poses`` (N, nq), e.g. those of
@@ -505,13 +495,21 @@ class DescribedRobot:
         :meth:`condition` (N,) at each: one Jacobian per configuration, no Newton iterations (a
         trajectory's own poses checked without solving them again)."""
         poses = np.atleast_2d(np.asarray(poses, dtype=float))
-        residual, cond = np.zeros(len(poses)), np.empty(len(poses))
+        residual, cond = np.zeros(len(poses)), np.ones(len(poses))
+        if not self.closures:
+            return residual, cond
+        ws = workspace(self.tree)
+        views = ws.views(self.tree)
+        Jp = np.empty((len(poses), views.J.shape[0], len(self._pas_v)))
+        r = np.empty((len(poses), len(views.r)))
         for k, q in enumerate(poses):
-            if self.closures:
-                J, r = self._closure_jacobian(q)
-                residual[k] = np.max(np.abs(r))
-                self._last_jacobian = (q.copy(), J)
-            cond[k] = self._condition(q)
+            closure_at(self.tree.ints, self.tree.floats, ws.floats, ws.ints, np.ascontiguousarray(q))
+            r[k] = views.r
+            Jp[k] = views.J[:, self._pas_v]
+        residual = np.max(np.abs(r), axis=1)
+        s = np.linalg.svd(Jp, compute_uv=False)            # one call for the stack (same values)
+        with np.errstate(divide="ignore"):
+            cond = np.where(s[:, -1] * SINGULAR_CONDITION > s[:, 0], s[:, 0] / s[:, -1], np.inf)
         return residual, cond
 
     # ------------------------------------------------------------------ the robot interface
@@ -534,19 +532,14 @@ class DescribedRobot:
         return self.tree_configuration(np.asarray(Theta, dtype=float), guess)
 
     def pose_series(self, Theta, start) -> np.ndarray:
-        """Tree configurations (N, nq) of ``Theta`` (N, n), each Newton started from the last."""
+        """Tree configurations (N, nq) of ``Theta`` (N, n), each Newton started from the last
+        carried to its ``Theta`` by the last velocity map (the first from ``start``)."""
         Theta = np.atleast_2d(np.asarray(Theta, dtype=float))
-        out = np.empty((len(Theta), self.model.nq))
-        q = start
-        for k, row in enumerate(Theta):
-            if k >= 2:                      # predictor: the last two configurations extrapolated
-                q = 2.0 * out[k - 1] - out[k - 2]
-            try:
-                q = out[k] = self.tree_configuration(row, q)
-            except KinematicsError as exc:
-                exc.sample = k
-                raise
-        return out
+        G, has = self._guesses(len(Theta), None)
+        if start is not None and np.any(start):
+            G[0] = start
+        zero = np.zeros_like(Theta)
+        return self._batch(Theta, zero, zero, G, has, False)[0]
 
     def identification_regressor(self, Theta, Thetad, Thetadd, guess):
         """``Y`` (N, n, P) with ``tau = Y @ pi`` and the tree configurations (N, nq). The rows are
@@ -578,19 +571,8 @@ class DescribedRobot:
             kept.move_to_end(key)
             rows, poses = kept[key]
             return rows.copy(), poses.copy()
-        N, n = Theta.shape
-        rows = np.zeros((N, n, self._n_body))
-        poses = np.empty((N, self.model.nq))
-        q = None
-        for k in range(N):
-            start = guess[k] if np.any(guess[k]) else q
-            try:
-                q, v, a, W = self.tree_motion(Theta[k], Thetad[k], Thetadd[k], start)
-            except KinematicsError as exc:
-                exc.sample = k
-                raise
-            poses[k] = q
-            rows[k] = W.T @ pin.computeJointTorqueRegressor(self.model, self.data, q, v, a)
+        G, has = self._guesses(len(Theta), guess)
+        poses, _, _, _, rows = self._batch(Theta, Thetad, Thetadd, G, has, True)
         if kept is None:
             return rows, poses
         kept[key] = (rows, poses)
@@ -604,35 +586,31 @@ class DescribedRobot:
         Theta, Thetad = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (Theta, Thetad))
         N, n = Theta.shape
         H = np.zeros((N, len(self.parameter_names)))
-        q = None
-        for k in range(N):
-            start = q if guess is None else guess[k]
-            q, v, _, _ = self.tree_motion(Theta[k], Thetad[k], np.zeros(n), start)
+        Q, V, _, _, _ = self._batch(Theta, Thetad, np.zeros_like(Theta), *self._guesses(N, guess), False)
+        for k, (q, v) in enumerate(zip(Q, V)):
             H[k, :self._n_body] = (pin.computeKineticEnergyRegressor(self.model, self.data, q, v)
                                    + pin.computePotentialEnergyRegressor(self.model, self.data, q))
         H[:, self._n_body + 2 * n:self._n_body + 3 * n] = 0.5 * Thetad**2
         return H
 
-    def _set_inertias(self, pi: np.ndarray) -> None:
-        """The tree's body inertias from ``pi`` (cached: the plant asks with the same vector)."""
-        if self._pi_cache is not None and np.array_equal(self._pi_cache, pi[:self._n_body]):
-            return
-        for j in range(1, self.model.njoints):
-            self._dynamics_model.inertias[j] = _inertia(pi[10 * (j - 1):10 * j])
-        self._pi_cache = pi[:self._n_body].copy()
-
     def plant_dynamics(self, Theta, Thetad, params, guess):
         """``M`` (n, n) (rotor inertias included), the bias forces (n,) (velocity terms and
-        gravity, no friction) and the tree configuration (nq,) of one state."""
+        gravity, no friction) and the tree configuration (nq,) of one state, compiled
+        (:func:`~ident_hw.model.tree_kernels.plant_dynamics`): Newton starts from ``guess`` (the
+        plant's last pose) carried to ``Theta`` by the plant's last velocity map."""
         pi = np.asarray(params, dtype=float)
-        n = len(self._act_v)
-        q, v, a0, W = self.tree_motion(Theta, Thetad, np.zeros(n), guess)
-        self._set_inertias(pi)
-        model, data = self._dynamics_model, self._dynamics_data
-        M_tree = pin.crba(model, data, q)
-        M_tree = np.triu(M_tree) + np.triu(M_tree, 1).T
-        bias = W.T @ pin.rnea(model, data, q, v, a0)
-        M = W.T @ M_tree @ W + np.diag(pi[self._n_body + 2 * n:self._n_body + 3 * n])
+        n, b = len(self._act_v), self._n_body
+        ws = self._plant_workspace
+        guess = np.zeros(self.model.nq) if guess is None else np.ascontiguousarray(guess, dtype=float)
+        has = bool(np.any(guess))
+        if not has and not ws.last_valid:
+            guess, has = self._home_q, True
+        q, M, bias = np.empty(self.model.nq), np.empty((n, n)), np.empty(n)
+        tree = self.tree
+        tree_plant_dynamics(tree.ints, tree.floats, ws.floats, ws.ints, np.ascontiguousarray(Theta, dtype=float),
+                            np.ascontiguousarray(Thetad, dtype=float), guess, has, np.ascontiguousarray(pi[:b]),
+                            np.ascontiguousarray(pi[b + 2 * n:b + 3 * n]), 50, q, M, bias)
+        self._raise_status(ws, Theta, False)
         return M, bias, q
 
     def friction_coefficients(self, params):
@@ -668,15 +646,6 @@ def _term(name: str) -> str:
     force, ``fc``)."""
     head = name.split("_", 1)[0]
     return "fc" if head.startswith("fc") else head
-
-
-def _inertia(p: np.ndarray) -> pin.Inertia:
-    """The spatial inertia of a body's ten parameters (:data:`BODY_PARAMS`); a massless body
-    (a universal joint's cross) has no centre of mass, only its rotational inertia."""
-    if p[0] != 0.0:
-        return pin.Inertia.FromDynamicParameters(p)
-    Ixx, Ixy, Iyy, Ixz, Iyz, Izz = p[4:10]
-    return pin.Inertia(0.0, np.zeros(3), np.array([[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]]))
 
 
 @dataclass(frozen=True)
@@ -733,7 +702,12 @@ def numerical_base(robot: DescribedRobot, samples: int = 60, seed: int = 0, rtol
     used = norms > 1e-12 * norms.max()             # a column of rounding errors: a parameter nothing moves
     cols = np.flatnonzero(used)
     As = A[:, cols] / norms[cols]
-    _, R, perm = qr(As, mode="economic", pivoting=True)
+    # columns equal to rounding (a rotor's inertia and its link's, one link's inertia and the next
+    # one's mass times a length squared) tie: the earlier parameter in the vector is kept, whatever
+    # the last bits of the regressor, so that a combination keeps its name from one build to the next
+    tie_break = 1.0 + 1e-9 * (len(cols) - np.arange(len(cols))) / len(cols)
+    _, _, perm = qr(As * tie_break, mode="economic", pivoting=True)
+    R = qr(As[:, perm], mode="r")[0][:len(cols)]
     diag = np.abs(np.diag(R))
     rank = int(np.sum(diag > rtol * diag[0]))
     independent, dependent = cols[perm[:rank]], cols[perm[rank:]]
