@@ -861,7 +861,7 @@ def motion_batch(ti, tf, wf, wi, Theta, Thetad, Thetadd, guess, has_guess, want_
     accelerations ``A`` (N, nj), velocity maps ``Ws`` (N, nj, n) and, if ``want_rows``, the
     actuated regressor rows (N, n, 10 nj) into ``rows``. Sample ``k`` starts Newton from
     ``guess[k]`` where ``has_guess[k]``, else from the last sample solved (else home), predicted
-    to first order (:func:`_predict`). Stops at the first sample that fails: ``ws.status`` says
+    to first order (``_predict``). Stops at the first sample that fails: ``ws.status`` says
     how and where. The workspace keeps the last sample's closure state. ``ti``, ``tf``: the
     compiled tree (:class:`CompiledTree`), ``wf``, ``wi``: the workspace (:class:`Workspace`)."""
     t, s = _tree(ti, tf), _workspace(ti, wf, wi)
