@@ -83,6 +83,17 @@ def read(path: Path):
     return read_external(config, config.trajectory("run"))
 
 
+def test_a_recorded_path_is_relative_to_its_config_named_by_a_relative_path(tmp_path, monkeypatch):
+    folder = tmp_path / "lab"
+    folder.mkdir()
+    config = write(folder, rows_of(uneven_times(300)))
+    monkeypatch.chdir(tmp_path)
+    relative = load_config(Path("lab") / config.name)          # the config named from its parent folder
+    external = read_external(relative, relative.trajectory("run"))
+    assert external.summary.data_rows == 300
+    assert Path(relative.trajectory("run").path) == Path("lab") / "run.csv"
+
+
 def test_uneven_stamps_are_resampled_onto_an_even_step_with_the_motion_kept(tmp_path):
     t = uneven_times(1500)
     external = read(write(tmp_path, rows_of(t)))

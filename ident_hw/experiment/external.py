@@ -93,7 +93,7 @@ def read_external(config: Config, tcfg: TrajectoryConfig, path: str | Path | Non
     spec = config.recordings
     if spec is None:
         raise RecordingError(f"{config.source}: recordings: missing section (how a recorded file is read)")
-    path = Path(path if path is not None else Path(config.base_dir or "") / str(tcfg.path))
+    path = Path(path if path is not None else str(tcfg.path))   # the config's path: already its file's folder joined
     try:
         text = path.read_text(encoding="utf-8", errors="strict")
     except (OSError, UnicodeDecodeError) as exc:
