@@ -4,8 +4,9 @@ where the config says ``robot.friction.presliding: auto``.
 The presliding distance sets how far a joint travels before its Coulomb force has turned; the
 force is linear in the friction coefficients for any distance, not in the distance. So each
 distance of a grid (:data:`PRESLIDING_GRID`) is tried: the identification trajectories are
-prepared with it and every parameter fitted by least squares; the distance whose fit leaves the
-smallest residual wins (a profile likelihood over one variable). The residual of each actuator
+prepared with it and every parameter fitted by least squares; of the distances whose fit leaves a
+residual within :data:`TOLERANCE` of the smallest, the longest wins (a profile likelihood over one
+variable, read with parsimony: ``_parsimonious``). The residual of each actuator
 counts relative to its own forces (the sum over actuators of ``||tau - Y pi||^2 / ||tau||^2``):
 the big joints do not decide alone. Only identification data take part: the validation
 trajectories judge the choice, they do not make it.

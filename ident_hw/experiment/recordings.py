@@ -173,14 +173,13 @@ def gather_recordings(config: Config, given: Sequence[str], layout: str | Path |
 
     for item in given:
         name, path = _named(item, [t.name for t in config.trajectories], config.source)
-        if name is None and (Path(path).is_dir() or Path(path).name == "drives.json"
-                             or Path(path).name.endswith(NOT_RECORDINGS)):
+        if name is None and (Path(path).is_dir() or Path(path).name.endswith(NOT_RECORDINGS)):
             paths, more = recording_paths([path])
             notes += more
             for found in paths:
                 keep(*load_recording(found, config, layout=layout), found)
             continue
-        if name is None and Path(path).suffix.lower() not in (".npz", *RAW_LOG_SUFFIXES):
+        if name is None and Path(path).suffix.lower() not in RECORDING_SUFFIXES:
             stem = Path(path).stem
             if stem not in recorded:
                 raise RecordingError(f"{path}: a file made elsewhere: give it as NAME={path}, NAME one of the "
@@ -213,6 +212,8 @@ def _named(item: str, names: Sequence[str], source: str) -> tuple[str | None, st
 
 #: what a results folder's ``data/`` holds beside the recordings, by name or ending (not recordings)
 NOT_RECORDINGS = ("drives.json", ".log.json", ".asc.json", ".blf.json")
+#: the endings of the files the tool recorded: a decoded recording or a raw CAN log
+RECORDING_SUFFIXES = (".npz", *RAW_LOG_SUFFIXES)
 
 
 def recording_paths(given: Sequence[str | Path]) -> tuple[list[Path], list[str]]:
@@ -240,9 +241,9 @@ def recording_paths(given: Sequence[str | Path]) -> tuple[list[Path], list[str]]
                                      "none: give the folder of the run that recorded them")
             notes.append(f"{item}: the recordings in {folder}: {', '.join(p.name for p in found)}")
             files += found
-        elif item.name == "drives.json" or item.name.endswith(NOT_RECORDINGS):
+        elif item.name.endswith(NOT_RECORDINGS):
             skipped.append(str(item))
-        elif item.suffix.lower() not in (".npz", *RAW_LOG_SUFFIXES):
+        elif item.suffix.lower() not in RECORDING_SUFFIXES:
             raise RecordingError(f"{item}: not a recording (a decoded .npz or a raw CAN log "
                                  f"{'/'.join(RAW_LOG_SUFFIXES)}); to use a results folder's recordings, give the folder")
         else:
@@ -257,7 +258,7 @@ def _folder_recordings(folder: Path) -> list[Path]:
     chosen: dict[str, Path] = {}
     for path in sorted(folder.iterdir()):
         kind = path.suffix.lower()
-        if not path.is_file() or kind not in (".npz", *RAW_LOG_SUFFIXES):
+        if not path.is_file() or kind not in RECORDING_SUFFIXES:
             continue
         if path.stem not in chosen or kind == ".npz":
             chosen[path.stem] = path
