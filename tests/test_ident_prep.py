@@ -32,7 +32,7 @@ def _inputs(config, name):
     """The identification's inputs of trajectory ``name`` (the filter's own band for a name the
     config does not list)."""
     if any(t.name == name for t in config.trajectories):
-        return trajectory_inputs(config.trajectory(name), config.identification, config.base_dir)
+        return trajectory_inputs(config.trajectory(name), config.identification)
     return identification_plan(config).inputs_of(name)
 
 

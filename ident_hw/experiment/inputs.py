@@ -16,7 +16,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -167,9 +166,9 @@ class IdentificationPlan:
         return filter_settings(self.identification.filter, sample_rate, inputs.bandwidth, inputs.position_margin)
 
 
-def trajectory_inputs(tcfg: TrajectoryConfig, ident: IdentificationConfig, base_dir: Path | None) -> TrajectoryInputs:
+def trajectory_inputs(tcfg: TrajectoryConfig, ident: IdentificationConfig) -> TrajectoryInputs:
     """The identification's inputs of the config's trajectory ``tcfg`` (:class:`TrajectoryInputs`;
-    ``ident``: the identification section, ``base_dir``: the config's folder): its ``bandwidth``
+    ``ident``: the identification section): its ``bandwidth``
     key, else a Fourier excitation's highest harmonic, else the identification filter's band; its
     position margin: ``identification.filter.position_margin`` where given, else
     :data:`ident_hw.filtering.POSITION_MARGIN` for the rest-to-rest kinds
@@ -206,6 +205,6 @@ def identification_plan(config: Config, cycles_planned: Mapping[str, int] | None
     return IdentificationPlan(source=config.source, axes=Axes.of(config.robot.actuators), identification=ident,
                               robot=config.robot, model=model, initial=_frozen(initial_parameters(config.robot)),
                               truth=None if truth is None else _frozen(truth), cycles_planned=dict(cycles_planned or {}),
-                              trajectories={t.name: trajectory_inputs(t, ident, config.base_dir)
+                              trajectories={t.name: trajectory_inputs(t, ident)
                                             for t in config.trajectories if t.name in used})
 

@@ -55,7 +55,7 @@ class PlannedTrajectory:
 class PlanInputs:
     """What planning a campaign takes of the config, made once (:meth:`of`): the config file
     (``source``, for messages), its robot section and model, the SYNC rate (Hz; 250 without a
-    bus), the folder relative paths start from, the motor current the drives stream, the
+    bus), the folder a drive's object dictionary file is relative to, the motor current the drives stream, the
     identification filter's band (Hz, what a described robot's excitation is band-limited to
     without a ``bandwidth`` of its own), the encoder draws the identification takes, the
     simulated rig's fault, and whether there is a bus (homing matters only then). Each drive's
@@ -133,8 +133,7 @@ def build(inputs: PlanInputs, tcfg: TrajectoryConfig) -> trajectories.Trajectory
     elif tcfg.kind == "standstill":
         traj = trajectories.standstill(inputs.model, tcfg.duration or STANDSTILL_S, rate, tcfg.name)
     else:
-        traj = trajectories_of(inputs.robot).build(inputs.robot, tcfg, inputs.model, rate, inputs.base_dir,
-                                                   inputs.bandwidth)
+        traj = trajectories_of(inputs.robot).build(inputs.robot, tcfg, inputs.model, rate, inputs.bandwidth)
     return dataclasses.replace(repeat(traj, tcfg.cycles), name=tcfg.name)
 
 

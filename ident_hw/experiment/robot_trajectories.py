@@ -4,7 +4,7 @@ turned into the trajectories' own types (the actuators' limits, a 3PRRR Fourier 
 coefficients). Here and not in the config: the config imports nothing of :mod:`trajectories`.
 
     kind = trajectories_of(config.robot)           # RobotTrajectories of robot.kind
-    traj = kind.build(config.robot, tcfg, model, 250.0, config.base_dir, 2.0)
+    traj = kind.build(config.robot, tcfg, model, 250.0, 2.0)
 """
 
 from __future__ import annotations
@@ -94,20 +94,20 @@ class RobotTrajectories:
     """The generated trajectories of one robot kind.
 
     Attributes:
-        build: ``(robot section, trajectory, robot model, rate (Hz), the config's folder, the
-            identification filter's band (Hz)) -> Trajectory``: one generated trajectory at the
-            SYNC rate.
+        build: ``(robot section, trajectory, robot model, rate (Hz), the identification filter's
+            band (Hz)) -> Trajectory``: one generated trajectory at the SYNC rate (a file's path
+            is already relative to the config's folder when read).
         check: ``(robot section, trajectory, robot model) -> Report``: its feasibility (reach,
             safety margins, speeds and accelerations).
     """
 
-    build: Callable[[RobotConfig, TrajectoryConfig, RobotModel, float, Path | None, float], trajectories.Trajectory]
+    build: Callable[[RobotConfig, TrajectoryConfig, RobotModel, float, float], trajectories.Trajectory]
     check: Callable[[RobotConfig, trajectories.Trajectory, RobotModel], trajectories.Report]
 
 
 # ---- the 3PRRR
 def _threeprrr_build(robot: RobotConfig, tcfg: TrajectoryConfig, model: RobotModel, rate: float,
-                     base_dir: Path | None, bandwidth: float) -> trajectories.Trajectory:
+                     bandwidth: float) -> trajectories.Trajectory:
     limits = feasibility_limits(robot)
     k = tcfg.speed_scale
     # a generated path keeps within the stroke and within the carriage drives' software position
@@ -150,14 +150,14 @@ def _duration(tcfg: TrajectoryConfig) -> float:
 
 
 DELTA = RobotTrajectories(
-    build=lambda robot, tcfg, model, rate, base_dir, bandwidth: delta_paper.delta_trajectory(
+    build=lambda robot, tcfg, model, rate, bandwidth: delta_paper.delta_trajectory(
         model, tcfg.kind, _duration(tcfg), rate, tcfg.fade, name=tcfg.name, amplitude=tcfg.amplitude),
     check=_delta_check)
 
 
 # ---- any robot from its description file
 def _described_build(robot: RobotConfig, tcfg: TrajectoryConfig, model: RobotModel, rate: float,
-                     base_dir: Path | None, bandwidth: float) -> trajectories.Trajectory:
+                     bandwidth: float) -> trajectories.Trajectory:
     band = excitation_bandwidth(tcfg, bandwidth)
     return joint_space.joint_excitation(model, actuator_limits(robot), _duration(tcfg), rate, band, fade=tcfg.fade,
                                         seed=tcfg.seed, name=tcfg.name, amplitude=tcfg.amplitude,
