@@ -201,3 +201,25 @@ def test_the_verdict_fails_garbage_made_of_the_real_data_naming_the_axis(ur10e, 
     quality = identify(config, recordings, imported=imported).quality
     assert not quality.passed
     assert any(reason.startswith(f"{axis}:") for reason in quality.reasons), quality.reasons
+
+
+def test_a_friction_order_the_compared_model_has_no_place_for_names_the_key(ur10e, tmp_path):
+    """``fs`` (a Stribeck term) is a friction value a file may hold, but the compared model of a
+    ``coulomb`` set has none: a CompareError naming the file, the key and the value, not a bare
+    ValueError from deep inside."""
+    import dataclasses
+
+    from ident_hw.experiment.compared import CompareError
+
+    config = load_config(CONFIGS / "ur10e.yaml")
+    spec = config.identification.compare_with
+    vectors = read_vectors(spec.path)
+    with_fs = tmp_path / "with_fs.txt"
+    text = Path(spec.path).read_text(encoding="utf-8")
+    four = np.column_stack([vectors["pi_frcn"].reshape(6, 3), np.ones(6)]).ravel()
+    with_fs.write_text(text + "\npi_frcn4 = [" + " ".join(repr(float(v)) for v in four) + "]\n", encoding="utf-8")
+    friction = dataclasses.replace(spec.friction, vector="pi_frcn4", order=("fv", "fc", "f0", "fs"))
+    bad = dataclasses.replace(spec, path=str(with_fs), friction=friction)
+    with pytest.raises(CompareError, match=r"with_fs\.txt: identification\.compare_with\.friction\.order: "
+                                           r"'fs' has no place in the compared model \(it holds \['f0', 'fc', 'fv'\]"):
+        compared_set(config.robot, bad)

@@ -133,8 +133,16 @@ def _fill(values: np.ndarray, names: tuple[str, ...], found: np.ndarray, groups:
         if value_name not in allowed:
             raise CompareError(f"{path}: identification.compare_with.{key}.order: {value_name!r} is none of "
                                f"{sorted(allowed)}")
+        if name not in names:
+            raise CompareError(f"{path}: identification.compare_with.{key}.order: {value_name!r} has no place in "
+                               f"the compared model (it holds {_kinds(names, allowed)} of them)")
     for name, value in zip(flat, found):
         values[names.index(name)] = value
+
+
+def _kinds(names: tuple[str, ...], allowed) -> list[str]:
+    """Which of the ``allowed`` kinds of value (``fv``, ``fc``, ``Ixx``, ...) the compared model holds."""
+    return sorted({n.split(".")[-1] if "." in n else n.split("_", 1)[0] for n in names} & set(allowed))
 
 
 def predicted_forces(compared: ComparedSet, prepared_Y: np.ndarray, per_amp: np.ndarray) -> np.ndarray:
