@@ -211,7 +211,7 @@ def cycle_frame_sizes(axes: Sequence[AxisLayout]) -> list[int]:
     return [0] + [f.size for a in axes for f in a.frames if f.per_sync]
 
 
-@dataclass
+@dataclass(frozen=True)
 class Row:
     """One SYNC cycle of all axes, in drive units.
 

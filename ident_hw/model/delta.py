@@ -130,7 +130,7 @@ def closed_form_base(geometry: DeltaGeometry = DeltaGeometry(), drive_terms: boo
     return ClosedFormBase(tuple(k for k, _ in rows), H)
 
 
-@dataclass
+@dataclass(frozen=True)
 class Bodies:
     """The seven bodies' motion along a batch (N samples), in the order of :data:`BODIES`.
 
