@@ -62,6 +62,7 @@ MODELS = ("dynamic", "power", "energy")
 #: each model's equation and the unit of its output, for the tables
 EQUATIONS = {"dynamic": "tau = Y pi", "power": "Thetad·tau = dE/dt + friction power",
              "energy": "∫ Thetad·tau dt = ΔE + friction work"}
+#: the unit of each model's output
 OUTPUT_UNITS = {"dynamic": "N·m | N", "power": "W", "energy": "J"}
 
 

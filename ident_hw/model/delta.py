@@ -27,9 +27,11 @@ from .pseudo_inertia import SPATIAL, PhysicalBody
 from .errors import KinematicsError, SingularityError
 
 GRAVITY = 9.81  # m/s²
+#: the seven bodies, in the order of the parameter vector
 BODIES = ("arm1", "arm2", "arm3", "rod1", "rod2", "rod3", "plat")
 BODY_PARAMS = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")
 DRIVE_PARAMS = tuple(f"{kind}_{i}" for kind in ("fv", "fc", "Jm") for i in (1, 2, 3))
+#: the 79 parameters: ten per body (:data:`BODIES`), then ``fv_i``, ``fc_i``, ``Jm_i`` of each drive
 PARAM_NAMES = tuple(f"{b}.{p}" for b in BODIES for p in BODY_PARAMS) + DRIVE_PARAMS
 N_BODY_PARAMS = 10 * len(BODIES)           # 70
 N_PARAMS = len(PARAM_NAMES)                # 79
