@@ -27,7 +27,7 @@ def base_of(config, robot):
     """``H`` (r, n) of the model's base parameters."""
     readable = robot.readable_base()
     if readable is not None:
-        return readable[1]
+        return readable.H
     rng = np.random.default_rng(0)     # the 3PRRR: the SVD of its regressor near home
     home = robot.home_actuated()
     N = 400

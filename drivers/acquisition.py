@@ -23,7 +23,7 @@ the counter of the open cycle (a lockstep retry, :mod:`drivers.sync`) opens no n
 TPDOs answering it are the same frames again and are taken as such. In lockstep (``period``
 given) a row's time is its cycle index times the period: the simulated time.
 
-Decoding uses precompiled :class:`struct.Struct` s; the listener runs in the notifier thread and
+Decoding uses precompiled ``struct.Struct`` objects; the listener runs in the notifier thread and
 never calls SDO: it only sends PDO frames (through ``on_sync``) and hands finished rows to a sink.
 """
 
@@ -93,11 +93,11 @@ def pdo_layout(profile: DriveProfile, current: str = INSTANTANEOUS) -> tuple[Pdo
     frames = []
     streamed = profile.streamed_current(current)
     status_in_first = streamed.bits + profile.position_actual.bits + profile.statusword.bits <= 64
-    first = (("position", profile.position_actual), ("current", streamed))
+    first: tuple[tuple[str, ObjectRef], ...] = (("position", profile.position_actual), ("current", streamed))
     if status_in_first:
         first += (("statusword", profile.statusword),)
     frames.append(PdoFrame("tpdo", 1, first, 1))
-    second = (("velocity", profile.velocity_actual),)
+    second: tuple[tuple[str, ObjectRef], ...] = (("velocity", profile.velocity_actual),)
     if not status_in_first:
         second += (("statusword", profile.statusword),)
     frames.append(PdoFrame("tpdo", 2, second, 1))
@@ -211,7 +211,7 @@ def cycle_frame_sizes(axes: Sequence[AxisLayout]) -> list[int]:
     return [0] + [f.size for a in axes for f in a.frames if f.per_sync]
 
 
-@dataclass
+@dataclass(frozen=True)
 class Row:
     """One SYNC cycle of all axes, in drive units.
 
@@ -340,10 +340,11 @@ class CycleAssembler(can.Listener):
         self.error_frames = 0
         self.wrong_length: dict[int, tuple[int, int]] = {}   # COB-ID -> (frames, their last length)
         self.done = False
-        self._statusword = [None] * self.n_axes
+        self._statusword: list[int | None] = [None] * self.n_axes
         self._status_reported = [False] * self.n_axes
-        self._pending_target = [None] * self.n_axes
-        self._open = None  # (timestamp, target) of the window being filled
+        self._pending_target: list[int | None] = [None] * self.n_axes
+        # (timestamp, target) of the window being filled
+        self._open: tuple[float, list[int | None]] | None = None
         self._open_counter = None  # SYNC counter of the open window (None: SYNC without counter)
         self._count: dict[int, int] = {}   # frames per COB-ID in the open window
         self._last: dict[int, bytes] = {}  # last frame per COB-ID in the open window
@@ -432,6 +433,8 @@ class CycleAssembler(can.Listener):
     def _close(self) -> None:
         """Book the open window's frames per TPDO (see the class docstring) and emit what is decided."""
         w = self.cycles
+        if self._open is None:
+            raise RuntimeError("CycleAssembler: no open cycle to close")
         timestamp, target = self._open
         cells = {}
         for cob_id, stream in self._streams.items():

@@ -61,7 +61,7 @@ class AxisConfig:
         homing: homing settings, ``None`` if the axis is not homed.
         object_dictionary: the drive's EDS or DCF file, whose dictionary the master then uses
             (``None``: the built-in one of ``profile``).
-        current: the motor current the master streams, :data:`INSTANTANEOUS` or :data:`AVERAGED`
+        current: the motor current the master streams, ``"instantaneous"`` or ``"averaged"`` (:data:`drivers.profiles.CURRENTS`)
             (:meth:`drivers.profiles.DriveProfile.streamed_current`).
     """
 

@@ -88,8 +88,8 @@ class VirtualBus(can.interfaces.virtual.VirtualBus):
     before. It shares python-can's channels, so it talks to any other ``virtual`` bus of the
     process.
 
-    Unbounded (``rx_queue_size`` 0, the default), its receive queue is a :class:`queue.SimpleQueue`
-    (written in C) instead of python-can's :class:`queue.Queue`, whose lock and two conditions
+    Unbounded (``rx_queue_size`` 0, the default), its receive queue is a ``queue.SimpleQueue``
+    (written in C) instead of python-can's ``queue.Queue``, whose lock and two conditions
     in Python cost every frame twice (put and get): the simulated rig in lockstep carries some
     ten frames a cycle.
     """
@@ -98,7 +98,8 @@ class VirtualBus(can.interfaces.virtual.VirtualBus):
         super().__init__(*args, **kwargs)
         if self.queue.maxsize == 0:
             with can.interfaces.virtual.channels_lock:
-                fast: queue.SimpleQueue = queue.SimpleQueue()
+                # python-can declares its channels' queues as queue.Queue; they are only put to and got from
+                fast: Any = queue.SimpleQueue()
                 self.channel[self.channel.index(self.queue)] = fast
                 self.queue = fast
 
@@ -173,7 +174,8 @@ def open_bus(config: BusConfig) -> can.BusABC:
                               **kwargs)
         # udp_multicast refuses receive_own_messages, yet the kernel's multicast loopback (on
         # by default) hands every datagram a socket sends back to it, in sending order
-        own = {} if config.interface == "udp_multicast" else {"receive_own_messages": config.receive_own_messages}
+        own: dict[str, Any] = ({} if config.interface == "udp_multicast"
+                               else {"receive_own_messages": config.receive_own_messages})
         bus = can.Bus(interface=config.interface, channel=config.channel, **own,
                       ignore_config=config.ignore_config, **kwargs)
         if config.interface == "udp_multicast":
@@ -242,6 +244,8 @@ class BusNetwork(canopen.Network):
         """The bus sends periodic frames from a timer outside the master's process: the kernel
         BCM on SocketCAN, an adapter's hardware, or a timing process
         (:class:`drivers.timing.TimedBus`), not from a thread of this process."""
+        if self.bus is None:      # not open: no timer at all
+            return False
         return (getattr(self.bus, "own_timer", False)
                 or type(self.bus)._send_periodic_internal is not can.BusABC._send_periodic_internal)
 
@@ -277,7 +281,7 @@ class GridPeriodicTask:
     hiccup, a garbage collection): it sends the missed frames back to back. For SYNC that burst
     gives the drives several cycles in a row before the master could answer the first with its
     set-points. Here a slot the thread wakes up too late for is skipped instead (counted in
-    :attr:`skipped`), and two frames are never closer than half a period, as with a hardware
+    ``skipped``), and two frames are never closer than half a period, as with a hardware
     timer that cannot queue. The task ends by :meth:`stop`, or by itself once the network is
     disconnected.
 

@@ -443,7 +443,7 @@ class DriveGroup:
 
     Heartbeats run both ways once :meth:`bring_up` started: every drive produces one every
     ``watchdogs.heartbeat_period`` and the master watches them (a node silent for
-    ``watchdogs.drive_heartbeat`` stops the run with a :class:`HeartbeatTimeout`); the master
+    ``watchdogs.drive_heartbeat`` stops the run with a :class:`~drivers.errors.HeartbeatTimeout`); the master
     produces its own (COB-ID ``0x700 + master_id``, state OPERATIONAL, from the SYNC source:
     ``network.send_periodic``, i.e. a timing process, the kernel BCM on SocketCAN, or a thread;
     in lockstep every so many SYNC cycles) and writes every drive's consumer heartbeat time
@@ -567,7 +567,7 @@ class DriveGroup:
         self._master_heartbeat = None
 
     def check_bus_load(self, period: float) -> float:
-        """Worst-case bus load of a run at SYNC ``period`` (raises :class:`BusLoadError`)."""
+        """Worst-case bus load of a run at SYNC ``period`` (raises :class:`~drivers.errors.BusLoadError`)."""
         hb_bits = frame_bits(1) * (len(self.drives) + 1) / self.heartbeat_period
         return check_bus_load(cycle_frame_sizes(self.layouts), period, self.bitrate, hb_bits)
 

@@ -57,7 +57,7 @@ class DriveFault(DriveError):
         self.node = node
         self.code = code
         self.text = text
-        self.recording = None  # path of the samples saved before the fault, set by the runner
+        self.recording: str | None = None  # path of the samples saved before the fault, set by the runner
 
 
 class HeartbeatTimeout(DriveFault):

@@ -50,8 +50,8 @@ def frozen_gc() -> Iterator[None]:
 class GcPauses:
     """Durations of the garbage collections of the process while active (any thread).
 
-    Use as a context manager; :attr:`durations` (s) and :attr:`generations` list the collections
-    in order; :attr:`longest` is the longest one (0.0 when none).
+    Use as a context manager; ``durations`` (s) and ``generations`` list the collections
+    in order; ``longest`` is the longest one (0.0 when none).
     """
 
     def __init__(self) -> None:

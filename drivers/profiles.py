@@ -62,7 +62,7 @@ import math
 from dataclasses import dataclass
 from functools import cached_property
 from types import MappingProxyType
-from typing import Mapping, Optional
+from typing import Any, Mapping, Optional
 
 from canopen.objectdictionary import (
     ObjectDictionary,
@@ -199,6 +199,7 @@ class FirmwareGap:
 #: value") or its running average (its "current actual value averaged", a 50 Hz first-order
 #: low-pass: :class:`AveragingFilter`)
 INSTANTANEOUS, AVERAGED = "instantaneous", "averaged"
+#: the currents a drive can stream: ``"instantaneous"``, ``"averaged"``
 CURRENTS = (INSTANTANEOUS, AVERAGED)
 
 
@@ -279,7 +280,7 @@ def _r(index: int, subindex: int, data_type: str, unit: str = "") -> ObjectRef:
     return ObjectRef(index, subindex, data_type, unit)
 
 
-_COMMON = dict(
+_COMMON: dict[str, Any] = dict(
     position_actual=_r(0x6064, 0, "INTEGER32", "qc"),
     velocity_actual=_r(0x606C, 0, "INTEGER32", "rpm"),
     statusword=_r(0x6041, 0, "UNSIGNED16"),
@@ -396,14 +397,16 @@ def _var(name, index, subindex, data_type, access="rw", default=None, mappable=F
     return var
 
 
-def _record(od, name, index, members, array=False, sub0_access="ro"):
-    """Add a record (or array) whose sub 0 is the highest sub-index; members: (sub, name, type, ...)."""
+def _record(od, name, index, members, array=False, sub0_access="ro") -> ODRecord | ODArray:
+    """Add a record (or array) whose sub 0 is the highest sub-index and return it; members: (sub, name,
+    type, ...)."""
     obj = (ODArray if array else ODRecord)(name, index)
     highest = max(m[0] for m in members)
     obj.add_member(_var("Highest sub-index supported", index, 0, "UNSIGNED8", sub0_access, highest))
     for sub, member_name, data_type, *rest in members:
         obj.add_member(_var(member_name, index, sub, data_type, *rest))
     od.add_object(obj)
+    return obj
 
 
 def _add_communication_objects(od: ObjectDictionary, prof: DriveProfile, node_id: int) -> None:
@@ -442,11 +445,11 @@ def _add_communication_objects(od: ObjectDictionary, prof: DriveProfile, node_id
             (2, "Transmission type", "UNSIGNED8", "rw", 255),
         ] + ([(5, "Event timer", "UNSIGNED16", "rw", 0, False, "ms")]   # deadline monitoring, 0 = off
              if prof.pdo_event_timer else []))
-        _record(od, f"Receive PDO {n + 1} mapping", 0x1600 + n, [
+        mapping = _record(od, f"Receive PDO {n + 1} mapping", 0x1600 + n, [
             (sub, f"Mapped object {sub}", "UNSIGNED32", "rw", 0x60400010 if (n, sub) == (0, 1) else 0)
             for sub in range(1, 9)
         ], sub0_access="rw")
-        od[0x1600 + n][0].default = 1 if n == 0 else 0
+        mapping[0].default = 1 if n == 0 else 0
     for n in range(prof.tpdo_count):
         valid = 0 if n == 0 else 1 << 31
         _record(od, f"Transmit PDO {n + 1} parameter", 0x1800 + n, [
@@ -454,11 +457,11 @@ def _add_communication_objects(od: ObjectDictionary, prof: DriveProfile, node_id
             (2, "Transmission type", "UNSIGNED8", "rw", 255),
             (3, "Inhibit time", "UNSIGNED16", "rw", 10, False, "100us"),     # 1 ms on both generations
         ] + ([(5, "Event timer", "UNSIGNED16", "rw", 0, False, "ms")] if prof.pdo_event_timer else []))
-        _record(od, f"Transmit PDO {n + 1} mapping", 0x1A00 + n, [
+        mapping = _record(od, f"Transmit PDO {n + 1} mapping", 0x1A00 + n, [
             (sub, f"Mapped object {sub}", "UNSIGNED32", "rw", 0x60410010 if (n, sub) == (0, 1) else 0)
             for sub in range(1, 9)
         ], sub0_access="rw")
-        od[0x1A00 + n][0].default = 1 if n == 0 else 0
+        mapping[0].default = 1 if n == 0 else 0
 
 
 def _add_drive_objects(od: ObjectDictionary, prof: DriveProfile) -> None:

@@ -15,7 +15,7 @@
   profiles, the PDO layout, SYNC period, counts of missing cycles / late frames / buffer
   overflows, the caller's run information). Invalid values are NaN.
 * ``target``: the set-point of each row. A streaming run records the set-points it sent, row k
-  the one sent for SYNC k (:func:`take_sent_setpoints`); the RPDO echoes the assembler saw only
+  the one sent for SYNC k (:func:`with_sent_setpoints`); the RPDO echoes the assembler saw only
   count the rows whose echo disagreed (``metadata.late_setpoints``: the set-point reached the bus after
   its SYNC, or its echo came back out of order, as SocketCAN's can under load). A raw log decodes
   to the sent set-points its sidecar holds, else to the echoes.
@@ -95,12 +95,17 @@ def rows_to_arrays(rows: Sequence[Row], axes: Sequence[AxisConfig]) -> dict[str,
     }
 
 
-@dataclass
+@dataclass(frozen=True)
 class Recording:
-    """Decoded samples of a run (arrays as described in the module docstring).
+    """Decoded samples of a run (arrays as described in the module docstring), built once.
 
     ``position_valid``, ``velocity_valid``, ``current_valid`` (N, n_axes) bool default to
     ``valid`` (a recording made by hand: a value is valid where every TPDO of its axis is).
+
+    Immutable: the fields cannot be rebound and every array is a read-only view (the caller's
+    own arrays stay writable), so a recording saved, identified and reported is the one
+    acquired. A changed recording is a new one (:func:`dataclasses.replace`,
+    :func:`with_sent_setpoints`); :class:`SampleRecorder` accumulates the rows while recording.
     """
 
     t: np.ndarray
@@ -117,9 +122,13 @@ class Recording:
     current_valid: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        for name in (f"{c}_valid" for c in CHANNELS):
-            if getattr(self, name) is None:
-                setattr(self, name, np.array(self.valid, dtype=bool, copy=True))
+        for name in ARRAYS:
+            value = getattr(self, name)
+            if value is None:    # a channel's validity not given: the axis's
+                value = np.array(self.valid, dtype=bool, copy=True)
+            view = np.asarray(value).view()
+            view.flags.writeable = False
+            object.__setattr__(self, name, view)
 
     @classmethod
     def from_chunks(cls, chunks: Sequence[dict[str, np.ndarray]], n_axes: int,
@@ -188,8 +197,8 @@ class Recording:
         return cls(**arrays, metadata=metadata)
 
 
-def take_sent_setpoints(rec: Recording, sent_counts: np.ndarray, axes: Sequence[AxisConfig]) -> None:
-    """Make the set-points of ``rec`` the ones the master sent: row k (cycle k) gets
+def with_sent_setpoints(rec: Recording, sent_counts: np.ndarray, axes: Sequence[AxisConfig]) -> Recording:
+    """``rec`` with the set-points the master sent: row k (cycle k) gets
     ``sent_counts[k]`` (the set-points sent for SYNC k, counts, (n_targets, n_axes); a cycle past
     the last one gets the last: the streamer repeats it), converted with the axes' scalings.
 
@@ -197,19 +206,19 @@ def take_sent_setpoints(rec: Recording, sent_counts: np.ndarray, axes: Sequence[
     differs from the sent set-point by more than half a count (or is missing) on any axis are
     counted in ``metadata.late_setpoints``: the set-point reached the bus after its SYNC, or
     its echo came back out of order. A row's set-point is never taken from the echo order.
-    ``metadata.setpoints`` says ``"sent"``. In place; nothing happens to an empty recording.
+    ``metadata.setpoints`` says ``"sent"``. A new recording; an empty one is returned as it is.
     """
     if not len(rec.t):
-        return
+        return rec
     counts = np.asarray(sent_counts)
     if counts.ndim != 2 or counts.shape[1] != len(axes) or not len(counts):
         raise ValueError(f"sent set-points of shape {counts.shape}, expected (n_targets, {len(axes)})")
     units = AxesScaling([a.scaling for a in axes])
     sent = units.position_from_counts(counts[np.minimum(rec.cycle, len(counts) - 1)])
     echoed_off = ~(np.abs(rec.target - sent) <= units.position_from_counts(0.5))   # NaN: no echo
-    rec.metadata = dataclasses.replace(rec.metadata, late_setpoints=int(np.count_nonzero(echoed_off.any(axis=1))),
-                                       setpoints="sent")
-    rec.target = sent
+    metadata = dataclasses.replace(rec.metadata, late_setpoints=int(np.count_nonzero(echoed_off.any(axis=1))),
+                                   setpoints="sent")
+    return dataclasses.replace(rec, target=sent, metadata=metadata)
 
 
 def _why(exc: BaseException) -> str:
@@ -227,7 +236,7 @@ class SampleRecorder:
         metadata: the metadata stored with the samples (its axes default to ``axes``; the
             format version, the PDO layout, the status and the counts are the recorder's).
         maxsize: capacity of the queue in rows; a row that does not fit is counted in
-            :attr:`overflows` (and in the metadata), never silently dropped.
+            ``overflows`` (and in the metadata), never silently dropped.
         checkpoint_interval: s between rewrites of the NPZ while running (grows to 10× the time
             a write takes, so that long runs do not spend their time writing).
         layouts: the PDO layout the master configured, per axis, stored in the metadata
@@ -235,7 +244,7 @@ class SampleRecorder:
             the axes' profiles.
         setpoints: the set-points the master sends, counts (n_targets, n_axes), row k for SYNC
             k: every recording written (checkpoints too) holds them as its ``target``
-            (:func:`take_sent_setpoints`); ``None``: the RPDO echoes the assembler saw.
+            (:func:`with_sent_setpoints`); ``None``: the RPDO echoes the assembler saw.
     """
 
     def __init__(self, axes: Sequence[AxisConfig], path: str | os.PathLike | None = None,
@@ -299,7 +308,7 @@ class SampleRecorder:
         meta = dataclasses.replace(self.metadata, status=status, buffer_overflows=self.overflows)
         rec = Recording.from_chunks(self._chunks, len(self.axes), meta)
         if self.setpoints is not None:
-            take_sent_setpoints(rec, self.setpoints, self.axes)
+            rec = with_sent_setpoints(rec, self.setpoints, self.axes)
         return rec
 
     def close(self, status: str = "complete", **metadata) -> Recording:
@@ -445,7 +454,7 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], max_cycles: 
     """Replay a raw CAN log through the acquisition decoder.
 
     The log decodes with the PDO layout of its :class:`LogSidecar` (the one it was recorded
-    with), and its rows get the set-points the sidecar holds (:func:`take_sent_setpoints`). A
+    with), and its rows get the set-points the sidecar holds (:func:`with_sent_setpoints`). A
     log without a sidecar (a ``candump``, or one written before the sidecar existed) decodes only
     with ``layouts`` given (``layout_source`` says where they come from, for the metadata's
     ``pdo_layout_source``), and to the RPDO echoes: read with another layout its frames would
@@ -498,7 +507,7 @@ def decode_log(path: str | os.PathLike, axes: Sequence[AxisConfig], max_cycles: 
     chunks = [rows_to_arrays(rows, axes)] if rows else []
     rec = Recording.from_chunks(chunks, len(axes), meta)
     if sidecar is not None and sidecar.setpoints is not None:
-        take_sent_setpoints(rec, sidecar.setpoints, axes)
+        rec = with_sent_setpoints(rec, sidecar.setpoints, axes)
     return rec
 
 

@@ -28,8 +28,8 @@ class WatchedSdoClient(SdoClient):
     """canopen's :class:`~canopen.sdo.SdoClient`, its ``RESPONSE_TIMEOUT`` counted in watched time."""
 
     def read_response(self) -> bytes:
-        """The next response (raises :class:`SdoAbortedError` for an abort), or
-        :class:`SdoCommunicationError` once ``RESPONSE_TIMEOUT`` s of the master's running time
+        """The next response (raises canopen's ``SdoAbortedError`` for an abort), or
+        ``SdoCommunicationError`` once ``RESPONSE_TIMEOUT`` s of the master's running time
         passed without one."""
         clock = WatchClock()
         start = clock.advance()
@@ -51,6 +51,8 @@ class MasterNode(canopen.RemoteNode):
     """canopen's :class:`~canopen.RemoteNode` whose SDO clients are :class:`WatchedSdoClient` s."""
 
     def add_sdo(self, rx_cobid: int, tx_cobid: int) -> WatchedSdoClient:
+        """A :class:`WatchedSdoClient` on the COB-IDs ``rx_cobid``/``tx_cobid``, added to the node's
+        SDO channels (canopen's ``add_sdo``, with the watched client)."""
         client = WatchedSdoClient(rx_cobid, tx_cobid, self.object_dictionary)
         self.sdo_channels.append(client)
         if self.has_network():

@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 from contextlib import AbstractContextManager, ExitStack, nullcontext
-from typing import Callable, Sequence
+from typing import Callable, Sequence, TypeVar
 
 import canopen
 import numpy as np
@@ -54,6 +54,16 @@ def setpoint_counts(axes: Sequence, targets) -> np.ndarray:
     if np.abs(counts).max() >= 2**31:
         raise ConfigError("run_cyclic targets: beyond the I32 range of the drives' counts")
     return counts
+
+
+_T = TypeVar("_T")
+
+
+def _made(value: _T | None, what: str) -> _T:
+    """``value``, made by an earlier step of the run (RuntimeError naming it if not)."""
+    if value is None:
+        raise RuntimeError(f"streaming run: {what} used before the step that makes it (check, then start)")
+    return value
 
 
 class TargetStreamer:
@@ -99,7 +109,7 @@ class TargetStreamer:
 class CyclicStream:
     """The set-points ``targets`` (n_cycles, n_axes) in rad|m streamed by ``group`` (a
     :class:`drivers.epos.DriveGroup`, brought up) at ``period`` s, recorded; the arguments and
-    the contract are :meth:`DriveGroup.run_cyclic`'s."""
+    the contract are :meth:`drivers.epos.DriveGroup.run_cyclic`'s."""
 
     def __init__(self, group, targets, period: float, output: str | None = None,
                  raw_log: str | None = None, metadata: RecordingMetadata | None = None, queue_size: int = 100_000,
@@ -158,7 +168,7 @@ class CyclicStream:
         then enable. A drive watching its set-points (an RPDO deadline) must leave the cyclic
         mode while the SYNC still runs (:meth:`hold`): only a free-running SYNC does."""
         group = self.group
-        for d, c in zip(group.drives, self.counts[0]):
+        for d, c in zip(group.drives, _made(self.counts, "the set-point counts")[0]):
             d.write(d.profile.cyclic_target, int(c))
         group.guarded(lambda: [d.prepare_cyclic(self.period) for d in group.drives])
         self.hold_at_end = self.sync.free_running and any(d.watches_setpoints() for d in group.drives)
@@ -175,7 +185,8 @@ class CyclicStream:
         filters = [RecordedAxis.of(a).current_filter for a in group.axes]
         self.raw = (FlushingLogger(self.raw_log, layouts=group.layouts, setpoints=self.counts, current_filters=filters)
                     if self.raw_log else None)
-        self.streamer = TargetStreamer(group.network, group.drives, self.counts, group.supervisor)
+        self.streamer = TargetStreamer(group.network, group.drives, _made(self.counts, "the set-point counts"),
+                                       group.supervisor)
         answers = sync.answers_on_sync(group.network)
         self.assembler = CycleAssembler(
             group.layouts, self.recorder.put, on_sync=self.streamer.on_sync if answers else None,
@@ -200,7 +211,7 @@ class CyclicStream:
         heartbeats and a stall (no new cycle for ``sync_timeout`` s of the time the master was
         running and watching, :class:`~drivers.supervision.WatchClock`: a hold-up of the master's
         own process is no stall of the SYNC; its notifier catches up afterwards)."""
-        group, assembler = self.group, self.assembler
+        group, assembler = self.group, _made(self.assembler, "the cycle assembler")
         watch = WatchClock()
         last_count, last_progress = -1, watch.advance()
         while not assembler.done and self.sync.free_running:
@@ -219,9 +230,9 @@ class CyclicStream:
 
     def hold(self) -> None:
         """Where a drive watches its set-points: every drive to profile position holding the last
-        set-point, before the SYNC stops (:meth:`EposDrive.hold_position`)."""
+        set-point, before the SYNC stops (:meth:`drivers.epos.EposDrive.hold_position`)."""
         if self.hold_at_end:
-            for d, c in zip(self.group.drives, self.counts[-1]):
+            for d, c in zip(self.group.drives, _made(self.counts, "the set-point counts")[-1]):
                 d.hold_position(int(c))
             self.group.supervisor.raise_if_fault()
 
@@ -239,15 +250,17 @@ class CyclicStream:
                                            f"heartbeat after the master made no progress for {stopped:.2f} s "
                                            f"(bus.watchdogs.master_progress)")
             group.stop_motion()
-        group.network.notifier.remove_listener(self.assembler)
-        self.assembler.flush()
+        assembler = _made(self.assembler, "the cycle assembler")
+        pauses = _made(self._pauses, "the garbage collector's pauses")
+        group.network.notifier.remove_listener(assembler)
+        assembler.flush()
         if self.raw is not None:
             self.raw.stop()
         status = "complete" if error is None else f"stopped: {error}"
-        recording = self.recorder.close(status, books=cycle_books(self.assembler),
+        recording = _made(self.recorder, "the recorder").close(status, books=cycle_books(assembler),
                                         raw_log=str(self.raw_log) if self.raw_log else None,
-                                        gc_collections=len(self._pauses.durations),
-                                        gc_longest_pause=self._pauses.longest,
+                                        gc_collections=len(pauses.durations),
+                                        gc_longest_pause=pauses.longest,
                                         sync_report=self.sync.report())
         if error is not None:
             if isinstance(error, DriveFault):

@@ -176,7 +176,7 @@ class Supervisor:
         """Expect a heartbeat of node ``label`` (``node_id`` on ``network``) at least every
         ``timeout`` s once active.
 
-        While :attr:`heartbeat_active` is set, a heartbeat reporting a state other than
+        While ``heartbeat_active`` is set, a heartbeat reporting a state other than
         OPERATIONAL is a fault too (the node was reset or stopped).
         """
         if label in self._heartbeats:
@@ -187,8 +187,8 @@ class Supervisor:
             entry[1], entry[2] = self.clock.peek(), timestamp
             state = data[0] & 0x7F if data else None
             if self.heartbeat_active and state != 5:
-                self.report(DriveFault(label, None, "heartbeat reports NMT state "
-                                       f"{NMT_STATES.get(state, state)} instead of OPERATIONAL"))
+                named = None if state is None else NMT_STATES.get(state, state)
+                self.report(DriveFault(label, None, f"heartbeat reports NMT state {named} instead of OPERATIONAL"))
         network.subscribe(0x700 + node_id, on_heartbeat)
 
     def start_heartbeat_monitoring(self) -> None:

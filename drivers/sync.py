@@ -90,7 +90,7 @@ class SyncSource(ABC):
         """The shortest wait between two polls of a drive."""
 
     def check_period(self, period: float) -> None:
-        """Raise :class:`ConfigError` when this source cannot stream at ``period`` s."""
+        """Raise :class:`~drivers.errors.ConfigError` when this source cannot stream at ``period`` s."""
 
     @property
     def row_period(self) -> float | None:

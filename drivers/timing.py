@@ -14,7 +14,7 @@ drive's target jumps by the hold-up's share of the trajectory.
 and receives as on any python-can bus, the timing process keeps the timers and hands every frame
 over, nothing lost while the master is held up. It also watches the master's own loop
 (:meth:`TimedBus.alive`) and stops every timer when the loop has made no progress for
-:attr:`TimingConfig.master_progress` s. :class:`TimingConfig` says which buses get one
+``TimingConfig.master_progress`` s. :class:`TimingConfig` says which buses get one
 (:meth:`TimingConfig.uses_process`); :func:`drivers.bus.open_network` opens the bus through it.
 """
 
@@ -138,7 +138,7 @@ class _Periodic:
 
 class TimedBus(can.BusABC):
     """The bus ``config`` opened by a timing process (``python -m drivers.timing_server``) and
-    seen through it: :meth:`send` and :meth:`recv` as on the bus itself (the frames the timing
+    seen through it: ``send`` and ``recv`` as on the bus itself (the frames the timing
     process sends come back as its own, as with ``receive_own_messages``), :meth:`periodic` and
     :meth:`start_stream` timed there.
 

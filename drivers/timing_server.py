@@ -26,7 +26,7 @@ the ``ready`` answer and so in every recording's metadata.
 The protocol (``python -m drivers.timing_server``, started by :class:`drivers.timing.TimedBus`):
 on stdin the master's messages, each a 4-byte length and a pickled tuple, the first one the set-up
 ``(BusConfig, master_progress, priority)``; on stdout records of a kind byte and a 4-byte
-length: :data:`FRAMES` (a batch of :data:`FRAME` records) or :data:`ANSWER` (a pickled tuple).
+length: ``FRAMES`` (a batch of :data:`FRAME` records) or ``ANSWER`` (a pickled tuple).
 The process ends when the master closes the bus or its end of the pipe closes (its process
 died).
 """
@@ -45,7 +45,7 @@ import can
 
 from drivers.bus import open_bus
 
-#: one frame handed to the master: bus time stamp (s), arbitration ID, flags (:data:`EXTENDED`
+#: one frame handed to the master: bus time stamp (s), arbitration ID, flags (``EXTENDED``
 #: ...), DLC, 8 data bytes
 FRAME = struct.Struct("<dIBB8s")
 EXTENDED, REMOTE, ERROR, RX = 1, 2, 4, 8

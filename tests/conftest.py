@@ -17,6 +17,11 @@ from pathlib import Path
 
 import pytest
 
+try:                                  # pytest >= 9.2: structured node IDs
+    from _pytest.nodeid import coerce_node_id
+except ImportError:                   # before: xdist's own rewrite of the node ID works
+    coerce_node_id = None
+
 from cpus import pin_worker
 from processes import START_TIMEOUT, stop_process, wait_for_line
 
@@ -27,6 +32,25 @@ def pytest_configure(config):
     worker = os.environ.get("PYTEST_XDIST_WORKER")
     if worker:
         pin_worker(worker)
+        config.pluginmanager.register(_GroupInNodeId(), "ident-hw-group-in-node-id")
+
+
+class _GroupInNodeId:
+    """``--dist loadgroup`` on pytest 9.2: pytest-xdist 3.8 names an item's group by rewriting its
+    ``_nodeid`` (``test@group``, read by the scheduler), which pytest 9.2 no longer reads (its node
+    ID is the structured ``_id``): the groups were silently lost and every module fixture built on
+    both workers (pytest-xdist issue 1386). Where the suffix did not take, it is written into the
+    structured ID, as xdist's open fix does; nothing happens where xdist's own rewrite worked."""
+
+    @pytest.hookimpl(trylast=True)      # after xdist's worker hook
+    def pytest_collection_modifyitems(self, config, items):
+        if coerce_node_id is None or not getattr(config.option, "loadgroup", False):
+            return
+        for item in items:
+            names = {str(m.args[0] if m.args else m.kwargs.get("name", "default"))
+                     for m in item.iter_markers("xdist_group")}
+            if names and "@" not in item.nodeid.rsplit("]", 1)[-1] and hasattr(item, "_id"):
+                item._id = coerce_node_id(f"{item.nodeid}@{'_'.join(sorted(names))}")
 
 
 def _shares_a_module_fixture(item) -> bool:

@@ -268,8 +268,9 @@ def test_a_campaign_on_averaged_currents_records_the_average_and_identifies_the_
                    "--out", tmp_path / "refused", "--quiet", "--no-report", cwd=tmp_path)
     assert out.returncode == 5 and "holds the averaged current" in out.stderr, out.stderr
     # made to say instantaneous, it is identified without the matched filter
-    averaged.metadata = dataclasses.replace(averaged.metadata, current="instantaneous", axes=tuple(
-        dataclasses.replace(a, current="instantaneous", current_filter=None) for a in averaged.metadata.axes))
+    averaged = dataclasses.replace(averaged, metadata=dataclasses.replace(
+        averaged.metadata, current="instantaneous", axes=tuple(
+            dataclasses.replace(a, current="instantaneous", current_filter=None) for a in averaged.metadata.axes)))
     (tmp_path / "unmatched").mkdir()
     averaged.save(tmp_path / "unmatched" / "sweep.npz")
     out = ident_hw("identify", tmp_path / "instantaneous" / "config.yaml", tmp_path / "unmatched" / "sweep.npz",

@@ -527,7 +527,8 @@ def test_delta_numerical_base_agrees_with_the_spec_s_readable_base(delta, descri
     exactly the rows of ``H_spec`` (``T``: hand parameters to described ones)."""
     from ident_hw.model.delta import closed_form_base
 
-    kept, H_gen = described_delta.readable_base()
+    basis = described_delta.readable_base()
+    kept, H_gen = basis.kept, basis.H
     assert H_gen.shape[1] == len(described_delta.parameter_names)
     T = dh.linear_map(lambda v: dh.delta_map(v, delta.geometry, described_delta.parameter_names), 79)
     H_spec = closed_form_base(delta.geometry, drive_terms=True).H
@@ -544,7 +545,7 @@ def test_3prrr_numerical_base_agrees_with_the_hand_regressor_s_rank(prrr, descri
     """The hand 3PRRR has no readable base: its 19 parameters have rank 18 on rich data. On the
     hand's parameters the generic numerical base has the same rank and the same null space."""
     hand, geometry, _ = prrr
-    _, H_gen = described_prrr.readable_base()
+    H_gen = described_prrr.readable_base().H
     T = dh.linear_map(lambda v: dh.prrr_map(v, geometry, described_prrr.parameter_names), 19)
     rng = np.random.default_rng(5)
     from ident_hw.model.described import random_states

@@ -277,7 +277,7 @@ def test_gravity_along_another_axis_is_simulated_and_identified(tmp_path):
     doc = json.loads((out / "parameters.json").read_text())
     cfg = load_config(config)
     robot = model_of(cfg.robot)
-    kept, H = robot.readable_base()
+    H = robot.readable_base().H
     truth = H @ true_parameters(cfg)
     rows = {r["base_parameter"]: r for r in doc["base_fit"]["rows"]}
     well = [r for r in rows.values() if r["well_identified"]]

@@ -100,8 +100,8 @@ def test_the_current_and_its_filter_come_from_the_recording_and_a_config_that_di
     assert current_averaging(Axes.of(averaged.robot.actuators), rec) == (EPOS4.current_averaging,) * 6
     # a drive whose average is another filter: the identification takes the recording's
     other = AveragingFilter(40.0, 20_000.0)
-    rec.metadata = dataclasses.replace(rec.metadata, axes=tuple(dataclasses.replace(a, current_filter=other)
-                                                                for a in rec.metadata.axes))
+    rec = dataclasses.replace(rec, metadata=dataclasses.replace(
+        rec.metadata, axes=tuple(dataclasses.replace(a, current_filter=other) for a in rec.metadata.axes)))
     assert current_averaging(Axes.of(averaged.robot.actuators), rec) == (other,) * 6
     _, decoded = load_recording(run / "data" / "sweep.log", averaged)
     assert [a.current_filter for a in decoded.metadata.axes] == [EPOS4.current_averaging] * 6   # from the sidecar

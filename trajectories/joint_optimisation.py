@@ -41,7 +41,7 @@ WEIGHT_BOUNDS = (0.1, 2.0)
 def base_columns(robot) -> np.ndarray:
     """The regressor columns of the robot's numerical base parameters (the parameters each base
     combination is named after): a maximal independent set."""
-    kept, _ = robot.readable_base()
+    kept = robot.readable_base().kept
     names = list(robot.parameter_names)
     return np.array(sorted(names.index(k) for k in kept))
 

@@ -33,7 +33,7 @@ def actuator_map(robot: ThreePRRR):
     return to_actuators
 
 
-@dataclass
+@dataclass(frozen=True)
 class Trajectory:
     """Pose and actuator motion sampled on a time grid.
 
@@ -69,7 +69,7 @@ class Trajectory:
             if not np.all(np.isfinite(value)):
                 row = int(np.argwhere(~np.isfinite(value))[0][0])
                 raise ValueError(f"trajectory {self.name!r}: {key} is not finite at sample {row}")
-            setattr(self, key, value)
+            object.__setattr__(self, key, value)   # frozen: the validated array, once
         if len(self.t) < 2:
             raise ValueError(f"trajectory {self.name!r} needs at least 2 samples, got {len(self.t)}")
         steps = np.diff(self.t)

@@ -86,6 +86,16 @@ class EmulatedDrive:
             the drive would).
     """
 
+    # set at power-up (:meth:`_reset_application`) and by the handlers; declared for their types
+    offset: int | None                 # plant counts - reported counts (the rig sets it)
+    actual: int                        # reported position, counts
+    _consumer_cob: int | None          # the watched producer's heartbeat COB-ID
+    _last_cyclic: tuple[float, float, float] | None
+    _move: list | None                 # [target counts, speed rpm] of a PPM/homing move
+    _homing_phase: int | None
+    _quick_stop_since: float | None
+    _average_period: float | None
+
     def __init__(self, node_id: int, profile_name: str, scaling: AxisScaling, network: canopen.Network,
                  lock, clock, heartbeat_clock=None, dictionary=None):
         self.profile = get_profile(profile_name)
@@ -122,10 +132,8 @@ class EmulatedDrive:
         self._mode_bits = 0           # statusword bits 10, 12, 13, 15 of the mode logic
         # offset, counts: plant counts - reported counts (set by the rig at power-up); a reset
         # re-zeroes the incremental encoder where the axis stands, as at power-up
-        if getattr(self, "offset", None) is not None:
-            self.offset += self.actual
-        else:
-            self.offset = None
+        offset = getattr(self, "offset", None)
+        self.offset = None if offset is None else offset + self.actual
         self.actual = 0               # reported position, counts
         self._demand = modes.Demand()
         self._last_cyclic = None      # the three last cyclic targets (q_k-1, q_k-2, q_k-3), counts

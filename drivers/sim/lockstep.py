@@ -23,6 +23,7 @@ Lockstep is for the simulated rig only: real drives move on every SYNC, whatever
 
 from __future__ import annotations
 
+import functools
 import struct
 import threading
 import time
@@ -97,7 +98,7 @@ class LockstepSync(SyncSource, can.Listener):
         self.waited_out = 0    # of them, asked again after ``retry_after`` without an answer
         self.broken: LockstepTimeout | None = None   # the timeout that ended the lockstep, if any
         self._counter = 0
-        self._open_counter = None    # counter of the cycle being counted (set by its SYNC echo)
+        self._open_counter: int | None = None    # counter of the cycle being counted (set by its SYNC echo)
         self._got: set[int] = set()
         self._complete = False
         self._again = False          # the rig's answer calls for asking the cycle again
@@ -121,12 +122,15 @@ class LockstepSync(SyncSource, can.Listener):
 
     def attach(self, network: canopen.Network, tpdos: Mapping[int, str],
                barrier: Callable[[], None]) -> None:
+        if network.notifier is None:
+            raise RuntimeError("lockstep: the network is not connected (no notifier to listen to)")
         self.network, self.expected, self.barrier = network, dict(tpdos), barrier
         network.notifier.add_listener(self)
 
     def detach(self) -> None:
         if self.network is not None:
-            self.network.notifier.remove_listener(self)
+            if self.network.notifier is not None:
+                self.network.notifier.remove_listener(self)
             self.network = None
 
     @property
@@ -163,7 +167,7 @@ class LockstepSync(SyncSource, can.Listener):
         """SYNC k goes out once cycle k-1 is answered; one more closes the last row (the drives
         get the last set-points again)."""
         for k in range(cycles + 1):
-            self.step(lambda k=k: setpoints.send(k), poll=poll)
+            self.step(functools.partial(setpoints.send, k), poll=poll)
             poll()
 
     def report(self) -> SyncReport:
@@ -212,6 +216,9 @@ class LockstepSync(SyncSource, can.Listener):
         """
         if self.broken is not None:
             raise self.broken
+        network = self.network
+        if network is None:
+            raise RuntimeError("lockstep: step() before attach()")
         self._counter = self._counter % SYNC_COUNTER_MAX + 1
         self._complete = False
         started = time.monotonic()
@@ -219,14 +226,14 @@ class LockstepSync(SyncSource, can.Listener):
         last_ask = 0.0
         heartbeat = self._heartbeat
         if heartbeat is not None and heartbeat.due(self.cycles * self.period):
-            self.network.send_message(heartbeat.msg.arbitration_id, heartbeat.msg.data)
+            network.send_message(heartbeat.msg.arbitration_id, bytes(heartbeat.msg.data))
         while True:
             self._again = False
             self._wake.clear()
             if before_sync is not None:
                 before_sync()
             last_ask = time.monotonic()
-            self.network.send_message(SYNC_COB_ID, bytes([self._counter]))
+            network.send_message(SYNC_COB_ID, bytes([self._counter]))
             retry_at = last_ask + self.retry_after
             while not self._complete and not self._again and time.monotonic() < retry_at:
                 self._wake.wait(max(min(POLL, retry_at - time.monotonic()), 0.0))

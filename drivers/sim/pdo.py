@@ -94,6 +94,9 @@ class PdoEngine:
         for sub in range(1, get(mapping_index, 0) + 1):
             value = get(mapping_index, sub)
             var = find_variable(od, value >> 16, (value >> 8) & 0xFF)
+            if var is None or var.data_type is None:    # mapped objects are checked when written
+                raise ValueError(f"PDO mapping 0x{mapping_index:04X} sub {sub} names 0x{value >> 16:04X} sub "
+                                 f"{(value >> 8) & 0xFF}, which the object dictionary does not define with a type")
             entries.append((var.index, var.subindex))
             fmt += var.STRUCT_TYPES[var.data_type].format.lstrip("<")
         return struct.Struct(fmt), entries

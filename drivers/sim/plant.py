@@ -164,7 +164,7 @@ class TruthLog:
         self._rows = 0            # rows held (all chunks)
 
     def append(self, t: float, *fields: np.ndarray) -> None:
-        """Log one state: ``t`` and the arrays in the order of :attr:`fields` after ``t``."""
+        """Log one state: ``t`` and the arrays in the order of ``fields`` after ``t``."""
         if self._fill == self.CHUNK:
             self._chunks.append(np.empty((self.CHUNK, self._width)))
             self._fill = 0
@@ -204,7 +204,7 @@ class Plant:
             are ``Kp = M_jj w^2`` and ``Kd = 2 damping M_jj w`` with ``M`` the mass matrix at ``Theta0``.
         gains: explicit ``(Kp, Kd)`` arrays (n,) instead (N/m, N·s/m or N·m/rad, N·m·s/rad).
         max_substep: largest integration step in s.
-        log_length: number of periods kept in :attr:`log`.
+        log_length: number of periods kept in ``log``.
     """
 
     def __init__(self, robot: RobotModel, params, Theta0=None, *,
@@ -284,7 +284,7 @@ class Plant:
         ``demand[i]`` is the coefficient of ``t**i`` (``t`` from the period start, s), so that
         ``q_d(t) = sum_i demand[i] t**i``: rows position, velocity, ... (rad, m; per s**i).
         ``enabled`` (n,) bool: axes whose loop is closed (others are free); ``force_limit`` (n,)
-        the drive's current limit as a force. The force at the period start is :attr:`force`.
+        the drive's current limit as a force. The force at the period start is ``force``.
         ``remember``: keep this period's dynamics for extrapolating the next periods'; False
         for a step whose length the host's clock chose (the rig's idle steps), which must not
         reach the motion of the SYNC-driven steps after it.

@@ -18,7 +18,7 @@ mode the clock thread steps the plant after ``IDLE_AFTER`` without SYNC.
 The drives' watches (heartbeat consumer ``0x1016:01``, RPDO deadline ``0x140x:05``: see
 :meth:`~drivers.sim.drive.EmulatedDrive.check_heartbeat` and
 :meth:`~drivers.sim.drive.EmulatedDrive.check_rpdo_timeout`) and their event timers run on the
-rig's clock :attr:`SimulatedRig.time`: it advances with the clock thread's ticks, each counting
+rig's clock ``SimulatedRig.time``: it advances with the clock thread's ticks, each counting
 at most ``MAX_TICK``, so a hiccup of the host that stops the rig's own thread too does not count
 as a silence of the master; a master that stops sending while the rig runs does.
 
@@ -182,6 +182,7 @@ class SimulatedRig:
         self.network._rng = np.random.default_rng(None if seed is None else seed + 1)
         self._lock = threading.RLock()
         self.time = 0.0    # s, the rig's clock (see the module docstring)
+        self.sync_time = 0.0            # s, simulated time of the SYNC cycles finished
         heartbeat_clock = (lambda: self.sync_time) if lockstep else None
         files = dict(dictionaries or {})
         unknown = sorted(set(files) - set(ids))
@@ -199,20 +200,19 @@ class SimulatedRig:
         self._edge_shift = edges / np.array([n[2].counts_per_unit for n in nodes])   # SI: rad, m
         self.sync_count = 0             # SYNC frames received
         self.syncs_done = 0             # SYNC cycles finished (the TPDOs sent, the plant stepped)
-        self.sync_time = 0.0            # s, simulated time of the SYNC cycles finished
         self.sync_retries = 0           # repeated SYNCs answered (lockstep)
         self.syncs_held = 0             # SYNCs left unanswered for missing set-points (lockstep)
-        self._last_counter = None       # SYNC counter of the last cycle (lockstep)
+        self._last_counter: int | None = None       # SYNC counter of the last cycle (lockstep)
         self._scheduled: list = []      # heap of (due sync_time, sequence, action)
         self._schedule_seq = itertools.count()
         self.jammed: str | None = None        # why the plant stopped moving, if it did
         self.step_seconds: deque[float] = deque(maxlen=STEP_LOG_LENGTH)   # s, the last SYNC cycles' durations
-        self._last_sync = None          # rig time of the last SYNC
-        self._last_sync_stamp = None    # bus timestamp of the last SYNC
+        self._last_sync: float | None = None          # rig time of the last SYNC
+        self._last_sync_stamp: float | None = None    # bus timestamp of the last SYNC
         self._last_step = 0.0           # rig time of the last plant step
-        self._last_tick = None          # monotonic time of the last clock tick
+        self._last_tick: float | None = None          # monotonic time of the last clock tick
         self._stop = threading.Event()
-        self._clock_thread = None
+        self._clock_thread: threading.Thread | None = None
         self._serving = ExitStack()
 
     @classmethod
@@ -259,8 +259,8 @@ class SimulatedRig:
             self.network.subscribe(SYNC_COB_ID, self._on_sync)
         self._stop.clear()
         self._last_tick = time.monotonic()
-        self._clock_thread = threading.Thread(target=self._clock, name="sim-rig-clock", daemon=True)
-        self._clock_thread.start()
+        clock = self._clock_thread = threading.Thread(target=self._clock, name="sim-rig-clock", daemon=True)
+        clock.start()
         return self
 
     def stop(self) -> None:
@@ -324,7 +324,8 @@ class SimulatedRig:
                 awaiting = [d.awaits_setpoint() for d in self.drives if d.streaming and not d.silent]
                 if any(awaiting) and not all(awaiting):
                     self.syncs_held += 1
-                    self._answer(counter, held=True)
+                    if counter is not None:     # the answer names its SYNC's counter (lockstep's SYNCs carry one)
+                        self._answer(counter, held=True)
                     return
                 self._last_counter = counter
             self.sync_count += 1
@@ -423,7 +424,8 @@ class SimulatedRig:
             try:
                 with self._lock:
                     now = time.monotonic()
-                    self.time += min(now - self._last_tick, MAX_TICK)
+                    last = now if self._last_tick is None else self._last_tick     # set before the thread starts
+                    self.time += min(now - last, MAX_TICK)
                     self._last_tick = now
                     self.network.release_delayed(now)
                     for drive in self.drives:

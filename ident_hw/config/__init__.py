@@ -47,7 +47,7 @@ __all__ = [
 
 def load_config(path: str | Path) -> Config:
     """Read, merge (``extends:``) and validate a config file; its relative paths are relative to
-    its folder (:attr:`Config.base_dir <ident_hw.config.file.Config.base_dir>`)."""
+    its folder (``Config.base_dir``)."""
     return build(Config, compose_file(path), CHECKS, given={"source": str(path), "base_dir": Path(path).parent})
 
 

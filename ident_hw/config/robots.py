@@ -109,7 +109,7 @@ DELTA = RobotKind(
 
 # ---- any robot from its description file
 def described_model(robot, presliding: float | None = None, stribeck: float | None = None) -> DescribedRobot:
-    """The :class:`DescribedRobot` of a ``described`` robot section, with its friction model
+    """The :class:`~ident_hw.model.described.DescribedRobot` of a ``described`` robot section, with its friction model
     (:func:`to_model.friction_model`; ``presliding``, ``stribeck``: the Dahl distance and the
     Stribeck velocity where the config leaves them ``auto``)."""
     from ident_hw.model.described import DescribedRobot

@@ -64,9 +64,10 @@ def parameter_scales(names, cad, scales: dict[str, float], where: str) -> tuple[
     out = []
     for name, value in zip(names, cad):
         kind, term = parameter_kind(name), drive_term(name)
-        family = BODY_PARAMETER_FAMILIES.get(kind) if "." in name else None
-        default = abs(value) or FRICTION_SCALES.get(kind, 0.0) or typical.get(family, 0.0)
-        scale = scales.get(name, scales.get(kind, scales.get(term, default)))
+        body_family = BODY_PARAMETER_FAMILIES.get(kind) if "." in name else None
+        default = abs(value) or FRICTION_SCALES.get(kind, 0.0) or (typical.get(body_family, 0.0) if body_family else 0.0)
+        given = [scales[key] for key in (name, kind, term) if key is not None and key in scales]
+        scale = given[0] if given else default
         if not scale > 0:
             raise FieldError(f"scales.{name}", f"{where}.{name}: no CAD value to take a scale from: give one "
                              "(or one for its kind)")

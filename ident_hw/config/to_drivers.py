@@ -36,8 +36,7 @@ def axes_scaling(actuators: Sequence[ActuatorConfig]) -> AxesScaling:
 def axis_config(actuator: ActuatorConfig, base_dir: Path | None = None,
                 current: str = drivers.axis.INSTANTANEOUS) -> drivers.axis.AxisConfig:
     """The drive driver's axis settings (SI) of an actuator; ``base_dir``: the folder its
-    ``object_dictionary`` is relative to (the config file's, :attr:`Config.base_dir
-    <ident_hw.config.file.Config.base_dir>`; None: the working directory); ``current``: the motor
+    ``object_dictionary`` is relative to (the config file's, ``Config.base_dir``; None: the working directory); ``current``: the motor
     current it streams (``bus.current``)."""
     od_file = actuator.object_dictionary
     if od_file is not None and base_dir is not None:

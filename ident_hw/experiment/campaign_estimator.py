@@ -55,7 +55,7 @@ class CampaignEstimator:
             self._kept, self._columns, self._H = None, None, None
             self.names, self.units, self.cad, self.scale = physical, tuple(map(self.robot.parameter_unit, physical)), cad, scale
         else:                  # the model's base parameters: no structurally unidentifiable direction enters
-            self._kept, self._H = basis
+            self._kept, self._H = basis.kept, basis.on_columns(physical)
             self._columns = [physical.index(k) for k in self._kept]
             self.names = tuple(format_combination(h, physical) for h in self._H)
             self.units = tuple(map(self.robot.parameter_unit, self._kept))

@@ -41,7 +41,7 @@ class CompareError(RecordingError):
 
 @dataclass(frozen=True)
 class ComparedSet:
-    """A parameter set from elsewhere in the order of :attr:`model`'s ``parameter_names``, the
+    """A parameter set from elsewhere in the order of ``model``'s ``parameter_names``, the
     model that predicts with it (its friction model), its label and the drive gains its forces
     are measured with (a,), or None: the config's."""
 
@@ -146,7 +146,7 @@ def _kinds(names: tuple[str, ...], allowed) -> list[str]:
 
 
 def predicted_forces(compared: ComparedSet, prepared_Y: np.ndarray, per_amp: np.ndarray) -> np.ndarray:
-    """(N, a) the compared set's forces on rows whose regressor of :attr:`ComparedSet.model` is
+    """(N, a) the compared set's forces on rows whose regressor of ``ComparedSet.model`` is
     ``prepared_Y`` (N, a, P), in the config's measure (:meth:`ComparedSet.force_factor` of the
     config's force per ampere ``per_amp`` (a,))."""
     return (prepared_Y @ compared.values) * compared.force_factor(per_amp)

@@ -2,7 +2,7 @@
 
 :func:`write_description` writes a copy of a :class:`~ident_hw.model.described.DescribedRobot`'s
 file, in the same format, that carries a parameter vector of the robot
-(:attr:`~ident_hw.model.described.DescribedRobot.parameter_names`):
+(``DescribedRobot.parameter_names``):
 
 - each tree joint's body carries the identified inertia of its ten values (mass, first moment and
   inertia about the *joint frame's* origin, in the joint frame) converted to what the formats
@@ -131,7 +131,7 @@ class Drive:
 
 
 def description_format(path: str | Path) -> str:
-    """:data:`MJCF` or :data:`URDF` from a file's suffix (raises :class:`DescriptionError`)."""
+    """``"MJCF"`` or ``"URDF"`` from a file's suffix (raises :class:`DescriptionError`)."""
     suffix = Path(path).suffix.lower()
     for fmt, suffixes in SUFFIXES.items():
         if suffix in suffixes:
@@ -221,7 +221,7 @@ def write_description(robot: DescribedRobot, params, to: str | Path, *, for_mujo
 
     Args:
         robot: the robot whose description is copied (its tree, actuated joints and names).
-        params: a parameter vector of ``robot`` (:attr:`DescribedRobot.parameter_names` order).
+        params: a parameter vector of ``robot`` (``DescribedRobot.parameter_names`` order).
         to: the file to write, in the source's format (MJCF: ``.xml`` or ``.mjcf``; URDF: ``.urdf``);
             its directory is created. It cannot be the source itself.
         for_mujoco: also refuse bodies MuJoCo's compiler would refuse (:func:`mujoco_problems`).

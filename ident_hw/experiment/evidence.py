@@ -36,7 +36,7 @@ def noise_floors(plan: IdentificationPlan, recordings: Mapping[str, Recording], 
     predicted forces (its friction included: a Coulomb term switching with a count near zero
     speed): the RMS over the rows of their spread over the draws (the recordings read again,
     :func:`ident_hw.experiment.uncertainty.reread_draws`) at the parameters ``coef``; with
-    ``moving`` (per trajectory (rows, a) bool, :attr:`Prepared.moving`), over each axis's rows the
+    ``moving`` (per trajectory (rows, a) bool, ``Prepared.moving``), over each axis's rows the
     fits use (NaN for an axis without one), as the verdict takes the residual. The two add in
     squares. ``{}`` without a standstill recording, or without draws (on a fine trajectory the
     encoders' part can be most of the floor): the verdict then has no floor (:func:`floor_missing`

@@ -19,7 +19,7 @@ from drivers.profiles import VENDOR_ID_MAXON
 from ident_hw.config import Config
 
 
-@dataclass
+@dataclass(frozen=True)
 class NodeInfo:
     """What a node tells about itself over SDO (``None`` where it did not answer)."""
 

@@ -28,6 +28,7 @@ from ident_hw.identification.least_squares import LeastSquaresResult, check_regr
 from ident_hw.identification.mass_fit import sqp_fit
 from ident_hw.identification.model_comparison import ModelComparison, ModelRows, compare_models
 from ident_hw.identification.physical import ConsistencyError, ConsistentSet, consistent_parameters
+from ident_hw.model.base_basis import BaseBasis
 from ident_hw.model.interface import RobotModel
 from ident_hw.records import BaseStep, DriveGainsFigures, GainsStep, MassFitStep, SkippedStep, StepRecord
 from ident_hw.results import BaseFit
@@ -106,7 +107,7 @@ class BaseStepFit:
 
 def fit_base(step: StepConfig, free_names: Sequence[str], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
              coef: np.ndarray, initial: np.ndarray, truth: np.ndarray | None, threshold: float,
-             basis: tuple | None = None, draws: Sequence[Draw] = ()) -> BaseStepFit:
+             basis: BaseBasis | None = None, draws: Sequence[Draw] = ()) -> BaseStepFit:
     """Least squares (``step.method`` ``wls``/``ols``) of the base parameters of ``free_names``
     on ``Y`` (N, a, n), ``tau`` (N, a), the other parameters (``names``, n) held at ``coef``;
     ``basis``: the model's readable base parameters (``RobotModel.readable_base``), used when
@@ -156,7 +157,7 @@ def _least_squares_figures(fit: LeastSquaresResult) -> dict:
 
 def comparison(step: StepConfig, free_names: Sequence[str], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
                prepared: Mapping[str, Prepared], coef: np.ndarray, truth: np.ndarray | None, weighted: bool,
-               threshold: float, basis: tuple | None = None) -> ModelComparison:
+               threshold: float, basis: BaseBasis | None = None) -> ModelComparison:
     """The dynamic, power and energy models' base parameters of the least-squares ``step``
     (:func:`ident_hw.identification.model_comparison.compare_models`): the dynamic model on the
     step's own rows ``Y`` (N, a, n), ``tau`` (N, a), the power and energy models on the rows

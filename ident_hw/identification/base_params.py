@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 
-from ident_hw.model.combinations import format_combination
+from ident_hw.model.base_basis import BaseBasis
 
 from .least_squares import LeastSquaresResult, check_regression_data, ols, stack, wls
 
@@ -28,44 +28,32 @@ DEFAULT_RTOL = 1e-8
 
 
 @dataclass(frozen=True)
-class BaseParameters:
-    """Result of :func:`base_parameters` (stored in a results folder as
+class BaseParameters(BaseBasis):
+    """Result of :func:`base_parameters`: the model layer's base basis found from the data, with
+    the figures of its rank decision (stored in a results folder as
     :class:`ident_hw.records.BaseAnalysis`).
 
     Attributes:
-        names: the n physical parameter names.
+        names, kept, H: the basis (:class:`~ident_hw.model.base_basis.BaseBasis`): the n physical
+            parameter names, the rank names carrying a base parameter, ``H`` (rank, n).
         rank: numerical rank of the regressor.
         rtol: rank tolerance used, relative to the largest singular value.
         singular_values: of the column-scaled regressor (n,), descending.
-        kept: names of the parameters that carry a base parameter (rank).
         eliminated: names regrouped into the kept ones, or not excited at all (n − rank).
-        H: (rank, n) base parameters ``pi_b = H @ pi``; row i has 1 at ``kept[i]``.
         null_space: (n, n − rank) basis of the null space of ``W`` in physical units.
     """
 
-    names: tuple[str, ...]
     rank: int
     rtol: float
     singular_values: np.ndarray
-    kept: tuple[str, ...]
     eliminated: tuple[str, ...]
-    H: np.ndarray
     null_space: np.ndarray
-
-    @property
-    def expressions(self) -> tuple[str, ...]:
-        """Each base parameter as a readable combination, e.g. ``"I_l1 + 0.0225 m_l1"``."""
-        return tuple(format_combination(row, self.names) for row in self.H)
 
     @property
     def unexcited(self) -> tuple[str, ...]:
         """Eliminated parameters that appear in no base parameter: the data says nothing of them."""
         scale = np.max(np.abs(self.H), axis=0) if self.rank else np.zeros(len(self.names))
         return tuple(nm for nm in self.eliminated if scale[self.names.index(nm)] <= 1e-10)
-
-    def reduce(self, pi: np.ndarray) -> np.ndarray:
-        """Base-parameter values ``H @ pi`` of a physical parameter vector (n,) → (rank,)."""
-        return self.H @ np.asarray(pi, dtype=float)
 
 
 def on_kept(names, kept, values) -> np.ndarray:
@@ -125,38 +113,42 @@ def base_parameters(W: np.ndarray, names, rtol: float = DEFAULT_RTOL, scale=None
     )
 
 
-def with_basis(numeric: BaseParameters, kept, H: np.ndarray) -> BaseParameters | None:
+def with_basis(numeric: BaseParameters, basis: BaseBasis) -> BaseParameters | None:
     """The base parameters ``numeric`` found by SVD, written in a basis the robot's model gives
-    (``kept`` (r,) names, ``H`` (r, n): e.g. the Delta's readable combinations), or None when
-    the data does not identify all of them (numeric rank below r) or the basis does not span the
-    data's identifiable space."""
-    H = np.asarray(H, dtype=float)
-    if numeric.rank != len(kept) or H.shape != (len(kept), len(numeric.names)):
+    (e.g. the Delta's readable combinations; its columns put in ``numeric``'s order), or None when
+    the data does not identify all of them (numeric rank below the basis's) or the basis does not
+    span the data's identifiable space.
+
+    Raises:
+        ValueError: the basis is over other parameters than ``numeric``.
+    """
+    H = np.asarray(basis.on_columns(numeric.names), dtype=float)
+    if numeric.rank != len(basis.kept):
         return None
     # the data's null space must be the basis's: H annihilates it
     if np.abs(H @ numeric.null_space).max(initial=0.0) > 1e-6 * np.abs(H).max() * np.abs(numeric.null_space).max(initial=1.0):
         return None
     return BaseParameters(
         names=numeric.names, rank=numeric.rank, rtol=numeric.rtol, singular_values=numeric.singular_values,
-        kept=tuple(kept), eliminated=tuple(n for n in numeric.names if n not in kept), H=H,
+        kept=tuple(basis.kept), eliminated=tuple(n for n in numeric.names if n not in basis.kept), H=H,
         null_space=numeric.null_space)
 
 
 def identify_base(
     Y: np.ndarray, tau: np.ndarray, names, rtol: float = DEFAULT_RTOL, scale=None, weighted: bool = False,
-    basis: tuple | None = None,
+    basis: BaseBasis | None = None,
 ) -> tuple[BaseParameters, LeastSquaresResult]:
     """Base parameters of the data and their OLS (or WLS) estimate with statistics.
 
     ``W pi = W1 pi_b`` with ``W1`` the columns of the kept parameters, so the estimate of
     ``pi_b`` is the least-squares fit on those columns. The result's names are the readable
-    expressions of the base parameters. ``basis``: ``(kept, H)`` of the robot's model, used
+    expressions of the base parameters. ``basis``: the robot model's base parameters, used
     where the data identifies all of them (:func:`with_basis`).
     """
     Y, tau = check_regression_data(Y, tau, names)
     base = base_parameters(stack(Y, tau)[0], names, rtol=rtol, scale=scale)
     if basis is not None:
-        base = with_basis(base, *basis) or base
+        base = with_basis(base, basis) or base
     cols = [base.names.index(k) for k in base.kept]
     fit = (wls if weighted else ols)(Y[:, :, cols], tau, base.expressions)
     return base, fit

@@ -52,6 +52,7 @@ from typing import Sequence
 import numpy as np
 
 from ident_hw.filtering import FilterSettings, lowpass, parallel_decimate
+from ident_hw.model.base_basis import BaseBasis
 
 from .base_params import column_scale, identify_base, scaled_condition
 from .least_squares import POORLY_IDENTIFIED_PERCENT, informative_rows
@@ -62,6 +63,7 @@ MODELS = ("dynamic", "power", "energy")
 #: each model's equation and the unit of its output, for the tables
 EQUATIONS = {"dynamic": "tau = Y pi", "power": "Thetad·tau = dE/dt + friction power",
              "energy": "∫ Thetad·tau dt = ΔE + friction work"}
+#: the unit of each model's output
 OUTPUT_UNITS = {"dynamic": "N·m | N", "power": "W", "energy": "J"}
 
 
@@ -273,7 +275,7 @@ class ModelComparison:
 
 def compare_models(names: Sequence[str], rows: Sequence[ModelRows], *, free: Sequence[str] | None = None,
                    values: np.ndarray | None = None, truth: np.ndarray | None = None, weighted: bool = False,
-                   basis: tuple | None = None, step: str = "", trajectories: Sequence[str] = (),
+                   basis: BaseBasis | None = None, step: str = "", trajectories: Sequence[str] = (),
                    threshold: float = POORLY_IDENTIFIED_PERCENT) -> ModelComparison:
     """Fit the base parameters of each model's rows (:class:`ModelRows`, at most one per model).
 
@@ -285,7 +287,7 @@ def compare_models(names: Sequence[str], rows: Sequence[ModelRows], *, free: Seq
         truth: (P,) the true parameters (simulation), for each base parameter's error.
         weighted: WLS (each actuator's rows weighted by its noise) for the dynamic model; the
             scalar models have one output and are fitted by OLS.
-        basis: the robot's readable base parameters ``(kept, H)`` over ``free``
+        basis: the robot's readable base parameters over ``free``
             (``RobotModel.readable_base``), used for the dynamic model where its data
             identifies them all; the other models use the dynamic model's basis where their
             null space is the same.
@@ -315,7 +317,7 @@ def compare_models(names: Sequence[str], rows: Sequence[ModelRows], *, free: Seq
         base, fit = identify_base(Yf, y, free, scale=column_scale(Yf), weighted=weighted and dynamic,
                                   basis=common if not held or not dynamic else None)
         if dynamic:
-            common = (base.kept, base.H)
+            common = base
         kept = [free.index(k) for k in base.kept]
         H = np.zeros((base.rank, len(names)))
         H[:, idx] = np.where(np.abs(base.H) > 1e-10, base.H, 0.0)

@@ -80,7 +80,7 @@ class FrictionLayout:
 
     def place(self, W: np.ndarray, friction: np.ndarray) -> np.ndarray:
         """``W`` (M, n_params) with the friction columns ``friction`` (M, 2k) ``[f_v block, f_c
-        block]`` added at :attr:`fv`, :attr:`fc` (where an energy regressor has zeros)."""
+        block]`` added at ``fv``, ``fc`` (where an energy regressor has zeros)."""
         k = len(self.fv)
         W = np.array(W, dtype=float)
         if W.shape[1] != self.n_params or friction.shape != (W.shape[0], 2 * k):

@@ -20,16 +20,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .combinations import format_combination
+from .base_basis import BaseBasis
 from .dynamics import smooth_sign
 from .interface import REVOLUTE
 from .pseudo_inertia import SPATIAL, PhysicalBody
 from .errors import KinematicsError, SingularityError
 
 GRAVITY = 9.81  # m/s²
+#: the seven bodies, in the order of the parameter vector
 BODIES = ("arm1", "arm2", "arm3", "rod1", "rod2", "rod3", "plat")
 BODY_PARAMS = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")
 DRIVE_PARAMS = tuple(f"{kind}_{i}" for kind in ("fv", "fc", "Jm") for i in (1, 2, 3))
+#: the 79 parameters: ten per body (:data:`BODIES`), then ``fv_i``, ``fc_i``, ``Jm_i`` of each drive
 PARAM_NAMES = tuple(f"{b}.{p}" for b in BODIES for p in BODY_PARAMS) + DRIVE_PARAMS
 N_BODY_PARAMS = 10 * len(BODIES)           # 70
 N_PARAMS = len(PARAM_NAMES)                # 79
@@ -86,25 +88,7 @@ def physical_parameters(geometry: DeltaGeometry = DeltaGeometry()) -> np.ndarray
     return np.concatenate([arm, arm, arm, rod, rod, rod, plat, np.zeros(9)])
 
 
-@dataclass(frozen=True)
-class ClosedFormBase:
-    """The Delta's base parameters in closed form (the spec's readable set; any geometry, generic
-    path), as opposed to those the identification finds numerically from data.
-
-    ``kept`` (r,): the parameter whose regressor column carries each base parameter;
-    ``H`` (r, 79): ``pi_b = H @ pi``, so that ``Y @ pi == Y[..., kept] @ (H @ pi)``.
-    """
-
-    kept: tuple[str, ...]
-    H: np.ndarray
-
-    @property
-    def expressions(self) -> tuple[str, ...]:
-        """(r,) each row written out (e.g. ``"arm1.mx + 0.5193 rod1.mx"``)."""
-        return tuple(format_combination(row, PARAM_NAMES) for row in self.H)
-
-
-def closed_form_base(geometry: DeltaGeometry = DeltaGeometry(), drive_terms: bool = True) -> ClosedFormBase:
+def closed_form_base(geometry: DeltaGeometry = DeltaGeometry(), drive_terms: bool = True) -> BaseBasis:
     """34 base parameters of the bodies (one common, eleven per limb), plus ``fv_i``, ``fc_i``
     with the drive terms (40; ``Jm_i`` joins ``arm_i.Iyy``)."""
     L1, L2 = geometry.L1, geometry.L2
@@ -127,10 +111,10 @@ def closed_form_base(geometry: DeltaGeometry = DeltaGeometry(), drive_terms: boo
     for r, (_, terms) in enumerate(rows):
         for name, coef in terms.items():
             H[r, index[name]] = coef
-    return ClosedFormBase(tuple(k for k, _ in rows), H)
+    return BaseBasis(PARAM_NAMES, tuple(k for k, _ in rows), H)
 
 
-@dataclass
+@dataclass(frozen=True)
 class Bodies:
     """The seven bodies' motion along a batch (N samples), in the order of :data:`BODIES`.
 
@@ -444,10 +428,9 @@ class Delta:
         return {"m": "kg", "mx": "kg·m", "my": "kg·m", "mz": "kg·m", "fv": "N·m·s/rad", "fc": "N·m",
                 "Jm": "kg·m²"}.get(kind, "kg·m²")
 
-    def readable_base(self):
+    def readable_base(self) -> BaseBasis:
         """The spec's 40 readable base parameters with the drive terms (:func:`closed_form_base`)."""
-        base = closed_form_base(self.geometry, drive_terms=True)
-        return base.kept, base.H
+        return closed_form_base(self.geometry, drive_terms=True)
 
     def physical_bodies(self) -> tuple[PhysicalBody, ...]:
         """The seven bodies (arms, rods, platform), each in its own frame."""

@@ -117,7 +117,7 @@ def _bodies(q, qd, geo, e, y, g, Qs, ams, omegas, alphas, Jvs, Jws, p):
     origin's acceleration minus gravity ``ams[k]`` (3,), ``omegas[k]``, ``alphas[k]`` (3,), and
     ``Jvs[k]``, ``Jws[k]`` (3, 3): origin velocity and angular velocity per actuated rate (an
     actuated acceleration ``qdd`` adds ``Jvs[k] @ qdd`` and ``Jws[k] @ qdd``); the platform
-    position ``p`` (3,). Returns :data:`OK`, or the first failure met (outputs then undefined).
+    position ``p`` (3,). Returns ``OK``, or the first failure met (outputs then undefined).
     """
     L1, L2, Rb, rp = geo[0], geo[1], geo[2], geo[3]
     ez = np.array([0.0, 0.0, 1.0])
@@ -292,7 +292,7 @@ def one_state(q, qd, pi, Jm, geo, e, y, g, M, bias, p):
 
     ``pi`` (79,): the model's parameters (the bodies' are read), ``Jm`` (3,) kg·m²: the reflected
     rotor inertias; ``geo`` = ``[L1, L2, R, r]`` (m); ``e``, ``y`` (3 limbs, 3): radial and motor axes; ``g`` (3,)
-    gravity (m/s²). Returns :data:`OK`, or the first failure met (outputs then undefined).
+    gravity (m/s²). Returns ``OK``, or the first failure met (outputs then undefined).
     """
     Qs, Jvs, Jws = np.empty((7, 3, 3)), np.empty((7, 3, 3)), np.empty((7, 3, 3))
     ams, omegas, alphas = np.empty((7, 3)), np.empty((7, 3)), np.empty((7, 3))

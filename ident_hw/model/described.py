@@ -46,6 +46,7 @@ from typing import Mapping, Sequence
 import numpy as np
 import pinocchio as pin
 
+from .base_basis import BaseBasis
 from .errors import KinematicsError, SingularityError
 from .friction import FrictionModel
 from .interface import PRISMATIC, REVOLUTE
@@ -517,11 +518,11 @@ class DescribedRobot:
         """The actuated coordinates (n,) of the home pose."""
         return self._home_actuated.copy()
 
-    def readable_base(self):
+    def readable_base(self) -> BaseBasis:
         """The base parameters found numerically on random states (:func:`numerical_base`)."""
         if not hasattr(self, "_base"):
             self._base = numerical_base(self)
-        return self._base.kept, self._base.H
+        return self._base
 
     def physical_bodies(self) -> tuple[PhysicalBody, ...]:
         """Each tree joint's body (:attr:`body_names`), its ten values about the joint frame."""
@@ -648,16 +649,6 @@ def _term(name: str) -> str:
     return "fc" if head.startswith("fc") else head
 
 
-@dataclass(frozen=True)
-class NumericalBase:
-    """Base parameters found numerically: ``pi_b = H pi`` (r, P), ``kept`` (r,) the parameter
-    each row is named after (the identification layer writes the rows out,
-    :func:`ident_hw.model.combinations.format_combination`)."""
-
-    kept: tuple[str, ...]
-    H: np.ndarray
-
-
 def random_states(robot: DescribedRobot, samples: int, spread: float = 0.15, seed: int = 0):
     """``(Theta, Thetad, Thetadd)`` (each (N, n)) of ``samples`` random assembled states about
     home: positions within ``spread`` (rad or m) of it, rates of order one; states that do not
@@ -681,7 +672,7 @@ def random_states(robot: DescribedRobot, samples: int, spread: float = 0.15, see
     return tuple(np.array(x) for x in zip(*rows))
 
 
-def numerical_base(robot: DescribedRobot, samples: int = 60, seed: int = 0, rtol: float = 1e-5) -> NumericalBase:
+def numerical_base(robot: DescribedRobot, samples: int = 60, seed: int = 0, rtol: float = 1e-5) -> BaseBasis:
     """The base parameters of ``robot``: QR with column pivoting of its regressor on
     ``samples`` random states (:func:`random_states`), columns scaled to unit norm; the
     independent columns are kept, each dependent one is regrouped into them
@@ -733,5 +724,5 @@ def numerical_base(robot: DescribedRobot, samples: int = 60, seed: int = 0, rtol
         H[row, independent[i]] = 1.0
         H[row, dependent] = beta[i]
     kept = tuple(robot.parameter_names[independent[i]] for i in order)
-    return NumericalBase(kept, H)
+    return BaseBasis(tuple(robot.parameter_names), kept, H)
 

@@ -28,7 +28,7 @@ _E_ZETA = _EYE6[3:]
 def body_jacobians(kin: Kinematics, m: Motion):
     """Velocity Jacobians of every body with respect to ``Thetad``.
 
-    Returns a list, one entry per inertial parameter (order of :data:`INERTIAL_NAMES`), of
+    Returns a list, one entry per inertial parameter (order of :data:`~ident_hw.model.parameters.INERTIAL_NAMES`), of
     ``(Jac, acc)`` with ``Jac`` (N, 3 chains or 1, d, 6) and ``acc`` (N, 3 or 1, d) the matching
     accelerations (d = 2 for a translation paired with a mass, 1 for a rotation paired with an
     inertia).

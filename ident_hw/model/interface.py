@@ -15,6 +15,8 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from .base_basis import BaseBasis
+
 #: the kinds of actuated joint, and the SI units of their position and force. The drive side
 #: names its axes' kinds with the same two words (:data:`drivers.units.REVOLUTE`): the model
 #: imports nothing of the project and the drivers nothing of ident_hw, so each layer keeps its
@@ -45,9 +47,9 @@ class RobotModel(Protocol):
     def parameter_unit(self, name: str) -> str:
         """SI unit of parameter ``name`` (one of ``parameter_names``)."""
 
-    def readable_base(self) -> tuple[tuple[str, ...], np.ndarray] | None:
-        """The model's own base parameters ``(kept (r,), H (r, n))``, ``pi_b = H pi`` written as
-        readable combinations, for data that excites all of them; None: found by SVD from the data."""
+    def readable_base(self) -> BaseBasis | None:
+        """The model's own base parameters (``pi_b = H pi`` over :attr:`parameter_names`) written
+        as readable combinations, for data that excites all of them; None: found by SVD from the data."""
 
     def physical_bodies(self) -> tuple:
         """Where each body's inertial values sit in the parameter vector

@@ -69,7 +69,7 @@ def batch(array, width: int, name: str) -> np.ndarray:
     return a
 
 
-@dataclass
+@dataclass(frozen=True)
 class Motion:
     """Every coordinate of the closed chain with its first two time derivatives.
 
@@ -107,7 +107,7 @@ class Motion:
         return np.concatenate([self.thetadd, self.zetadd], axis=1)
 
 
-@dataclass
+@dataclass(frozen=True)
 class SingularityMargins:
     """Distance to singularities, per sample.
 

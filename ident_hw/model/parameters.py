@@ -9,6 +9,7 @@ import numpy as np
 #: Actuated coordinates, in the order of every (N, 6) array of the project.
 ACTUATOR_NAMES = ("theta1", "theta2", "theta3", "zeta1", "zeta2", "zeta3")
 
+#: the 3PRRR's seven inertial parameters (kg, kg·m²)
 INERTIAL_NAMES = ("m_c", "m_l1", "I_l1", "m_l2", "I_l2", "m_ee", "I_ee")
 FRICTION_NAMES = tuple(f"fv_{a}" for a in ACTUATOR_NAMES) + tuple(f"fc_{a}" for a in ACTUATOR_NAMES)
 
@@ -73,6 +74,7 @@ class InertialParams:
     f_v: tuple[float, ...] = field(default=(0.0,) * 6)
     f_c: tuple[float, ...] = field(default=(0.0,) * 6)
 
+    #: the 19 parameters in the order of :meth:`as_vector`
     NAMES = INERTIAL_NAMES + FRICTION_NAMES
 
     def __post_init__(self) -> None:

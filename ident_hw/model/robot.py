@@ -14,7 +14,7 @@ from .parameters import ACTUATOR_NAMES, Geometry, InertialParams
 from .pseudo_inertia import PhysicalBody
 
 
-@dataclass
+@dataclass(frozen=True)
 class Simulation:
     """Result of :meth:`ThreePRRR.simulate`: ``t`` (N,), ``Theta``/``Thetad`` (N, 6), ``X`` (N, 3)."""
 

@@ -1,6 +1,6 @@
 """The reduced dynamics of ONE state, for a simulator's inner loop.
 
-:meth:`ThreePRRR.reduced_dynamics` is vectorised over N samples: for N = 1 its cost is a few
+:meth:`ident_hw.model.robot.ThreePRRR.reduced_dynamics` is vectorised over N samples: for N = 1 its cost is a few
 hundred NumPy calls of a few microseconds each, which a simulated rig pays once per SYNC period.
 :class:`SingleState` computes the same quantities (forward kinematics by Newton, passive rates,
 body Jacobians, ``M_r`` and the velocity terms) in scalar loops compiled by numba, the equations
@@ -287,7 +287,7 @@ class SingleState:
     def reduced_dynamics(self, Theta, Thetad, params: InertialParams, X_guess):
         """``M_r`` (6, 6), velocity terms ``c`` (6,) without friction, and the pose ``X`` (3,).
 
-        The same as :meth:`ThreePRRR.reduced_dynamics_of` of a motion with zero actuated
+        The same as :meth:`ident_hw.model.robot.ThreePRRR.reduced_dynamics_of` of a motion with zero actuated
         acceleration, less the friction.
         """
         p = params

@@ -211,7 +211,7 @@ class BaseFit:
 
     @property
     def well_identified_mask(self) -> np.ndarray:
-        """(r,) bool: %σ at most ``threshold`` (the estimates themselves are :attr:`coef`)."""
+        """(r,) bool: %σ at most ``threshold`` (the estimates themselves are ``coef``)."""
         return self.rel_sigma_percent <= self.threshold
 
     def rows(self) -> list[BaseRow]:
@@ -364,7 +364,7 @@ class Results:
 
     @property
     def stepwise_label(self) -> str:
-        """What the step-by-step prediction (:attr:`TrajectoryFit.tau_model`) is made of, as the
+        """What the step-by-step prediction (``TrajectoryFit.tau_model``) is made of, as the
         terminal, the report and the plots name it: ``step by step`` (the parameters the mass-fit
         steps fitted, the others held), or ``CAD values`` when no step fitted a physical parameter
         (only base parameters were fitted: the prediction is the CAD model's, not a result)."""
