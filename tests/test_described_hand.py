@@ -28,7 +28,7 @@ import pinocchio as pin
 import pytest
 
 import described_hand as dh
-from ident_hw.config import load_config, to_model
+import nominal
 from ident_hw.model import Delta, ThreePRRR
 from ident_hw.model.delta import BODY_PARAMS as DELTA_BODY_PARAMS
 from ident_hw.model.delta import DeltaGeometry, nominal_parameters
@@ -40,7 +40,6 @@ from ident_hw.model.parameters import InertialParams
 #: equal to it), which the description loader warns of (MasslessBodyWarning, what MuJoCo refuses)
 pytestmark = pytest.mark.filterwarnings(r"ignore:.*delta\.xml. moving bodies without mass")
 
-ROBOT_3PRRR = dh.ROBOTS.parent / "robot-3prrr.yaml"
 N = 16          # random states per test
 TOL = 1e-9      # relative agreement with the hand models
 POSE_TOL = 1e-9  # rad, m: Newton stops at a closure residual of 1e-12 (configurations good to ~1e-11)
@@ -49,10 +48,9 @@ POSE_TOL = 1e-9  # rad, m: Newton stops at a closure residual of 1e-12 (configur
 # ----------------------------------------------------------------------------- hand models
 @pytest.fixture(scope="module")
 def prrr():
-    """The hand 3PRRR of robot-3prrr.yaml: ``(model, geometry, cad params)``."""
-    cfg = load_config(ROBOT_3PRRR).robot
-    geometry = to_model.geometry(cfg.geometry)
-    return ThreePRRR(geometry, coulomb_width=cfg.coulomb_width), geometry, to_model.inertial_params(cfg.cad)
+    """The nominal hand 3PRRR (``tests/nominal.py``, written independently of the file):
+    ``(model, geometry, cad params)``."""
+    return ThreePRRR(nominal.GEOMETRY, coulomb_width=1e-3), nominal.GEOMETRY, nominal.CAD_PARAMS
 
 
 @pytest.fixture(scope="module")

@@ -34,7 +34,8 @@ import pinocchio as pin
 import pytest
 
 import described_hand as dh
-from ident_hw.config import load_config, to_model
+from ident_hw.config import load_config
+from ident_hw.config.robots import model_of
 from ident_hw.model import Delta, ThreePRRR
 from ident_hw.model.delta import DeltaGeometry
 from ident_hw.model.described import DescribedRobot, DescriptionError, MasslessBodyWarning, load_description
@@ -54,7 +55,7 @@ LEGS = tuple(f"leg{i}" for i in range(1, 7))
 # ------------------------------------------------------------------------------ the robots
 def _prrr_home() -> dict[str, float]:
     cfg = load_config(ROBOTS.parent / "robot-3prrr.yaml").robot
-    hand = ThreePRRR(to_model.geometry(cfg.geometry))
+    hand = ThreePRRR(model_of(cfg).geometry)
     X0 = np.zeros((1, 3))
     theta, beta = hand.inverse_kinematics(X0, X0)
     return dict(zip(dh.PRRR_JOINTS, dh.prrr_tree(X0, theta, beta, X0)[0]))

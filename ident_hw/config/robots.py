@@ -9,7 +9,9 @@ nothing of :mod:`trajectories`). The config, the campaign plan and the simulated
 the kind up here instead of comparing ``robot.kind`` with names; this module is the only place
 that does (a test holds it).
 
-Three kinds: ``3prrr`` and ``delta`` (hand-derived models, :mod:`ident_hw.model`) and
+Three kinds: ``3prrr`` and ``delta``, read from their description files like any robot and run on
+their hand-derived models (:mod:`ident_hw.model`), the compiled fast paths held to the files'
+generic models at load (:mod:`ident_hw.model.fast_path`), and
 ``described``: any robot from its description file (:class:`ident_hw.model.described.DescribedRobot`),
 settings in ``robot.described`` (:class:`~ident_hw.config.robot_described.DescribedConfig`), true
 parameters in ``sim.parameters`` (:class:`~ident_hw.config.robot_described.ParameterSetConfig`).
@@ -23,7 +25,7 @@ from typing import TYPE_CHECKING, Any, Callable, cast
 
 import numpy as np
 
-from ident_hw.model import Delta, ThreePRRR
+from ident_hw.model import Delta, Geometry, ThreePRRR
 from ident_hw.model.interface import RobotModel
 from ident_hw.model.pseudo_inertia import SPATIAL
 
@@ -34,6 +36,7 @@ from .sim import SeedStream
 
 if TYPE_CHECKING:  # pinocchio, which described imports, is imported by described robots only
     from ident_hw.model.described import DescribedRobot
+    from ident_hw.model.fast_path import FastPath
 
     from .file import Config
     from .robot import RobotConfig
@@ -75,17 +78,30 @@ class RobotKind:
 
 
 # ---- the 3PRRR
+def threeprrr_file(robot) -> FastPath:
+    """The 3PRRR of a ``robot`` section: the hand model's values read off ``robot.description``
+    and checked against its generic model (:func:`ident_hw.model.prrr_file.fast_path`); a file
+    that is no 3PRRR is a FieldError on ``description``."""
+    from ident_hw.model.described import DescriptionError
+    from ident_hw.model.prrr_file import fast_path
+    try:
+        return fast_path(robot.description, robot.modes or (1, 1, 1), robot.coulomb_width)
+    except DescriptionError as exc:
+        raise FieldError("description", str(exc)) from None
+
+
 def _threeprrr_validate(robot) -> None:
-    for key in ("geometry", "stroke", "cad"):
+    for key in ("description", "stroke"):
         if getattr(robot, key) is None:
-            raise FieldError(key, "missing key (a 3PRRR needs geometry, stroke and cad)")
+            raise FieldError(key, "missing key (a 3PRRR needs its description file, e.g. robots/3prrr.xml, and stroke)")
+    threeprrr_file(robot)
 
 
 THREE_PRRR = RobotKind(
-    name="3prrr", sections=("geometry", "stroke", "cad", "safety"), truth_key="truth",
+    name="3prrr", sections=("description", "modes", "stroke", "safety"), truth_key="truth",
     trajectory_kinds=("carriage_sweep", "square", "triangle", "fourier"),
-    model=lambda robot: ThreePRRR(to_model.geometry(robot.geometry), coulomb_width=robot.coulomb_width),
-    initial=lambda robot: to_model.inertial_params(robot.cad).as_vector(),
+    model=lambda robot: ThreePRRR(cast(Geometry, threeprrr_file(robot).geometry), coulomb_width=robot.coulomb_width),
+    initial=lambda robot: threeprrr_file(robot).parameters.copy(),
     truth=lambda robot, sim, model: to_model.inertial_params(sim.truth).as_vector(),
     actuators=lambda robot: (ThreePRRR.actuator_names, ThreePRRR.actuator_kinds),
     validate=_threeprrr_validate)
@@ -186,6 +202,17 @@ DESCRIBED = RobotKind(
 KINDS: dict[str, RobotKind] = {k.name: k for k in (THREE_PRRR, DELTA, DESCRIBED)}
 #: trajectory kinds any robot can run
 COMMON_TRAJECTORY_KINDS = ("file", "standstill", "recorded")
+
+
+def description_file(robot) -> tuple[str, str] | None:
+    """The description file of a ``robot`` section as ``(dotted key of the config, path)``
+    (``robot.description`` of the 3PRRR and the Delta, ``robot.described.description`` of a
+    described robot): the file a results folder keeps a copy of; None for a robot without one."""
+    if robot.described is not None:
+        return "robot.described.description", robot.described.description
+    if robot.description is not None:
+        return "robot.description", robot.description
+    return None
 
 
 def kind_of(robot) -> RobotKind:

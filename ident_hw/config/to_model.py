@@ -1,5 +1,5 @@
-"""Config sections → the model's own types (:mod:`ident_hw.model`): the 3PRRR's geometry and
-inertial parameters, the Delta's geometry and parameter vector, a described robot's parameter
+"""Config sections → the model's own types (:mod:`ident_hw.model`): the 3PRRR's inertial
+parameters, the Delta's geometry and parameter vector, a described robot's parameter
 vector. The model never reads the config; the robot as a whole is its kind's
 (:func:`ident_hw.config.robots.model_of`)."""
 
@@ -9,11 +9,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ident_hw.model import Delta, DeltaGeometry, Geometry, InertialParams
+from ident_hw.model import Delta, DeltaGeometry, InertialParams
 from ident_hw.model.delta import physical_parameters
 from ident_hw.model.friction import FrictionModel
 
-from .robot_3prrr import GeometryConfig, InertialConfig
+from .robot_3prrr import InertialConfig
 from .robot_delta import DeltaGeometryConfig, DeltaParametersConfig
 from .robot_described import ParameterSetConfig
 
@@ -43,11 +43,6 @@ def friction_model(robot, presliding: float | None = None, stribeck: float | Non
         velocity = float(f.stribeck)
     return FrictionModel(kind=f.model, width=robot.coulomb_width, rest_speed=f.rest_speed, presliding=chosen,
                          stribeck_velocity=velocity, offset=f.offset, elements=f.elements)
-
-
-def geometry(g: GeometryConfig) -> Geometry:
-    """The 3PRRR's geometry."""
-    return Geometry(l1=g.l1, l2=g.l2, s1=g.s1, s2=g.s2, h=g.h, a=g.a, gamma=g.gamma, modes=g.modes)
 
 
 def inertial_params(p: InertialConfig) -> InertialParams:
