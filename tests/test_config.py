@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -12,7 +13,8 @@ from ident_hw.config import ConfigError, load_config, resolved_yaml
 from ident_hw.config.robots import initial_parameters, model_of
 from ident_hw.config.to_drivers import axis_scaling
 from ident_hw.experiment.robot_trajectories import feasibility_limits
-from ident_hw.model import InertialParams, ThreePRRR
+from ident_hw.model import Delta, DeltaGeometry, InertialParams, ThreePRRR
+from ident_hw.model.delta import physical_parameters
 from recorded_data import dataset, needs_datasets
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
@@ -448,3 +450,44 @@ def test_per_arm_amplitudes_are_for_the_delta_s_paths(tmp_path):
     square = write(tmp_path, "square.yaml", f"extends: {CONFIGS / 'sim-3prrr.yaml'}\ntrajectories:\n"
                    "  - {name: s, kind: square, size: 0.05, amplitude: [1.0, 1.0, 1.0]}\n")
     expect_error(square, "trajectories[0].amplitude", 3, "a 'square' trajectory does not use amplitude")
+
+
+def test_the_delta_is_read_from_its_description_file():
+    """robot-delta.yaml names robots/delta.xml: the hand Delta built from it is the configs' Delta
+    (``physical_parameters``, the bodies the file's crosses and yokes lumped in, the platform's
+    inertia the file's, which never acts), the rotor inertia the arms' armature."""
+    cfg = load_config(CONFIGS / "robot-delta.yaml")
+    model = model_of(cfg.robot)
+    assert isinstance(model, Delta)
+    g = model.geometry
+    assert (g.L1, g.L2, g.R, g.r) == (0.309, 0.595, 0.140, 0.035)
+    assert g.psi == pytest.approx(DeltaGeometry().psi, rel=1e-15, abs=1e-15)
+    np.testing.assert_array_equal(model.g, [0.0, 0.0, -9.81])
+    pi = initial_parameters(cfg.robot)
+    expected = physical_parameters(DeltaGeometry())
+    np.testing.assert_allclose(pi[:64], expected[:64], rtol=0, atol=1e-15)     # arms, rods, platform mass and centre
+    np.testing.assert_array_equal(pi[70:], [0.0] * 6 + [0.01] * 3)
+
+
+def test_the_retired_delta_section_says_what_to_write(tmp_path):
+    text = (CONFIGS / "robot-delta.yaml").read_text().replace(
+        "  description: robots/delta.xml", "  delta:\n    geometry: {L1: 0.309}")
+    path = write(tmp_path, "delta.yaml", text)
+    expect_error(path, "robot.delta", line_of(text, "  delta:"), "no longer a key", "description: robots/delta.xml")
+
+
+def test_a_description_file_that_is_no_delta_is_refused(tmp_path):
+    """A platform yoke off its joint's centre is not what the hand Delta lumps: refused at load,
+    naming the body and the file."""
+    xml = (CONFIGS / "robots" / "delta.xml").read_text()
+    bad = xml.replace('<body name="wrist2" pos="-0.595 0 0">\n              <joint name="wrist2_n" type="hinge" axis="0 0 1"/>\n'
+                      '              <inertial pos="0 0 0"',
+                      '<body name="wrist2" pos="-0.595 0 0">\n              <joint name="wrist2_n" type="hinge" axis="0 0 1"/>\n'
+                      '              <inertial pos="0.01 0 0"')
+    assert bad != xml
+    (tmp_path / "robots").mkdir()
+    (tmp_path / "robots" / "delta.xml").write_text(bad)
+    text = (CONFIGS / "robot-delta.yaml").read_text()
+    path = write(tmp_path, "delta.yaml", text)
+    err = expect_error(path, "robot.description", line_of(text, "description: robots/delta.xml"), "delta.xml")
+    assert "'wrist2_n'" in str(err) and "cross" in str(err)

@@ -29,7 +29,7 @@ from .identification import (FilterConfig, IdentificationConfig, OnlineConfig, P
                              StepConfig)
 from .robot import RobotConfig, SafetyConfig
 from .robot_3prrr import InertialConfig
-from .robot_delta import DeltaConfig, DeltaGeometryConfig, DeltaParametersConfig
+from .robot_delta import DeltaParametersConfig
 from .robot_described import DescribedConfig, ParameterSetConfig
 from .schema import ConfigError, build
 from .sim import SimConfig, SimFaultConfig
@@ -38,7 +38,7 @@ from .trajectory import PayloadConfig, TrajectoryConfig
 
 __all__ = [
     "load_config", "resolved_yaml", "ConfigError", "Config", "RobotConfig",
-    "InertialConfig", "DeltaConfig", "DeltaGeometryConfig", "DeltaParametersConfig", "DescribedConfig",
+    "InertialConfig", "DeltaParametersConfig", "DescribedConfig",
     "ParameterSetConfig", "ActuatorConfig", "LimitsConfig", "HomingConfig", "SafetyConfig", "BusConfig",
     "SimConfig", "SimFaultConfig", "TrajectoryConfig", "PayloadConfig", "IdentificationConfig", "StepConfig",
     "FilterConfig", "OnlineConfig", "PhysicalConfig", "OutputConfig", "QualityConfig",

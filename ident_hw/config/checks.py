@@ -53,7 +53,7 @@ def check_robot(robot: RobotConfig, written: frozenset = frozenset()) -> None:
     """Only the sections of the robot's kind, its kind's own rules, the actuators it expects and
     every node id once."""
     kind = kind_of(robot)
-    for key in ("description", "modes", "stroke", "delta", "described"):
+    for key in ("description", "modes", "stroke", "described"):
         if getattr(robot, key) is not None and key not in kind.sections:
             raise FieldError(key, f"belongs to another robot than robot.kind {robot.kind!r} "
                                   f"(its sections: {', '.join(kind.sections)})")

@@ -7,7 +7,6 @@ from typing import ClassVar, Literal
 
 from .actuators import ActuatorConfig
 from .friction import FrictionConfig
-from .robot_delta import DeltaConfig
 from .robot_described import DescribedConfig
 from .schema import in_range, positive, spec
 
@@ -33,8 +32,8 @@ class RobotConfig:
 
     ``3prrr``: its ``description`` file (geometry and CAD values, ``configs/robots/3prrr.xml``),
     the chains' assembly ``modes``, carriage ``stroke``, ``safety`` margins and six actuators
-    theta1..3, zeta1..3. ``delta``: the ``delta`` section (geometry, CAD parameters), ``safety``
-    and three revolute actuators q1..3. ``described``: the ``described`` section (the
+    theta1..3, zeta1..3. ``delta``: its ``description`` file (``configs/robots/delta.xml``),
+    ``safety`` and three revolute actuators q1..3. ``described``: the ``described`` section (the
     description file, home, CAD parameters) and one actuator per driven joint. ``friction``: the
     joints' friction model (:class:`~ident_hw.config.friction.FrictionConfig`; other than the
     default Coulomb and viscous terms for described robots only).
@@ -46,7 +45,10 @@ class RobotConfig:
                     "robots/3prrr.xml` (the shipped file, relative to configs/; edit its values for another "
                     "geometry) and `modes: [1, 1, 1]` for the chains' elbows",
         "cad": "the 3PRRR's CAD values are the bodies of its description file (`description:`, e.g. "
-               "robots/3prrr.xml); CAD friction is its joints' damping and frictionloss"}
+               "robots/3prrr.xml); CAD friction is its joints' damping and frictionloss",
+        "delta": "the Delta is read from its description file: write `description: robots/delta.xml` (geometry "
+                 "and bodies; the rotor inertias Jm are its arms' joint armature, CAD friction their damping and "
+                 "frictionloss; `factors` of the CAD values: edit the file)"}
 
     actuators: tuple[ActuatorConfig, ...]
     kind: Literal["3prrr", "delta", "described"] = "3prrr"
@@ -55,7 +57,6 @@ class RobotConfig:
     modes: tuple[int, int, int] | None = field(default=None, metadata=spec(
         _plus_minus_one, doc="the 3PRRR's working mode (elbow sign) of each chain; default [1, 1, 1]"))
     stroke: float | None = field(default=None, metadata=spec(positive, unit="m", doc="carriage travel +- stroke"))
-    delta: DeltaConfig | None = None
     described: DescribedConfig | None = None
     safety: SafetyConfig = SafetyConfig()
     coulomb_width: float = field(default=1e-3, metadata=spec(positive, unit="rad/s | m/s"))

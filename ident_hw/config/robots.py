@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any, Callable, cast
 
 import numpy as np
 
-from ident_hw.model import Delta, Geometry, ThreePRRR
+from ident_hw.model import Delta, DeltaGeometry, Geometry, ThreePRRR
 from ident_hw.model.interface import RobotModel
 from ident_hw.model.pseudo_inertia import SPATIAL
 
@@ -63,6 +63,8 @@ class RobotKind:
         validate: ``robot -> None`` checks beyond the schema (FieldError, key relative to ``robot``).
         friction_models: its model takes any friction model of ``robot.friction`` (else only the
             default Coulomb and viscous terms).
+        described: ``robot -> (DescribedRobot, map)`` the robot's generic model and the map of its
+            model's parameter vector to the generic model's (what ``ident-hw export`` writes).
     """
 
     name: str
@@ -75,6 +77,7 @@ class RobotKind:
     actuators: Callable[[Any], tuple[tuple[str, ...], tuple[str, ...]]]
     validate: Callable[[Any], None] = lambda robot: None
     friction_models: bool = False
+    described: Callable[[Any], tuple[DescribedRobot, Callable[[np.ndarray], np.ndarray]]] | None = None
 
 
 # ---- the 3PRRR
@@ -97,6 +100,13 @@ def _threeprrr_validate(robot) -> None:
     threeprrr_file(robot)
 
 
+def _threeprrr_described(robot) -> tuple[DescribedRobot, Callable[[np.ndarray], np.ndarray]]:
+    from ident_hw.model.prrr_file import described_3prrr, described_parameters
+    fast = threeprrr_file(robot)
+    described = described_3prrr(robot.description, cast(Geometry, fast.geometry), robot.coulomb_width)
+    return described, lambda pi: described_parameters(robot.description, pi, described)
+
+
 THREE_PRRR = RobotKind(
     name="3prrr", sections=("description", "modes", "stroke", "safety"), truth_key="truth",
     trajectory_kinds=("carriage_sweep", "square", "triangle", "fourier"),
@@ -104,23 +114,49 @@ THREE_PRRR = RobotKind(
     initial=lambda robot: threeprrr_file(robot).parameters.copy(),
     truth=lambda robot, sim, model: to_model.inertial_params(sim.truth).as_vector(),
     actuators=lambda robot: (ThreePRRR.actuator_names, ThreePRRR.actuator_kinds),
-    validate=_threeprrr_validate)
+    validate=_threeprrr_validate, described=_threeprrr_described)
 
 
 # ---- the Delta
+def delta_file(robot) -> FastPath:
+    """The Delta of a ``robot`` section (with its gravity, m/s²): the hand model's values read off
+    ``robot.description`` and checked against its generic model
+    (:func:`ident_hw.model.delta_file.fast_path`); a file that is no Delta is a FieldError on
+    ``description``."""
+    from ident_hw.model.delta_file import fast_path
+    from ident_hw.model.described import DescriptionError
+    try:
+        return fast_path(robot.description, robot.coulomb_width)
+    except DescriptionError as exc:
+        raise FieldError("description", str(exc)) from None
+
+
+def _delta_model(robot) -> Delta:
+    fast = delta_file(robot)
+    return Delta(cast(DeltaGeometry, fast.geometry), coulomb_width=robot.coulomb_width, gravity=fast.gravity)
+
+
 def _delta_validate(robot) -> None:
-    if robot.delta is None:
-        raise FieldError("delta", "missing key: a Delta needs its delta section (geometry, cad)")
+    if robot.description is None:
+        raise FieldError("description", "missing key: a Delta needs its description file (e.g. robots/delta.xml)")
+    delta_file(robot)
+
+
+def _delta_described(robot) -> tuple[DescribedRobot, Callable[[np.ndarray], np.ndarray]]:
+    from ident_hw.model.delta_file import described_delta, described_parameters
+    fast = delta_file(robot)
+    described = described_delta(robot.description, cast(DeltaGeometry, fast.geometry), robot.coulomb_width)
+    return described, lambda pi: described_parameters(robot.description, pi, described)
 
 
 DELTA = RobotKind(
-    name="delta", sections=("delta", "safety"), truth_key="delta_truth",
+    name="delta", sections=("description", "safety"), truth_key="delta_truth",
     trajectory_kinds=("delta_training", "delta_verification", "delta_held_arm"),
-    model=lambda robot: Delta(to_model.delta_geometry(robot.delta.geometry), coulomb_width=robot.coulomb_width),
-    initial=lambda robot: to_model.delta_parameters(robot.delta.cad, to_model.delta_geometry(robot.delta.geometry)),
-    truth=lambda robot, sim, model: to_model.delta_parameters(sim.delta_truth, to_model.delta_geometry(robot.delta.geometry)),
+    model=_delta_model,
+    initial=lambda robot: delta_file(robot).parameters.copy(),
+    truth=lambda robot, sim, model: to_model.delta_parameters(sim.delta_truth, delta_file(robot).parameters),
     actuators=lambda robot: (Delta.actuator_names, Delta.actuator_kinds),
-    validate=_delta_validate)
+    validate=_delta_validate, described=_delta_described)
 
 
 # ---- any robot from its description file
@@ -195,7 +231,8 @@ DESCRIBED = RobotKind(
     initial=lambda robot: to_model.described_parameters(robot.described.cad, described_model(robot)),
     truth=lambda robot, sim, model: to_model.described_parameters(sim.parameters, cast("DescribedRobot", model)),
     actuators=lambda robot: (tuple(a.name for a in robot.actuators), tuple(a.kind for a in robot.actuators)),
-    validate=_described_validate, friction_models=True)
+    validate=_described_validate, friction_models=True,
+    described=lambda robot: (described_model(robot), lambda pi: np.asarray(pi, dtype=float)))
 
 
 #: every robot kind by its ``robot.kind``

@@ -1,5 +1,5 @@
 """Config sections → the model's own types (:mod:`ident_hw.model`): the 3PRRR's inertial
-parameters, the Delta's geometry and parameter vector, a described robot's parameter
+parameters, the Delta's parameter vector, a described robot's parameter
 vector. The model never reads the config; the robot as a whole is its kind's
 (:func:`ident_hw.config.robots.model_of`)."""
 
@@ -9,12 +9,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ident_hw.model import Delta, DeltaGeometry, InertialParams
-from ident_hw.model.delta import physical_parameters
+from ident_hw.model import Delta, InertialParams
 from ident_hw.model.friction import FrictionModel
 
 from .robot_3prrr import InertialConfig
-from .robot_delta import DeltaGeometryConfig, DeltaParametersConfig
+from .robot_delta import DeltaParametersConfig
 from .robot_described import ParameterSetConfig
 
 if TYPE_CHECKING:  # pinocchio, which described imports, is imported by described robots only
@@ -51,15 +50,11 @@ def inertial_params(p: InertialConfig) -> InertialParams:
                           I_ee=p.I_ee, f_v=p.f_v, f_c=p.f_c)
 
 
-def delta_geometry(g: DeltaGeometryConfig) -> DeltaGeometry:
-    """The Delta's geometry."""
-    return DeltaGeometry(L1=g.L1, L2=g.L2, R=g.R, r=g.r, psi=g.psi)
-
-
-def delta_parameters(p: DeltaParametersConfig, geometry: DeltaGeometry) -> np.ndarray:
-    """(79,) the Delta's parameters in the order of :data:`ident_hw.model.delta.PARAM_NAMES`: the
-    nominal bodies of ``geometry`` with the factors applied, then the drive terms."""
-    pi = physical_parameters(geometry)
+def delta_parameters(p: DeltaParametersConfig, bodies: np.ndarray) -> np.ndarray:
+    """(79,) the Delta's parameters in the order of :data:`ident_hw.model.delta.PARAM_NAMES`: its
+    ``bodies`` (79,) (its description file's, :func:`ident_hw.model.delta_file.read_values`) with
+    the factors applied, then the drive terms given (0 where not)."""
+    pi = np.array(bodies, dtype=float)
     names = Delta.parameter_names
     for name, factor in p.factors.items():
         pi[names.index(name)] *= factor

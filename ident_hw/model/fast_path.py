@@ -34,13 +34,16 @@ class FastPath:
         path: the description file.
         geometry: the hand model's geometry (``Geometry`` or ``DeltaGeometry``).
         parameters: (P,) the file's bodies and drive terms as the hand model's parameter vector.
-        agreement: the largest relative torque difference found by :func:`check_fast_path`.
+        agreement: the largest relative torque difference found by :func:`check_fast_path` (NaN:
+            values read, not checked yet).
+        gravity: m/s², along ``-z``, the file's (``<option gravity>``; the planar 3PRRR has none).
     """
 
     path: Path
     geometry: Geometry | DeltaGeometry
     parameters: np.ndarray
-    agreement: float
+    agreement: float = float("nan")
+    gravity: float = 0.0
 
 
 def check_fast_path(path: Path, what: str, tau_hand: np.ndarray, tau_described: np.ndarray) -> float:

@@ -18,6 +18,10 @@ model's values are read off chain 1 (pinocchio's reading of the file):
 What the planar motion never moves (out-of-plane inertia, a carriage's rotational inertia) is
 the file's and does not reach the hand model; chains 2 and 3 are the hand model's copies of
 chain 1, which the torque check (:func:`~ident_hw.model.fast_path.check_fast_path`) holds.
+
+:func:`described_parameters` goes the other way for identified values (what ``ident-hw export``
+writes): each body keeps the file's centre of mass and the shape of its inertia tensor, scaled
+to the identified mass and inertia about ``z``.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .described import DescribedRobot, DescriptionError
+from .described import DescribedRobot, DescriptionError, load_description
 from .fast_path import FAST_PATH_STATES, FastPath, check_fast_path
 from .parameters import ACTUATOR_NAMES, Geometry, InertialParams
 from .robot import ThreePRRR
@@ -74,8 +78,6 @@ def read_values(path: str | Path, modes=(1, 1, 1)) -> tuple[Geometry, InertialPa
     Raises:
         DescriptionError: a joint or the site missing, or values no 3PRRR has, naming the file.
     """
-    from .described import load_description
-
     path = Path(path)
     model, _, _ = load_description(path)
     ids = {name: _joint(model, name, path) for chain in CHAIN_JOINTS for name in chain}
@@ -106,6 +108,52 @@ def read_values(path: str | Path, modes=(1, 1, 1)) -> tuple[Geometry, InertialPa
         I_ee=float(inertia[EE_JOINT].inertia[2, 2]),
         f_v=tuple(float(x) for x in model.damping[v]), f_c=tuple(float(x) for x in model.friction[v]))
     return geometry, params
+
+
+#: the hand model's (mass, inertia about z) of each chain's bodies and of the end-effector, by joint
+_BODY_VALUES = {"zeta": ("m_c", None), "theta": ("m_l1", "I_l1"), "elbow": ("m_l2", "I_l2"), EE_JOINT: ("m_ee", "I_ee")}
+
+
+def described_parameters(path: str | Path, hand_parameters, described: DescribedRobot) -> np.ndarray:
+    """The generic model's parameter vector (``described.parameter_names``) of hand parameters
+    (19,) of the 3PRRR of the file ``path``: each body of every chain the file's, its mass and its
+    inertia about ``z`` the hand values: the centre of mass stays where the file (the geometry)
+    puts it, the tensor about it is the file's scaled to the new ``Izz`` (a carriage's to the new
+    mass; a file's tensor without ``Izz``: a thin disc about ``z``, ``diag(I/2, I/2, I)``); the
+    drive terms ``fv``, ``fc`` the hand model's, ``Jm`` 0 (it has none).
+    """
+    import pinocchio as pin
+
+    model, _, _ = load_description(Path(path))
+    hand = InertialParams.from_vector(hand_parameters)
+    bodies = {}
+    for j in range(1, model.njoints):
+        name = model.names[j]
+        key = EE_JOINT if name == EE_JOINT else name.rstrip("0123456789")
+        mass_name, inertia_name = _BODY_VALUES[key]
+        old = model.inertias[j]
+        mass = getattr(hand, mass_name)
+        if inertia_name is None:
+            tensor = old.inertia * (mass / old.mass if old.mass > 0 else 0.0)
+        else:
+            I = getattr(hand, inertia_name)
+            tensor = old.inertia * (I / old.inertia[2, 2]) if old.inertia[2, 2] > 0 else np.diag([I / 2, I / 2, I])
+        bodies[described.body_names[j - 1]] = pin.Inertia(mass, old.lever, tensor).toDynamicParameters()
+    drives = {}
+    for k, a in enumerate(ACTUATOR_NAMES):
+        drives[f"fv_{a}"], drives[f"fc_{a}"], drives[f"Jm_{a}"] = hand.f_v[k], hand.f_c[k], 0.0
+    out = np.zeros(len(described.parameter_names))
+    for k, name in enumerate(described.parameter_names):
+        if "." in name:
+            body, p = name.rsplit(".", 1)
+            out[k] = bodies[body][_PIN_ORDER.index(p)]
+        else:
+            out[k] = drives[name]
+    return out
+
+
+#: pinocchio's order of a body's ten values (:data:`ident_hw.model.described.BODY_PARAMS`)
+_PIN_ORDER = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 
 
 @lru_cache(maxsize=8)
