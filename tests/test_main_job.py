@@ -356,8 +356,9 @@ def test_an_epos2_rig_identifies_the_carriages(tmp_path):
     and the carriage friction within the same bounds."""
     robot = tmp_path / "robot-epos2.yaml"
     text = (CONFIGS / "robot-3prrr.yaml").read_text()
-    assert text.count("profile: epos4") == 2 and "method: 37" in text
-    robot.write_text(text.replace("profile: epos4", "profile: epos2").replace("method: 37", "method: 35"))
+    assert text.count("profile: epos4") == 2 and "method: 37" in text and "description: robots/3prrr.xml" in text
+    robot.write_text(text.replace("profile: epos4", "profile: epos2").replace("method: 37", "method: 35")
+                     .replace("description: robots/3prrr.xml", f"description: {CONFIGS / 'robots' / '3prrr.xml'}"))
     sim = tmp_path / "sim-epos2.yaml"
     sim.write_text((CONFIGS / "sim-3prrr.yaml").read_text().replace("extends: robot-3prrr.yaml", f"extends: {robot}"))
     path = tmp_path / "sweep.yaml"
