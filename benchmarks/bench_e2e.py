@@ -38,7 +38,7 @@ from drivers.bus import BusConfig, check_bus_load, cycle_bits, frame_bits, max_s
 from drivers.epos import DriveGroup
 from drivers.sim import Plant, SimulatedRig
 from ident_hw.config import load_config, to_model
-from ident_hw.model import ThreePRRR
+from ident_hw.config.robots import model_of
 from ident_hw.config.to_drivers import axis_config
 
 CONFIG = load_config(Path(__file__).resolve().parent.parent / "configs" / "sim-3prrr.yaml")
@@ -112,7 +112,7 @@ def stats_us(x: np.ndarray) -> str:
 def run(rate_hz: float, seconds: float, index: int) -> dict:
     period = 1.0 / rate_hz
     channel = f"bench-e2e-{index}"
-    robot = ThreePRRR(to_model.geometry(CONFIG.robot.geometry), coulomb_width=CONFIG.robot.coulomb_width)
+    robot = model_of(CONFIG.robot)
     rig = SimulatedRig([(a.node_id, a.profile, a.scaling) for a in AXES],
                        Plant(robot, to_model.inertial_params(CONFIG.sim.truth)), seed=1, current_noise_ma=2.0,
                        interface="virtual", channel=channel, ignore_config=True).start()

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ident_hw.config import load_config, to_model
-from ident_hw.model import ThreePRRR
+from ident_hw.config import load_config
+from ident_hw.config.robots import model_of
 from trajectories import carriage_sweep, check_trajectory, five_squares, validation_triangle
 from trajectories.fourier import optimise_excitation, stacked_regressor
 from ident_hw.experiment.robot_trajectories import feasibility_limits
@@ -33,7 +33,7 @@ def main() -> None:
     parser.add_argument("--write", action="store_true", help="write trajectories/data/fourier-nominal.json")
     args = parser.parse_args()
     cfg = load_config(ROOT / "configs" / "robot-3prrr.yaml").robot
-    robot, limits = ThreePRRR(to_model.geometry(cfg.geometry), cfg.coulomb_width), feasibility_limits(cfg)
+    robot, limits = model_of(cfg), feasibility_limits(cfg)
 
     start = time.perf_counter()
     sweep, squares, triangle = (carriage_sweep(robot, limits), five_squares(robot, limits),

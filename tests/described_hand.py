@@ -212,3 +212,31 @@ def delta_tree_motion(delta: Delta, q, qd, qdd):
     """Tree ``q``, ``v``, ``a`` (N, 15) of an arm motion, from the hand kinematics."""
     (b, c), (bd, cd), (bdd, cdd) = delta_rod_rates(delta, q, qd, qdd)
     return delta_tree(q, b, c), delta_tree(qd, bd, cd), delta_tree(qdd, bdd, cdd)
+
+
+# -- an exported hand robot ----------------------------------------------------------------------
+def export_for_mujoco(results: Path, exported: Path) -> dict[str, float]:
+    """``ident-hw export RESULTS --to EXPORTED --for-mujoco`` (which must succeed); the
+    consistent values of the results folder's ``parameters.json`` by name."""
+    import json
+    import subprocess
+
+    done = subprocess.run(["ident-hw", "export", str(results), "--to", str(exported), "--for-mujoco"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    consistent = json.loads((results / "parameters.json").read_text())["consistent"]
+    return {p["name"]: p["value"] for p in consistent["parameters"]}
+
+
+def torques_agree(tau, tau_reference, tolerance: float = 1e-9) -> None:
+    """Each actuator's largest difference over the states within ``tolerance`` of its largest torque."""
+    error = np.abs(tau - tau_reference).max(axis=0) / np.abs(tau_reference).max(axis=0)
+    assert error.max() < tolerance, error
+
+
+def mujoco_loads(path: Path, bodies: int) -> None:
+    """MuJoCo (where installed) loads ``path``: the world and every body of the file."""
+    import pytest
+
+    mujoco = pytest.importorskip("mujoco")
+    assert mujoco.MjModel.from_xml_path(str(path)).nbody >= bodies + 1

@@ -1,5 +1,5 @@
-"""The nominal 3PRRR rig of the project (the values of ``configs/robot-3prrr.yaml`` and
-``configs/sim-3prrr.yaml``), for the tests and benchmarks that run without a config
+"""The nominal 3PRRR rig of the project (the values of ``configs/robots/3prrr.xml``,
+``configs/robot-3prrr.yaml`` and ``configs/sim-3prrr.yaml``, written here independently of them), for the tests and benchmarks that run without a config
 (the benchmarks put ``tests/`` on their path to import it).
 
 A config-driven rig is built by the CLI (``ident-hw sim CONFIG``) through
@@ -15,6 +15,9 @@ from ident_hw.model import Geometry, InertialParams, ThreePRRR
 
 GEOMETRY = Geometry(l1=0.30, l2=0.30, s1=0.15, s2=0.15, h=0.12, a=0.40,
                     gamma=(0.0, 2 * math.pi / 3, 4 * math.pi / 3))
+#: the CAD values (configs/robots/3prrr.xml): slender rods (m l^2 / 12) and a disc (m h^2 / 2), no friction
+CAD_PARAMS = InertialParams(m_c=780.0, m_l1=0.30, I_l1=0.30 * 0.30**2 / 12, m_l2=0.354, I_l2=0.354 * 0.30**2 / 12,
+                            m_ee=0.78, I_ee=0.78 * 0.12**2 / 2)
 #: the paper-identified masses with slender-rod/disc inertias and the simulated friction
 TRUE_PARAMS = InertialParams(m_c=603.62, m_l1=0.30, I_l1=0.00225, m_l2=0.5723, I_l2=0.00429225,
                              m_ee=0.2269, I_ee=0.00163368,

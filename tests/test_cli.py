@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import json
 import subprocess
 from pathlib import Path
@@ -99,12 +101,12 @@ def test_check_rejects_an_infeasible_trajectory(tmp_path):
 
 
 def test_bad_config_names_file_key_and_line(tmp_path):
-    text = (CONFIGS / "robot-3prrr.yaml").read_text().replace("    l1: 0.30", "    l1: -0.30")
+    text = (CONFIGS / "robot-3prrr.yaml").read_text().replace("  stroke: 0.10", "  stroke: -0.10")
     (tmp_path / "robot.yaml").write_text(text)
     out = ident_hw("check", tmp_path / "robot.yaml")
     assert out.returncode == 2
-    line = 1 + text.splitlines().index(next(s for s in text.splitlines() if "l1: -0.30" in s))
-    assert f"robot.yaml, line {line}: robot.geometry.l1" in out.stderr and "positive" in out.stderr
+    line = 1 + text.splitlines().index(next(s for s in text.splitlines() if "stroke: -0.10" in s))
+    assert f"robot.yaml, line {line}: robot.stroke" in out.stderr and "positive" in out.stderr
 
 
 def test_run_refuses_hardware_without_arm(tmp_path):
@@ -160,7 +162,10 @@ def test_identify_and_report_from_recordings(tmp_path):
     identified = json.loads((res / "parameters.json").read_text())["parameters"][0]
     assert identified["name"] == "m_c" and float(shown[3]) == pytest.approx(identified["identified"], rel=1e-4)
     assert (res / "STATUS").read_text().strip() == "complete"
-    assert load_config(res / "config.yaml") == config
+    # the folder's config names its copy of the description file, the same bytes
+    kept = load_config(res / "config.yaml")
+    assert Path(kept.robot.description).read_bytes() == Path(config.robot.description).read_bytes()
+    assert dataclasses.replace(kept, robot=dataclasses.replace(kept.robot, description=config.robot.description)) == config
     rows = {r["name"]: r for r in json.loads((res / "parameters.json").read_text())["parameters"]}
     assert rows["m_c"]["identified"] == pytest.approx(603.62, rel=0.01)
     assert rows["m_c"]["step"] == "carriages" and rows["m_l2"]["step"] == ""

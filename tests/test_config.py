@@ -5,18 +5,23 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
-from ident_hw.config import ConfigError, load_config, resolved_yaml, to_model
+from ident_hw.config import ConfigError, load_config, resolved_yaml
 from ident_hw.config.robots import initial_parameters, model_of
 from ident_hw.config.to_drivers import axis_scaling
 from ident_hw.experiment.robot_trajectories import feasibility_limits
-from ident_hw.model import ThreePRRR
+from ident_hw.model import Delta, DeltaGeometry, InertialParams, ThreePRRR
+from ident_hw.model.delta import physical_parameters
 from recorded_data import dataset, needs_datasets
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
-ROBOT_TEXT = (CONFIGS / "robot-3prrr.yaml").read_text()
+SHIPPED_ROBOT_TEXT = (CONFIGS / "robot-3prrr.yaml").read_text()
+DESCRIPTION_LINE = "  description: robots/3prrr.xml"
+#: robot-3prrr.yaml naming its description file by its absolute path: a copy of it anywhere reads the shipped file
+ROBOT_TEXT = SHIPPED_ROBOT_TEXT.replace(DESCRIPTION_LINE, f"  description: {CONFIGS / 'robots' / '3prrr.xml'}")
 SIM_TEXT = (CONFIGS / "sim-3prrr.yaml").read_text()
 
 
@@ -33,6 +38,8 @@ def write(tmp_path: Path, name: str, text: str) -> Path:
 
 
 def robot_with(tmp_path: Path, old: str, new: str) -> tuple[Path, str]:
+    """robot-3prrr.yaml with ``old`` replaced by ``new``, written to ``tmp_path`` (its description
+    file named by its absolute path)."""
     assert old in ROBOT_TEXT
     text = ROBOT_TEXT.replace(old, new, 1)
     return write(tmp_path, "robot.yaml", text), text
@@ -64,15 +71,20 @@ def test_every_shipped_config_loads(name):
 
 def test_robot_values_map_to_model_and_drive_scaling():
     cfg = load_config(CONFIGS / "robot-3prrr.yaml")
-    geo = to_model.geometry(cfg.robot.geometry)
-    assert geo.gamma == pytest.approx((0.0, 2 * math.pi / 3, 4 * math.pi / 3))
-    assert (geo.l1, geo.l2, geo.s1, geo.s2, geo.h, geo.a) == (0.30, 0.30, 0.15, 0.15, 0.12, 0.40)
-    cad = to_model.inertial_params(cfg.robot.cad)
+    assert cfg.robot.description == str(CONFIGS / "robots" / "3prrr.xml")
+    model = model_of(cfg.robot)
+    assert isinstance(model, ThreePRRR)
+    geo = model.geometry
+    # read off the file by pinocchio: the guides' angles to the rounding of its rotation matrices
+    assert geo.gamma == pytest.approx((0.0, 2 * math.pi / 3, 4 * math.pi / 3), rel=1e-15, abs=1e-15)
+    assert (geo.l1, geo.l2, geo.s1, geo.s2, geo.h, geo.a, geo.modes) == (0.30, 0.30, 0.15, 0.15, 0.12, 0.40, (1, 1, 1))
+    cad = InertialParams.from_vector(initial_parameters(cfg.robot))
     assert (cad.m_c, cad.m_l1, cad.m_l2, cad.m_ee) == (780.0, 0.30, 0.354, 0.78)
     # slender rod and disc formulas, computed here independently of the file's numbers
     assert cad.I_l1 == pytest.approx(0.30 * 0.30**2 / 12)
     assert cad.I_l2 == pytest.approx(0.354 * 0.30**2 / 12)
     assert cad.I_ee == pytest.approx(0.78 * 0.12**2 / 2)
+    assert cad.f_v == cad.f_c == (0.0,) * 6
     carriage = axis_scaling(cfg.robot.actuators[3])
     assert carriage.kind == "prismatic" and carriage.screw_lead == 0.002
     assert carriage.force_per_amp == pytest.approx(0.0603 * 2 * math.pi / 0.002)
@@ -81,7 +93,8 @@ def test_robot_values_map_to_model_and_drive_scaling():
 
 def test_homing_offsets_are_the_home_pose_angles():
     cfg = load_config(CONFIGS / "robot-3prrr.yaml")
-    robot = ThreePRRR(to_model.geometry(cfg.robot.geometry))
+    robot = model_of(cfg.robot)
+    assert isinstance(robot, ThreePRRR)
     theta, _ = robot.inverse_kinematics([[0.0, 0.0, 0.0]], [[0.0, 0.0, 0.0]])
     offsets = [a.homing.offset for a in cfg.robot.actuators[:3]]
     assert offsets == pytest.approx(theta[0], abs=1e-6)
@@ -90,7 +103,7 @@ def test_homing_offsets_are_the_home_pose_angles():
 def test_sim_config_extends_robot_and_has_a_campaign():
     cfg = load_config(CONFIGS / "sim-3prrr.yaml")
     assert cfg.simulated
-    assert cfg.robot.cad.m_c == 780.0
+    assert initial_parameters(cfg.robot)[0] == 780.0
     truth = cfg.sim.truth
     assert (truth.m_c, truth.m_l1, truth.m_l2, truth.m_ee) == (603.62, 0.30, 0.5723, 0.2269)
     squares = [t for t in cfg.trajectories if t.kind == "square"]
@@ -98,37 +111,59 @@ def test_sim_config_extends_robot_and_has_a_campaign():
     assert cfg.identification.validation == ("triangle",)
 
 
+@pytest.mark.parametrize("key", ["geometry", "cad"])
+def test_the_retired_geometry_and_cad_sections_say_what_to_write(tmp_path, key):
+    """A config of an earlier version (the 3PRRR's geometry and CAD values in YAML) is refused at
+    the key with what replaced it: the description file."""
+    path, text = robot_with(tmp_path, "  stroke: 0.10", f"  {key}:\n    l1: 0.30\n  stroke: 0.10")
+    expect_error(path, f"robot.{key}", line_of(text, f"  {key}:"), "no longer a key", "description", "3prrr.xml")
+
+
+def test_a_description_file_that_is_no_3prrr_is_refused_naming_file_and_key(tmp_path):
+    """The hand model read off a file it does not describe (the first link 5 cm longer in the file,
+    ``elbow1`` placed further) disagrees with the file's own model: refused at load."""
+    xml = (CONFIGS / "robots" / "3prrr.xml").read_text()
+    bad = xml.replace('<body name="link2_2" pos="0.3 0 0">', '<body name="link2_2" pos="0.35 0 0">')
+    assert bad != xml
+    (tmp_path / "robots").mkdir()
+    (tmp_path / "robots" / "3prrr.xml").write_text(bad)
+    path = write(tmp_path, "robot.yaml", SHIPPED_ROBOT_TEXT)
+    err = expect_error(path, "robot.description", line_of(SHIPPED_ROBOT_TEXT, DESCRIPTION_LINE), "3prrr.xml")
+    assert "3PRRR" in str(err) and "pinocchio" in str(err)
+
+
 def test_resolved_yaml_is_self_contained_and_equivalent(tmp_path):
-    text = resolved_yaml(CONFIGS / "sim-3prrr.yaml")
+    # its description file named where it is (the results folder's copy names its own copy)
+    text = resolved_yaml(CONFIGS / "sim-3prrr.yaml", {"robot.description": str(CONFIGS / "robots" / "3prrr.xml")})
     assert "extends" not in yaml.safe_load(text)
     copy = write(tmp_path, "copy.yaml", text)
     assert load_config(copy) == load_config(CONFIGS / "sim-3prrr.yaml")
 
 
 def test_typo_key_is_named_with_a_suggestion(tmp_path):
-    path, text = robot_with(tmp_path, "    l2: 0.30", "    l_2: 0.30")
-    expect_error(path, "robot.geometry.l_2", line_of(text, "l_2:"), "unknown key", "'l2'")
+    path, text = robot_with(tmp_path, "  stroke: 0.10", "  strok: 0.10")
+    expect_error(path, "robot.strok", line_of(text, "strok:"), "unknown key", "'stroke'")
 
 
 def test_missing_key(tmp_path):
-    path, text = robot_with(tmp_path, "    h: 0.12             # radius of the platform joints C_i, m\n", "")
+    path, text = robot_with(tmp_path, "      torque_constant: 0.0369   # EC 45 flat class motor\n", "")
     # reported at the mapping that lacks it
-    expect_error(path, "robot.geometry.h", line_of(text, "l1: 0.30"), "missing key", "m")
+    expect_error(path, "robot.actuators[0].torque_constant", line_of(text, "- &revolute"), "missing key", "a number")
 
 
 def test_negative_length(tmp_path):
-    path, text = robot_with(tmp_path, "    l1: 0.30", "    l1: -0.30")
-    expect_error(path, "robot.geometry.l1", line_of(text, "l1: -0.30"), "positive", "-0.3")
+    path, text = robot_with(tmp_path, "  stroke: 0.10", "  stroke: -0.10")
+    expect_error(path, "robot.stroke", line_of(text, "stroke: -0.10"), "positive", "-0.1")
 
 
 def test_wrong_type(tmp_path):
-    path, text = robot_with(tmp_path, "    a: 0.40", "    a: far")
-    expect_error(path, "robot.geometry.a", line_of(text, "a: far"), "expected a number", "'far'")
+    path, text = robot_with(tmp_path, "  stroke: 0.10", "  stroke: far")
+    expect_error(path, "robot.stroke", line_of(text, "stroke: far"), "expected a number", "'far'")
 
 
 def test_wrong_length_of_a_list(tmp_path):
-    path, text = robot_with(tmp_path, "gamma_deg: [0, 120, 240]", "gamma_deg: [0, 120]")
-    expect_error(path, "robot.geometry.gamma_deg", line_of(text, "gamma_deg"), "list of 3")
+    path, text = robot_with(tmp_path, "modes: [1, 1, 1]", "modes: [1, 1]")
+    expect_error(path, "robot.modes", line_of(text, "modes:"), "list of 3")
 
 
 def test_bad_choice_inside_a_merged_list_item(tmp_path):
@@ -141,26 +176,34 @@ def test_cross_field_rule_points_at_the_key(tmp_path):
     expect_error(path, "robot.actuators[1].node_id", line_of(text, "node_id: 1", 2), "already used")
 
 
+def sim_with(tmp_path: Path, old: str, new: str) -> tuple[Path, str]:
+    """sim-3prrr.yaml with ``old`` replaced by ``new``, written to ``tmp_path`` (extending the shipped robot)."""
+    text = SIM_TEXT.replace("extends: robot-3prrr.yaml", f"extends: {CONFIGS / 'robot-3prrr.yaml'}")
+    assert old in text
+    text = text.replace(old, new, 1)
+    return write(tmp_path, "sim.yaml", text), text
+
+
 def test_degrees_and_radians_both_given(tmp_path):
-    path, text = robot_with(tmp_path, "    gamma_deg: [0, 120, 240]", "    gamma_deg: [0, 120, 240]\n    gamma: [0, 1, 2]")
-    expect_error(path, "robot.geometry.gamma_deg", line_of(text, "gamma_deg"), "not both")
+    path, text = sim_with(tmp_path, "rotation_deg: 10,", "rotation_deg: 10, rotation: 0.2,")
+    expect_error(path, "trajectories[3].rotation_deg", line_of(text, "rotation: 0.2"), "not both")
 
 
 def test_radians_accepted_and_exponent_floats(tmp_path):
-    path, _ = robot_with(tmp_path, "    gamma_deg: [0, 120, 240]", "    gamma: [0, 2.0943951023931953, 4.1887902047863905]")
-    path.write_text(path.read_text().replace("coulomb_width: 0.001", "coulomb_width: 1e-3"))
+    path, _ = sim_with(tmp_path, "rotation_deg: 10,", "rotation: 0.17453292519943295,")
+    path.write_text(path.read_text().replace("current_noise: 0.002", "current_noise: 2e-3"))
     cfg = load_config(path)
-    assert cfg.robot.geometry.gamma[1] == pytest.approx(math.radians(120))
-    assert cfg.robot.coulomb_width == 1e-3
+    assert cfg.trajectories[3].rotation == pytest.approx(math.radians(10))
+    assert cfg.sim.current_noise == 2e-3
 
 
 def test_duplicate_key(tmp_path):
-    path, text = robot_with(tmp_path, "    s2: 0.15", "    s2: 0.15\n    s2: 0.16")
-    expect_error(path, "robot.geometry.s2", line_of(text, "s2: 0.16"), "duplicate")
+    path, text = robot_with(tmp_path, "  stroke: 0.10", "  stroke: 0.10\n  stroke: 0.11")
+    expect_error(path, "robot.stroke", line_of(text, "stroke: 0.11"), "duplicate")
 
 
 def test_yaml_syntax_error(tmp_path):
-    path, text = robot_with(tmp_path, "    l2: 0.30", "    l2: [0.30")
+    path, text = robot_with(tmp_path, "  stroke: 0.10", "  stroke: [0.10")
     with pytest.raises(ConfigError) as info:
         load_config(path)
     assert info.value.file == str(path) and "not valid YAML" in str(info.value)
@@ -168,20 +211,21 @@ def test_yaml_syntax_error(tmp_path):
 
 
 def test_error_in_the_base_file_names_the_base(tmp_path):
-    base, text = robot_with(tmp_path, "    s1: 0.15", "    s1: 0.45")
+    base, text = robot_with(tmp_path, "      name: theta2\n      node_id: 2", "      name: theta2\n      node_id: 1")
     child = write(tmp_path, "child.yaml", "extends: robot.yaml\nrobot:\n  stroke: 0.05\n")
     with pytest.raises(ConfigError) as info:
         load_config(child)
     err = info.value
-    assert (err.file, err.key, err.line) == (str(base), "robot.geometry.s1", line_of(text, "s1: 0.45"))
-    assert "s1 <= l1" in str(err)
+    assert (err.file, err.key, err.line) == (str(base), "robot.actuators[1].node_id", line_of(text, "node_id: 1", 2))
+    assert "already used" in str(err)
 
 
 def test_extends_overrides_deeply(tmp_path):
-    write(tmp_path, "robot.yaml", ROBOT_TEXT)
-    child = write(tmp_path, "child.yaml", "extends: robot.yaml\nrobot:\n  geometry:\n    a: 0.5\n  stroke: 0.05\n")
+    robot_with(tmp_path, "  stroke: 0.10", "  stroke: 0.10")
+    child = write(tmp_path, "child.yaml", "extends: robot.yaml\nrobot:\n  safety:\n    max_cond_A: 40.0\n  stroke: 0.05\n")
     cfg = load_config(child)
-    assert cfg.robot.geometry.a == 0.5 and cfg.robot.geometry.l1 == 0.30 and cfg.robot.stroke == 0.05
+    assert cfg.robot.safety.max_cond_A == 40.0 and cfg.robot.safety.min_serial_margin == 0.1
+    assert cfg.robot.stroke == 0.05 and cfg.robot.modes == (1, 1, 1)
 
 
 def test_bad_include(tmp_path):
@@ -406,3 +450,44 @@ def test_per_arm_amplitudes_are_for_the_delta_s_paths(tmp_path):
     square = write(tmp_path, "square.yaml", f"extends: {CONFIGS / 'sim-3prrr.yaml'}\ntrajectories:\n"
                    "  - {name: s, kind: square, size: 0.05, amplitude: [1.0, 1.0, 1.0]}\n")
     expect_error(square, "trajectories[0].amplitude", 3, "a 'square' trajectory does not use amplitude")
+
+
+def test_the_delta_is_read_from_its_description_file():
+    """robot-delta.yaml names robots/delta.xml: the hand Delta built from it is the configs' Delta
+    (``physical_parameters``, the bodies the file's crosses and yokes lumped in, the platform's
+    inertia the file's, which never acts), the rotor inertia the arms' armature."""
+    cfg = load_config(CONFIGS / "robot-delta.yaml")
+    model = model_of(cfg.robot)
+    assert isinstance(model, Delta)
+    g = model.geometry
+    assert (g.L1, g.L2, g.R, g.r) == (0.309, 0.595, 0.140, 0.035)
+    assert g.psi == pytest.approx(DeltaGeometry().psi, rel=1e-15, abs=1e-15)
+    np.testing.assert_array_equal(model.g, [0.0, 0.0, -9.81])
+    pi = initial_parameters(cfg.robot)
+    expected = physical_parameters(DeltaGeometry())
+    np.testing.assert_allclose(pi[:64], expected[:64], rtol=0, atol=1e-15)     # arms, rods, platform mass and centre
+    np.testing.assert_array_equal(pi[70:], [0.0] * 6 + [0.01] * 3)
+
+
+def test_the_retired_delta_section_says_what_to_write(tmp_path):
+    text = (CONFIGS / "robot-delta.yaml").read_text().replace(
+        "  description: robots/delta.xml", "  delta:\n    geometry: {L1: 0.309}")
+    path = write(tmp_path, "delta.yaml", text)
+    expect_error(path, "robot.delta", line_of(text, "  delta:"), "no longer a key", "description: robots/delta.xml")
+
+
+def test_a_description_file_that_is_no_delta_is_refused(tmp_path):
+    """A platform yoke off its joint's centre is not what the hand Delta lumps: refused at load,
+    naming the body and the file."""
+    xml = (CONFIGS / "robots" / "delta.xml").read_text()
+    bad = xml.replace('<body name="wrist2" pos="-0.595 0 0">\n              <joint name="wrist2_n" type="hinge" axis="0 0 1"/>\n'
+                      '              <inertial pos="0 0 0"',
+                      '<body name="wrist2" pos="-0.595 0 0">\n              <joint name="wrist2_n" type="hinge" axis="0 0 1"/>\n'
+                      '              <inertial pos="0.01 0 0"')
+    assert bad != xml
+    (tmp_path / "robots").mkdir()
+    (tmp_path / "robots" / "delta.xml").write_text(bad)
+    text = (CONFIGS / "robot-delta.yaml").read_text()
+    path = write(tmp_path, "delta.yaml", text)
+    err = expect_error(path, "robot.description", line_of(text, "description: robots/delta.xml"), "delta.xml")
+    assert "'wrist2_n'" in str(err) and "cross" in str(err)

@@ -11,24 +11,47 @@ from __future__ import annotations
 import dataclasses
 import json
 import subprocess
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
+import described_hand as dh
 from delta_scenarios import smallest_pseudo_inertia_eigenvalue
 from drivers.recording import Recording
-from ident_hw.config import load_config, to_model
+from ident_hw.config import load_config
 from ident_hw.experiment.offline import identify
-from ident_hw.model.delta import PARAM_NAMES, closed_form_base
-from ident_hw.config.robots import true_parameters
+from ident_hw.model.delta import PARAM_NAMES, Delta, DeltaGeometry, closed_form_base
+from ident_hw.model.described import DescribedRobot, MasslessBodyWarning
+from ident_hw.config.robots import model_of, true_parameters
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "sim-delta.yaml"
 #: the accuracy claimed where the estimate's own statistics support it (%sigma at most 1 %)
 ACCURATE = 2.0
 #: s of the training path this test runs
 TRAINING = 120.0
+
+
+def exported_robot_is_the_identified_one(results: Path, exported: Path) -> None:
+    """``ident-hw export`` of a Delta run (identified on its hand model): the written MJCF, read by
+    pinocchio as a new robot (no massless body), has the torques of the nominal hand Delta with the
+    consistent parameters on random states; MuJoCo loads it."""
+    values = dh.export_for_mujoco(results, exported)
+    hand = Delta(DeltaGeometry(), coulomb_width=load_config(CONFIG).robot.coulomb_width)
+    pi = np.array([values[name] for name in PARAM_NAMES])
+    q0 = np.zeros((1, 3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", MasslessBodyWarning)
+        robot = DescribedRobot(exported, ("q1", "q2", "q3"), coulomb_width=hand.coulomb_width,
+                               home=dict(zip(dh.DELTA_JOINTS, dh.delta_tree_motion(hand, q0, q0, q0)[0][0])))
+    rng = np.random.default_rng(6)
+    q, qd, qdd = rng.uniform(-0.4, 0.4, (8, 3)), rng.normal(0, 1.5, (8, 3)), rng.normal(0, 10.0, (8, 3))
+    guess = dh.delta_tree_motion(hand, q, qd, qdd)[0]
+    dh.torques_agree(robot.identification_regressor(q, qd, qdd, guess)[0] @ robot.nominal_parameters(),
+                     hand.identification_regressor(q, qd, qdd)[0] @ pi)
+    dh.mujoco_loads(exported, len(robot.body_names))
 
 
 @pytest.mark.slow
@@ -55,9 +78,10 @@ def test_the_delta_job_identifies_the_specs_base_parameters(tmp_path):
     doc = json.loads((out / "parameters.json").read_text())
     assert [a["name"] for a in doc["actuators"]] == ["q1", "q2", "q3"]
     # the spec's 40 readable base parameters, in its basis
-    spec = closed_form_base(to_model.delta_geometry(load_config(CONFIG).robot.delta.geometry), drive_terms=True)
+    spec = closed_form_base(model_of(load_config(CONFIG).robot).geometry, drive_terms=True)
     rows = doc["base_fit"]["rows"]
     assert [r["base_parameter"] for r in rows] == list(spec.expressions)
+    exported_robot_is_the_identified_one(out, tmp_path / "delta-identified.xml")
     # against the config's truth through the spec's H
     truth = spec.H @ true_parameters(load_config(CONFIG))
     accurate = 0
@@ -124,7 +148,7 @@ trajectories:
     trace = load_online(out / "online.npz")
     assert set(trace.estimates) == {"SVD-DLS", "RLS", "damped RLS"} and not trace.diverged
     loaded = load_config(config)
-    spec = closed_form_base(to_model.delta_geometry(loaded.robot.delta.geometry), drive_terms=True)
+    spec = closed_form_base(model_of(loaded.robot).geometry, drive_terms=True)
     common = 0                                      # the common mass: plat.m and the rods
     pi = true_parameters(loaded)
     pi[PARAM_NAMES.index("plat.m")] += 0.5

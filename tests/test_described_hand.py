@@ -28,19 +28,17 @@ import pinocchio as pin
 import pytest
 
 import described_hand as dh
-from ident_hw.config import load_config, to_model
+import nominal
 from ident_hw.model import Delta, ThreePRRR
 from ident_hw.model.delta import BODY_PARAMS as DELTA_BODY_PARAMS
-from ident_hw.model.delta import DeltaGeometry, nominal_parameters
+from ident_hw.model.delta import DeltaGeometry, physical_parameters
 from ident_hw.model.kinematics import wrap
 from ident_hw.model.parameters import ACTUATOR_NAMES as PRRR_ACTUATORS
 from ident_hw.model.parameters import InertialParams
 
-#: configs/robots/delta.xml has the hand model's massless elbows and wrists (the described Delta is held
-#: equal to it), which the description loader warns of (MasslessBodyWarning, what MuJoCo refuses)
-pytestmark = pytest.mark.filterwarnings(r"ignore:.*delta\.xml. moving bodies without mass")
+#: the shipped files load without a MasslessBodyWarning (every moving body has mass: MuJoCo loads them)
+pytestmark = pytest.mark.filterwarnings("error::ident_hw.model.described.MasslessBodyWarning")
 
-ROBOT_3PRRR = dh.ROBOTS.parent / "robot-3prrr.yaml"
 N = 16          # random states per test
 TOL = 1e-9      # relative agreement with the hand models
 POSE_TOL = 1e-9  # rad, m: Newton stops at a closure residual of 1e-12 (configurations good to ~1e-11)
@@ -49,10 +47,9 @@ POSE_TOL = 1e-9  # rad, m: Newton stops at a closure residual of 1e-12 (configur
 # ----------------------------------------------------------------------------- hand models
 @pytest.fixture(scope="module")
 def prrr():
-    """The hand 3PRRR of robot-3prrr.yaml: ``(model, geometry, cad params)``."""
-    cfg = load_config(ROBOT_3PRRR).robot
-    geometry = to_model.geometry(cfg.geometry)
-    return ThreePRRR(geometry, coulomb_width=cfg.coulomb_width), geometry, to_model.inertial_params(cfg.cad)
+    """The nominal hand 3PRRR (``tests/nominal.py``, written independently of the file):
+    ``(model, geometry, cad params)``."""
+    return ThreePRRR(nominal.GEOMETRY, coulomb_width=1e-3), nominal.GEOMETRY, nominal.CAD_PARAMS
 
 
 @pytest.fixture(scope="module")
@@ -197,10 +194,24 @@ def test_3prrr_file_closes_on_hand_poses(prrr):
     assert np.linalg.matrix_rank(S) == 6
 
 
+def prrr_file_bodies(cad, geometry) -> dict[str, np.ndarray]:
+    """The bodies of 3prrr.xml: the hand CAD values, plus what the planar motion never moves and a
+    physical body has (the header's choice): the carriages' rotational inertia (a 0.1 m cube of
+    780 kg: m a^2 / 6), the links' axial inertia (rods of radius 1 cm: m r^2 / 2), the end-effector
+    disc's thickness (1 cm: m t^2 / 12 about x and y)."""
+    bodies = dh.prrr_bodies(cad, geometry)
+    bodies["ee"] = bodies["ee"] + dh.pin_body(0.0, np.zeros(3), np.diag([1.0, 1.0, 0.0]) * cad.m_ee * 0.01**2 / 12)
+    for i in (1, 2, 3):
+        bodies[f"carriage{i}"] = bodies[f"carriage{i}"] + dh.pin_body(0.0, np.zeros(3), 780 * 0.1**2 / 6 * np.eye(3))
+        for link, mass in (("link1", cad.m_l1), ("link2", cad.m_l2)):
+            bodies[f"{link}_{i}"] = bodies[f"{link}_{i}"] + dh.pin_body(0.0, np.zeros(3), np.diag([mass * 0.01**2 / 2, 0, 0]))
+    return bodies
+
+
 def test_3prrr_file_inertias_are_the_cad_values(prrr):
     _, geometry, cad = prrr
     model, _, _, _ = load(dh.PRRR_XML)
-    bodies = dh.prrr_bodies(cad, geometry)
+    bodies = prrr_file_bodies(cad, geometry)
     for j, name in enumerate(dh.PRRR_BODIES, start=1):
         np.testing.assert_allclose(model.inertias[j].toDynamicParameters(), bodies[name], rtol=0, atol=1e-12,
                                    err_msg=name)
@@ -255,13 +266,53 @@ def test_delta_file_closes_on_hand_poses(delta):
     assert np.abs(G @ S).max() < 1e-12 * np.abs(S).max()
 
 
-def test_delta_file_inertias_are_the_nominal_bodies(delta):
+def lumped_delta_file(model, geometry) -> dict[str, np.ndarray]:
+    """The bodies of delta.xml (raw pinocchio, joint frames) with its crosses and yokes lumped as
+    the hand model (no crosses) has them, written here from the header: an elbow cross's mass a
+    point at ``B_i`` on the arm, a wrist cross's a point at ``P_i`` on the platform, each cross's
+    inertia about its ``y`` axis on the rod's ``x`` and ``y`` axes, a yoke ``end<i>`` (axes
+    ``R_i`` at ``P_i``) moved onto the platform (frame at ``P_1``, world axes)."""
+    raw = {name: np.asarray(model.inertias[j].toDynamicParameters()) for j, name in enumerate(dh.DELTA_BODIES, 1)}
+    out = {"platform": raw["platform"].copy()}
+    e = np.stack([np.cos(geometry.psi), np.sin(geometry.psi), np.zeros(3)], axis=1)
+    for i in (1, 2, 3):
+        elbow, wrist = raw[f"elbow{i}"], raw[f"wrist{i}"]
+        for cross in (elbow, wrist):
+            assert cross[0] > 0 and np.allclose(cross[1:4], 0, atol=1e-15)     # a mass, centred on its joint
+        out[f"arm{i}"] = raw[f"arm{i}"] + dh.moved(elbow[0], np.zeros(3), np.zeros((3, 3)), np.eye(3),
+                                                   (geometry.L1, 0, 0))
+        spin = elbow[dh.PIN_PARAMS.index("Iyy")] + wrist[dh.PIN_PARAMS.index("Iyy")]
+        out[f"rod{i}"] = raw[f"rod{i}"] + dh.pin_body(0.0, np.zeros(3), np.diag([spin, spin, 0.0]))
+        P_i = geometry.r * (e[i - 1] - e[0])
+        out["platform"] = out["platform"] + dh.moved(wrist[0], np.zeros(3), np.zeros((3, 3)), np.eye(3), P_i)
+        if i > 1:
+            end = raw[f"end{i}"]
+            R_i = np.array([[np.cos(geometry.psi[i - 1]), -np.sin(geometry.psi[i - 1]), 0],
+                            [np.sin(geometry.psi[i - 1]), np.cos(geometry.psi[i - 1]), 0], [0, 0, 1.0]])
+            out["platform"] = out["platform"] + dh.moved(end[0], end[1:4], dh.hand_tensor(
+                end[[4, 5, 7, 6, 8, 9]]), R_i, P_i)
+    return out
+
+
+def test_delta_file_inertias_are_the_configs_bodies(delta):
+    """With its crosses and yokes lumped, delta.xml is the configs' Delta (``physical_parameters``)
+    in the file's frames; the platform's inertia, which never acts (it translates), is the file's
+    compact body."""
     model, _, _, _ = load(dh.DELTA_XML)
-    bodies = dh.delta_bodies(nominal_parameters(delta.geometry), delta.geometry)
-    assert set(bodies) == {"arm1", "arm2", "arm3", "rod1", "rod2", "rod3", "platform"}
-    for j, name in enumerate(dh.DELTA_BODIES, start=1):
-        np.testing.assert_allclose(model.inertias[j].toDynamicParameters(), bodies.get(name, np.zeros(10)),
-                                   rtol=0, atol=1e-12, err_msg=name)
+    bodies = dh.delta_bodies(physical_parameters(delta.geometry), delta.geometry)
+    lumped = lumped_delta_file(model, delta.geometry)
+    for name in ("arm1", "arm2", "arm3", "rod1", "rod2", "rod3"):
+        np.testing.assert_allclose(lumped[name], bodies[name], rtol=0, atol=1e-12, err_msg=name)
+    np.testing.assert_allclose(lumped["platform"][:4], bodies["platform"][:4], rtol=0, atol=1e-12)
+    assert np.linalg.eigvalsh(dh.hand_tensor(lumped["platform"][[4, 5, 7, 6, 8, 9]])).min() > 0
+
+
+def test_the_shipped_files_load_in_mujoco():
+    """MuJoCo loads delta.xml and 3prrr.xml as shipped (no massless moving body, no tensor it refuses)."""
+    mj = pytest.importorskip("mujoco")
+    for path in (dh.DELTA_XML, dh.PRRR_XML):
+        model = mj.MjModel.from_xml_path(str(path))
+        assert model.nbody == len(load(path)[0].names) + 1      # the world and the base, every joint's body
 
 
 def test_delta_file_virtual_work_of_rnea_is_the_hand_inverse_dynamics(delta):
@@ -320,7 +371,7 @@ def test_3prrr_described_names_and_nominal_parameters(prrr, described_prrr):
     assert robot.actuator_kinds == hand.actuator_kinds
     assert robot.pose_size == 10
     np.testing.assert_allclose(robot.home_actuated(), hand.home_actuated(), rtol=0, atol=1e-15)
-    expected = dh.prrr_map(cad.as_vector(), geometry, robot.parameter_names)
+    expected = dh.described_vector(prrr_file_bodies(cad, geometry), dh.prrr_drives(cad), robot.parameter_names)
     np.testing.assert_allclose(robot.nominal_parameters(), expected, rtol=0, atol=1e-12)
 
 
@@ -413,8 +464,9 @@ def test_delta_described_names_and_nominal_parameters(delta, described_delta):
     check_names(robot, dh.DELTA_BODIES, ("q1", "q2", "q3"))
     assert robot.actuator_kinds == delta.actuator_kinds
     assert robot.pose_size == 15
-    expected = dh.delta_map(nominal_parameters(delta.geometry), delta.geometry, robot.parameter_names)
-    np.testing.assert_allclose(robot.nominal_parameters(), expected, rtol=0, atol=1e-12)
+    model, _, _, _ = load(dh.DELTA_XML)
+    raw = np.concatenate([model.inertias[j].toDynamicParameters() for j in range(1, model.njoints)])
+    np.testing.assert_array_equal(robot.nominal_parameters(), np.concatenate([raw, np.zeros(6), [0.01] * 3]))
 
 
 def test_delta_described_forward_kinematics_is_the_hand_one(delta, described_delta):

@@ -34,16 +34,13 @@ import pinocchio as pin
 import pytest
 
 import described_hand as dh
-from ident_hw.config import load_config, to_model
+from ident_hw.config import load_config
+from ident_hw.config.robots import model_of
 from ident_hw.model import Delta, ThreePRRR
-from ident_hw.model.delta import DeltaGeometry
+from ident_hw.model.delta import DeltaGeometry, nominal_parameters
 from ident_hw.model.described import DescribedRobot, DescriptionError, MasslessBodyWarning, load_description
 from ident_hw.experiment.description_writer import write_description
 from ident_hw.model.parameters import ACTUATOR_NAMES as PRRR_ACTUATORS
-
-#: configs/robots/delta.xml has the hand model's massless elbows and wrists (the described Delta is held
-#: equal to it), which the description loader warns of (MasslessBodyWarning, what MuJoCo refuses)
-pytestmark = pytest.mark.filterwarnings(r"ignore:.*delta\.xml. moving bodies without mass")
 
 ROBOTS = dh.ROBOTS
 ROUND_TRIP = 1e-12      # relative to each body's largest value
@@ -54,7 +51,7 @@ LEGS = tuple(f"leg{i}" for i in range(1, 7))
 # ------------------------------------------------------------------------------ the robots
 def _prrr_home() -> dict[str, float]:
     cfg = load_config(ROBOTS.parent / "robot-3prrr.yaml").robot
-    hand = ThreePRRR(to_model.geometry(cfg.geometry))
+    hand = ThreePRRR(model_of(cfg).geometry)
     X0 = np.zeros((1, 3))
     theta, beta = hand.inverse_kinematics(X0, X0)
     return dict(zip(dh.PRRR_JOINTS, dh.prrr_tree(X0, theta, beta, X0)[0]))
@@ -159,7 +156,7 @@ def _jm_comments(path: Path) -> dict[str, float]:
 
 # ------------------------------------------------------------------------------ round trips
 @pytest.mark.parametrize("name, kind", [(name, "random") for name in SOURCES]
-                         + [(name, "nominal") for name in ("2r", "stewart", "3prrr")])
+                         + [(name, "nominal") for name in ("2r", "stewart", "3prrr", "delta")])
 def test_round_trip(robots, name, kind, tmp_path):
     robot = robots[name]
     rng = np.random.default_rng([list(SOURCES).index(name), len(kind)])
@@ -308,31 +305,27 @@ def test_mujoco_reads_the_same_dynamics(robots, name, tmp_path):
     _check_with_mujoco(mj, robot, pi, path, rng, armature=path.suffix != ".urdf")
 
 
-@pytest.mark.parametrize("name", ["3prrr"])
-def test_for_mujoco_refuses_what_mujoco_refuses(robots, name, tmp_path):
-    """The shipped nominal values (point-mass carriages, rods without axial inertia) are written
-    for pinocchio; MuJoCo refuses the file, naming a body (the first it meets) that
-    ``for_mujoco`` names too. The Stewart's nominal export loads (its crosses and ball-joint
-    bodies have masses)."""
+def test_for_mujoco_refuses_what_mujoco_refuses(robots, tmp_path):
+    """A point-mass carriage (the 3PRRR's first carriage without its rotational inertia, which the
+    planar motion never moves) is written for pinocchio; MuJoCo refuses the file, naming a body
+    (the first it meets) that ``for_mujoco`` names too. Every shipped file's nominal export loads."""
     mj = pytest.importorskip("mujoco")
-    robot = robots[name]
+    robot = robots["3prrr"]
     pi = robot.nominal_parameters()
+    j = robot.body_names.index("carriage1")
+    pi[10 * j + 4:10 * j + 10] = 0.0
     path = write_description(robot, pi, tmp_path / robot.path.name)
     with pytest.raises(ValueError, match=r"Element name '(\w+)'") as refused:
         mj.MjModel.from_xml_path(str(path))
     body = re.search(r"Element name '(\w+)'", str(refused.value)).group(1)
-    assert body in robot.body_names
+    assert body == "carriage1"
     with pytest.raises(DescriptionError, match=rf"(?m)^  {body}: ") as ours:
         write_description(robot, pi, tmp_path / "checked" / robot.path.name, for_mujoco=True)
     assert "MuJoCo would refuse" in str(ours.value)
     assert not (tmp_path / "checked").exists()
-    stewart = robots["stewart"]
-    mj.MjModel.from_xml_path(str(write_description(stewart, stewart.nominal_parameters(),
-                                                   tmp_path / "nominal" / "stewart.xml")))
-    # the 2R's nominal bodies are physical: MuJoCo loads them
-    two_r = robots["2r"]
-    mj.MjModel.from_xml_path(str(write_description(two_r, two_r.nominal_parameters(), tmp_path / "2r.urdf",
-                                                   for_mujoco=True)))
+    for name, shipped in robots.items():
+        mj.MjModel.from_xml_path(str(write_description(shipped, shipped.nominal_parameters(),
+                                                       tmp_path / "nominal" / shipped.path.name, for_mujoco=True)))
 
 
 OFFSETS = """<mujoco model="offsets">
@@ -468,11 +461,14 @@ def test_a_massless_body_with_rotational_inertia_only(robots, tmp_path):
 
 
 def test_the_delta_test_vector_arm_is_refused(robots, tmp_path):
-    """delta.xml's arm tensor is the spec's test vector, against the triangle inequality: no
-    description file is written for it (pinocchio would read it; no mass distribution has it)."""
+    """The spec's test-vector arm (``nominal_parameters``, Table 1 read as printed) is against the
+    triangle inequality: no description file is written for it (pinocchio would read it; no mass
+    distribution has it)."""
     robot = robots["delta"]
+    pi = robot.nominal_parameters()
+    pi[:10] = dh.delta_bodies(nominal_parameters(), DeltaGeometry())["arm1"]
     with pytest.raises(DescriptionError, match=r"body 'arm1' has principal moments .* violate the triangle"):
-        write_description(robot, robot.nominal_parameters(), tmp_path / "delta.xml")
+        write_description(robot, pi, tmp_path / "delta.xml")
     assert not list(tmp_path.iterdir())
 
 
@@ -486,8 +482,9 @@ def test_a_solver_s_rounding_is_projected(robots, tmp_path):
     pi[len(pi) - 3 * n:] = np.linspace(0.1, 1.0, 3 * n)
     exact = pi.copy()
     j = robot.body_names.index("link1_1")
-    assert np.allclose(pi[10 * j + 1:10 * j + 4] / pi[10 * j], [0.15, 0, 0])   # a rod along x, no axial inertia
-    pi[10 * j + 4] -= 1e-13                             # Ixx about the joint: the axial moment -1e-13
+    assert np.allclose(pi[10 * j + 1:10 * j + 4] / pi[10 * j], [0.15, 0, 0])   # a rod along x
+    pi[10 * j + 4] = exact[10 * j + 4] = 0.0            # without axial inertia (Ixx about the joint)...
+    pi[10 * j + 4] -= 1e-13                             # ...the axial moment -1e-13
     pi[len(pi) - 3 * n] = -1e-12                        # fv of the first actuator
     to = write_description(robot, pi, tmp_path / "3prrr.xml")
     copy = _reload(robot, to)

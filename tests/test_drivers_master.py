@@ -22,7 +22,7 @@ from drivers.profiles import EPOS2
 from drivers.recording import Recording, decode_log
 from drivers.sim import Plant, SimulatedRig
 from ident_hw.config import load_config, to_model
-from ident_hw.model import ThreePRRR
+from ident_hw.config.robots import model_of
 from ident_hw.config.to_drivers import axis_config
 
 _channels = itertools.count()
@@ -45,7 +45,7 @@ def rig_factory():
 
     def make(initial_states=None, up=True, sdo_timeout=0.5, sync="lockstep", noise_ma=0.0, period=PERIOD, axes=AXES):
         channel = f"drivers-test-{next(_channels)}"
-        robot = ThreePRRR(to_model.geometry(CONFIG.robot.geometry), coulomb_width=CONFIG.robot.coulomb_width)
+        robot = model_of(CONFIG.robot)
         plant = Plant(robot, to_model.inertial_params(CONFIG.sim.truth))
         lockstep = sync == "lockstep"
         rig = SimulatedRig([(a.node_id, a.profile, a.scaling) for a in axes], plant, seed=1,

@@ -72,8 +72,10 @@ def no_traceback(out) -> None:
 
 
 def edited_config(run_folder: Path, target: Path, edit) -> Path:
-    """The run's own config (``config.yaml`` of its results folder) with ``edit(doc)`` applied."""
+    """The run's own config (``config.yaml`` of its results folder) with ``edit(doc)`` applied,
+    written to ``target`` (naming the folder's copy of the description file where it is)."""
     doc = yaml.safe_load((run_folder / "config.yaml").read_text())
+    doc["robot"]["description"] = str(run_folder / doc["robot"]["description"])
     edit(doc)
     target.write_text(yaml.safe_dump(doc, sort_keys=False))
     return target

@@ -18,6 +18,7 @@ import json
 import logging
 import re
 import shutil
+import warnings
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -32,8 +33,11 @@ from ident_hw.experiment.campaign_estimator import CampaignEstimator
 from ident_hw.experiment.offline import identify
 from ident_hw.experiment.session import HostSettings
 from ident_hw.experiment.folders import new_results_folder
-from ident_hw.model.parameters import FRICTION_NAMES, INERTIAL_NAMES
+from ident_hw.model.described import DescribedRobot, MasslessBodyWarning
+from ident_hw.model.parameters import ACTUATOR_NAMES, FRICTION_NAMES, INERTIAL_NAMES, InertialParams
 from ident_hw.results import save_results, settling_time, tracked
+import described_hand as dh
+import nominal
 from cli_runs import ident_hw
 from ident_scenarios import CONFIGS, SWEEP_CAMPAIGN, without_draws
 from ident_hw.config.to_drivers import axis_config
@@ -129,6 +133,31 @@ def test_the_main_job_identifies_the_simulated_truth(main_job):
         assert all(0.0 <= h <= sigma[p] for p, h in zip(step["free"], step["held_sigma"])), step["name"]
     assert dict(zip(mass_fits[0]["free"], mass_fits[0]["held_sigma"]))["m_c"] > 0.0
 
+
+
+def test_the_main_job_s_robot_exports_to_a_file_pinocchio_and_mujoco_load(main_job, tmp_path):
+    """``ident-hw export`` of the main job (the 3PRRR identified on its hand model): the written
+    MJCF, read by pinocchio as a new robot (no massless body), has the torques of the nominal hand
+    model (``tests/nominal.py``) with the consistent parameters, on states about home; MuJoCo loads it."""
+    _, folder = main_job
+    exported = tmp_path / "3prrr-identified.xml"
+    values = dh.export_for_mujoco(folder, exported)
+    pi = np.array([values[name] for name in InertialParams.NAMES])
+    hand = nominal.ROBOT
+    X0 = np.zeros((1, 3))
+    theta, beta = hand.inverse_kinematics(X0, X0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", MasslessBodyWarning)
+        robot = DescribedRobot(exported, ACTUATOR_NAMES, home=dict(zip(dh.PRRR_JOINTS, dh.prrr_tree(X0, theta, beta, X0)[0])),
+                               coulomb_width=hand.coulomb_width)
+    rng = np.random.default_rng(5)
+    Theta = hand.home_actuated() + np.concatenate([rng.uniform(-0.05, 0.05, (8, 3)), rng.uniform(-0.03, 0.03, (8, 3))], 1)
+    Thetad, Thetadd = rng.normal(0, 0.3, (8, 6)), rng.normal(0, 3.0, (8, 6))
+    motion = hand.motion_from_actuated(Theta, Thetad, Thetadd, np.zeros((8, 3)))
+    guess = dh.prrr_tree(motion.X, motion.theta, motion.beta, motion.zeta)
+    dh.torques_agree(robot.identification_regressor(Theta, Thetad, Thetadd, guess)[0] @ robot.nominal_parameters(),
+                     hand.regressor_of(motion) @ pi)
+    dh.mujoco_loads(exported, len(robot.body_names))
 
 
 def test_the_main_job_gives_physical_link_masses_and_inertias_that_keep_the_base_parameters(main_job):
@@ -327,8 +356,9 @@ def test_an_epos2_rig_identifies_the_carriages(tmp_path):
     and the carriage friction within the same bounds."""
     robot = tmp_path / "robot-epos2.yaml"
     text = (CONFIGS / "robot-3prrr.yaml").read_text()
-    assert text.count("profile: epos4") == 2 and "method: 37" in text
-    robot.write_text(text.replace("profile: epos4", "profile: epos2").replace("method: 37", "method: 35"))
+    assert text.count("profile: epos4") == 2 and "method: 37" in text and "description: robots/3prrr.xml" in text
+    robot.write_text(text.replace("profile: epos4", "profile: epos2").replace("method: 37", "method: 35")
+                     .replace("description: robots/3prrr.xml", f"description: {CONFIGS / 'robots' / '3prrr.xml'}"))
     sim = tmp_path / "sim-epos2.yaml"
     sim.write_text((CONFIGS / "sim-3prrr.yaml").read_text().replace("extends: robot-3prrr.yaml", f"extends: {robot}"))
     path = tmp_path / "sweep.yaml"

@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ident_hw.config import load_config, to_model
-from ident_hw.model import ThreePRRR
+from ident_hw.config import load_config
+from ident_hw.config.robots import model_of
 from trajectories import (InfeasibleTrajectory, Trajectory, TrajectoryFileError, carriage_sweep, check_trajectory,
                           five_squares, load, pose_trajectory, save, validation_triangle)
 from trajectories.paths import home_actuators
@@ -20,7 +20,7 @@ CONFIG = Path(__file__).resolve().parents[1] / "configs" / "robot-3prrr.yaml"
 @pytest.fixture(scope="module")
 def rig():
     cfg = load_config(CONFIG).robot
-    return ThreePRRR(to_model.geometry(cfg.geometry), cfg.coulomb_width), feasibility_limits(cfg)
+    return model_of(cfg), feasibility_limits(cfg)
 
 
 @pytest.fixture(scope="module")

@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ident_hw.config import load_config, to_model
-from ident_hw.model import ThreePRRR
+from ident_hw.config import load_config
+from ident_hw.config.robots import model_of
 from trajectories import carriage_sweep, check_trajectory, five_squares, validation_triangle
 from scipy.optimize._numdiff import approx_derivative
 
@@ -21,7 +21,7 @@ CACHED = ROOT / "trajectories" / "data" / "fourier-nominal.json"
 @pytest.fixture(scope="module")
 def rig():
     cfg = load_config(ROOT / "configs" / "robot-3prrr.yaml").robot
-    return ThreePRRR(to_model.geometry(cfg.geometry), cfg.coulomb_width), feasibility_limits(cfg)
+    return model_of(cfg), feasibility_limits(cfg)
 
 
 def test_series_derivatives_and_rest_to_rest():

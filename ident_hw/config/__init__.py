@@ -2,7 +2,7 @@
 
     from ident_hw.config import load_config, ConfigError, to_model, to_drivers
     cfg = load_config("configs/sim-3prrr.yaml")     # raises ConfigError naming file, line, key
-    to_model.geometry(cfg.robot.geometry)            # ident_hw.model.Geometry
+    model_of(cfg.robot)                              # the robot's model (ident_hw.config.robots)
     to_drivers.axis_scaling(cfg.robot.actuators[3])  # drivers.units.AxisScaling
 
 The sections are plain data, one module per family (:mod:`.robot` and the robots' own
@@ -28,8 +28,8 @@ from .file import Config, OutputConfig
 from .identification import (FilterConfig, IdentificationConfig, OnlineConfig, PhysicalConfig, QualityConfig,
                              StepConfig)
 from .robot import RobotConfig, SafetyConfig
-from .robot_3prrr import GeometryConfig, InertialConfig
-from .robot_delta import DeltaConfig, DeltaGeometryConfig, DeltaParametersConfig
+from .robot_3prrr import InertialConfig
+from .robot_delta import DeltaParametersConfig
 from .robot_described import DescribedConfig, ParameterSetConfig
 from .schema import ConfigError, build
 from .sim import SimConfig, SimFaultConfig
@@ -37,8 +37,8 @@ from .source import compose_file
 from .trajectory import PayloadConfig, TrajectoryConfig
 
 __all__ = [
-    "load_config", "resolved_yaml", "ConfigError", "Config", "RobotConfig", "GeometryConfig",
-    "InertialConfig", "DeltaConfig", "DeltaGeometryConfig", "DeltaParametersConfig", "DescribedConfig",
+    "load_config", "resolved_yaml", "ConfigError", "Config", "RobotConfig",
+    "InertialConfig", "DeltaParametersConfig", "DescribedConfig",
     "ParameterSetConfig", "ActuatorConfig", "LimitsConfig", "HomingConfig", "SafetyConfig", "BusConfig",
     "SimConfig", "SimFaultConfig", "TrajectoryConfig", "PayloadConfig", "IdentificationConfig", "StepConfig",
     "FilterConfig", "OnlineConfig", "PhysicalConfig", "OutputConfig", "QualityConfig",

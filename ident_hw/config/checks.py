@@ -23,7 +23,6 @@ from .actuators import ActuatorConfig
 from .file import Config
 from .identification import IdentificationConfig, OnlineConfig, PhysicalConfig
 from .robot import RobotConfig
-from .robot_3prrr import GeometryConfig
 from .robot_delta import DeltaParametersConfig
 from .robots import COMMON_TRAJECTORY_KINDS, RobotKind, check_parameter_set, kind_of, model_of
 from .scales import check_scales, drive_term, parameter_kind
@@ -35,13 +34,6 @@ from .trajectory import COMMON_KEYS, KEYS_OF_KIND, STANDSTILL_MIN_S, STANDSTILL_
 
 
 # ----------------------------------------------------------------------------- sections
-def check_geometry(g: GeometryConfig, written: frozenset = frozenset()) -> None:
-    if g.s1 > g.l1:
-        raise FieldError("s1", f"expected s1 <= l1 = {g.l1} m, got {g.s1}")
-    if g.s2 > g.l2:
-        raise FieldError("s2", f"expected s2 <= l2 = {g.l2} m, got {g.s2}")
-
-
 def check_delta_parameters(p: DeltaParametersConfig, written: frozenset = frozenset()) -> None:
     bodies = {f"{b}.{q}" for b in BODIES for q in BODY_PARAMS}
     for name in p.factors:
@@ -61,7 +53,7 @@ def check_robot(robot: RobotConfig, written: frozenset = frozenset()) -> None:
     """Only the sections of the robot's kind, its kind's own rules, the actuators it expects and
     every node id once."""
     kind = kind_of(robot)
-    for key in ("geometry", "stroke", "cad", "delta", "described"):
+    for key in ("description", "modes", "stroke", "described"):
         if getattr(robot, key) is not None and key not in kind.sections:
             raise FieldError(key, f"belongs to another robot than robot.kind {robot.kind!r} "
                                   f"(its sections: {', '.join(kind.sections)})")
@@ -371,7 +363,6 @@ def _check_parameter_names(ident: IdentificationConfig | None, known: tuple[str,
 
 #: every section's cross-field check, by section class
 CHECKS: dict[type, Callable[[object, frozenset], None]] = {
-    GeometryConfig: check_geometry,
     DeltaParametersConfig: check_delta_parameters,
     ActuatorConfig: check_actuator,
     RobotConfig: check_robot,

@@ -1,29 +1,11 @@
-"""The 3PRRR's sections of ``robot``: its geometry and its inertial parameters (SI units)."""
+"""The 3PRRR's parameter set (``sim.truth``: the simulated robot's true values; SI units). Its geometry
+and CAD values are its description file's (``robot.description``, :mod:`ident_hw.model.prrr_file`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .schema import non_negative, positive, spec
-
-
-def _plus_minus_one(value) -> None:
-    if any(v not in (1, -1) for v in value):
-        raise ValueError(f"expected +1 or -1 for each chain, got {list(value)}")
-
-
-@dataclass(frozen=True)
-class GeometryConfig:
-    """Geometry of the 3PRRR, per ``docs/3prrr-model.md``."""
-
-    l1: float = field(metadata=spec(positive, unit="m"))
-    l2: float = field(metadata=spec(positive, unit="m"))
-    s1: float = field(metadata=spec(non_negative, unit="m"))
-    s2: float = field(metadata=spec(non_negative, unit="m"))
-    h: float = field(metadata=spec(positive, unit="m"))
-    a: float = field(metadata=spec(positive, unit="m"))
-    gamma: tuple[float, float, float] = field(metadata=spec(unit="rad", angle=True))
-    modes: tuple[int, int, int] = field(default=(1, 1, 1), metadata=spec(_plus_minus_one))
+from .schema import non_negative, spec
 
 
 @dataclass(frozen=True)

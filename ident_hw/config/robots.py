@@ -9,7 +9,9 @@ nothing of :mod:`trajectories`). The config, the campaign plan and the simulated
 the kind up here instead of comparing ``robot.kind`` with names; this module is the only place
 that does (a test holds it).
 
-Three kinds: ``3prrr`` and ``delta`` (hand-derived models, :mod:`ident_hw.model`) and
+Three kinds: ``3prrr`` and ``delta``, read from their description files like any robot and run on
+their hand-derived models (:mod:`ident_hw.model`), the compiled fast paths held to the files'
+generic models at load (:mod:`ident_hw.model.fast_path`), and
 ``described``: any robot from its description file (:class:`ident_hw.model.described.DescribedRobot`),
 settings in ``robot.described`` (:class:`~ident_hw.config.robot_described.DescribedConfig`), true
 parameters in ``sim.parameters`` (:class:`~ident_hw.config.robot_described.ParameterSetConfig`).
@@ -23,7 +25,7 @@ from typing import TYPE_CHECKING, Any, Callable, cast
 
 import numpy as np
 
-from ident_hw.model import Delta, ThreePRRR
+from ident_hw.model import Delta, DeltaGeometry, Geometry, ThreePRRR
 from ident_hw.model.interface import RobotModel
 from ident_hw.model.pseudo_inertia import SPATIAL
 
@@ -34,6 +36,7 @@ from .sim import SeedStream
 
 if TYPE_CHECKING:  # pinocchio, which described imports, is imported by described robots only
     from ident_hw.model.described import DescribedRobot
+    from ident_hw.model.fast_path import FastPath
 
     from .file import Config
     from .robot import RobotConfig
@@ -60,6 +63,8 @@ class RobotKind:
         validate: ``robot -> None`` checks beyond the schema (FieldError, key relative to ``robot``).
         friction_models: its model takes any friction model of ``robot.friction`` (else only the
             default Coulomb and viscous terms).
+        described: ``robot -> (DescribedRobot, map)`` the robot's generic model and the map of its
+            model's parameter vector to the generic model's (what ``ident-hw export`` writes).
     """
 
     name: str
@@ -72,39 +77,86 @@ class RobotKind:
     actuators: Callable[[Any], tuple[tuple[str, ...], tuple[str, ...]]]
     validate: Callable[[Any], None] = lambda robot: None
     friction_models: bool = False
+    described: Callable[[Any], tuple[DescribedRobot, Callable[[np.ndarray], np.ndarray]]] | None = None
 
 
 # ---- the 3PRRR
+def threeprrr_file(robot) -> FastPath:
+    """The 3PRRR of a ``robot`` section: the hand model's values read off ``robot.description``
+    and checked against its generic model (:func:`ident_hw.model.prrr_file.fast_path`); a file
+    that is no 3PRRR is a FieldError on ``description``."""
+    from ident_hw.model.described import DescriptionError
+    from ident_hw.model.prrr_file import fast_path
+    try:
+        return fast_path(robot.description, robot.modes or (1, 1, 1), robot.coulomb_width)
+    except DescriptionError as exc:
+        raise FieldError("description", str(exc)) from None
+
+
 def _threeprrr_validate(robot) -> None:
-    for key in ("geometry", "stroke", "cad"):
+    for key in ("description", "stroke"):
         if getattr(robot, key) is None:
-            raise FieldError(key, "missing key (a 3PRRR needs geometry, stroke and cad)")
+            raise FieldError(key, "missing key (a 3PRRR needs its description file, e.g. robots/3prrr.xml, and stroke)")
+    threeprrr_file(robot)
+
+
+def _threeprrr_described(robot) -> tuple[DescribedRobot, Callable[[np.ndarray], np.ndarray]]:
+    from ident_hw.model.prrr_file import described_3prrr, described_parameters
+    fast = threeprrr_file(robot)
+    described = described_3prrr(robot.description, cast(Geometry, fast.geometry), robot.coulomb_width)
+    return described, lambda pi: described_parameters(robot.description, pi, described)
 
 
 THREE_PRRR = RobotKind(
-    name="3prrr", sections=("geometry", "stroke", "cad", "safety"), truth_key="truth",
+    name="3prrr", sections=("description", "modes", "stroke", "safety"), truth_key="truth",
     trajectory_kinds=("carriage_sweep", "square", "triangle", "fourier"),
-    model=lambda robot: ThreePRRR(to_model.geometry(robot.geometry), coulomb_width=robot.coulomb_width),
-    initial=lambda robot: to_model.inertial_params(robot.cad).as_vector(),
+    model=lambda robot: ThreePRRR(cast(Geometry, threeprrr_file(robot).geometry), coulomb_width=robot.coulomb_width),
+    initial=lambda robot: threeprrr_file(robot).parameters.copy(),
     truth=lambda robot, sim, model: to_model.inertial_params(sim.truth).as_vector(),
     actuators=lambda robot: (ThreePRRR.actuator_names, ThreePRRR.actuator_kinds),
-    validate=_threeprrr_validate)
+    validate=_threeprrr_validate, described=_threeprrr_described)
 
 
 # ---- the Delta
+def delta_file(robot) -> FastPath:
+    """The Delta of a ``robot`` section (with its gravity, m/s²): the hand model's values read off
+    ``robot.description`` and checked against its generic model
+    (:func:`ident_hw.model.delta_file.fast_path`); a file that is no Delta is a FieldError on
+    ``description``."""
+    from ident_hw.model.delta_file import fast_path
+    from ident_hw.model.described import DescriptionError
+    try:
+        return fast_path(robot.description, robot.coulomb_width)
+    except DescriptionError as exc:
+        raise FieldError("description", str(exc)) from None
+
+
+def _delta_model(robot) -> Delta:
+    fast = delta_file(robot)
+    return Delta(cast(DeltaGeometry, fast.geometry), coulomb_width=robot.coulomb_width, gravity=fast.gravity)
+
+
 def _delta_validate(robot) -> None:
-    if robot.delta is None:
-        raise FieldError("delta", "missing key: a Delta needs its delta section (geometry, cad)")
+    if robot.description is None:
+        raise FieldError("description", "missing key: a Delta needs its description file (e.g. robots/delta.xml)")
+    delta_file(robot)
+
+
+def _delta_described(robot) -> tuple[DescribedRobot, Callable[[np.ndarray], np.ndarray]]:
+    from ident_hw.model.delta_file import described_delta, described_parameters
+    fast = delta_file(robot)
+    described = described_delta(robot.description, cast(DeltaGeometry, fast.geometry), robot.coulomb_width)
+    return described, lambda pi: described_parameters(robot.description, pi, described)
 
 
 DELTA = RobotKind(
-    name="delta", sections=("delta", "safety"), truth_key="delta_truth",
+    name="delta", sections=("description", "safety"), truth_key="delta_truth",
     trajectory_kinds=("delta_training", "delta_verification", "delta_held_arm"),
-    model=lambda robot: Delta(to_model.delta_geometry(robot.delta.geometry), coulomb_width=robot.coulomb_width),
-    initial=lambda robot: to_model.delta_parameters(robot.delta.cad, to_model.delta_geometry(robot.delta.geometry)),
-    truth=lambda robot, sim, model: to_model.delta_parameters(sim.delta_truth, to_model.delta_geometry(robot.delta.geometry)),
+    model=_delta_model,
+    initial=lambda robot: delta_file(robot).parameters.copy(),
+    truth=lambda robot, sim, model: to_model.delta_parameters(sim.delta_truth, delta_file(robot).parameters),
     actuators=lambda robot: (Delta.actuator_names, Delta.actuator_kinds),
-    validate=_delta_validate)
+    validate=_delta_validate, described=_delta_described)
 
 
 # ---- any robot from its description file
@@ -179,13 +231,25 @@ DESCRIBED = RobotKind(
     initial=lambda robot: to_model.described_parameters(robot.described.cad, described_model(robot)),
     truth=lambda robot, sim, model: to_model.described_parameters(sim.parameters, cast("DescribedRobot", model)),
     actuators=lambda robot: (tuple(a.name for a in robot.actuators), tuple(a.kind for a in robot.actuators)),
-    validate=_described_validate, friction_models=True)
+    validate=_described_validate, friction_models=True,
+    described=lambda robot: (described_model(robot), lambda pi: np.asarray(pi, dtype=float)))
 
 
 #: every robot kind by its ``robot.kind``
 KINDS: dict[str, RobotKind] = {k.name: k for k in (THREE_PRRR, DELTA, DESCRIBED)}
 #: trajectory kinds any robot can run
 COMMON_TRAJECTORY_KINDS = ("file", "standstill", "recorded")
+
+
+def description_file(robot) -> tuple[str, str] | None:
+    """The description file of a ``robot`` section as ``(dotted key of the config, path)``
+    (``robot.description`` of the 3PRRR and the Delta, ``robot.described.description`` of a
+    described robot): the file a results folder keeps a copy of; None for a robot without one."""
+    if robot.described is not None:
+        return "robot.described.description", robot.described.description
+    if robot.description is not None:
+        return "robot.description", robot.description
+    return None
 
 
 def kind_of(robot) -> RobotKind:

@@ -1,5 +1,5 @@
-"""Config sections → the model's own types (:mod:`ident_hw.model`): the 3PRRR's geometry and
-inertial parameters, the Delta's geometry and parameter vector, a described robot's parameter
+"""Config sections → the model's own types (:mod:`ident_hw.model`): the 3PRRR's inertial
+parameters, the Delta's parameter vector, a described robot's parameter
 vector. The model never reads the config; the robot as a whole is its kind's
 (:func:`ident_hw.config.robots.model_of`)."""
 
@@ -9,12 +9,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ident_hw.model import Delta, DeltaGeometry, Geometry, InertialParams
-from ident_hw.model.delta import physical_parameters
+from ident_hw.model import Delta, InertialParams
 from ident_hw.model.friction import FrictionModel
 
-from .robot_3prrr import GeometryConfig, InertialConfig
-from .robot_delta import DeltaGeometryConfig, DeltaParametersConfig
+from .robot_3prrr import InertialConfig
+from .robot_delta import DeltaParametersConfig
 from .robot_described import ParameterSetConfig
 
 if TYPE_CHECKING:  # pinocchio, which described imports, is imported by described robots only
@@ -45,26 +44,17 @@ def friction_model(robot, presliding: float | None = None, stribeck: float | Non
                          stribeck_velocity=velocity, offset=f.offset, elements=f.elements)
 
 
-def geometry(g: GeometryConfig) -> Geometry:
-    """The 3PRRR's geometry."""
-    return Geometry(l1=g.l1, l2=g.l2, s1=g.s1, s2=g.s2, h=g.h, a=g.a, gamma=g.gamma, modes=g.modes)
-
-
 def inertial_params(p: InertialConfig) -> InertialParams:
     """The 3PRRR's inertial and friction parameters."""
     return InertialParams(m_c=p.m_c, m_l1=p.m_l1, I_l1=p.I_l1, m_l2=p.m_l2, I_l2=p.I_l2, m_ee=p.m_ee,
                           I_ee=p.I_ee, f_v=p.f_v, f_c=p.f_c)
 
 
-def delta_geometry(g: DeltaGeometryConfig) -> DeltaGeometry:
-    """The Delta's geometry."""
-    return DeltaGeometry(L1=g.L1, L2=g.L2, R=g.R, r=g.r, psi=g.psi)
-
-
-def delta_parameters(p: DeltaParametersConfig, geometry: DeltaGeometry) -> np.ndarray:
-    """(79,) the Delta's parameters in the order of :data:`ident_hw.model.delta.PARAM_NAMES`: the
-    nominal bodies of ``geometry`` with the factors applied, then the drive terms."""
-    pi = physical_parameters(geometry)
+def delta_parameters(p: DeltaParametersConfig, bodies: np.ndarray) -> np.ndarray:
+    """(79,) the Delta's parameters in the order of :data:`ident_hw.model.delta.PARAM_NAMES`: its
+    ``bodies`` (79,) (its description file's, :func:`ident_hw.model.delta_file.read_values`) with
+    the factors applied, then the drive terms given (0 where not)."""
+    pi = np.array(bodies, dtype=float)
     names = Delta.parameter_names
     for name, factor in p.factors.items():
         pi[names.index(name)] *= factor

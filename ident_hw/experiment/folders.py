@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from ident_hw.config import Config, resolved_yaml
+from ident_hw.config.robots import description_file
 from ident_hw.results import STATUS_FILE, mark_status
 
 
@@ -39,12 +40,13 @@ def new_results_folder(config: Config, out: str | Path | None, label: str) -> Pa
     (folder / "data").mkdir(exist_ok=True)
     mark_status(folder, "running")
     replace = {}
-    described = config.robot.described
-    if described is not None:          # the robot's description file travels with its config
-        copy = Path(DESCRIPTION_DIR) / Path(described.description).name
+    description = description_file(config.robot)
+    if description is not None:          # the robot's description file travels with its config
+        key, path = description
+        copy = Path(DESCRIPTION_DIR) / Path(path).name
         (folder / DESCRIPTION_DIR).mkdir(exist_ok=True)
-        shutil.copyfile(described.description, folder / copy)
-        replace["robot.described.description"] = copy.as_posix()
+        shutil.copyfile(path, folder / copy)
+        replace[key] = copy.as_posix()
     (folder / "config.yaml").write_text(resolved_yaml(config.source, replace))
     return folder
 

@@ -43,7 +43,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Iterator
 
-from ident_hw.config import DescribedConfig, SimConfig, load_config, resolved_yaml
+from ident_hw.config import RobotConfig, SimConfig, load_config, resolved_yaml
+from ident_hw.config.robots import description_file
 from ident_hw.progress import report_progress
 from ident_hw.results import read_status
 from ident_hw.results.study import (Estimate, RunOutcome, Study, StudyFile, SummaryRow, estimates_of,
@@ -138,15 +139,16 @@ class TaskSource:
     files: tuple[tuple[str, bytes], ...] = ()
 
 
-def study_task_source(source: str, described: DescribedConfig | None) -> TaskSource:
-    """The config file ``source`` as one YAML text and the files it names (``described``: its
-    robot's described section, whose description file goes under ``description/``), as a worker
-    on any machine needs them."""
-    if described is None:
+def study_task_source(source: str, robot: RobotConfig) -> TaskSource:
+    """The config file ``source`` as one YAML text and the files it names (``robot``: its robot
+    section, whose description file goes under ``description/``), as a worker on any machine
+    needs them."""
+    description = description_file(robot)
+    if description is None:
         return TaskSource(resolved_yaml(source))
-    relative = (Path(DESCRIPTION_DIR) / Path(described.description).name).as_posix()
-    return TaskSource(resolved_yaml(source, {"robot.described.description": relative}),
-                      ((relative, Path(described.description).read_bytes()),))
+    key, path = description
+    relative = (Path(DESCRIPTION_DIR) / Path(path).name).as_posix()
+    return TaskSource(resolved_yaml(source, {key: relative}), ((relative, Path(path).read_bytes()),))
 
 
 def check_simulated(source: str, sim: SimConfig | None, simulated: bool, sync_mode: str) -> None:
@@ -229,7 +231,7 @@ def run_study(config_path: str | Path, folder: str | Path, runs: int, *, workers
     check_simulated(config.source, config.sim, config.simulated, config.sync_mode)
     assert config.sim is not None
     folder = Path(folder)
-    source = study_task_source(config.source, config.robot.described)
+    source = study_task_source(config.source, config.robot)
     _prepare_folder(folder, config.source, source.config_yaml, runs, perturb)
     tasks = [RunTask(i, config.sim.seed + i, source.config_yaml, source.files, perturb)
              for i in range(runs) if not finished(folder, i)]
