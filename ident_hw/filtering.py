@@ -186,7 +186,7 @@ class Ends:
 WHOLE = Ends()
 
 
-#: columns filtered in one call of :func:`lowpass` by :func:`_lowpass_live` (a block of 30,000
+#: columns filtered in one call of :func:`lowpass` by ``_lowpass_live`` (a block of 30,000
 #: samples at 250 Hz is 15 MB)
 LOWPASS_BLOCK = 64
 
