@@ -186,6 +186,11 @@ class Ends:
 WHOLE = Ends()
 
 
+#: columns filtered in one call of :func:`lowpass` by ``_lowpass_live`` (a block of 30,000
+#: samples at 250 Hz is 15 MB)
+LOWPASS_BLOCK = 64
+
+
 def lowpass(x: np.ndarray, sample_rate: float, cutoff_hz: float, order: int = 4,
             ends: tuple[str, str] = (ODD, ODD)) -> np.ndarray:
     """Zero-phase Butterworth low-pass of ``x`` along axis 0 (``butter`` + ``sosfiltfilt``).
@@ -193,15 +198,30 @@ def lowpass(x: np.ndarray, sample_rate: float, cutoff_hz: float, order: int = 4,
     ``ends``: how ``x`` is extended past its first and its last sample (:data:`ODD`, :data:`EVEN`,
     :data:`POLYNOMIAL`); ``(ODD, ODD)`` is ``sosfiltfilt``'s own padding, bit for bit.
     """
+    return _lowpass_blocks(np.asarray(x, dtype=float), sample_rate, cutoff_hz, order, ends, None)
+
+
+def _lowpass_blocks(x: np.ndarray, sample_rate: float, cutoff_hz: float, order: int, ends: tuple[str, str],
+                    block: int | None) -> np.ndarray:
+    """:func:`lowpass` of ``x`` (N, L), its columns filtered ``block`` at a time (None: all at
+    once): each column's values are those of one call (the ends' polynomial fits, whose least
+    squares take all the columns together, are made for all of them at once)."""
     from scipy import signal as sps  # here, not at the top: a second and more of every command's start
     sos = sps.butter(order, cutoff_hz, btype="low", fs=sample_rate, output="sos")
-    x = np.asarray(x, dtype=float)
+    width = x.shape[1] if x.ndim > 1 and block else 1
+    step = block or width
     if tuple(ends) == (ODD, ODD):
-        return sps.sosfiltfilt(sos, x, axis=0)
+        if width <= step:
+            return sps.sosfiltfilt(sos, x, axis=0)
+        return np.concatenate([sps.sosfiltfilt(sos, x[:, k:k + step], axis=0) for k in range(0, width, step)], axis=1)
     head = _extension(x, ends[0], sos, sample_rate, cutoff_hz, order)
     tail = _extension(x[::-1], ends[1], sos, sample_rate, cutoff_hz, order)[::-1]
     extended = np.concatenate([head, x, tail])
-    return sps.sosfiltfilt(sos, extended, axis=0, padtype=None)[len(head): len(head) + len(x)]
+    rows = slice(len(head), len(head) + len(x))
+    if width <= step:
+        return sps.sosfiltfilt(sos, extended, axis=0, padtype=None)[rows]
+    return np.concatenate([sps.sosfiltfilt(sos, extended[:, k:k + step], axis=0, padtype=None)[rows]
+                           for k in range(0, width, step)], axis=1)
 
 
 def _extension(x: np.ndarray, kind: str, sos: np.ndarray, sample_rate: float, cutoff_hz: float,
@@ -273,14 +293,17 @@ def parallel_decimate(settings: FilterSettings, *arrays: np.ndarray, ends: Ends 
         raise ValueError(f"{n} samples are too few for trimming {head} and {tail} samples at the ends")
     window = kept_samples(settings, n, ends)
     pads = ends.pick(EVEN, ODD)
-    return tuple(_lowpass_live(a, settings, settings.decimation_cutoff_hz, pads)[window] for a in arrays)
+    return tuple(_lowpass_live(a, settings, settings.decimation_cutoff_hz, pads, window) for a in arrays)
 
 
 def through_position_lowpass(settings: FilterSettings, tau: np.ndarray, regressor: np.ndarray,
-                             columns: Sequence[int], ends: Ends = WHOLE) -> tuple[np.ndarray, np.ndarray]:
+                             columns: Sequence[int], ends: Ends = WHOLE, copy: bool = True
+                             ) -> tuple[np.ndarray, np.ndarray]:
     """The forces ``tau`` (N, a) and the regressor's ``columns`` (of ``regressor`` (N, a, n))
     through the positions' low-pass (:func:`prepare_actuated`: ``position_cutoff_hz``, the same
-    order), before the parallel filter: returns the regressor (a copy) and the forces.
+    order), before the parallel filter: returns the regressor (a copy; with ``copy`` False
+    ``regressor`` itself, a float array filtered in place, where the caller has no other use
+    for it) and the forces.
 
     The rest of the regressor is computed from the low-passed positions, so it has passed that
     filter already (the inertial and viscous terms are smooth functions of the motion, linear in
@@ -291,25 +314,33 @@ def through_position_lowpass(settings: FilterSettings, tau: np.ndarray, regresso
     of the inertial terms (docs/identification.md, *Where the forces and the regressor part*)."""
     pads = ends.pick(POLYNOMIAL, ODD)      # past a cut as the positions are
     tau = lowpass(tau, settings.sample_rate, settings.position_cutoff_hz, settings.order, pads)
-    regressor = np.array(regressor, dtype=float)
+    regressor = np.array(regressor, dtype=float, copy=copy or None)
     columns = list(columns)
     regressor[:, :, columns] = _lowpass_live(regressor[:, :, columns], settings, settings.position_cutoff_hz, pads)
     return regressor, tau
 
 
-def _lowpass_live(a: np.ndarray, settings: FilterSettings, cutoff_hz: float, pads: tuple[str, str]) -> np.ndarray:
-    """:func:`lowpass` of ``a`` (N, ...) at ``cutoff_hz`` (``settings``' rate and order), filtering
-    only the columns that are not zero throughout (a regressor's columns are often structurally
-    zero: another axis's parameters, a parameter the motion does not excite); a zero column's
-    low-pass is zero."""
+def _lowpass_live(a: np.ndarray, settings: FilterSettings, cutoff_hz: float, pads: tuple[str, str],
+                  kept: slice = slice(None)) -> np.ndarray:
+    """:func:`lowpass` of ``a`` (N, ...) at ``cutoff_hz`` (``settings``' rate and order), its
+    samples ``kept`` (a slice of the N: :func:`kept_samples`), filtering only the columns that
+    are not zero throughout (a regressor's columns are often structurally zero: another axis's
+    parameters, a parameter the motion does not excite); a zero column's low-pass is zero.
+    The columns are filtered in blocks of :data:`LOWPASS_BLOCK` (each column on its own, as
+    in one call: the same values), so that a large regressor (the Stewart's 30,000 x 1,368
+    columns) is not copied whole by each of the filter's passes."""
     flat = np.asarray(a, dtype=float).reshape(len(a), -1)
     live = np.flatnonzero(np.any(flat != 0.0, axis=0))
-    if len(live) == flat.shape[1]:
-        return lowpass(a, settings.sample_rate, cutoff_hz, settings.order, pads)
+    if len(live) == flat.shape[1] <= LOWPASS_BLOCK:     # the filter's own array (its own strides)
+        return lowpass(a, settings.sample_rate, cutoff_hz, settings.order, pads)[kept]
+    # the kept rows of an array of every row, as before the blocks: the same strides, so that the
+    # sums taken of it later add in the same order (its other rows are never written: zeros
+    # the system has not even mapped)
     out = np.zeros(flat.shape)
     if len(live):
-        out[:, live] = lowpass(flat[:, live], settings.sample_rate, cutoff_hz, settings.order, pads)
-    return out.reshape(np.shape(a))
+        out[kept][:, live] = _lowpass_blocks(flat[:, live], settings.sample_rate, cutoff_hz, settings.order, pads,
+                                             LOWPASS_BLOCK)[kept]
+    return out.reshape(np.shape(a))[kept]
 
 
 @functools.lru_cache(maxsize=None)

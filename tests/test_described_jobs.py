@@ -22,7 +22,7 @@ from ident_hw.experiment.offline import identify
 from ident_hw.experiment.preparation import prepare
 from ident_hw.identification.metrics import validation_metrics
 from ident_hw.results import load_fit
-from ident_hw.config.robots import model_of, true_parameters
+from ident_hw.config.robots import initial_parameters, model_of, true_parameters
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
@@ -207,6 +207,27 @@ identification: {encoder_draws: 0}
             row = rows[name]
             assert row["well_identified"] and within(row["identified"], row["sigma"], truth[name]), (name, row)
     assert doc["quality"]["trajectories"]["validation"]["base_fit_d_tau_percent"] <= 2.0
+    # well identified: sigma at most 10 % of the larger of the estimate and the combination's physical
+    # size, the sizes computed here from pinocchio's inertias (mass, centre, inertia about it) of the
+    # CAD bodies and the drive terms' CAD values; none of the well identified beyond max(2 %, 3 sigma)
+    robot = model_of(cfg.robot)
+    sizes = np.abs(initial_parameters(cfg.robot))
+    for k in range(len(robot.body_names)):
+        inertia = robot.model.inertias[k + 1]
+        m, c = inertia.mass, np.asarray(inertia.lever)
+        l2 = (0.5 * np.trace(np.asarray(inertia.inertia)) + m * c @ c) / m
+        sizes[10 * k:10 * k + 10] = [m, *[m * np.sqrt(l2)] * 3, *[m * l2] * 6]
+    H = np.asarray(doc["base_fit"]["H"])
+    size_of = np.sqrt(((H * sizes) ** 2).sum(axis=1))
+    truth_of = H @ true_parameters(cfg)
+    well = 0
+    for row, size, true in zip(doc["base_fit"]["rows"], size_of, truth_of):
+        assert row["size"] == pytest.approx(size, rel=1e-9, abs=1e-15), row
+        assert row["well_identified"] == (row["sigma"] <= 0.1 * max(abs(row["identified"]), size)), row
+        if row["well_identified"]:
+            well += 1
+            assert within(row["identified"], row["sigma"], true), (row, true)
+    assert well > sum(r["rel_sigma_percent"] is not None and r["rel_sigma_percent"] <= 10 for r in rows.values())
     # its universal-joint crosses and ball-joint bodies have their masses: MuJoCo loads the export
     exported_forces_match_the_base_fit(out, tmp_path / "stewart-identified.xml")
 

@@ -116,7 +116,7 @@ class QualityConfig:
         positive, unit="%", doc="difference of the step-by-step and base-parameter force predictions, "
                                 "relative to the measured forces, on the trajectories max_d_tau judges"))
     min_well_identified: int = field(default=1, metadata=spec(
-        non_negative, doc="fitted parameters (physical or base) with %sigma <= rel_sigma_threshold"))
+        non_negative, doc="fitted parameters (physical or base) well identified (rel_sigma_threshold)"))
     max_force_lag: float = field(default=5e-4, metadata=spec(
         positive, unit="s", doc="delay of an axis's measured forces behind the model's (least squares over all "
                                 "fitted trajectories): beyond it the data and the model disagree in time (a current "
@@ -211,7 +211,9 @@ class IdentificationConfig:
     steps: tuple[StepConfig, ...]
     validation: tuple[str, ...] = ()
     rel_sigma_threshold: float = field(default=POORLY_IDENTIFIED_PERCENT, metadata=spec(
-        positive, unit="%", doc="estimates with a larger relative standard deviation are poorly identified"))
+        positive, unit="%", doc="estimates with a larger relative standard deviation are poorly identified (a base "
+                                "parameter's sigma against the larger of its estimate and its physical size: "
+                                "ident_hw.identification.physical_size)"))
     min_speed: float = field(default=0.02, metadata=spec(
         in_range(0.0, 0.5), doc="an axis moving slower than this fraction of its velocity limit gives no row to the "
                                 "fits: the Coulomb term sign(qdot) does not describe friction near rest"))

@@ -249,7 +249,7 @@ def prepare(plan: IdentificationPlan, robot: RobotModel, name: str, rec: Recordi
             period = (t[-1] - t[0]) / (len(t) - 1)
             regressor = running_average(regressor, np.array([UNFILTERED if f is None else f.over_period(period)
                                                              for f in averaging]))
-        regressor, tau = through_position_lowpass(settings, samples.tau, regressor, coulomb, ends)
+        regressor, tau = through_position_lowpass(settings, samples.tau, regressor, coulomb, ends, copy=False)
         Y, tau = parallel_decimate(settings, regressor, tau, ends=ends)
         kept = kept_samples(settings, len(t), ends)
         slow = np.abs(samples.Thetad) < min_speed * axes.velocity_limit

@@ -336,8 +336,10 @@ def step_reasons(results: Results, limits: Thresholds) -> tuple[dict[str, StepVe
 
 
 def well_identified_reasons(results: Results, limits: Thresholds) -> tuple[list[str], list[str]]:
-    """The fitted parameters (physical, then base) with %sigma at most the campaign's threshold,
-    and a reason when fewer than ``limits.min_well_identified`` are."""
+    """The fitted parameters (physical, then base) well identified (%sigma at most the campaign's
+    threshold; a base parameter: sigma at most that share of the larger of its estimate and its
+    physical size, :mod:`ident_hw.identification.physical_size`), and a reason when fewer than
+    ``limits.min_well_identified`` are."""
     fitted: list = [r for r in results.parameter_rows() if r.fitted]
     well = [r.name for r in fitted if r.well_identified]
     base_rows = results.base_rows()
@@ -345,7 +347,8 @@ def well_identified_reasons(results: Results, limits: Thresholds) -> tuple[list[
     well += [r.base_parameter for r in base_rows if r.well_identified]
     if fitted and len(well) < limits.min_well_identified:
         return well, [f"{len(well)} of {len(fitted)} fitted parameters well identified "
-                      f"(%sigma <= {results.rel_sigma_threshold:g}; at least {limits.min_well_identified} needed)"]
+                      f"(sigma <= {results.rel_sigma_threshold:g} % of the estimate, or of a base parameter's "
+                      f"physical size; at least {limits.min_well_identified} needed)"]
     return well, []
 
 

@@ -28,6 +28,7 @@ from ident_hw.identification.least_squares import LeastSquaresResult, check_regr
 from ident_hw.identification.mass_fit import sqp_fit
 from ident_hw.identification.model_comparison import ModelComparison, ModelRows, compare_models
 from ident_hw.identification.physical import ConsistencyError, ConsistentSet, consistent_parameters
+from ident_hw.identification.physical_size import combination_sizes, parameter_sizes
 from ident_hw.model.base_basis import BaseBasis
 from ident_hw.model.interface import RobotModel
 from ident_hw.records import BaseStep, DriveGainsFigures, GainsStep, MassFitStep, SkippedStep, StepRecord
@@ -107,7 +108,7 @@ class BaseStepFit:
 
 def fit_base(step: StepConfig, free_names: Sequence[str], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
              coef: np.ndarray, initial: np.ndarray, truth: np.ndarray | None, threshold: float,
-             basis: BaseBasis | None = None, draws: Sequence[Draw] = ()) -> BaseStepFit:
+             basis: BaseBasis | None = None, draws: Sequence[Draw] = (), sizes: np.ndarray | None = None) -> BaseStepFit:
     """Least squares (``step.method`` ``wls``/``ols``) of the base parameters of ``free_names``
     on ``Y`` (N, a, n), ``tau`` (N, a), the other parameters (``names``, n) held at ``coef``;
     ``basis``: the model's readable base parameters (``RobotModel.readable_base``), used when
@@ -116,7 +117,9 @@ def fit_base(step: StepConfig, free_names: Sequence[str], names: tuple[str, ...]
     with the same weights; the covariance of their estimates joins the least-squares one, and
     the spread of their regressors corrects the estimate for the encoders' noise in the
     regressor (:func:`ident_hw.identification.least_squares.compensated`; the record's
-    ``encoder_shift``)."""
+    ``encoder_shift``). ``sizes`` (n,): the parameters' physical sizes
+    (:func:`ident_hw.identification.physical_size.parameter_sizes`), which judge with the
+    threshold whether a base parameter is well identified (None: its %σ alone)."""
     free = [names.index(p) for p in free_names]
     held = [i for i in range(len(names)) if i not in free]
     Yf = Y[:, :, free]
@@ -137,7 +140,7 @@ def fit_base(step: StepConfig, free_names: Sequence[str], names: tuple[str, ...]
                      expressions=base.expressions, H=H, coef=fit.coef, sigma=np.sqrt(np.diag(covariance)),
                      initial=H @ initial, truth=None if truth is None else H @ truth,
                      held=tuple(names[i] for i in held), unexcited=base.unexcited, threshold=threshold,
-                     covariance=covariance)
+                     covariance=covariance, size=None if sizes is None else combination_sizes(H, sizes))
     spread = encoder_spread(draws, encoder)
     record = BaseStep(name=step.name, trajectories=tuple(step.trajectories), free=tuple(free_names),
                       method=fit.method, eliminated=tuple(base.eliminated), **_least_squares_figures(fit),
@@ -334,7 +337,8 @@ def run_steps(ident: IdentificationConfig, robot: RobotModel, prepared: Mapping[
             fitted.update(mass.excited)
             continue
         base = fit_base(step, free_names, names, Y, tau, estimates.coef, initial, truth,
-                        ident.rel_sigma_threshold, robot.readable_base(), step_draws)
+                        ident.rel_sigma_threshold, robot.readable_base(), step_draws,
+                        parameter_sizes(robot.physical_bodies(), initial))
         records.append(base.record)
         fitted.update(free_names)
         if compared:

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drivers.recording import Recording
-from ident_hw.identification.least_squares import LeastSquaresResult, ols, wls
+from ident_hw.identification.least_squares import LeastSquaresResult, estimate
 from ident_hw.model.interface import RobotModel
 from ident_hw.progress import report_progress
 
@@ -24,10 +24,8 @@ logger = logging.getLogger(__name__)
 
 def refit(fit: LeastSquaresResult, Y: np.ndarray, tau: np.ndarray) -> np.ndarray:
     """The estimate of ``fit``'s method on ``Y`` (N, a, m), ``tau`` (N, a): WLS with ``fit``'s
-    output weights, else OLS."""
-    if fit.output_std is not None:
-        return wls(Y, tau, fit.names, output_std=fit.output_std).coef
-    return ols(Y, tau, fit.names).coef
+    output weights, else OLS (the estimate alone: :func:`~ident_hw.identification.least_squares.estimate`)."""
+    return estimate(Y, tau, fit.names, fit.output_std)
 
 
 @dataclass(frozen=True)

@@ -145,8 +145,20 @@ class LeastSquaresResult:
         return f"Newey-West HAC, {self.lags} lags" if self.lags else "sigma2 (W^T W)^-1 (white residuals)"
 
 
-def _fit(Y: np.ndarray, tau: np.ndarray, names, lags: int | None) -> tuple[np.ndarray, np.ndarray, float, float, int]:
-    """QR solution of ``min sum_t ||tau_t − Y_t pi||²``; its covariance, sigma², cond(W), lags."""
+@dataclass(frozen=True)
+class _Solved:
+    """One QR solution of the least squares (:func:`_solve`): the estimate ``coef`` (n,), the
+    factors ``R`` (n, n), the singular values ``s`` of ``R`` and the informative rows ``r``."""
+
+    coef: np.ndarray
+    R: np.ndarray
+    s: np.ndarray
+    r: int
+
+
+def _solve(Y: np.ndarray, tau: np.ndarray, names) -> _Solved:
+    """QR solution of ``min sum_t ||tau_t − Y_t pi||²`` (no statistics: the estimate alone is
+    what a refit needs, :func:`estimate`)."""
     from scipy import linalg    # on first use: the config reads this module's constants
     N, k, n = Y.shape
     W, y = stack(Y, tau)
@@ -161,7 +173,16 @@ def _fit(Y: np.ndarray, tau: np.ndarray, names, lags: int | None) -> tuple[np.nd
             f"the regressor is rank deficient (rank {int(np.sum(s > tol))} < {n} parameters "
             f"{list(names)}): identify the base parameters instead (base_parameters / identify_base)"
         )
-    coef = linalg.solve_triangular(R, Q.T @ y)
+    return _Solved(linalg.solve_triangular(R, Q.T @ y), R, s, r)
+
+
+def _statistics(Y: np.ndarray, tau: np.ndarray, solved: _Solved, lags: int | None
+                ) -> tuple[np.ndarray, float, float, int]:
+    """The covariance of a :func:`_solve` estimate on the same ``Y``, ``tau`` (module docstring),
+    sigma², cond(W) and the lags used."""
+    from scipy import linalg
+    N, k, n = Y.shape
+    coef, R, r = solved.coef, solved.R, solved.r
     rho = tau - Y @ coef
     sigma2 = float(np.sum(rho**2)) / (r - n)
     Rinv = linalg.solve_triangular(R, np.eye(n))
@@ -178,7 +199,33 @@ def _fit(Y: np.ndarray, tau: np.ndarray, names, lags: int | None) -> tuple[np.nd
             gamma = g[lag:].T @ g[:-lag]
             meat += (1.0 - lag / (lags + 1.0)) * (gamma + gamma.T)
         cov = bread @ meat @ bread * (r / (r - n))
-    return coef, 0.5 * (cov + cov.T), sigma2, float(s[0] / s[-1]), lags
+    return 0.5 * (cov + cov.T), sigma2, float(solved.s[0] / solved.s[-1]), lags
+
+
+def _fit(Y: np.ndarray, tau: np.ndarray, names, lags: int | None) -> tuple[np.ndarray, np.ndarray, float, float, int]:
+    """QR solution of ``min sum_t ||tau_t − Y_t pi||²``; its covariance, sigma², cond(W), lags."""
+    solved = _solve(Y, tau, names)
+    cov, sigma2, cond, lags = _statistics(Y, tau, solved, lags)
+    return solved.coef, cov, sigma2, cond, lags
+
+
+def estimate(Y: np.ndarray, tau: np.ndarray, names, output_std: np.ndarray | None = None) -> np.ndarray:
+    """The estimate (n,) of :func:`ols` (``output_std`` None) or of :func:`wls` with the known
+    output weights ``output_std`` (k,), without its statistics: the same values as theirs
+    ``.coef``, at the cost of the solution alone (a refit of data read again, whose covariance
+    nobody reads)."""
+    Y, tau = check_regression_data(Y, tau, names)
+    if output_std is None:
+        return _solve(Y, tau, names).coef
+    w = 1.0 / _checked_std(output_std, Y.shape[1])
+    return _solve(Y * w[None, :, None], tau * w, names).coef
+
+
+def _checked_std(output_std, k: int) -> np.ndarray:
+    sigma = np.asarray(output_std, dtype=float)
+    if sigma.shape != (k,) or np.any(sigma <= 0):
+        raise ValueError(f"output_std must be {k} positive values, got {sigma}")
+    return sigma
 
 
 def ols(Y: np.ndarray, tau: np.ndarray, names, lags: int | None = None) -> LeastSquaresResult:
@@ -209,16 +256,16 @@ def wls(Y: np.ndarray, tau: np.ndarray, names, output_std: np.ndarray | None = N
     """
     Y, tau = check_regression_data(Y, tau, names)
     if output_std is not None:
-        sigma = np.asarray(output_std, dtype=float)
-        if sigma.shape != (Y.shape[1],) or np.any(sigma <= 0):
-            raise ValueError(f"output_std must be {Y.shape[1]} positive values, got {sigma}")
+        sigma = _checked_std(output_std, Y.shape[1])
         iterations = 1
     else:
         sigma = output_noise_std(Y, tau)
         iterations = max_iterations
-    for _ in range(iterations):
+    for _ in range(iterations):        # the statistics once, of the last solution
         w = 1.0 / sigma
-        coef, cov, sigma2, cond, used_lags = _fit(Y * w[None, :, None], tau * w, names, lags)
+        Yw, tauw = Y * w[None, :, None], tau * w
+        solved = _solve(Yw, tauw, names)
+        coef = solved.coef
         if output_std is not None:
             break
         new_sigma = output_noise_std(Y, tau, coef)
@@ -226,6 +273,7 @@ def wls(Y: np.ndarray, tau: np.ndarray, names, output_std: np.ndarray | None = N
         sigma = new_sigma
         if converged:
             break
+    cov, sigma2, cond, used_lags = _statistics(Yw, tauw, solved, lags)
     return LeastSquaresResult(
         names=tuple(names), coef=coef, covariance=cov, sigma2=sigma2, cond=cond,
         residual_rms=residual_rms(Y, tau, coef), output_std=1.0 / w, method="WLS", lags=used_lags,

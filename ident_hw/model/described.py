@@ -392,10 +392,13 @@ class DescribedRobot:
 
     # ------------------------------------------------------------------ closure layer
     def _batch(self, Theta, Thetad, Thetadd, guess, has_guess, want_rows: bool, workspace_=None,
-               max_iterations: int = 50):
+               max_iterations: int = 50, rows_out: np.ndarray | None = None):
         """The compiled closure layer over a motion (:func:`~ident_hw.model.tree_kernels.motion_batch`):
         ``(Q (N, nq), V, A (N, nv), W (N, nv, n), rows (N, n, 10 nb) or None)``. Sample ``k``
         starts Newton from ``guess[k]`` where ``has_guess[k]``, else from sample ``k - 1``.
+        ``rows_out`` (N, n, P >= 10 nb, C-contiguous), if given, receives the rows in its first
+        ``10 nb`` columns (the whole regressor's array: no second array of rows to copy) and is
+        returned as ``rows``.
 
         Raises:
             KinematicsError: a sample no assembly closes (``sample`` its index).
@@ -404,7 +407,10 @@ class DescribedRobot:
         ws = self._workspace if workspace_ is None else workspace_
         N, n, nq = len(Theta), len(self._act_v), self.model.nq
         Q, V, A, Ws = np.empty((N, nq)), np.empty((N, nq)), np.empty((N, nq)), np.empty((N, nq, n))
-        rows = np.empty((N, n, self._n_body)) if want_rows else np.empty((0, n, self._n_body))
+        if rows_out is not None:
+            rows = rows_out
+        else:
+            rows = np.empty((N, n, self._n_body)) if want_rows else np.empty((0, n, self._n_body))
         motion_batch(self.tree.ints, self.tree.floats, ws.floats, ws.ints, np.ascontiguousarray(Theta, dtype=float), np.ascontiguousarray(Thetad, dtype=float),
                      np.ascontiguousarray(Thetadd, dtype=float), np.ascontiguousarray(guess, dtype=float),
                      np.ascontiguousarray(has_guess, dtype=np.bool_), want_rows, max_iterations, Q, V, A, Ws, rows)
@@ -550,7 +556,7 @@ class DescribedRobot:
         N, n = Theta.shape
         guess = np.broadcast_to(np.zeros(self.model.nq) if guess is None else guess, (N, self.model.nq))
         Y = np.zeros((N, n, len(self.parameter_names)))
-        Y[:, :, :self._n_body], poses = self._tree_regressor(Theta, Thetad, Thetadd, guess)
+        poses = self._tree_regressor(Theta, Thetad, Thetadd, guess, Y)
         b, idx = self._n_body, np.arange(n)
         friction = self.friction.columns(Theta, Thetad)
         Y[:, idx, b + idx] = friction["fv"]
@@ -560,10 +566,11 @@ class DescribedRobot:
             Y[:, idx, b + (3 + k) * n + idx] = friction[term]
         return Y, poses
 
-    def _tree_regressor(self, Theta, Thetad, Thetadd, guess) -> tuple[np.ndarray, np.ndarray]:
-        """The tree's part ``W^T Y_tree`` (N, n, 10 bodies) of the regressor and the tree
-        configurations (N, nq) of a motion, from the cache of the motions last asked for (the
-        same arrays give the same rows; a copy with another friction model shares it)."""
+    def _tree_regressor(self, Theta, Thetad, Thetadd, guess, Y: np.ndarray) -> np.ndarray:
+        """The tree's part ``W^T Y_tree`` (N, n, 10 bodies) of the regressor written into the
+        first columns of ``Y`` (N, n, P, C-contiguous) and the tree configurations (N, nq) of a
+        motion returned, from the cache of the motions last asked for (the same arrays give the
+        same rows; a copy with another friction model shares it)."""
         kept, key = self._tree_rows, None
         if kept is not None:
             key = hashlib.sha1(b"".join(np.ascontiguousarray(x).tobytes()
@@ -571,15 +578,16 @@ class DescribedRobot:
         if kept is not None and key in kept:
             kept.move_to_end(key)
             rows, poses = kept[key]
-            return rows.copy(), poses.copy()
+            Y[:, :, :self._n_body] = rows
+            return poses.copy()
         G, has = self._guesses(len(Theta), guess)
-        poses, _, _, _, rows = self._batch(Theta, Thetad, Thetadd, G, has, True)
+        poses, _, _, _, _ = self._batch(Theta, Thetad, Thetadd, G, has, True, rows_out=Y)
         if kept is None:
-            return rows, poses
-        kept[key] = (rows, poses)
+            return poses
+        kept[key] = (Y[:, :, :self._n_body].copy(), poses)
         while len(kept) > TREE_ROWS_KEPT:
             kept.popitem(last=False)
-        return rows.copy(), poses.copy()
+        return poses.copy()
 
     def energy_regressor(self, Theta, Thetad, guess=None) -> np.ndarray:
         """``H`` (N, P) with the robot's energy ``E = H @ pi``: the tree's kinetic plus potential

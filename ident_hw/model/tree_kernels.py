@@ -17,9 +17,10 @@ with no Python per sample:
 - the closure residuals ``r`` (m,) and their Jacobian ``J`` (m, nv), as
   :meth:`~ident_hw.model.described.DescribedRobot.closure_jacobian` defines them (pinocchio's
   ``getFrameJacobian`` in ``LOCAL_WORLD_ALIGNED``, frame 1 minus frame 2);
-- Newton on the passive joints from the previous sample's state predicted to first order
-  (``q_prev + W_prev (Theta - Theta_prev)``: one iteration from the solution at a 250 Hz
-  sampling), Householder QR of ``J_p`` (square or with redundant rows alike);
+- Newton on the passive joints from the previous sample's state predicted to second order
+  (``q_prev + W_prev d + q''/2``, ``d = Theta - Theta_prev``, ``q''_p = -J_p^+ gamma(W_prev d)``
+  the loops' curvature along the step: one or two chord iterations at a 250 Hz sampling, one
+  fewer than from the first order), Householder QR of ``J_p`` (square or with redundant rows alike);
 - ``W`` (nv, n), the drift ``gamma``, ``a0``; the tree's accelerations with gravity as the base's
   acceleration ``-g``;
 - the actuated regressor ``W^T Y_tree`` (n, 10 nb) without forming ``Y_tree`` (nv, 10 nb): each
@@ -742,6 +743,28 @@ def _predict(act, last_q, last_W, last_valid, Theta, base, q):
 
 
 @numba.njit(cache=True)
+def _curvature(parent, kind, act, pas, c_joint, c_p, c_rigid, c_row, oR, op, oa, last_W, QR, tau, b, x, w, dp, al, dd,
+               zero, Theta, base, v, q):
+    """The second-order term of the prediction (:func:`_predict`) added to ``q``: along the step
+    ``d = Theta - base_a`` the passive joints curve by ``q_p'' = -J_p^+ gamma(W d)`` (the closure's
+    drift at the rates ``W d``), so ``q += q'' / 2``. The frames placed, the velocity map and
+    the factors of ``J_p`` are the last solved sample's (the workspace as the last call left it);
+    one drift and one solve, against a chord iteration's placements and residual: a start about
+    ``|d|`` closer, one iteration fewer. ``v`` (nj,) scratch."""
+    n = act.shape[0]
+    for i in range(v.shape[0]):
+        s = 0.0
+        for k in range(n):
+            s += last_W[i, k] * (Theta[k] - base[act[k]])
+        v[i] = s
+    _rates(parent, kind, op, oa, v, zero, 0.0, 0.0, 0.0, w, dp, al, dd)
+    _drift(c_joint, c_p, c_rigid, c_row, oR, op, w, al, dd, b)
+    _qr_solve(QR, tau, b, x)
+    for k in range(pas.shape[0]):
+        q[pas[k]] -= 0.5 * x[k]
+
+
+@numba.njit(cache=True)
 def _close(parent, kind, axis, place_R, place_p, ancestor, pas, c_joint, c_R, c_p, c_rigid, c_row, tolerance, singular,
            QR, tau, residual, oR, op, oa, J, r, b, x, pp, m3, v3, chord, max_iterations, q):
     """Newton on the passive joints of ``q`` (in place) until the closure residual is within
@@ -815,6 +838,9 @@ def _state(parent, kind, axis, place_R, place_p, ancestor, act, pas, c_joint, c_
         q[:] = home_q
     for k in range(n):
         q[act[k]] = Theta[k]
+    if chord and m:
+        _curvature(parent, kind, act, pas, c_joint, c_p, c_rigid, c_row, oR, op, oa, last_W, QR, tau, b, x, w, dp,
+                   al, dd, zero, Theta, base if has_base else last_q, v, q)
     last_valid[0] = 0
     code = _close(parent, kind, axis, place_R, place_p, ancestor, pas, c_joint, c_R, c_p, c_rigid, c_row, tolerance,
                   singular, QR, tau, residual, oR, op, oa, J, r, b, x, pp, m3, v3, chord, max_iterations, q)

@@ -229,7 +229,7 @@ def comparison_lines(comparison: ModelComparison) -> list[str]:
 def _base_fit_lines(fit: BaseFit) -> list[str]:
     """The base-parameter table of :func:`summary_lines`."""
     lines = [f"base parameters, {fit.method} on {', '.join(fit.trajectories)} (step {fit.step}; "
-             f"well identified: %sigma <= {fit.threshold:g}):"]
+             f"well identified: sigma <= {fit.threshold:g} % of max(|estimate|, physical size)):"]
     width = max(len(e) for e in fit.expressions) if fit.expressions else 10
     head = f"  {'base parameter':<{width}} {'initial':>11} {'identified':>11} {'%sigma':>7}"
     lines.append(head + (f" {'truth':>11} {'error %':>8} {'err/sigma':>9}" if fit.truth is not None else ""))

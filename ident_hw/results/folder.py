@@ -81,7 +81,8 @@ class BaseFitFile:
                        coef=col(r.identified for r in self.rows), sigma=col(r.sigma for r in self.rows),
                        initial=col(r.initial for r in self.rows),
                        truth=col(r.truth for r in self.rows) if has_truth else None, held=self.held,
-                       unexcited=self.unexcited, threshold=float(self.threshold_rel_sigma_percent))
+                       unexcited=self.unexcited, threshold=float(self.threshold_rel_sigma_percent),
+                       size=col(r.size for r in self.rows) if any(r.size is not None for r in self.rows) else None)
 
 
 @dataclass(frozen=True)

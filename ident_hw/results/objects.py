@@ -19,11 +19,12 @@ import numpy as np
 from ident_hw.identification.intervals import coverage_factor, effective_dof
 from ident_hw.identification.least_squares import POORLY_IDENTIFIED_PERCENT
 from ident_hw.identification.model_comparison import ModelComparison
+from ident_hw.identification.physical_size import well_identified
 from ident_hw.identification.physical import ConsistentSet
 from ident_hw.model.interface import FORCE_UNITS, POSITION_UNITS
 from ident_hw.records import (BaseAnalysis, BaseStep, FrictionChoice, MassFitStep, RecordingCoverage, StepRecord,
                               Verdict)
-from ident_hw.storage import stored
+from ident_hw.storage import NONE, stored
 
 
 def _well_identified(rel_sigma_percent: float | None, threshold: float) -> bool:
@@ -110,6 +111,9 @@ class BaseRow:
     truth: float | None = field(default=None, metadata=stored(record=_no_truth))
     error_percent: float | None = field(default=None, metadata=stored(record=_no_truth))
     dof: float = field(default=math.inf, metadata=stored(store=False))
+    #: the physical size the robot's bodies give the combination
+    #: (:mod:`ident_hw.identification.physical_size`; None: not known, the %σ alone judges it)
+    size: float | None = field(default=None, metadata=stored(NONE))
 
     @property
     def interval_95(self) -> float:
@@ -184,8 +188,10 @@ class BaseFit:
     them (e.g. ``"m_c + 0.5 m_l2"``); ``coef``, ``sigma`` (r,) estimate and standard deviation;
     ``initial``, ``truth`` (r,) the same combinations of the CAD and true values (truth None
     outside simulation). ``held``: physical parameters held at known values during the fit;
-    ``unexcited``: free ones the data says nothing of. A base parameter whose %σ exceeds
-    ``threshold`` is poorly identified on its data (:attr:`well_identified_mask`).
+    ``unexcited``: free ones the data says nothing of. ``size`` (r,): the physical size of each
+    combination (:mod:`ident_hw.identification.physical_size`), or None. A base parameter whose
+    σ exceeds ``threshold`` % of its size (of its estimate's magnitude where that is larger, or
+    without a size) is poorly identified on its data (:attr:`well_identified_mask`).
     """
 
     step: str
@@ -203,6 +209,7 @@ class BaseFit:
     #: (r, r) covariance of ``coef``, for the consistent step of the same run (not stored: None
     #: when read back from a results folder)
     covariance: np.ndarray | None = None
+    size: np.ndarray | None = None
 
     @property
     def rel_sigma_percent(self) -> np.ndarray:
@@ -211,8 +218,9 @@ class BaseFit:
 
     @property
     def well_identified_mask(self) -> np.ndarray:
-        """(r,) bool: %σ at most ``threshold`` (the estimates themselves are ``coef``)."""
-        return self.rel_sigma_percent <= self.threshold
+        """(r,) bool: σ at most ``threshold`` % of ``max(|coef|, size)``
+        (:func:`~ident_hw.identification.physical_size.well_identified`)."""
+        return well_identified(self.coef, self.sigma, self.size, self.threshold)
 
     def rows(self) -> list[BaseRow]:
         """The rows, their ``dof`` infinite: the degrees of freedom of each σ follow from the base
@@ -225,7 +233,8 @@ class BaseFit:
                 base_parameter=expr, initial=float(self.initial[i]), identified=float(self.coef[i]),
                 sigma=float(self.sigma[i]), rel_sigma_percent=rel if math.isfinite(rel) else None,
                 well_identified=bool(self.well_identified_mask[i]), truth=truth,
-                error_percent=None if truth is None else _error_percent(float(self.coef[i]), truth)))
+                error_percent=None if truth is None else _error_percent(float(self.coef[i]), truth),
+                size=None if self.size is None else float(self.size[i])))
         return out
 
 
