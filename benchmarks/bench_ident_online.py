@@ -33,7 +33,8 @@ from trajectories.delta_paper import training_path  # noqa: E402
 
 delta = Delta()
 base = closed_form_base(delta.geometry)
-q, qd, qdd = training_path(np.arange(6000) / 100.0)
+_path = training_path(np.arange(6000) / 100.0)
+q, qd, qdd = _path.q, _path.qd, _path.qdd
 Yd = delta.regressor(q, qd, qdd)[:, :, [PARAM_NAMES.index(k) for k in base.kept]]
 taud = Yd @ (base.H @ nominal_parameters()) + rng.normal(0, 0.01, size=(len(Yd), 3))   # N·m
 scale = np.maximum(np.abs(base.H @ nominal_parameters()), 1e-2)

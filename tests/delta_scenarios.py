@@ -47,7 +47,8 @@ def payload(pi: np.ndarray, mass: float = 0.5) -> np.ndarray:
 def samples(path, t0: float, seconds: float, pi: np.ndarray, rng) -> tuple[np.ndarray, np.ndarray]:
     """Base regressor (N, 3, 40) and noisy torques (N, 3) along ``path`` from ``t0``."""
     t = t0 + np.arange(int(round(seconds * RATE))) / RATE
-    q, qd, qdd = path(t)
+    m = path(t)
+    q, qd, qdd = m.q, m.qd, m.qdd
     Y = ROBOT.regressor(q, qd, qdd)
     tau = Y @ pi + rng.uniform(-NOISE, NOISE, size=(len(t), 3))
     return Y[:, :, KEPT], tau

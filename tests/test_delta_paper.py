@@ -19,7 +19,8 @@ ROBOT = Delta()
 def test_path_ranges(path, seconds, samples, q_deg, c_deg, serial, cond_D, tau_max):
     from ident_hw.model.delta import nominal_parameters
     t = np.linspace(0.0, seconds, samples)
-    q, qd, qdd = path(t)
+    m = path(t)
+    q, qd, qdd = m.q, m.qd, m.qdd
     _, c = ROBOT.rod_angles(q)
     measure, cond = ROBOT.singularity(q)
     assert np.degrees(np.abs(q).max()) == pytest.approx(q_deg, abs=0.05)
@@ -40,7 +41,8 @@ def test_path_ranges(path, seconds, samples, q_deg, c_deg, serial, cond_D, tau_m
 ])
 def test_condition_of_the_column_normalised_base_regressor(path, seconds, samples, cond):
     base = closed_form_base(ROBOT.geometry, drive_terms=False)
-    q, qd, qdd = path(np.linspace(0.0, seconds, samples))
+    m = path(np.linspace(0.0, seconds, samples))
+    q, qd, qdd = m.q, m.qd, m.qdd
     W = ROBOT.regressor(q, qd, qdd).reshape(-1, len(PARAM_NAMES))[:, [PARAM_NAMES.index(k) for k in base.kept]]
     assert np.linalg.matrix_rank(W) == 34
     assert np.linalg.cond(W / np.linalg.norm(W, axis=0)) == pytest.approx(cond, rel=5e-4)
@@ -49,7 +51,8 @@ def test_condition_of_the_column_normalised_base_regressor(path, seconds, sample
 def test_base_regressor_predicts_every_parameter_vector():
     """``Y pi = Y[:, :, kept] (H pi)`` for any pi: the eliminated columns are the combinations H says."""
     base = closed_form_base(ROBOT.geometry)
-    q, qd, qdd = training_path(np.linspace(0.0, 30.0, 301))
+    m = training_path(np.linspace(0.0, 30.0, 301))
+    q, qd, qdd = m.q, m.qd, m.qdd
     Y = ROBOT.regressor(q, qd, qdd)
     kept = [PARAM_NAMES.index(k) for k in base.kept]
     for seed in range(3):
@@ -58,7 +61,8 @@ def test_base_regressor_predicts_every_parameter_vector():
 
 
 def test_holding_arm_3_loses_two_base_parameters():
-    q, qd, qdd = held_arm_path(np.linspace(0.0, 10.0, 401))
+    m = held_arm_path(np.linspace(0.0, 10.0, 401))
+    q, qd, qdd = m.q, m.qd, m.qdd
     assert np.all(q[:, 2] == 0.0)
     W = ROBOT.regressor(q, qd, qdd)[:, :, :70].reshape(-1, 70)
     norms = np.linalg.norm(W, axis=0)

@@ -32,7 +32,7 @@ _channels = itertools.count()
 
 def _faded_training_path(t, fade=1.0):
     """Table 2's path, faded in over ``fade`` s so that the arms leave their rest: (N, 3) rad."""
-    q, _, _ = training_path(t)
+    q = training_path(t).q
     window = np.clip(t / fade, 0.0, 1.0)
     return q * (window**3 * (10 - 15 * window + 6 * window**2))[:, None]
 

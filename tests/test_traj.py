@@ -148,7 +148,7 @@ def test_resample_reproduces_the_generating_path(rig, paper_set):
         assert np.allclose(np.diff(r.t), 1 / rate)
         assert r.t[-1] <= sweep.t[-1] and sweep.t[-1] - r.t[-1] < 1 / rate
         exact = path.evaluate(r.t)
-        for got, want in zip((r.Theta, r.Thetad, r.Thetadd), exact):
+        for got, want in zip((r.Theta, r.Thetad, r.Thetadd), (exact.q, exact.qd, exact.qdd)):
             np.testing.assert_allclose(got, want, atol=1e-9 * np.abs(want).max())
 
 

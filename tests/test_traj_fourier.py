@@ -30,7 +30,8 @@ def test_series_derivatives_and_rest_to_rest():
                            rng.normal(size=(6, 3)) * 0.02)
     dt = 1e-4
     t = np.arange(0, 5.0 + dt / 2, dt)
-    q, qd, qdd = ex.evaluate(t)
+    m = ex.evaluate(t)
+    q, qd, qdd = m.q, m.qd, m.qdd
     assert np.all(q[[0, -1]] == 0) and np.all(qd[[0, -1]] == 0) and np.all(qdd[[0, -1]] == 0)
     jerk = np.abs(np.diff(qdd, axis=0)).max(axis=0) / dt  # bounded, piecewise continuous
     assert np.all(np.abs((q[2:] - q[:-2]) / (2 * dt) - qd[1:-1]) <= dt**2 * jerk / 6 * 1.05 + 1e-13)

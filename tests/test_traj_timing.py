@@ -13,7 +13,8 @@ def identity(q, qd, qdd):
 
 def test_quintic_peaks_and_boundary_conditions():
     u = np.linspace(0, 1, 200001)
-    s, ds, dds = quintic(u)
+    profile = quintic(u)
+    s, ds, dds = profile.q, profile.qd, profile.qdd
     assert s[0] == 0 and s[-1] == 1
     assert ds[0] == ds[-1] == dds[0] == dds[-1] == 0
     assert ds.max() == pytest.approx(QUINTIC_PEAK_SPEED, rel=1e-9)
@@ -31,7 +32,8 @@ def test_piecewise_path_is_c2_and_derivatives_match_finite_differences():
     path = rest_to_rest_path(points, identity, np.full(6, 0.1), np.full(6, 1.0), shapes, dwell=0.2)
     dt = 2e-5
     t = np.arange(0, path.duration, dt)
-    q, qd, qdd = path.evaluate(t)
+    m = path.evaluate(t)
+    q, qd, qdd = m.q, m.qd, m.qdd
     # no jumps: the largest step of each signal is bounded by its derivative's bound times dt
     assert np.max(np.abs(np.diff(q, axis=0))) <= np.abs(qd).max() * dt * 1.001
     assert np.max(np.abs(np.diff(qd, axis=0))) <= np.abs(qdd).max() * dt * 1.001
@@ -45,9 +47,10 @@ def test_piecewise_path_is_c2_and_derivatives_match_finite_differences():
     assert np.max(np.abs(fd_a - qdd[1:-1])) < 1e-5
     # every waypoint is reached at rest at a segment boundary
     for k, point in enumerate(points):
-        hits = np.flatnonzero(np.all(np.isclose(path.evaluate(path.boundaries)[0], point, atol=1e-12), axis=1))
+        hits = np.flatnonzero(np.all(np.isclose(path.evaluate(path.boundaries).q, point, atol=1e-12), axis=1))
         assert hits.size, f"waypoint {k} not on a boundary"
-        _, v, a = path.evaluate(path.boundaries[hits])
+        rest = path.evaluate(path.boundaries[hits])
+        v, a = rest.qd, rest.qdd
         assert np.all(v == 0) and np.all(np.abs(a) < 1e-12)
 
 
@@ -60,7 +63,8 @@ def test_durations_meet_the_limits_exactly_at_the_utilisation():
     # second: 2 mm, accel-bound T = sqrt(5.7735 * 0.002 / 1)
     assert path.segments[1].duration == pytest.approx(np.sqrt(QUINTIC_PEAK_ACCEL * 0.002 / 1.0), rel=1e-3)
     t = time_grid(path.duration, 1000.0)
-    _, qd, qdd = path.evaluate(t)
+    m = path.evaluate(t)
+    qd, qdd = m.qd, m.qdd
     assert np.abs(qd).max() <= 0.1 * (1 + 1e-9) and np.abs(qd).max() > 0.0999
     assert np.abs(qdd).max() <= 1.0 * (1 + 1e-9) and np.abs(qdd).max() > 0.999
 

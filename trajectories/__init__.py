@@ -21,6 +21,7 @@ __getattr__, __dir__, __all__ = lazy_loader.attach(__name__, submodules=["delta_
     "feasibility": ["InfeasibleTrajectory", "Limits", "Report", "Violation", "check_trajectory"],
     "files": ["TrajectoryFile", "TrajectoryFileError", "load", "read", "save"],
     "fourier": ["FourierExcitation", "optimise_excitation"],
+    "motion": ["SampledMotion"],
     "paper": ["carriage_sweep", "five_squares", "square", "validation_triangle"],
     "paths": ["actuator_trajectory", "pose_trajectory"],
     "redundancy": ["CarriageSchedule", "carriage_schedule"],

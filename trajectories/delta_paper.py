@@ -13,11 +13,14 @@ Each returns ``(q, qd, qdd)``, arrays (N, 3) in rad, rad/s, rad/s² at the times
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from ident_hw.model import KinematicsError
 
 from .feasibility import ActuatorLimits, Report, Violation, _first, check_actuator_limits
+from .motion import SampledMotion
 from .trajectory import Trajectory
 
 #: eq. 60: amplitudes (rad) and angular frequencies (rad/s) of the verification path
@@ -33,29 +36,29 @@ TRAINING_FREQUENCIES = np.array([
 TRAINING_GAIN = 0.05
 
 
-def _harmonics(t: np.ndarray, amplitude: np.ndarray, w: np.ndarray):
+def _harmonics(t: np.ndarray, amplitude: np.ndarray, w: np.ndarray) -> SampledMotion:
     """``q_i = sum_k amplitude_ik sin(w_ik t)`` (amplitude, w: (3, K)) and its rates."""
     t = np.asarray(t, dtype=float)
     arg = w[None] * t[:, None, None]
     q = np.sum(amplitude * np.sin(arg), axis=2)
     qd = np.sum(amplitude * w * np.cos(arg), axis=2)
     qdd = -np.sum(amplitude * w**2 * np.sin(arg), axis=2)
-    return q, qd, qdd
+    return SampledMotion(q, qd, qdd)
 
 
-def verification_path(t):
+def verification_path(t: np.ndarray) -> SampledMotion:
     """Eq. 60 (rad), with its exact rates."""
     return _harmonics(t, VERIFICATION_AMPLITUDES[:, None], VERIFICATION_FREQUENCIES[:, None])
 
 
-def held_arm_path(t):
+def held_arm_path(t: np.ndarray) -> SampledMotion:
     """Eq. 60 with arm 3 held at ``q3 = 0``: two excited arms, a rank-deficient regressor."""
     amplitude = VERIFICATION_AMPLITUDES.copy()
     amplitude[2] = 0.0
     return _harmonics(t, amplitude[:, None], VERIFICATION_FREQUENCIES[:, None])
 
 
-def training_path(t):
+def training_path(t: np.ndarray) -> SampledMotion:
     """Eq. 84 with Table 2's frequencies and the chosen amplitudes ``a = 0.05 w``, ``b = 0``."""
     return _harmonics(t, np.full_like(TRAINING_FREQUENCIES, TRAINING_GAIN), TRAINING_FREQUENCIES)
 
@@ -72,14 +75,15 @@ def _smoothstep(u: np.ndarray):
     return u**3 * (10 - 15 * u + 6 * u**2), 30 * u**2 * (1 - u) ** 2, 60 * u * (1 - u) * (1 - 2 * u)
 
 
-def faded(path, t: np.ndarray, fade: float):
-    """``path(t)`` (q, qd, qdd, each (N, 3)) multiplied by a window that rises over the first
+def faded(path: Callable[[np.ndarray], SampledMotion], t: np.ndarray, fade: float) -> SampledMotion:
+    """``path(t)`` (q, qd, qdd, each (N, n), rad|m and per s, s²) multiplied by a window that rises over the first
     ``fade`` s and falls over the last: the arms leave ``q = 0`` at rest and come back to it at
     rest (the paper's paths start moving). Exact rates by the product rule."""
     t = np.asarray(t, dtype=float)
-    q, qd, qdd = path(t)
+    motion = path(t)
     if fade <= 0:
-        return q, qd, qdd
+        return motion
+    q, qd, qdd = motion.q, motion.qd, motion.qdd
     end = t[-1]
     rise, rise_d, rise_dd = _smoothstep((t - t[0]) / fade)
     fall, fall_d, fall_dd = _smoothstep((end - t) / fade)
@@ -87,7 +91,7 @@ def faded(path, t: np.ndarray, fade: float):
     wd = (rise_d * fall - rise * fall_d) / fade
     wdd = (rise_dd * fall - 2 * rise_d * fall_d + rise * fall_dd) / fade**2
     w, wd, wdd = w[:, None], wd[:, None], wdd[:, None]
-    return w * q, wd * q + w * qd, wdd * q + 2 * wd * qd + w * qdd
+    return SampledMotion(w * q, wd * q + w * qd, wdd * q + 2 * wd * qd + w * qdd)
 
 
 def delta_trajectory(robot, kind: str, duration: float, rate: float, fade: float = 1.0, name: str | None = None,
@@ -106,7 +110,8 @@ def delta_trajectory(robot, kind: str, duration: float, rate: float, fade: float
         raise ValueError(f"duration {duration} s must exceed the fade in and out, 2 x {fade} s")
     t = np.arange(int(np.floor(duration * rate + 1e-9)) + 1) / rate
     scale = np.asarray(amplitude, dtype=float)
-    q, qd, qdd = (scale * x for x in faded(PATHS[kind], t, fade))
+    motion = faded(PATHS[kind], t, fade)
+    q, qd, qdd = scale * motion.q, scale * motion.qd, scale * motion.qdd
     X = robot.fk(q)
     Xd = np.einsum("nij,nj->ni", robot.jacobian(q), qd)
     Xdd = np.gradient(Xd, t, axis=0)

@@ -32,6 +32,7 @@ from scipy.optimize import minimize
 from ident_hw.model import KinematicsError
 
 from .feasibility import Limits
+from .motion import SampledMotion
 from .paths import HOME_POSE
 from .timing import quintic, time_grid
 from .trajectory import Trajectory
@@ -80,28 +81,30 @@ class FourierExcitation:
         slower content), which sets the identification filter."""
         return self.a.shape[1] * self.base_frequency
 
-    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``q, qd, qdd`` (each ``(N, 6)``) at times ``t`` (s); ``q = [x, y, alpha, zeta1..3]``."""
+    def evaluate(self, t: np.ndarray) -> SampledMotion:
+        """The motion (each ``(N, 6)``) at times ``t`` (s); ``q = [x, y, alpha, zeta1..3]``."""
         t = np.asarray(t, dtype=float)[:, None]
         w = 2 * np.pi * self.base_frequency * np.arange(1, self.a.shape[1] + 1)  # (H,)
         sin, cos = np.sin(t * w), np.cos(t * w)  # (N, H)
         f = self.offset + sin @ (self.a / w).T - cos @ (self.b / w).T
         fd = cos @ self.a.T + sin @ self.b.T
         fdd = -sin @ (self.a * w).T + cos @ (self.b * w).T
-        up, upd, updd = quintic(t[:, 0] / self.ramp)
-        down, downd, downdd = quintic((self.duration - t[:, 0]) / self.ramp)
+        rise, fall = quintic(t[:, 0] / self.ramp), quintic((self.duration - t[:, 0]) / self.ramp)
+        up, upd, updd = rise.q, rise.qd, rise.qdd
+        down, downd, downdd = fall.q, fall.qd, fall.qdd
         e = (up * down)[:, None]
         ed = (upd * down - up * downd)[:, None] / self.ramp
         edd = (updd * down - 2 * upd * downd + up * downdd)[:, None] / self.ramp**2
         home = np.concatenate([HOME_POSE, np.zeros(3)])
-        return home + e * f, ed * f + e * fd, edd * f + 2 * ed * fd + e * fdd
+        return SampledMotion(home + e * f, ed * f + e * fd, edd * f + 2 * ed * fd + e * fdd)
 
     def trajectory(self, robot: ThreePRRR, rate: float = 250.0, name: str = "fourier",
                    metadata: dict | None = None) -> Trajectory:
         """Sample at ``rate`` Hz into a :class:`Trajectory`."""
         t = time_grid(self.duration, rate)
         meta = {"generator": "fourier", "coefficients": self.to_dict(), "rate_hz": rate, **(metadata or {})}
-        return Trajectory.from_pose(robot, name, t, *self.evaluate(t), metadata=meta)
+        motion = self.evaluate(t)
+        return Trajectory.from_pose(robot, name, t, motion.q, motion.qd, motion.qdd, metadata=meta)
 
     def to_dict(self) -> dict:
         """JSON-serialisable form (lists)."""
@@ -244,6 +247,11 @@ def optimise_excitation(robot: ThreePRRR, limits: Limits, base_frequency: float 
                             problem.evaluate(result.x)[0], int(result.nit))
 
 
+def _triple(motion: SampledMotion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(q, qd, qdd)`` of ``motion``, for this module's batched arithmetic over the three."""
+    return motion.q, motion.qd, motion.qdd
+
+
 class _Problem:
     """The criterion of :func:`optimise_excitation` on its variables ``v`` (12 H + 6,): the
     velocity amplitudes and offsets scaled by :data:`VELOCITY_SCALE`; the excitation sampled at
@@ -255,8 +263,9 @@ class _Problem:
         self.base_frequency, self.duration, self.ramp, self.harmonics = base_frequency, duration, ramp, harmonics
         # q, qd, qdd are affine in the variables: their response to each unit variable, once
         size = 12 * harmonics + 6
-        self.home = self.unpack(np.zeros(size)).evaluate(t)
-        self.unit = [np.stack([self.unpack(e).evaluate(t)[k] - self.home[k] for e in np.eye(size)]) for k in range(3)]
+        self.home = _triple(self.unpack(np.zeros(size)).evaluate(t))
+        self.unit = [np.stack([_triple(self.unpack(e).evaluate(t))[k] - self.home[k] for e in np.eye(size)])
+                     for k in range(3)]
 
     def unpack(self, v: np.ndarray) -> FourierExcitation:
         shape, h = (6, self.harmonics), self.harmonics
@@ -267,7 +276,7 @@ class _Problem:
 
     def evaluate(self, v: np.ndarray) -> tuple[float, np.ndarray]:
         """Criterion and the ratio of each limited quantity to its limit (``inf`` out of reach)."""
-        conds, ratios = _criterion(self.robot, self.limits, self.base, *self.unpack(v).evaluate(self.t))
+        conds, ratios = _criterion(self.robot, self.limits, self.base, *_triple(self.unpack(v).evaluate(self.t)))
         return float(conds[0]), ratios[0]
 
     @staticmethod

@@ -84,8 +84,9 @@ class _Problem:
         """The scaled condition (``inf`` out of reach) and the largest closure condition over its
         limit."""
         sines = self.sines(v)
-        scale = fitted_scale(self.home, self.limits, *faded(sines.motion, self.t_peak, self.fade), self.fraction)
-        q, qd, qdd = faded(sines.motion, self.t, self.fade)
+        scale = fitted_scale(self.home, self.limits, faded(sines.motion, self.t_peak, self.fade), self.fraction)
+        motion = faded(sines.motion, self.t, self.fade)
+        q, qd, qdd = motion.q, motion.qd, motion.qdd
         scale = scale * self.amplitude
         try:
             Y, poses = self.robot.identification_regressor(self.home + scale * q, scale * qd, scale * qdd, self.start)

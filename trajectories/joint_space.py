@@ -31,6 +31,7 @@ import numpy as np
 from ident_hw.model import KinematicsError
 
 from .delta_paper import faded
+from .motion import SampledMotion
 from .feasibility import ActuatorLimits, Report, Violation, _first, check_actuator_limits
 from .trajectory import Trajectory
 
@@ -63,14 +64,15 @@ class JointHarmonics:
         phi = rng.uniform(0, 2 * np.pi, (n, harmonics))
         return cls(w, phi, np.ones_like(w))
 
-    def motion(self, t: np.ndarray):
-        """``sum_k c_k sin(w_k t + phi_k) / w_k`` per actuator and its two rates, (N, n) each."""
+    def motion(self, t: np.ndarray) -> SampledMotion:
+        """``sum_k c_k sin(w_k t + phi_k) / w_k`` per actuator and its two rates, (N, n) each, at
+        times ``t`` (N,) s (relative: the scale that fits the limits is applied afterwards)."""
         w, c = self.frequencies, self.weights
         arg = w[None] * t[:, None, None] + self.phases[None]
         s, co = np.sin(arg), np.cos(arg)
         if np.all(c == 1.0):                  # the drawn excitation: the same bits as ever
-            return np.sum(s / w, axis=2), np.sum(co, axis=2), -np.sum(w * s, axis=2)
-        return np.sum(c * s / w, axis=2), np.sum(c * co, axis=2), -np.sum(c * w * s, axis=2)
+            return SampledMotion(np.sum(s / w, axis=2), np.sum(co, axis=2), -np.sum(w * s, axis=2))
+        return SampledMotion(np.sum(c * s / w, axis=2), np.sum(c * co, axis=2), -np.sum(c * w * s, axis=2))
 
     def save(self, path: str | Path) -> Path:
         """Write the set as JSON (numbers written in full: the same trajectory when read back)."""
@@ -106,9 +108,9 @@ class JointHarmonics:
         return cls(*arrays, doc.get("cond_initial"), doc.get("cond_final"), doc.get("optimised_for"))
 
 
-def fitted_scale(home: np.ndarray, limits: ActuatorLimits, q, qd, qdd, fraction: float) -> np.ndarray:
-    """The largest factor per actuator (n,) that keeps the motion ``home + s q`` within ``fraction``
-    of its position room about home, its speed and its acceleration limits.
+def fitted_scale(home: np.ndarray, limits: ActuatorLimits, motion: SampledMotion, fraction: float) -> np.ndarray:
+    """The largest factor per actuator (n,) that keeps the motion ``home + s q`` (``motion``, (N, n)
+    each) within ``fraction`` of its position room about home, its speed and its acceleration limits.
 
     Raises:
         ValueError: a home not inside its actuator's limits, naming the actuator."""
@@ -117,7 +119,7 @@ def fitted_scale(home: np.ndarray, limits: ActuatorLimits, q, qd, qdd, fraction:
         j = int(np.argmin(room))
         raise ValueError(f"actuator {limits.names[j]}: home {home[j]:.6g} {limits.units[j]} is not inside its "
                          f"limits [{limits.low[j]:.6g}, {limits.high[j]:.6g}]")
-    peak = [np.max(np.abs(x), axis=0) for x in (q, qd, qdd)]
+    peak = [np.max(np.abs(x), axis=0) for x in (motion.q, motion.qd, motion.qdd)]
     return fraction * np.min([room / peak[0], limits.speed / peak[1], limits.accel / peak[2]], axis=0)
 
 
@@ -144,8 +146,9 @@ def joint_excitation(robot, limits: ActuatorLimits, duration: float, rate: float
     n = len(home)
     sines = JointHarmonics.drawn(n, bandwidth, harmonics, seed) if sines is None else sines
     t = np.arange(int(np.floor(duration * rate + 1e-9)) + 1) / rate
-    q, qd, qdd = faded(sines.motion, t, fade)
-    scale = fitted_scale(home, limits, q, qd, qdd, fraction) * np.asarray(amplitude, dtype=float)
+    motion = faded(sines.motion, t, fade)
+    q, qd, qdd = motion.q, motion.qd, motion.qdd
+    scale = fitted_scale(home, limits, motion, fraction) * np.asarray(amplitude, dtype=float)
     Theta, Thetad, Thetadd = home + scale * q, scale * qd, scale * qdd
     X = robot.pose_series(Theta, robot.pose(home, None))
     Xd = np.gradient(X, t, axis=0)

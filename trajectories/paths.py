@@ -73,7 +73,8 @@ def pose_trajectory(robot: ThreePRRR, name: str, poses: np.ndarray, limits: Limi
     meta = {"generator": "pose_trajectory", "waypoints": poses.tolist(), "carriages": schedule.zeta.tolist(),
             "carriage_bends": schedule.bends.tolist(), "rate_hz": rate, **(metadata or {})}
     t = time_grid(path.duration, rate)
-    return Trajectory.from_pose(robot, name, t, *path.evaluate(t), metadata=meta)
+    motion = path.evaluate(t)
+    return Trajectory.from_pose(robot, name, t, motion.q, motion.qd, motion.qdd, metadata=meta)
 
 
 def actuator_trajectory(robot: ThreePRRR, name: str, waypoints: np.ndarray, limits: Limits, rate: float = 250.0,
@@ -87,4 +88,5 @@ def actuator_trajectory(robot: ThreePRRR, name: str, waypoints: np.ndarray, limi
     t = time_grid(path.duration, rate)
     meta = {"generator": "actuator_trajectory", "waypoints": waypoints.tolist(), "rate_hz": rate,
             **(metadata or {})}
-    return Trajectory.from_actuators(robot, name, t, *path.evaluate(t), HOME_POSE, metadata=meta)
+    motion = path.evaluate(t)
+    return Trajectory.from_actuators(robot, name, t, motion.q, motion.qd, motion.qdd, HOME_POSE, metadata=meta)

@@ -66,7 +66,7 @@ def path_margins(robot: ThreePRRR, poses: np.ndarray, schedule: CarriageSchedule
         KinematicsError: a point of the path is out of reach.
     """
     s = np.linspace(0.0, 1.0, samples)
-    q = np.vstack([seg.geometry(s)[0] for seg in schedule.segments(poses)])
+    q = np.vstack([seg.geometry(s).q for seg in schedule.segments(poses)])
     m = robot.singularity_margins(q[:, :3], q[:, 3:])
     return np.minimum(m.serial.min(axis=1) / limits.min_serial_margin, limits.max_cond_A / m.cond_A)
 

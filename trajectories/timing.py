@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .motion import SampledMotion
+
 #: ``Map`` from path coordinates ``(q, qd, qdd)`` (each ``(N, d)``) to actuator coordinates
 #: ``(Theta, Thetad, Thetadd)`` (each ``(N, 6)``).
 ActuatorMap = Callable[[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -33,20 +35,21 @@ QUINTIC_PEAK_SPEED = 15.0 / 8.0
 QUINTIC_PEAK_ACCEL = 10.0 / np.sqrt(3.0)
 
 
-def quintic(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def quintic(u: np.ndarray) -> SampledMotion:
     """Quintic rest-to-rest profile and its derivatives with respect to ``u``.
 
     Args:
         u: normalised time, any shape; clipped to ``[0, 1]``.
 
     Returns:
-        ``s, ds/du, d2s/du2`` with the shape of ``u``.
+        ``s`` (``q``), ``ds/du`` (``qd``), ``d2s/du2`` (``qdd``), each with the shape of ``u``
+        (dimensionless).
     """
     u = np.clip(np.asarray(u, dtype=float), 0.0, 1.0)
     s = u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
     ds = 30.0 * u**2 * (1.0 - u) ** 2
     dds = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u)
-    return s, ds, dds
+    return SampledMotion(s, ds, dds)
 
 
 @dataclass(frozen=True)
@@ -65,8 +68,8 @@ class Segment:
     duration: float
     shape: np.ndarray | None = None
 
-    def geometry(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Path point and its first two derivatives with respect to ``s``: each ``(N, d)``."""
+    def geometry(self, s: np.ndarray) -> SampledMotion:
+        """Path point and its first two derivatives with respect to ``s`` (not time): each ``(N, d)``."""
         s = np.asarray(s, dtype=float)[:, None]
         delta = np.asarray(self.end, float) - np.asarray(self.start, float)
         q = self.start + delta * s
@@ -78,14 +81,14 @@ class Segment:
             q += sin @ self.shape
             dq += (cos * k) @ self.shape
             ddq -= (sin * k**2) @ self.shape
-        return q, dq, ddq
+        return SampledMotion(q, dq, ddq)
 
-    def evaluate(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position, velocity, acceleration at times ``tau`` (s) from the segment start."""
-        s, ds, dds = quintic(np.asarray(tau, dtype=float) / self.duration)
-        sd, sdd = ds / self.duration, dds / self.duration**2
-        q, dq, ddq = self.geometry(s)
-        return q, dq * sd[:, None], ddq * (sd**2)[:, None] + dq * sdd[:, None]
+    def evaluate(self, tau: np.ndarray) -> SampledMotion:
+        """Position, velocity, acceleration (each ``(N, d)``) at times ``tau`` (s) from the segment start."""
+        profile = quintic(np.asarray(tau, dtype=float) / self.duration)
+        sd, sdd = profile.qd / self.duration, profile.qdd / self.duration**2
+        path = self.geometry(profile.q)
+        return SampledMotion(path.q, path.qd * sd[:, None], path.qdd * (sd**2)[:, None] + path.qd * sdd[:, None])
 
 
 class PiecewisePath:
@@ -109,7 +112,7 @@ class PiecewisePath:
         """Total duration in s."""
         return float(self.boundaries[-1])
 
-    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def evaluate(self, t: np.ndarray) -> SampledMotion:
         """Position, velocity and acceleration, each ``(N, d)``, at times ``t`` (s), clamped to the path."""
         t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
         index = np.clip(np.searchsorted(self.boundaries, t, side="right") - 1, 0, len(self.segments) - 1)
@@ -117,9 +120,10 @@ class PiecewisePath:
         out = [np.empty((len(t), d)) for _ in range(3)]
         for i in np.unique(index):
             mask = index == i
-            for o, v in zip(out, self.segments[i].evaluate(t[mask] - self.boundaries[i])):
+            part = self.segments[i].evaluate(t[mask] - self.boundaries[i])
+            for o, v in zip(out, (part.q, part.qd, part.qdd)):
                 o[mask] = v
-        return out[0], out[1], out[2]
+        return SampledMotion(out[0], out[1], out[2])
 
 
 def time_grid(duration: float, rate: float) -> np.ndarray:
@@ -132,7 +136,7 @@ def time_grid(duration: float, rate: float) -> np.ndarray:
 
 
 def segment_duration(
-    geometry: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]],
+    geometry: Callable[[np.ndarray], SampledMotion],
     to_actuators: ActuatorMap,
     max_speed: np.ndarray,
     max_accel: np.ndarray,
@@ -143,7 +147,7 @@ def segment_duration(
     """Shortest quintic duration (s) of one segment that keeps every actuator within its limits.
 
     Args:
-        geometry: ``s -> (q, dq/ds, d2q/ds2)`` of the segment (see :meth:`Segment.geometry`).
+        geometry: ``s ->`` the segment's point and its derivatives with respect to ``s`` (see :meth:`Segment.geometry`).
         to_actuators: map from path coordinates to the six actuator coordinates.
         max_speed: ``(6,)`` actuator speed limits (rad/s x3, m/s x3).
         max_accel: ``(6,)`` actuator acceleration limits (rad/s^2 x3, m/s^2 x3).
@@ -151,9 +155,10 @@ def segment_duration(
         samples: grid size in ``u``.
         min_duration: lower bound on the result, s.
     """
-    s, ds, dds = quintic(np.linspace(0.0, 1.0, samples))
-    q, dq, ddq = geometry(s)
-    _, thd, thdd = to_actuators(q, dq * ds[:, None], ddq * (ds**2)[:, None] + dq * dds[:, None])
+    profile = quintic(np.linspace(0.0, 1.0, samples))
+    ds, dds = profile.qd, profile.qdd
+    path = geometry(profile.q)
+    _, thd, thdd = to_actuators(path.q, path.qd * ds[:, None], path.qdd * (ds**2)[:, None] + path.qd * dds[:, None])
     speed = np.max(np.abs(thd) / (utilisation * np.asarray(max_speed)))
     accel = np.max(np.abs(thdd) / (utilisation * np.asarray(max_accel)))
     return float(max(speed, np.sqrt(accel), min_duration))
