@@ -131,6 +131,23 @@ AVERAGING_CUTOFF = 50.0
 
 
 @dataclass(frozen=True)
+class AveragingStep:
+    """One SYNC period of a running average, ``y1 = pole y0 + b0 x0 + b1 x1``
+    (:meth:`AveragingFilter.over_period`): the weights (dimensionless, ``pole + b0 + b1 = 1``) of
+    the output ``y0`` at the period's start and of the current at its start ``x0`` and end ``x1``.
+
+    Attributes:
+        pole: the weight of the previous output, ``a ** N`` (``a`` the loop-rate pole).
+        b0: the weight of the current at the period's start.
+        b1: the weight of the current at the period's end.
+    """
+
+    pole: float
+    b0: float
+    b1: float
+
+
+@dataclass(frozen=True)
 class AveragingFilter:
     """The running average behind a drive's averaged current (``current_averaged``): a
     first-order digital low-pass of cut-off ``cutoff`` (Hz) run at the current loop's sample
@@ -155,20 +172,20 @@ class AveragingFilter:
         if not 0 < self.cutoff < 0.5 * self.rate:
             raise ValueError(f"averaging filter: need 0 < cutoff < rate / 2, got {self.cutoff} Hz at {self.rate} Hz")
 
-    def over_period(self, period: float) -> tuple[float, float, float]:
-        """``(A, B0, B1)`` with ``y1 = A y0 + B0 x0 + B1 x1``: the filter's output ``y1`` at the
+    def over_period(self, period: float) -> AveragingStep:
+        """``A, B0, B1`` (:class:`AveragingStep`) with ``y1 = A y0 + B0 x0 + B1 x1``: the filter's output ``y1`` at the
         end of a ``period`` (s) from its output ``y0`` at the start, for a current running
         linearly from ``x0`` (the start) to ``x1`` (the end), sampled at the loop rate at
         ``n / rate``, ``n = 1 .. N``. ``A + B0 + B1 = 1`` (unit gain at rest); ``N`` need not be
         a whole number (the closed form is continuous in it); a period of 0 leaves ``y``."""
         n = period * self.rate
         if not n > 0:
-            return 1.0, 0.0, 0.0
+            return AveragingStep(1.0, 0.0, 0.0)
         a = math.exp(-2.0 * math.pi * self.cutoff / self.rate)
         a_n = a ** n
         # x0's weight: (1 - a) times the sum over the samples k = 1..N of a^(N-k) (1 - k / N)
         b0 = (a - n * a_n + (n - 1.0) * a_n * a) / ((1.0 - a) * n)
-        return a_n, b0, 1.0 - a_n - b0
+        return AveragingStep(a_n, b0, 1.0 - a_n - b0)
 
 
 @dataclass(frozen=True)

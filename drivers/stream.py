@@ -36,6 +36,7 @@ from drivers.gc_freeze import GcPauses
 from drivers.recording import FlushingLogger, Recording, SampleRecorder
 from drivers.recording_metadata import RecordedAxis, RecordingMetadata
 from drivers.supervision import Supervisor, WatchClock
+from drivers.sync import FrameTable
 from drivers.units import AxesScaling
 
 logger = logging.getLogger(__name__)
@@ -95,15 +96,15 @@ class TargetStreamer:
     def on_sync(self, k: int) -> None:
         self.send(k + 1)
 
-    def table(self) -> tuple[list[int], list[int], bytes]:
+    def table(self) -> FrameTable:
         """Every cycle's RPDO frames, for a SYNC source that sends them itself (a timing
         process): their COB-IDs, their lengths in bytes, and the data of all cycles, row k the
         frames of cycle k one after the other (:class:`drivers.sync.SetpointFrames`)."""
-        cob_ids = [cob_id for cob_id, _ in self.rpdos]
+        cob_ids = tuple(cob_id for cob_id, _ in self.rpdos)
         rows = [b"".join(pack(value, CW_ENABLE_OPERATION) for (_, pack), value in zip(self.rpdos, row))
                 for row in self.counts]
-        sizes = [len(pack(0, CW_ENABLE_OPERATION)) for _, pack in self.rpdos]
-        return cob_ids, sizes, b"".join(rows)
+        sizes = tuple(len(pack(0, CW_ENABLE_OPERATION)) for _, pack in self.rpdos)
+        return FrameTable(cob_ids, sizes, b"".join(rows))
 
 
 class CyclicStream:

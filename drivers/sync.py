@@ -116,13 +116,30 @@ class SyncSource(ABC):
         return SyncReport()
 
 
+@dataclass(frozen=True)
+class FrameTable:
+    """Every cycle's RPDO frames of a stream, for a SYNC source that sends them itself (a timing
+    process, :meth:`drivers.timing.TimedBus.start_stream`).
+
+    Attributes:
+        cob_ids: the COB-ID of each RPDO of a cycle, in the order they are sent.
+        sizes: the length of each of those frames, bytes.
+        data: the frames of all cycles, row k those of cycle k one after the other
+            (``len(data) == cycles * sum(sizes)``).
+    """
+
+    cob_ids: tuple[int, ...]
+    sizes: tuple[int, ...]
+    data: bytes
+
+
 class SetpointFrames(Protocol):
     """The set-points of a stream as RPDO frames (:class:`drivers.stream.TargetStreamer`)."""
 
     def send(self, k: int) -> None:
         """Send the set-points of cycle k (the last ones past the end)."""
 
-    def table(self) -> tuple[list[int], list[int], bytes]:
+    def table(self) -> FrameTable:
         """Every cycle's RPDO frames: their COB-IDs, their lengths (bytes) and the data of all
         cycles, row k the frames of cycle k one after the other."""
 
@@ -200,7 +217,8 @@ class PeriodicSync(SyncSource):
         self.warning, self._report = None, SyncReport(timing=getattr(network, "timing", None))
         if _streams_itself(network):
             self._timed = network.bus
-            self._timed.start_stream(period, SYNC_COB_ID, *setpoints.table())
+            frames = setpoints.table()
+            self._timed.start_stream(period, SYNC_COB_ID, list(frames.cob_ids), list(frames.sizes), frames.data)
             return
         if period < THREAD_LATE_BELOW and not getattr(network, "timer_periodic", True):
             self.warning = (f"the SYNC at {1 / period:g} Hz is sent by a Python thread (this bus has no "

@@ -203,7 +203,7 @@ def test_filtering_the_regressor_keeps_the_model_exact_for_averaged_forces():
         for i in range(1, steps + 1):
             y = a * y + (1 - a) * (tau[k - 1] + (tau[k] - tau[k - 1]) * i / steps)
         by_hand[k] = y
-    matched = running_average(Y, [EPOS4.current_averaging.over_period(period)] * Y.shape[1]) @ truth
+    matched = running_average(Y, [dataclasses.astuple(EPOS4.current_averaging.over_period(period))] * Y.shape[1]) @ truth
     np.testing.assert_allclose(matched, by_hand, rtol=0, atol=1e-9 * np.abs(tau).max())
     assert np.abs(by_hand - tau).max() > 0.01 * np.abs(tau).max()     # the average is not the force
 

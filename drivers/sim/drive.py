@@ -16,13 +16,14 @@ import logging
 import struct
 
 import canopen
+import numpy as np
 from canopen.sdo import SdoAbortedError
 
 from drivers.cia import (CW_FAULT_RESET, CW_HALT, CW_NEW_SETPOINT, CW_RELATIVE, DISABLED, EMCY_COB_ID, ENABLED,
                          ERROR_CODE, ERROR_HISTORY, ERROR_REGISTER, FAULT, FAULT_REACTION, HEARTBEAT_CONSUMER,
                          MODE_HMM, MODE_PPM, NMT_ENTER_PRE_OPERATIONAL, QUICK_STOP, SW_BIT12,
                          SW_TARGET_REACHED)
-from drivers.profiles import get_profile, make_object_dictionary
+from drivers.profiles import AveragingStep, get_profile, make_object_dictionary
 from drivers.units import AxisScaling
 
 from . import modes
@@ -90,7 +91,7 @@ class EmulatedDrive:
     offset: int | None                 # plant counts - reported counts (the rig sets it)
     actual: int                        # reported position, counts
     _consumer_cob: int | None          # the watched producer's heartbeat COB-ID
-    _last_cyclic: tuple[float, float, float] | None
+    _last_cyclic: modes.CyclicTargets | None
     _move: list | None                 # [target counts, speed rpm] of a PPM/homing move
     _homing_phase: int | None
     _quick_stop_since: float | None
@@ -136,7 +137,7 @@ class EmulatedDrive:
         self.offset = None if offset is None else offset + self.actual
         self.actual = 0               # reported position, counts
         self._demand = modes.Demand()
-        self._last_cyclic = None      # the three last cyclic targets (q_k-1, q_k-2, q_k-3), counts
+        self._last_cyclic = None      # the three last cyclic targets, counts
         self._move = None             # [target counts, speed rpm] of a PPM/homing move
         self._homing_phase = None
         self._homing_start = 0.0
@@ -144,13 +145,14 @@ class EmulatedDrive:
         self._quick_stop_since = None
         # the running average of the current (mA, unrounded), from rest at power-up
         self._averaged, self._last_current = 0.0, 0.0
-        self._average_period, self._average_step = None, (1.0, 0.0, 0.0)
+        self._average_period, self._average_step = None, AveragingStep(1.0, 0.0, 0.0)
         self.pdo.reset()
         self._watch_producer(0)
         self.store[self.profile.statusword] = self._statusword()
 
     @property
-    def values(self) -> dict:
+    def values(self) -> dict[tuple[int, int], object]:
+        """The object dictionary's values by ``(index, sub-index)``, raw (the store's own)."""
         return self.store.values
 
     @property
@@ -466,21 +468,22 @@ class EmulatedDrive:
         if period != self._average_period:
             self._average_period = period
             self._average_step = self.profile.current_averaging.over_period(period)
-        a, b0, b1 = self._average_step
+        step = self._average_step
+        a, b0, b1 = step.pole, step.b0, step.b1
         self._averaged = a * self._averaged + b0 * self._last_current + b1 * milliamps
         self._last_current = milliamps
         lowest, highest = self.profile.current_averaged.value_range
         return min(max(int(round(self._averaged)), lowest), highest)
 
-    def plan(self, period: float) -> tuple[float, float, float, float]:
-        """The position demand over the coming period: coefficients ``(c0, c1, c2, c3)`` of
+    def plan(self, period: float) -> np.ndarray:
+        """The position demand over the coming period: ``(4,)`` coefficients ``c0 .. c3`` of
         ``q_d(t) = c0 + c1 t + c2 t^2 + c3 t^3`` (counts, ``t`` in s from the period start)."""
         prof, store, d = self.profile, self.store, self._demand
         d.curve = (0.0, 0.0)
         history, self._last_cyclic = self._last_cyclic, None     # kept only while streaming
         if not self.powered:
             d.position, d.velocity = float(self.actual), 0.0
-            return d.position, 0.0, 0.0, 0.0
+            return np.array((d.position, 0.0, 0.0, 0.0))
         mode = store[prof.modes_of_operation]
         counts_per_s = self.scaling.counts_per_turn / 60.0       # per rpm
         if self.state in (QUICK_STOP, FAULT_REACTION):

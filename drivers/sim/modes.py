@@ -16,6 +16,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 
 @dataclass
 class Demand:
@@ -28,8 +30,10 @@ class Demand:
     curve: tuple[float, float] = (0.0, 0.0)
     end: float | None = None
 
-    def coefficients(self) -> tuple[float, float, float, float]:
-        return (self.position, self.velocity) + self.curve
+    def coefficients(self) -> np.ndarray:
+        """``(4,)`` the cubic's ``c0 .. c3`` by ascending power (NumPy's polynomial order): counts,
+        counts/s, counts/s², counts/s³."""
+        return np.array((self.position, self.velocity) + self.curve)
 
     def advance(self, period: float) -> None:
         """To the end of the period."""
@@ -41,17 +45,33 @@ class Demand:
         self.velocity += (2.0 * c2 + 3.0 * c3 * period) * period
 
 
-def cyclic_segment(demand: Demand, target: float, period: float, history) -> tuple[float, float, float]:
-    """Uniform cubic B-spline segment of the last four targets ``history`` (the three previous
-    ones, or None when streaming starts: the held demand) and ``target``; returns the history
-    for the next period."""
-    p2, p1, p0 = history or (demand.position,) * 3
+@dataclass(frozen=True)
+class CyclicTargets:
+    """The last three cyclic targets a drive received (counts), newest first: the B-spline's
+    control points before the next target (:func:`cyclic_segment`).
+
+    Attributes:
+        last: the target of the period just begun, counts.
+        before: the one before it, counts.
+        oldest: the one before that, counts.
+    """
+
+    last: float
+    before: float
+    oldest: float
+
+
+def cyclic_segment(demand: Demand, target: float, period: float, history: CyclicTargets | None) -> CyclicTargets:
+    """Uniform cubic B-spline segment of the last four targets: ``history`` (the three previous
+    ones, or None when streaming starts: the held demand) and ``target`` (counts); sets
+    ``demand``'s cubic over the ``period`` (s) and returns the history for the next period."""
+    p2, p1, p0 = (history.last, history.before, history.oldest) if history else (demand.position,) * 3
     if period > 0:
         demand.position = (p0 + 4.0 * p1 + p2) / 6.0
         demand.velocity = (p2 - p0) / (2.0 * period)
         demand.curve = ((p0 - 2.0 * p1 + p2) / (2.0 * period**2),
                         (target - 3.0 * p2 + 3.0 * p1 - p0) / (6.0 * period**3))
-    return target, p2, p1
+    return CyclicTargets(target, p2, p1)
 
 
 def profile_step(demand: Demand, target: float, speed: float, acceleration: float, period: float) -> bool:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 
 import numpy as np
 
@@ -247,8 +247,8 @@ def prepare(plan: IdentificationPlan, robot: RobotModel, name: str, rec: Recordi
         regressor, X = robot.identification_regressor(samples.Theta, samples.Thetad, samples.Thetadd, guess[rows])
         if averaging is not None:   # forces from averaged currents: the regressor through the same average
             period = (t[-1] - t[0]) / (len(t) - 1)
-            regressor = running_average(regressor, np.array([UNFILTERED if f is None else f.over_period(period)
-                                                             for f in averaging]))
+            steps = [UNFILTERED if f is None else astuple(f.over_period(period)) for f in averaging]
+            regressor = running_average(regressor, np.array(steps))
         regressor, tau = through_position_lowpass(settings, samples.tau, regressor, coulomb, ends, copy=False)
         Y, tau = parallel_decimate(settings, regressor, tau, ends=ends)
         kept = kept_samples(settings, len(t), ends)
