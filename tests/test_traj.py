@@ -11,6 +11,7 @@ from ident_hw.config.robots import model_of
 from trajectories import (InfeasibleTrajectory, Trajectory, TrajectoryFileError, carriage_sweep, check_trajectory,
                           five_squares, load, pose_trajectory, save, validation_triangle)
 from trajectories.paths import home_actuators
+from trajectories.motion import SampledMotion
 from trajectories.timing import rest_to_rest_path
 from ident_hw.experiment.robot_trajectories import feasibility_limits
 
@@ -141,7 +142,7 @@ def test_actuator_motion_is_continuous_and_derivatives_match_finite_differences(
 def test_resample_reproduces_the_generating_path(rig, paper_set):
     robot, limits = rig
     sweep = paper_set["sweep"]  # actuator space: Theta is the timed path itself
-    path = rest_to_rest_path(np.array(sweep.metadata["waypoints"]), lambda *q: q, limits.max_speed,
+    path = rest_to_rest_path(np.array(sweep.metadata["waypoints"]), lambda q, qd, qdd: SampledMotion(q, qd, qdd), limits.max_speed,
                              limits.max_accel, time_step=1 / 250)
     for rate in (250.0, 500.0, 1000.0):
         r = sweep.resample(rate)

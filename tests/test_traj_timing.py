@@ -3,12 +3,13 @@
 import numpy as np
 import pytest
 
+from trajectories.motion import SampledMotion
 from trajectories.timing import (QUINTIC_PEAK_ACCEL, QUINTIC_PEAK_SPEED, PiecewisePath, Segment, quintic,
                                  rest_to_rest_path, time_grid)
 
 
 def identity(q, qd, qdd):
-    return q, qd, qdd
+    return SampledMotion(q, qd, qdd)
 
 
 def test_quintic_peaks_and_boundary_conditions():

@@ -14,6 +14,7 @@ import numpy as np
 
 from .feasibility import Limits
 from .redundancy import CarriageSchedule, carriage_schedule
+from .motion import SampledMotion
 from .timing import rest_to_rest_path, time_grid
 from .trajectory import Trajectory, actuator_map
 
@@ -30,8 +31,8 @@ def home_actuators(robot: ThreePRRR) -> np.ndarray:
     return np.concatenate([theta[0], np.zeros(3)])
 
 
-def _identity(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray):
-    return q, qd, qdd
+def _identity(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> SampledMotion:
+    return SampledMotion(q, qd, qdd)
 
 
 def pose_trajectory(robot: ThreePRRR, name: str, poses: np.ndarray, limits: Limits, rate: float = 250.0,

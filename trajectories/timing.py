@@ -25,9 +25,9 @@ import numpy as np
 
 from .motion import SampledMotion
 
-#: ``Map`` from path coordinates ``(q, qd, qdd)`` (each ``(N, d)``) to actuator coordinates
-#: ``(Theta, Thetad, Thetadd)`` (each ``(N, 6)``).
-ActuatorMap = Callable[[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+#: ``Map`` from path coordinates ``q, qd, qdd`` (each ``(N, d)``) to the actuators' motion
+#: (``Theta, Thetad, Thetadd``, each ``(N, 6)``).
+ActuatorMap = Callable[[np.ndarray, np.ndarray, np.ndarray], SampledMotion]
 
 #: Peak of ``ds/du`` of the quintic profile (at ``u = 1/2``).
 QUINTIC_PEAK_SPEED = 15.0 / 8.0
@@ -158,7 +158,8 @@ def segment_duration(
     profile = quintic(np.linspace(0.0, 1.0, samples))
     ds, dds = profile.qd, profile.qdd
     path = geometry(profile.q)
-    _, thd, thdd = to_actuators(path.q, path.qd * ds[:, None], path.qdd * (ds**2)[:, None] + path.qd * dds[:, None])
+    actuators = to_actuators(path.q, path.qd * ds[:, None], path.qdd * (ds**2)[:, None] + path.qd * dds[:, None])
+    thd, thdd = actuators.qd, actuators.qdd
     speed = np.max(np.abs(thd) / (utilisation * np.asarray(max_speed)))
     accel = np.max(np.abs(thdd) / (utilisation * np.asarray(max_accel)))
     return float(max(speed, np.sqrt(accel), min_duration))

@@ -8,8 +8,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .motion import SampledMotion
+
 if TYPE_CHECKING:
     from ident_hw.model import ThreePRRR
+
+    from .timing import ActuatorMap
 
 #: Array fields of a trajectory, in file order, with the names and units of their columns in the
 #: trajectory files (the 3PRRR's: six actuators, a planar pose).
@@ -24,11 +28,12 @@ COLUMNS: dict[str, list[tuple[str, str]]] = {
 }
 
 
-def actuator_map(robot: ThreePRRR):
-    """``(q, qd, qdd) -> (Theta, Thetad, Thetadd)`` for ``q = [x, y, alpha, zeta1..3]`` (each ``(N, 6)``)."""
+def actuator_map(robot: ThreePRRR) -> ActuatorMap:
+    """``q, qd, qdd ->`` the actuators' motion ``Theta, Thetad, Thetadd`` for ``q = [x, y, alpha,
+    zeta1..3]`` (each ``(N, 6)``)."""
 
-    def to_actuators(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray):
-        return robot.actuated_motion(q[:, :3], qd[:, :3], qdd[:, :3], q[:, 3:], qd[:, 3:], qdd[:, 3:])
+    def to_actuators(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> SampledMotion:
+        return SampledMotion(*robot.actuated_motion(q[:, :3], qd[:, :3], qdd[:, :3], q[:, 3:], qd[:, 3:], qdd[:, 3:]))
 
     return to_actuators
 
@@ -92,7 +97,8 @@ class Trajectory:
 
         The revolute actuators follow analytically from the model (``robot.actuated_motion``).
         """
-        Theta, Thetad, Thetadd = actuator_map(robot)(q, qd, qdd)
+        actuators = actuator_map(robot)(q, qd, qdd)
+        Theta, Thetad, Thetadd = actuators.q, actuators.qd, actuators.qdd
         return cls(name, t, q[:, :3], qd[:, :3], qdd[:, :3], Theta, Thetad, Thetadd, dict(metadata or {}))
 
     @classmethod
