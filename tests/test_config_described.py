@@ -86,7 +86,7 @@ def test_a_path_in_a_base_config_holds_in_the_config_extending_it(tmp_path):
 
 
 @pytest.mark.parametrize("old, new, key, needle, words", [
-    ("description: robots/2r.urdf", "description: robots/3r.urdf", "robot.described.description",
+    ("description: robots/2r.urdf", "description: robots/3r.urdf", "robot.description",
      "description:", ("no such description file",)),
     ("joint: joint2", "joint: joint3", "robot.actuators[1].joint", "joint: joint3",
      ("no joint 'joint3' to actuate", "joint1")),
@@ -129,3 +129,39 @@ def test_sim_and_trajectory_mistakes_name_file_key_and_line(tmp_path, old, new, 
 def test_a_section_of_another_robot_kind_is_refused(tmp_path):
     text = ROBOT_2R.replace("  coulomb_width: 0.01", "  stroke: 0.1\n  coulomb_width: 0.01", 1)
     expect_error(setup(tmp_path, robot=text), "robot.stroke", "stroke", "robot.kind 'described'", "described")
+
+
+def test_the_retired_described_description_names_file_line_and_the_key_to_write(tmp_path):
+    """``robot.described.description`` (the described robots' own key until the 3PRRR and the
+    Delta took ``robot.description``) is refused at its line, saying what to write instead."""
+    old = "  description: robots/2r.urdf"
+    assert old in ROBOT_2R
+    text = ROBOT_2R.replace(old, "  described:\n    description: robots/2r.urdf", 1).replace(
+        "  described:                      # the settings", "                                   # the settings", 1)
+    assert text.count("described:") == 1 and "    description: robots/2r.urdf" in text
+    expect_error(setup(tmp_path, robot=text), "robot.described.description", "    description: robots/2r.urdf",
+                 "no longer a key", "robot.description", "kind: described")
+    assert "robot-2r.yaml" in str(pytest.raises(ConfigError, load_config, tmp_path / "sim-2r.yaml").value)
+
+
+def test_a_described_robot_without_its_description_file_is_refused(tmp_path):
+    text = ROBOT_2R.replace("  description: robots/2r.urdf", "", 1)
+    with pytest.raises(ConfigError) as info:
+        load_config(setup(tmp_path, robot=text))
+    assert info.value.key == "robot.description" and "missing key" in str(info.value), str(info.value)
+
+
+def test_the_described_section_may_be_left_out(tmp_path):
+    """A described robot needs only ``robot.description``: without ``robot.described`` its settings
+    take their defaults (home every joint 0, no rotor inertia in the CAD values)."""
+    start = ROBOT_2R.index("  described:")
+    end = ROBOT_2R.index("  coulomb_width:")
+    setup(tmp_path, robot=ROBOT_2R[:start] + ROBOT_2R[end:])
+    cfg = load_config(tmp_path / "robot-2r.yaml")
+    assert cfg.robot.described is None
+    model = model_of(cfg.robot)
+    assert model.path == tmp_path / "robots" / "2r.urdf"
+    np.testing.assert_array_equal(model.home_actuated(), [0.0, 0.0])
+    cad = initial_parameters(cfg.robot)
+    assert cad[model.parameter_names.index("Jm_shoulder")] == 0.0
+    assert cad[model.parameter_names.index("link2.m")] == pytest.approx(2.0)

@@ -136,7 +136,7 @@ def exported_forces_match_the_base_fit(results: Path, exported: Path, mujoco_loa
                           timeout=300)
     assert done.returncode == 0, done.stderr
     config = exported.with_suffix(".yaml")
-    config.write_text(f"extends: {results / 'config.yaml'}\nrobot:\n  described:\n    description: {exported}\n")
+    config.write_text(f"extends: {results / 'config.yaml'}\nrobot:\n  description: {exported}\n")
     config = load_config(config)
     robot = model_of(config.robot)
     assert robot.path == exported
@@ -235,8 +235,8 @@ identification: {encoder_draws: 0}
 FIVE_BAR_ROBOT = """
 robot:
   kind: described
+  description: five_bar.xml
   described:
-    description: five_bar.xml
     home: {a1: 1.8, p1: -0.8504, a2: 1.3416, p2: 0.8504}
     end_effector: dist1
     cad: {Jm: [0.001, 0.001]}

@@ -29,7 +29,8 @@ def config_text(recordings: str, trajectory: str = "{name: run, kind: recorded, 
     return f"""
 robot:
   kind: described
-  described: {{description: {ROBOTS / '2r.urdf'}, home: {{joint1: 0.0, joint2: 1.2}}, end_effector: tool}}
+  description: {ROBOTS / '2r.urdf'}
+  described: {{home: {{joint1: 0.0, joint2: 1.2}}, end_effector: tool}}
   actuators:
     - {{name: shoulder, joint: joint1, kind: revolute, torque_constant: 1.2, counts_per_turn: 1048576,
        limits: {{position: [-2.0, 2.0], velocity: 3.0, acceleration: 20.0, current: 15.0, following_error: 0.05}}}}

@@ -54,7 +54,7 @@ def load_config(path: str | Path) -> Config:
 def resolved_yaml(path: str | Path, replace: dict[str, str] | None = None) -> str:
     """The config as one self-contained YAML text, with every ``extends:`` merged in
     (what a results folder keeps as its copy of the config); ``replace``: text values by dotted
-    key (``robot.described.description``), e.g. a file path that the copy must point elsewhere."""
+    key (``robot.description``), e.g. a file path that the copy must point elsewhere."""
     node = compose_file(path)
     for dotted, value in (replace or {}).items():
         target = node

@@ -33,8 +33,9 @@ class RobotConfig:
     ``3prrr``: its ``description`` file (geometry and CAD values, ``configs/robots/3prrr.xml``),
     the chains' assembly ``modes``, carriage ``stroke``, ``safety`` margins and six actuators
     theta1..3, zeta1..3. ``delta``: its ``description`` file (``configs/robots/delta.xml``),
-    ``safety`` and three revolute actuators q1..3. ``described``: the ``described`` section (the
-    description file, home, CAD parameters) and one actuator per driven joint. ``friction``: the
+    ``safety`` and three revolute actuators q1..3. ``described``: its ``description`` file (MJCF or
+    URDF), the optional ``described`` section (home, end-effector, CAD parameters) and one actuator
+    per driven joint. ``friction``: the
     joints' friction model (:class:`~ident_hw.config.friction.FrictionConfig`; other than the
     default Coulomb and viscous terms for described robots only).
     """
@@ -53,7 +54,7 @@ class RobotConfig:
     actuators: tuple[ActuatorConfig, ...]
     kind: Literal["3prrr", "delta", "described"] = "3prrr"
     description: str | None = field(default=None, metadata=spec(path=True, doc=(
-        "the 3PRRR's or the Delta's MJCF file, relative to this file")))
+        "the robot's description file, MJCF (.xml) or URDF (.urdf), relative to this file")))
     modes: tuple[int, int, int] | None = field(default=None, metadata=spec(
         _plus_minus_one, doc="the 3PRRR's working mode (elbow sign) of each chain; default [1, 1, 1]"))
     stroke: float | None = field(default=None, metadata=spec(positive, unit="m", doc="carriage travel +- stroke"))
@@ -61,3 +62,8 @@ class RobotConfig:
     safety: SafetyConfig = SafetyConfig()
     coulomb_width: float = field(default=1e-3, metadata=spec(positive, unit="rad/s | m/s"))
     friction: FrictionConfig = FrictionConfig()
+
+    @property
+    def described_settings(self) -> DescribedConfig:
+        """The ``described`` section, or its defaults where the file leaves it out."""
+        return self.described if self.described is not None else DescribedConfig()

@@ -1,9 +1,10 @@
-"""The sections of a robot from its description file: ``robot.described`` and a parameter set
-(its CAD parameters, ``sim.parameters`` its true ones)."""
+"""The sections of a robot from its description file (``robot.description``): its settings
+``robot.described`` and a parameter set (its CAD parameters, ``sim.parameters`` its true ones)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 from .schema import non_negative, positive, spec
 
@@ -24,7 +25,9 @@ class ParameterSetConfig:
 
 @dataclass(frozen=True)
 class DescribedConfig:
-    """A robot from its description file (MJCF for closed chains, URDF for serial robots).
+    """The settings of a robot from its description file (``robot.description``: MJCF for closed
+    chains, URDF for serial robots) beyond the file itself; every one has a default, and the
+    section may be left out.
 
     The actuators of ``robot.actuators`` name the joints they drive (``joint``); ``home`` gives
     tree joint values (rad, m) of an assembled configuration near home, whose assembly mode is
@@ -33,7 +36,12 @@ class DescribedConfig:
     condition number of the passive joints' closure Jacobian (distance to a parallel singularity).
     """
 
-    description: str = field(metadata=spec(path=True, doc="MJCF (.xml) or URDF (.urdf), relative to this file"))
+    #: keys of earlier versions and what replaced them (the schema's error names it)
+    RETIRED_KEYS: ClassVar[dict[str, str]] = {
+        "description": "every robot's description file is `robot.description` now, whatever its kind: write "
+                       "`description: <file>` (MJCF .xml or URDF .urdf, relative to this file) in the robot "
+                       "section beside `kind: described`, and keep home, end_effector, cad, ... here"}
+
     home: dict[str, float] = field(default_factory=dict)
     home_actuated: tuple[float, ...] | None = field(default=None, metadata=spec(
         unit="rad | m", doc="actuated coordinates of home (default: those of home)"))

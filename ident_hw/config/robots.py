@@ -13,8 +13,9 @@ Three kinds: ``3prrr`` and ``delta``, read from their description files like any
 their hand-derived models (:mod:`ident_hw.model`), the compiled fast paths held to the files'
 generic models at load (:mod:`ident_hw.model.fast_path`), and
 ``described``: any robot from its description file (:class:`ident_hw.model.described.DescribedRobot`),
-settings in ``robot.described`` (:class:`~ident_hw.config.robot_described.DescribedConfig`), true
-parameters in ``sim.parameters`` (:class:`~ident_hw.config.robot_described.ParameterSetConfig`).
+the file in ``robot.description`` as every kind's, its other settings in ``robot.described``
+(:class:`~ident_hw.config.robot_described.DescribedConfig`), true parameters in ``sim.parameters``
+(:class:`~ident_hw.config.robot_described.ParameterSetConfig`).
 Adding a robot of this kind is a description file and a config, no code.
 """
 
@@ -165,8 +166,8 @@ def described_model(robot, presliding: float | None = None, stribeck: float | No
     (:func:`to_model.friction_model`; ``presliding``, ``stribeck``: the Dahl distance and the
     Stribeck velocity where the config leaves them ``auto``)."""
     from ident_hw.model.described import DescribedRobot
-    d = robot.described
-    return DescribedRobot(d.description, [a.joint or a.name for a in robot.actuators],
+    d = robot.described_settings
+    return DescribedRobot(robot.description, [a.joint or a.name for a in robot.actuators],
                           actuator_names=[a.name for a in robot.actuators], home=d.home,
                           home_actuated=d.home_actuated, end_effector=d.end_effector,
                           coulomb_width=robot.coulomb_width, friction=to_model.friction_model(robot, presliding, stribeck))
@@ -192,8 +193,9 @@ def check_parameter_set(params: ParameterSetConfig, model: DescribedRobot) -> No
 
 
 def _described_validate(robot) -> None:
-    if robot.described is None:
-        raise FieldError("described", "missing key: a described robot needs its described section (description)")
+    if robot.description is None:
+        raise FieldError("description", "missing key: a described robot needs its description file "
+                                        "(MJCF .xml or URDF .urdf, e.g. robots/2r.urdf)")
     from ident_hw.model.described import DescriptionError
     try:
         model = described_model(robot)
@@ -206,14 +208,14 @@ def _described_validate(robot) -> None:
             raise FieldError(f"actuators[{i}].kind", f"joint {joint!r} of {model.path.name} is "
                              f"{model_kinds[joint]}, the actuator says {act.kind!r}")
     try:
-        check_parameter_set(robot.described.cad, model)
+        check_parameter_set(robot.described_settings.cad, model)
     except FieldError as exc:
         raise FieldError(f"described.cad.{exc.key}", exc.message) from None
 
 
 #: the config key (relative to ``robot``) of each :class:`~ident_hw.model.described.DescribedRobot`
 #: argument a description error names (:attr:`~ident_hw.model.described.DescriptionError.argument`)
-_DESCRIBED_KEYS = {None: "described.description", "home": "described.home", "home_actuated": "described.home_actuated",
+_DESCRIBED_KEYS = {None: "description", "home": "described.home", "home_actuated": "described.home_actuated",
                    "end_effector": "described.end_effector"}
 
 
@@ -226,9 +228,9 @@ def _described_key(exc, robot) -> str:
 
 
 DESCRIBED = RobotKind(
-    name="described", sections=("described",), truth_key="parameters", trajectory_kinds=("joint_excitation",),
+    name="described", sections=("description", "described"), truth_key="parameters", trajectory_kinds=("joint_excitation",),
     model=described_model,
-    initial=lambda robot: to_model.described_parameters(robot.described.cad, described_model(robot)),
+    initial=lambda robot: to_model.described_parameters(robot.described_settings.cad, described_model(robot)),
     truth=lambda robot, sim, model: to_model.described_parameters(sim.parameters, cast("DescribedRobot", model)),
     actuators=lambda robot: (tuple(a.name for a in robot.actuators), tuple(a.kind for a in robot.actuators)),
     validate=_described_validate, friction_models=True,
@@ -243,10 +245,8 @@ COMMON_TRAJECTORY_KINDS = ("file", "standstill", "recorded")
 
 def description_file(robot) -> tuple[str, str] | None:
     """The description file of a ``robot`` section as ``(dotted key of the config, path)``
-    (``robot.description`` of the 3PRRR and the Delta, ``robot.described.description`` of a
-    described robot): the file a results folder keeps a copy of; None for a robot without one."""
-    if robot.described is not None:
-        return "robot.described.description", robot.described.description
+    (``robot.description``, every kind's): the file a results folder keeps a copy of; None for a
+    robot without one."""
     if robot.description is not None:
         return "robot.description", robot.description
     return None

@@ -21,7 +21,7 @@ from trajectories.joint_space import JointHarmonics
 
 from ident_hw.config import load_config
 from ident_hw.config.file import Config
-from ident_hw.config.robots import model_of
+from ident_hw.config.robots import kind_of, model_of
 
 from .robot_trajectories import actuator_limits, excitation_bandwidth
 
@@ -33,14 +33,14 @@ def optimised_sines(config: Config, name: str, max_iter: int = 30, samples: int 
         ValueError: no such trajectory, or not a joint excitation of a described robot, naming it.
     """
     tcfg = next((t for t in config.trajectories if t.name == name), None)
-    if tcfg is None or tcfg.kind != "joint_excitation" or config.robot.described is None:
+    if tcfg is None or tcfg.kind != "joint_excitation" or tcfg.kind not in kind_of(config.robot).trajectory_kinds:
         raise ValueError(f"{config.source}: trajectories: no joint_excitation named {name!r} of a described robot")
     robot = model_of(config.robot)
     return optimise_joint_excitation(robot, actuator_limits(config.robot), tcfg.duration,
                                      excitation_bandwidth(tcfg, config.identification.filter.bandwidth
                                                           if config.identification else 2.0), tcfg.harmonics, fade=tcfg.fade,
                                      seed=tcfg.seed, amplitude=tcfg.amplitude,
-                                     max_condition=config.robot.described.max_condition,
+                                     max_condition=config.robot.described_settings.max_condition,
                                      max_iter=max_iter, samples=samples)
 
 

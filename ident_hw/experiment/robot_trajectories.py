@@ -165,9 +165,8 @@ def _described_build(robot: RobotConfig, tcfg: TrajectoryConfig, model: RobotMod
 
 
 def _described_check(robot: RobotConfig, traj: trajectories.Trajectory, model: RobotModel) -> trajectories.Report:
-    if robot.described is None:
-        raise ValueError("robot: a described robot needs its described section")
-    return joint_space.check_described_trajectory(traj, model, actuator_limits(robot), robot.described.max_condition)
+    return joint_space.check_described_trajectory(traj, model, actuator_limits(robot),
+                                                  robot.described_settings.max_condition)
 
 
 DESCRIBED = RobotTrajectories(build=_described_build, check=_described_check)
