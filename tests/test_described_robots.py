@@ -183,13 +183,14 @@ def test_stewart_forward_kinematics_gives_back_the_poses():
     centre = robot.model.getFrameId("platform_centre")
     worst = {"q": 0.0, "pose": 0.0, "closure": 0.0}
     guess = None
+    frames = robot.model.createData()          # pinocchio's data of the robot's tree, the test's own
     for p, R in POSES + POSES[::-1]:
         theta, q_ik = stewart_ik(model, p, R)
         q = robot.tree_configuration(theta, guess)
         guess = q
-        pin.forwardKinematics(robot.model, robot.data, q)
-        pin.updateFramePlacements(robot.model, robot.data)
-        M = robot.data.oMf[centre]
+        pin.forwardKinematics(robot.model, frames, q)
+        pin.updateFramePlacements(robot.model, frames)
+        M = frames.oMf[centre]
         worst["q"] = max(worst["q"], np.abs(q - q_ik).max())
         worst["pose"] = max(worst["pose"], np.abs(M.translation - p).max(), np.abs(M.rotation - R).max())
         worst["closure"] = max(worst["closure"], np.abs(_closure_residual(model, data, constraints, q)).max())

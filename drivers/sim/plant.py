@@ -22,6 +22,7 @@ import numba
 import numpy as np
 
 from ident_hw.model import KinematicsError
+from ident_hw.model.described import DescribedData, DescribedRobot
 from ident_hw.model.interface import RobotModel
 
 
@@ -215,6 +216,10 @@ class Plant:
         if gains is None and not (bandwidth_hz > 0 and damping > 0):
             raise ValueError(f"bandwidth_hz and damping must be positive, got {bandwidth_hz}, {damping}")
         self.robot = robot
+        # a described robot's data of the plant's own (the closure state its periods carry, the
+        # warm start of the next): the identification of the same robot in this process keeps its own
+        self._data: DescribedData | None = robot.create_data() if isinstance(robot, DescribedRobot) else None
+        start = np.zeros(robot.pose_size)
         self.n = n = len(robot.actuator_names)
         self._base_params = params
         self.params = params
@@ -222,7 +227,10 @@ class Plant:
             Theta0 = robot.home_actuated()
         self.Theta = np.array(Theta0, dtype=float).reshape(n)
         self.Thetad = np.zeros(n)
-        self.X = robot.pose(self.Theta, np.zeros(robot.pose_size))
+        if isinstance(robot, DescribedRobot):
+            self.X = robot.pose(self.Theta, start, data=self._data)
+        else:
+            self.X = robot.pose(self.Theta, start)
         self._last_valid = (self.Theta, self.X)
         self.force = np.zeros(n)
         self.external_force = np.zeros(n)
@@ -260,7 +268,11 @@ class Plant:
                 pose that closed them, at rest.
         """
         try:  # one forward kinematics: the pose and the dynamics of the same state
-            M, c, self.X = self.robot.plant_dynamics(self.Theta, self.Thetad, self.params, self.X)
+            robot = self.robot
+            if isinstance(robot, DescribedRobot):
+                M, c, self.X = robot.plant_dynamics(self.Theta, self.Thetad, self.params, self.X, data=self._data)
+            else:
+                M, c, self.X = robot.plant_dynamics(self.Theta, self.Thetad, self.params, self.X)
         except KinematicsError as exc:
             message = f"the simulated robot jammed at Theta = {np.round(self.Theta, 5).tolist()}: {exc}"
             self.Theta, self.X = self._last_valid

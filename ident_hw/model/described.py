@@ -31,12 +31,19 @@ tree configuration is a plain vector and its Newton steps are additive.
 
 The *pose* of a described robot (``pose_size = nq``) is its whole tree configuration: the guess
 that carries the assembly mode from sample to sample. Everything is SI: rad, m, N·m, N, kg, s.
+
+Model and data, as pinocchio splits them: no call changes a :class:`DescribedRobot` (parameters
+are arguments; its pinocchio model keeps the file's inertias, its compiled tree is read-only).
+What calls write, the closure state that starts the next call's Newton, is a
+:class:`DescribedData` (:meth:`DescribedRobot.create_data`) that each user owns and passes as
+``data=``; a call given none writes the robot's own (:attr:`DescribedRobot.data`).
 """
 
 from __future__ import annotations
 
 import copy
 import hashlib
+import threading
 import warnings
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -51,8 +58,8 @@ from .errors import KinematicsError, SingularityError
 from .friction import FrictionModel
 from .interface import PRISMATIC, REVOLUTE
 from .pseudo_inertia import SPATIAL, PhysicalBody
-from .tree_kernels import (OK, PRISMATIC_JOINT, REVOLUTE_JOINT, SINGULAR, closure_at, motion_batch, tree_arrays,
-                           workspace)
+from .tree_kernels import (OK, PRISMATIC_JOINT, REVOLUTE_JOINT, SINGULAR, Workspace, closure_at, motion_batch,
+                           tree_arrays, workspace)
 from .tree_kernels import plant_dynamics as tree_plant_dynamics
 
 #: the ten inertial parameters of a body, pinocchio's order: mass (kg), first moment ``m c``
@@ -97,6 +104,24 @@ class Closure:
     @property
     def rows(self) -> int:
         return 6 if self.rigid else 3
+
+
+@dataclass(frozen=True)
+class DescribedData:
+    """What the calls of one user of a :class:`DescribedRobot` write, as pinocchio's ``Data`` is
+    to its ``Model``: the robot itself is never changed by a call, and two users (the simulated
+    plant and the identification in one process, two threads) that each hold their own data share
+    no state. Made by :meth:`DescribedRobot.create_data`, passed as ``data=`` to the calls that
+    solve the closures; a call given none writes the robot's own (:attr:`DescribedRobot.data`).
+
+    ``motion``: the closure state (``q``, ``W``, the QR of ``J_p``) of the last sample a motion
+    call solved (:meth:`~DescribedRobot.identification_regressor`, :meth:`~DescribedRobot.pose_series`,
+    :meth:`~DescribedRobot.tree_configuration`...): Newton's warm start for the next call;
+    ``plant``: the same for :meth:`~DescribedRobot.plant_dynamics`, carried from period to period.
+    (pinocchio's own data, scratch of :meth:`~DescribedRobot.energy_regressor`, is made per call.)"""
+
+    motion: Workspace
+    plant: Workspace
 
 
 def load_description(path: str | Path) -> tuple[pin.Model, list, list]:
@@ -224,28 +249,28 @@ class DescribedRobot:
 
         self.closures = tuple(self._closures(points, frames))
         self._rows = sum(c.rows for c in self.closures)
-        self.data = self.model.createData()
         n = len(actuated)
         self.pose_size = model.nq
         self._n_body = 10 * (model.njoints - 1)
         self._set_parameter_names()
         # the tree's part of the regressor of the motions last asked for, kept once a copy with
-        # another friction model is made (:meth:`with_friction`), which shares it: the friction
-        # choice prepares one motion with many models
+        # another friction model is made (:meth:`with_friction`), which shares it (and its lock):
+        # the friction choice prepares one motion with many models
         self._tree_rows: OrderedDict | None = None
+        self._tree_rows_lock = threading.Lock()
 
         self._set_home(home, home_actuated, kinds, where, n)
         self.end_effector = end_effector
         if end_effector is not None and not model.existFrame(end_effector):
             raise DescriptionError(f"{where}: no body or site {end_effector!r} to carry a payload", "end_effector")
-        # the compiled model of the tree and its closures, immutable, and two workspaces: the
-        # identification's motions and the plant's periods each carry their own closure state
+        # the compiled model of the tree and its closures, immutable; what calls write is in a
+        # DescribedData: the caller's, else the robot's own (``data``)
         self.tree = tree_arrays(model, [(c.frame1, c.frame2, c.rigid) for c in self.closures], self._act_v,
                                 self._pas_v, self._home_q, self.tolerance, SINGULAR_CONDITION,
                                 [REVOLUTE_JOINT if kinds[name] == REVOLUTE else PRISMATIC_JOINT
                                  for name in self.joint_names])
-        self._workspace = workspace(self.tree)
-        self._plant_workspace = workspace(self.tree)
+        #: the data of the calls given none (:class:`DescribedData`): the robot's own user's
+        self.data = self.create_data()
         bodies = [model.inertias[j].toDynamicParameters() for j in range(1, model.njoints)]
         self._nominal = np.concatenate([*bodies, self.drive_parameters()])
         self._mobility_check()
@@ -254,6 +279,11 @@ class DescribedRobot:
                 f"{self.path}: moving bodies without mass: {', '.join(self.massless_bodies)} (MuJoCo refuses "
                 "them: give each its real mass and inertia, e.g. a universal joint's cross; pinocchio and the "
                 "identification take them as they are)"), stacklevel=2)
+
+    def create_data(self) -> DescribedData:
+        """A fresh :class:`DescribedData` for this robot (no closure state yet): one per user
+        (the plant, the identification, a thread) that calls it beside others."""
+        return DescribedData(workspace(self.tree), workspace(self.tree))
 
     @property
     def massless_bodies(self) -> tuple[str, ...]:
@@ -272,7 +302,7 @@ class DescribedRobot:
         if self._tree_rows is None:
             self._tree_rows = OrderedDict()
         other = copy.copy(self)
-        other._workspace, other._plant_workspace = workspace(self.tree), workspace(self.tree)
+        other.data = self.create_data()
         other.friction = friction
         other._set_parameter_names()
         bodies = self._nominal[:self._n_body]
@@ -349,8 +379,8 @@ class DescribedRobot:
     def _mobility_check(self) -> None:
         """The closures leave exactly ``n`` degrees of freedom at home (raises otherwise)."""
         n = len(self.actuated_joints)
-        try:
-            q = self.tree_configuration(self._home_actuated, self._home_q)
+        try:       # in data of its own: the robot's own data starts empty, as create_data's
+            q = self.tree_configuration(self._home_actuated, self._home_q, data=self.create_data())
         except KinematicsError as exc:
             raise DescriptionError(f"{self.path}: home does not assemble ({exc}); give robot.described.home, "
                                    "the tree joint values of a configuration near it", "home") from None
@@ -391,20 +421,21 @@ class DescribedRobot:
         return np.concatenate([model.damping[v], model.friction[v], model.armature[v], extra]).astype(float)
 
     # ------------------------------------------------------------------ closure layer
-    def _batch(self, Theta, Thetad, Thetadd, guess, has_guess, want_rows: bool, workspace_=None,
+    def _batch(self, Theta, Thetad, Thetadd, guess, has_guess, want_rows: bool, data: DescribedData | None = None,
                max_iterations: int = 50, rows_out: np.ndarray | None = None):
         """The compiled closure layer over a motion (:func:`~ident_hw.model.tree_kernels.motion_batch`):
         ``(Q (N, nq), V, A (N, nv), W (N, nv, n), rows (N, n, 10 nb) or None)``. Sample ``k``
         starts Newton from ``guess[k]`` where ``has_guess[k]``, else from sample ``k - 1``.
         ``rows_out`` (N, n, P >= 10 nb, C-contiguous), if given, receives the rows in its first
         ``10 nb`` columns (the whole regressor's array: no second array of rows to copy) and is
-        returned as ``rows``.
+        returned as ``rows``. ``data``: whose ``motion`` workspace carries the closure state
+        (None: the robot's own).
 
         Raises:
             KinematicsError: a sample no assembly closes (``sample`` its index).
             SingularityError: a sample at a parallel singularity.
         """
-        ws = self._workspace if workspace_ is None else workspace_
+        ws = (self.data if data is None else data).motion
         N, n, nq = len(Theta), len(self._act_v), self.model.nq
         Q, V, A, Ws = np.empty((N, nq)), np.empty((N, nq)), np.empty((N, nq)), np.empty((N, nq, n))
         if rows_out is not None:
@@ -453,10 +484,12 @@ class DescribedRobot:
         views = ws.views(self.tree)
         return views.J.copy(), views.r.copy()
 
-    def tree_configuration(self, Theta, guess=None, max_iterations: int = 50) -> np.ndarray:
+    def tree_configuration(self, Theta, guess=None, max_iterations: int = 50, *,
+                           data: DescribedData | None = None) -> np.ndarray:
         """The tree configuration ``q`` (nq,) that closes every loop at actuated coordinates
         ``Theta`` (n,), by Newton from ``guess`` (nq,; None or all zeros: the home
-        configuration), which selects the assembly mode.
+        configuration), which selects the assembly mode. ``data``: the caller's
+        (:meth:`create_data`; None: the robot's own).
 
         Raises:
             KinematicsError: no configuration closes the loops from this guess (out of reach).
@@ -465,7 +498,7 @@ class DescribedRobot:
         Theta = np.asarray(Theta, dtype=float).reshape(1, -1)
         G, has = self._guesses(1, None if guess is None else np.asarray(guess, dtype=float)[None])
         zero = np.zeros_like(Theta)
-        return self._batch(Theta, zero, zero, G, has, False, max_iterations=max_iterations)[0][0]
+        return self._batch(Theta, zero, zero, G, has, False, data, max_iterations=max_iterations)[0][0]
 
     def _condition_at(self, J) -> float:
         """``cond(J_p)`` (2-norm) of a closure Jacobian; infinite at a parallel singularity."""
@@ -474,20 +507,22 @@ class DescribedRobot:
         s = np.linalg.svd(J[:, self._pas_v], compute_uv=False)
         return float(s[0] / s[-1]) if s[-1] * SINGULAR_CONDITION > s[0] else np.inf
 
-    def tree_motion(self, Theta, Thetad, Thetadd, guess=None):
+    def tree_motion(self, Theta, Thetad, Thetadd, guess=None, *, data: DescribedData | None = None):
         """``(q, v, a, W)`` of one sample: the tree's configuration (nq,), rates (nv,) and
         accelerations (nv,) of an actuated motion (each (n,)), and ``W`` (nv, n). Newton starts
-        from ``guess`` carried to ``Theta`` by the last sample's velocity map where it is near."""
-        rows = [np.asarray(x, dtype=float).reshape(1, -1) for x in (Theta, Thetad, Thetadd)]
+        from ``guess`` carried to ``Theta`` by the last sample's velocity map where it is near
+        (``data``'s: the caller's, None: the robot's own)."""
+        Theta, Thetad, Thetadd = (np.asarray(x, dtype=float).reshape(1, -1) for x in (Theta, Thetad, Thetadd))
         G, has = self._guesses(1, None if guess is None else np.asarray(guess, dtype=float)[None])
-        Q, V, A, Ws, _ = self._batch(*rows, G, has, False)
+        Q, V, A, Ws, _ = self._batch(Theta, Thetad, Thetadd, G, has, False, data)
         return Q[0], V[0], A[0], Ws[0]
 
-    def condition(self, Theta, guess=None) -> float:
+    def condition(self, Theta, guess=None, *, data: DescribedData | None = None) -> float:
         """``cond(J_p)`` of the passive joints' closure Jacobian at ``Theta`` (1 for a serial
-        robot; infinite at a parallel singularity): the distance to a singularity."""
+        robot; infinite at a parallel singularity): the distance to a singularity. ``data``: the
+        caller's (None: the robot's own)."""
         try:
-            q = self.tree_configuration(Theta, guess)
+            q = self.tree_configuration(Theta, guess, data=data)
         except SingularityError:
             return np.inf
         return self._condition_at(self.closure_jacobian(q)[0])
@@ -534,29 +569,32 @@ class DescribedRobot:
         """Each tree joint's body (:attr:`body_names`), its ten values about the joint frame."""
         return tuple(PhysicalBody(name, tuple(range(10 * k, 10 * k + 10))) for k, name in enumerate(self.body_names))
 
-    def pose(self, Theta, guess) -> np.ndarray:
-        """The tree configuration (nq,) of ``Theta`` (n,), from ``guess`` (nq,)."""
-        return self.tree_configuration(np.asarray(Theta, dtype=float), guess)
+    def pose(self, Theta, guess, *, data: DescribedData | None = None) -> np.ndarray:
+        """The tree configuration (nq,) of ``Theta`` (n,), from ``guess`` (nq,); ``data``: the
+        caller's (None: the robot's own)."""
+        return self.tree_configuration(np.asarray(Theta, dtype=float), guess, data=data)
 
-    def pose_series(self, Theta, start) -> np.ndarray:
+    def pose_series(self, Theta, start, *, data: DescribedData | None = None) -> np.ndarray:
         """Tree configurations (N, nq) of ``Theta`` (N, n), each Newton started from the last
-        carried to its ``Theta`` by the last velocity map (the first from ``start``)."""
+        carried to its ``Theta`` by the last velocity map (the first from ``start``); ``data``:
+        the caller's (None: the robot's own)."""
         Theta = np.atleast_2d(np.asarray(Theta, dtype=float))
         G, has = self._guesses(len(Theta), None)
         if start is not None and np.any(start):
             G[0] = start
         zero = np.zeros_like(Theta)
-        return self._batch(Theta, zero, zero, G, has, False)[0]
+        return self._batch(Theta, zero, zero, G, has, False, data)[0]
 
-    def identification_regressor(self, Theta, Thetad, Thetadd, guess):
+    def identification_regressor(self, Theta, Thetad, Thetadd, guess, *, data: DescribedData | None = None):
         """``Y`` (N, n, P) with ``tau = Y @ pi`` and the tree configurations (N, nq). The rows are
         consecutive samples of one motion where the friction model has a memory
-        (:attr:`~ident_hw.model.friction.FrictionModel.history`)."""
+        (:attr:`~ident_hw.model.friction.FrictionModel.history`). ``data``: the caller's (None:
+        the robot's own)."""
         Theta, Thetad, Thetadd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (Theta, Thetad, Thetadd))
         N, n = Theta.shape
         guess = np.broadcast_to(np.zeros(self.model.nq) if guess is None else guess, (N, self.model.nq))
         Y = np.zeros((N, n, len(self.parameter_names)))
-        poses = self._tree_regressor(Theta, Thetad, Thetadd, guess, Y)
+        poses = self._tree_regressor(Theta, Thetad, Thetadd, guess, Y, data)
         b, idx = self._n_body, np.arange(n)
         friction = self.friction.columns(Theta, Thetad)
         Y[:, idx, b + idx] = friction["fv"]
@@ -566,50 +604,59 @@ class DescribedRobot:
             Y[:, idx, b + (3 + k) * n + idx] = friction[term]
         return Y, poses
 
-    def _tree_regressor(self, Theta, Thetad, Thetadd, guess, Y: np.ndarray) -> np.ndarray:
+    def _tree_regressor(self, Theta, Thetad, Thetadd, guess, Y: np.ndarray,
+                        data: DescribedData | None = None) -> np.ndarray:
         """The tree's part ``W^T Y_tree`` (N, n, 10 bodies) of the regressor written into the
         first columns of ``Y`` (N, n, P, C-contiguous) and the tree configurations (N, nq) of a
         motion returned, from the cache of the motions last asked for (the same arrays give the
-        same rows; a copy with another friction model shares it)."""
+        same rows; a copy with another friction model shares it, under its lock)."""
         kept, key = self._tree_rows, None
         if kept is not None:
             key = hashlib.sha1(b"".join(np.ascontiguousarray(x).tobytes()
                                         for x in (Theta, Thetad, Thetadd, guess))).digest()
-        if kept is not None and key in kept:
-            kept.move_to_end(key)
-            rows, poses = kept[key]
-            Y[:, :, :self._n_body] = rows
-            return poses.copy()
+            with self._tree_rows_lock:
+                hit = kept.get(key)
+                if hit is not None:
+                    kept.move_to_end(key)
+            if hit is not None:
+                rows, poses = hit
+                Y[:, :, :self._n_body] = rows
+                return poses.copy()
         G, has = self._guesses(len(Theta), guess)
-        poses, _, _, _, _ = self._batch(Theta, Thetad, Thetadd, G, has, True, rows_out=Y)
+        poses, _, _, _, _ = self._batch(Theta, Thetad, Thetadd, G, has, True, data, rows_out=Y)
         if kept is None:
             return poses
-        kept[key] = (Y[:, :, :self._n_body].copy(), poses)
-        while len(kept) > TREE_ROWS_KEPT:
-            kept.popitem(last=False)
+        with self._tree_rows_lock:
+            kept[key] = (Y[:, :, :self._n_body].copy(), poses)
+            while len(kept) > TREE_ROWS_KEPT:
+                kept.popitem(last=False)
         return poses.copy()
 
-    def energy_regressor(self, Theta, Thetad, guess=None) -> np.ndarray:
+    def energy_regressor(self, Theta, Thetad, guess=None, *, data: DescribedData | None = None) -> np.ndarray:
         """``H`` (N, P) with the robot's energy ``E = H @ pi``: the tree's kinetic plus potential
-        energy of the bodies (J) and the rotors' ``Jm Thetad² / 2``; the friction columns are zero."""
+        energy of the bodies (J) and the rotors' ``Jm Thetad² / 2``; the friction columns are zero.
+        ``data``: the caller's (None: the robot's own)."""
         Theta, Thetad = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (Theta, Thetad))
         N, n = Theta.shape
         H = np.zeros((N, len(self.parameter_names)))
-        Q, V, _, _, _ = self._batch(Theta, Thetad, np.zeros_like(Theta), *self._guesses(N, guess), False)
+        Q, V, _, _, _ = self._batch(Theta, Thetad, np.zeros_like(Theta), *self._guesses(N, guess), False, data)
+        scratch = self.model.createData()           # pinocchio's data of this call only
         for k, (q, v) in enumerate(zip(Q, V)):
-            H[k, :self._n_body] = (pin.computeKineticEnergyRegressor(self.model, self.data, q, v)
-                                   + pin.computePotentialEnergyRegressor(self.model, self.data, q))
+            H[k, :self._n_body] = (pin.computeKineticEnergyRegressor(self.model, scratch, q, v)
+                                   + pin.computePotentialEnergyRegressor(self.model, scratch, q))
         H[:, self._n_body + 2 * n:self._n_body + 3 * n] = 0.5 * Thetad**2
         return H
 
-    def plant_dynamics(self, Theta, Thetad, params, guess):
+    def plant_dynamics(self, Theta, Thetad, params, guess, *, data: DescribedData | None = None):
         """``M`` (n, n) (rotor inertias included), the bias forces (n,) (velocity terms and
         gravity, no friction) and the tree configuration (nq,) of one state, compiled
         (:func:`~ident_hw.model.tree_kernels.plant_dynamics`): Newton starts from ``guess`` (the
-        plant's last pose) carried to ``Theta`` by the plant's last velocity map."""
+        plant's last pose) carried to ``Theta`` by the plant's last velocity map (``data``'s
+        ``plant`` workspace: the caller's, None: the robot's own). ``params`` (P,) are read,
+        never stored: the robot keeps its nominal ones."""
         pi = np.asarray(params, dtype=float)
         n, b = len(self._act_v), self._n_body
-        ws = self._plant_workspace
+        ws = (self.data if data is None else data).plant
         guess = np.zeros(self.model.nq) if guess is None else np.ascontiguousarray(guess, dtype=float)
         has = bool(np.any(guess))
         if not has and not ws.last_valid:
@@ -660,15 +707,16 @@ def _term(name: str) -> str:
 def random_states(robot: DescribedRobot, samples: int, spread: float = 0.15, seed: int = 0):
     """``(Theta, Thetad, Thetadd)`` (each (N, n)) of ``samples`` random assembled states about
     home: positions within ``spread`` (rad or m) of it, rates of order one; states that do not
-    assemble are drawn again."""
+    assemble are drawn again (each from home, in data of its own: the robot's is left as it was)."""
     rng = np.random.default_rng(seed)
+    data = robot.create_data()
     home = robot.home_actuated()
     n = len(home)
     rows = []
     for _ in range(50 * samples):
         Theta = home + spread * rng.uniform(-1, 1, n)
         try:
-            if not np.isfinite(robot.condition(Theta)):     # assembles, away from a singularity
+            if not np.isfinite(robot.condition(Theta, data=data)):     # assembles, away from a singularity
                 continue
         except KinematicsError:
             continue
@@ -694,8 +742,9 @@ def numerical_base(robot: DescribedRobot, samples: int = 60, seed: int = 0, rtol
     from scipy.linalg import qr, solve_triangular
 
     Theta, Thetad, Thetadd = random_states(robot, samples, seed=seed)
-    Y, _ = robot.identification_regressor(Theta, Thetad, Thetadd, np.tile(robot.pose(robot.home_actuated(), None),
-                                                                          (samples, 1)))
+    data = robot.create_data()              # its own: the robot's data is left as it was
+    home = robot.pose(robot.home_actuated(), None, data=data)
+    Y, _ = robot.identification_regressor(Theta, Thetad, Thetadd, np.tile(home, (samples, 1)), data=data)
     A = Y.reshape(-1, Y.shape[-1])
     norms = np.linalg.norm(A, axis=0)
     used = norms > 1e-12 * norms.max()             # a column of rounding errors: a parameter nothing moves
