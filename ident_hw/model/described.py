@@ -176,7 +176,8 @@ def mjcf_gravity(path: str | Path) -> np.ndarray:
 
 
 class MasslessBodyWarning(UserWarning):
-    """A description whose moving bodies have no mass (MuJoCo refuses such a file)."""
+    """A description whose moving bodies have no mass (MuJoCo refuses such a file, unless its
+    ``<compiler boundmass>`` puts a mass of its own in their place)."""
 
 
 def _joint_kind(joint: pin.JointModel) -> str | None:
@@ -277,8 +278,9 @@ class DescribedRobot:
         if self.massless_bodies:
             warnings.warn(MasslessBodyWarning(
                 f"{self.path}: moving bodies without mass: {', '.join(self.massless_bodies)} (MuJoCo refuses "
-                "them: give each its real mass and inertia, e.g. a universal joint's cross; pinocchio and the "
-                "identification take them as they are)"), stacklevel=2)
+                "them unless a <compiler boundmass/boundinertia> gives them one, which its simulation then "
+                "uses in place of the file's: give each its real mass and inertia, e.g. a universal joint's "
+                "cross; pinocchio and the identification take them as they are)"), stacklevel=2)
 
     def create_data(self) -> DescribedData:
         """A fresh :class:`DescribedData` for this robot (no closure state yet): one per user
