@@ -1,11 +1,13 @@
-"""The least squares (ident_hw.identification.least_squares) against independent computations:
+"""The least squares (ident_hw.identification.least_squares) and the base parameters' shared
+triangle (ident_hw.identification.base_params.Triangle) against independent computations:
 NumPy's SVD-based ``lstsq`` for the estimates, the covariance formulas written out with
-``numpy.linalg.pinv``, on data whose columns differ in size by orders of magnitude (kg next
-to kg·m², as the robots' regressors do)."""
+``numpy.linalg.pinv``, NumPy's SVD for singular values, on data whose columns differ in size
+by orders of magnitude (kg next to kg·m², as the robots' regressors do)."""
 
 import numpy as np
 import pytest
 
+from ident_hw.identification.base_params import Triangle, base_parameters, column_scale
 from ident_hw.identification.least_squares import estimate, estimate_columns, ols, wls
 
 
@@ -89,3 +91,23 @@ def test_several_right_hand_sides_on_one_factorisation_match_lstsq_each():
     with pytest.raises(ValueError, match="same rows left out"):
         columns[7, 0, 2] = np.nan
         estimate_columns(Y, columns, names, std)
+
+
+def test_one_triangle_serves_the_base_parameters_at_any_scale():
+    """A regressor with a regrouping (column 2 = column 0 + 3 column 1) and an unexcited column:
+    the base parameters from a triangle factorised at one scale, used at another, are those of
+    the regressor factorised at that scale, and their singular values NumPy's SVD's."""
+    rng = np.random.default_rng(6)
+    W = rng.standard_normal((300, 6)) * np.logspace(0, 3, 6)
+    W[:, 2] = W[:, 0] + 3.0 * W[:, 1]
+    W[:, 5] = 0.0
+    names = [f"p{i}" for i in range(6)]
+    cad = np.array([2.0, 0.1, 1e-3, 5.0, 0.3, 1.0])
+    triangle = Triangle.of(W, column_scale(W[:, None, :]))
+    shared = base_parameters(W, names, scale=cad, triangle=triangle)
+    direct = base_parameters(W, names, scale=cad)
+    assert shared.rank == direct.rank == 4 and shared.kept == direct.kept
+    np.testing.assert_allclose(shared.H, direct.H, rtol=1e-9, atol=1e-12)
+    s = np.linalg.svd(W * cad, compute_uv=False)
+    np.testing.assert_allclose(shared.singular_values[:4], s[:4], rtol=1e-12)
+    assert np.all(shared.singular_values[4:] < 1e-8 * s[0])
