@@ -92,8 +92,11 @@ def identify_plan(plan: IdentificationPlan, recordings: Mapping[str, Recording],
     coef = estimates.coef
     W, _ = stack(*check_regression_data(np.concatenate([prepared[t].Y for t in fitted_names]),
                                         np.concatenate([prepared[t].tau_fit for t in fitted_names])))
-    analysis = BaseAnalysis.of(base_parameters(W, names, scale=np.maximum(np.abs(plan.initial), 1e-3)))
     base = steps.base
+    # the base step's factorisation of the same regressor, if it fitted every parameter on these data
+    triangle = base.triangle if base is not None and base.fit.trajectories == tuple(fitted_names) else None
+    analysis = BaseAnalysis.of(base_parameters(W, names, scale=np.maximum(np.abs(plan.initial), 1e-3),
+                                               triangle=triangle))
     consistency = (consistent(ident.physical, robot, base.fit, base.equivalent, plan.initial, plan.truth)
                    if base is not None and ident.physical.enabled else None)
     records = steps.records

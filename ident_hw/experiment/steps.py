@@ -22,7 +22,7 @@ from ident_hw.config.identification import IdentificationConfig, PhysicalConfig,
 from ident_hw.config.scales import drive_term
 from ident_hw.config.schema import FieldError
 from ident_hw.config.to_identification import physical_scales, step_parameters
-from ident_hw.identification.base_params import column_scale, identify_base, on_kept, scaled_condition
+from ident_hw.identification.base_params import Triangle, column_scale, identify_base, on_kept, scaled_condition
 from ident_hw.identification.drive_gains import GainsRun, fit_gains
 from ident_hw.identification.least_squares import LeastSquaresResult, check_regression_data, compensated, stack, wls
 from ident_hw.identification.mass_fit import sqp_fit
@@ -104,6 +104,9 @@ class BaseStepFit:
     fit: BaseFit
     equivalent: np.ndarray
     record: BaseStep
+    #: the factorised regressor of the step's data (every parameter free; None when it held some),
+    #: for the base parameters of the same data at another scale (``base_parameters(triangle=)``)
+    triangle: Triangle | None = None
 
 
 def fit_base(step: StepConfig, free_names: Sequence[str], names: tuple[str, ...], Y: np.ndarray, tau: np.ndarray,
@@ -124,8 +127,10 @@ def fit_base(step: StepConfig, free_names: Sequence[str], names: tuple[str, ...]
     held = [i for i in range(len(names)) if i not in free]
     Yf = Y[:, :, free]
     tau_free = tau - Y[:, :, held] @ coef[held]       # the forces the free parameters must explain
-    base, fit = identify_base(Yf, tau_free, tuple(free_names), scale=column_scale(Yf),
-                              weighted=step.method == "wls", basis=None if held else basis)
+    scale = column_scale(Yf)
+    triangle = Triangle.of(stack(*check_regression_data(Yf, tau_free))[0], scale)
+    base, fit = identify_base(Yf, tau_free, tuple(free_names), scale=scale,
+                              weighted=step.method == "wls", basis=None if held else basis, triangle=triangle)
     H = np.zeros((base.rank, len(names)))
     H[:, free] = np.where(np.abs(base.H) > 1e-10, base.H, 0.0)   # rounding of N1 N2^-1, not a coefficient
     kept = [free[list(free_names).index(k)] for k in base.kept]
@@ -147,7 +152,8 @@ def fit_base(step: StepConfig, free_names: Sequence[str], names: tuple[str, ...]
                       cond_scaled=scaled_condition(Y[:, :, kept], tau), encoder_draws=spread.draws,
                       encoder_sigma=spread.sigma,
                       encoder_shift=tuple((fit.coef - plain).tolist()) if len(draws) > 1 else ())
-    return BaseStepFit(result, equivalent, record)
+    every = free == list(range(len(names)))        # the triangle is then of the whole regressor's columns
+    return BaseStepFit(result, equivalent, record, triangle if every else None)
 
 
 def _least_squares_figures(fit: LeastSquaresResult) -> dict:

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drivers.recording import Recording
-from ident_hw.identification.least_squares import LeastSquaresResult, estimate
+from ident_hw.identification.least_squares import LeastSquaresResult, estimate, estimate_columns
 from ident_hw.model.interface import RobotModel
 from ident_hw.progress import report_progress
 
@@ -55,11 +55,10 @@ def held_value_sensitivity(fit: LeastSquaresResult, Y: np.ndarray, tau: np.ndarr
     column that acts on no row). Exact for a fit whose bounds are not active: the model is
     linear in its parameters and the mass fit's weights do not depend on the held values."""
     out = np.zeros((len(free), len(held)))
-    A, left_out = Y[:, :, list(free)], np.isnan(tau)
-    for k, j in enumerate(held):
-        column = np.where(left_out, np.nan, Y[:, :, j])
-        if np.any(np.nan_to_num(column) != 0):
-            out[:, k] = -refit(fit, A, column)
+    columns = np.where(np.isnan(tau)[..., None], np.nan, Y[:, :, list(held)])     # (N, a, len(held))
+    acting = np.flatnonzero(np.any(np.nan_to_num(columns) != 0, axis=(0, 1)))
+    if acting.size:             # every column on one factorisation of the free columns
+        out[:, acting] = -estimate_columns(Y[:, :, list(free)], columns[:, :, acting], fit.names, fit.output_std)
     return out
 
 

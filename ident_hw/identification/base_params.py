@@ -68,7 +68,29 @@ def on_kept(names, kept, values) -> np.ndarray:
     return out
 
 
-def base_parameters(W: np.ndarray, names, rtol: float = DEFAULT_RTOL, scale=None) -> BaseParameters:
+@dataclass(frozen=True)
+class Triangle:
+    """The triangle of a stacked regressor ``W`` (r, n) scaled by columns: ``W diag(scale) = Q R``,
+    ``R`` (min(r, n), n), ``scale`` (n,). Its singular values and right singular vectors are those
+    of ``W diag(scale)``, and ``R diag(other / scale)`` is the triangle of ``W diag(other)``: one
+    factorisation of ``W`` serves every :func:`base_parameters` of it, whatever its scale."""
+
+    R: np.ndarray
+    scale: np.ndarray
+
+    @classmethod
+    def of(cls, W: np.ndarray, scale: np.ndarray) -> Triangle:
+        """The triangle of ``W`` (r, n) scaled by ``scale`` (n,) (Householder QR, Q not formed)."""
+        scale = np.asarray(scale, dtype=float)
+        return cls(np.asarray(np.linalg.qr(W * scale, mode="r")), scale)
+
+    def rescaled(self, scale: np.ndarray) -> np.ndarray:
+        """The triangle of ``W diag(scale)`` (min(r, n), n)."""
+        return self.R * (np.asarray(scale, dtype=float) / self.scale)
+
+
+def base_parameters(W: np.ndarray, names, rtol: float = DEFAULT_RTOL, scale=None,
+                    triangle: Triangle | None = None) -> BaseParameters:
     """Rank, null space and base parameters of a stacked regressor ``W`` (r, n).
 
     Args:
@@ -78,6 +100,8 @@ def base_parameters(W: np.ndarray, names, rtol: float = DEFAULT_RTOL, scale=None
         rtol: singular values below ``rtol × s_max`` count as zero.
         scale: (n,) typical magnitude of each parameter (e.g. the CAD values), so that the
             rank decision compares torque contributions, not raw units; default ones.
+        triangle: the :class:`Triangle` of this ``W`` already computed (with any scale), so
+            that the regressor is not factorised again; None: factorised here.
     """
     W = np.asarray(W, dtype=float)
     if W.ndim == 3:
@@ -90,7 +114,7 @@ def base_parameters(W: np.ndarray, names, rtol: float = DEFAULT_RTOL, scale=None
     if scale.shape != (n,) or np.any(scale == 0):
         raise ValueError(f"scale must be {n} non-zero magnitudes, got {scale}")
     # QR first: the SVD of the small triangle R has the singular values and V of W.
-    R = np.linalg.qr(W * scale, mode="r")
+    R = triangle.rescaled(scale) if triangle is not None else np.linalg.qr(W * scale, mode="r")
     _, s, Vt = linalg.svd(R, full_matrices=True)
     s = np.concatenate([s, np.zeros(n - s.size)])
     rank = int(np.sum(s > rtol * s[0])) if s[0] > 0 else 0
@@ -136,17 +160,18 @@ def with_basis(numeric: BaseParameters, basis: BaseBasis) -> BaseParameters | No
 
 def identify_base(
     Y: np.ndarray, tau: np.ndarray, names, rtol: float = DEFAULT_RTOL, scale=None, weighted: bool = False,
-    basis: BaseBasis | None = None,
+    basis: BaseBasis | None = None, triangle: Triangle | None = None,
 ) -> tuple[BaseParameters, LeastSquaresResult]:
     """Base parameters of the data and their OLS (or WLS) estimate with statistics.
 
     ``W pi = W1 pi_b`` with ``W1`` the columns of the kept parameters, so the estimate of
     ``pi_b`` is the least-squares fit on those columns. The result's names are the readable
     expressions of the base parameters. ``basis``: the robot model's base parameters, used
-    where the data identifies all of them (:func:`with_basis`).
+    where the data identifies all of them (:func:`with_basis`). ``triangle``: the
+    :class:`Triangle` of the stacked ``Y`` (its rows left out zeroed), when already computed.
     """
     Y, tau = check_regression_data(Y, tau, names)
-    base = base_parameters(stack(Y, tau)[0], names, rtol=rtol, scale=scale)
+    base = base_parameters(stack(Y, tau)[0], names, rtol=rtol, scale=scale, triangle=triangle)
     if basis is not None:
         base = with_basis(base, basis) or base
     cols = [base.names.index(k) for k in base.kept]

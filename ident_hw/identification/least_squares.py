@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from typing import cast
 
 import numpy as np
 
@@ -159,13 +160,23 @@ class _Solved:
 def _solve(Y: np.ndarray, tau: np.ndarray, names) -> _Solved:
     """QR solution of ``min sum_t ||tau_t − Y_t pi||²`` (no statistics: the estimate alone is
     what a refit needs, :func:`estimate`)."""
+    return _solve_many(Y, tau[..., None], names)[0]
+
+
+def _solve_many(Y: np.ndarray, taus: np.ndarray, names) -> tuple[_Solved, np.ndarray]:
+    """:func:`_solve` of ``Y`` (N, k, n) for each of the m right-hand sides ``taus`` (N, k, m)
+    on one factorisation: the first one's :class:`_Solved` and every estimate (n, m)."""
     from scipy import linalg    # on first use: the config reads this module's constants
     N, k, n = Y.shape
-    W, y = stack(Y, tau)
+    W = stack(Y, taus[..., 0])[0]
+    B = taus.transpose(1, 0, 2).reshape(k * N, -1)         # output-major rows, as stack's
     r = int(informative_rows(Y).sum())
     if r <= n:
         raise ValueError(f"{r} equations for {n} parameters: need more equations than parameters")
-    Q, R = linalg.qr(W, mode="economic")
+    # one Householder QR of [W B]: its triangle holds R (n, n) and QᵀB (its last columns), so Q
+    # (r, n) is never formed (forming it costs as much again as the factorisation)
+    RB = cast(np.ndarray, np.linalg.qr(np.concatenate([W, B], axis=1), mode="r"))
+    R, qtb = RB[:n, :n], RB[:n, n:]
     s = linalg.svdvals(R)
     tol = max(r, n) * np.finfo(float).eps * s[0]
     if s[-1] <= tol:
@@ -173,7 +184,8 @@ def _solve(Y: np.ndarray, tau: np.ndarray, names) -> _Solved:
             f"the regressor is rank deficient (rank {int(np.sum(s > tol))} < {n} parameters "
             f"{list(names)}): identify the base parameters instead (base_parameters / identify_base)"
         )
-    return _Solved(linalg.solve_triangular(R, Q.T @ y), R, s, r)
+    coef = linalg.solve_triangular(R, qtb)
+    return _Solved(coef[:, 0], R, s, r), coef
 
 
 def _statistics(Y: np.ndarray, tau: np.ndarray, solved: _Solved, lags: int | None
@@ -219,6 +231,23 @@ def estimate(Y: np.ndarray, tau: np.ndarray, names, output_std: np.ndarray | Non
         return _solve(Y, tau, names).coef
     w = 1.0 / _checked_std(output_std, Y.shape[1])
     return _solve(Y * w[None, :, None], tau * w, names).coef
+
+
+def estimate_columns(Y: np.ndarray, columns: np.ndarray, names, output_std: np.ndarray | None = None
+                     ) -> np.ndarray:
+    """:func:`estimate` for each of the m right-hand sides ``columns`` (N, k, m) on the same
+    ``Y`` (N, k, n), on one factorisation of it: (n, m). A NaN leaves its row out, and must
+    leave it out of every column (the rows of one regressor)."""
+    columns = np.asarray(columns, dtype=float)
+    left_out = np.isnan(columns)
+    if columns.ndim != 3 or np.any(left_out != left_out[..., :1]):
+        raise ValueError(f"expected columns (N, k, m) with the same rows left out in each, got {columns.shape}")
+    Y, _ = check_regression_data(Y, columns[..., 0], names)
+    columns = np.where(left_out, 0.0, columns)
+    if output_std is None:
+        return _solve_many(Y, columns, names)[1]
+    w = 1.0 / _checked_std(output_std, Y.shape[1])
+    return _solve_many(Y * w[None, :, None], columns * w[None, :, None], names)[1]
 
 
 def _checked_std(output_std, k: int) -> np.ndarray:
