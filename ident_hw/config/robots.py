@@ -243,13 +243,9 @@ KINDS: dict[str, RobotKind] = {k.name: k for k in (THREE_PRRR, DELTA, DESCRIBED)
 COMMON_TRAJECTORY_KINDS = ("file", "standstill", "recorded")
 
 
-def description_file(robot) -> tuple[str, str] | None:
-    """The description file of a ``robot`` section as ``(dotted key of the config, path)``
-    (``robot.description``, every kind's): the file a results folder keeps a copy of; None for a
-    robot without one."""
-    if robot.description is not None:
-        return "robot.description", robot.description
-    return None
+#: the dotted config key of a robot's description file (every kind's): a results folder or a study
+#: task rewrites it to the copy it carries under ``description/``
+DESCRIPTION_KEY = "robot.description"
 
 
 def kind_of(robot) -> RobotKind:

@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 from ident_hw.config import Config, resolved_yaml
-from ident_hw.config.robots import description_file
+from ident_hw.config.robots import DESCRIPTION_KEY
 from ident_hw.results import STATUS_FILE, mark_status
 
 
@@ -40,13 +40,12 @@ def new_results_folder(config: Config, out: str | Path | None, label: str) -> Pa
     (folder / "data").mkdir(exist_ok=True)
     mark_status(folder, "running")
     replace = {}
-    description = description_file(config.robot)
-    if description is not None:          # the robot's description file travels with its config
-        key, path = description
+    path = config.robot.description
+    if path is not None:                 # the robot's description file travels with its config
         copy = Path(DESCRIPTION_DIR) / Path(path).name
         (folder / DESCRIPTION_DIR).mkdir(exist_ok=True)
         shutil.copyfile(path, folder / copy)
-        replace[key] = copy.as_posix()
+        replace[DESCRIPTION_KEY] = copy.as_posix()
     (folder / "config.yaml").write_text(resolved_yaml(config.source, replace))
     return folder
 

@@ -44,7 +44,7 @@ from pathlib import Path
 from typing import Iterator
 
 from ident_hw.config import RobotConfig, SimConfig, load_config, resolved_yaml
-from ident_hw.config.robots import description_file
+from ident_hw.config.robots import DESCRIPTION_KEY
 from ident_hw.progress import report_progress
 from ident_hw.results import read_status
 from ident_hw.results.study import (Estimate, RunOutcome, Study, StudyFile, SummaryRow, estimates_of,
@@ -143,12 +143,11 @@ def study_task_source(source: str, robot: RobotConfig) -> TaskSource:
     """The config file ``source`` as one YAML text and the files it names (``robot``: its robot
     section, whose description file goes under ``description/``), as a worker on any machine
     needs them."""
-    description = description_file(robot)
-    if description is None:
+    path = robot.description
+    if path is None:
         return TaskSource(resolved_yaml(source))
-    key, path = description
     relative = (Path(DESCRIPTION_DIR) / Path(path).name).as_posix()
-    return TaskSource(resolved_yaml(source, {key: relative}), ((relative, Path(path).read_bytes()),))
+    return TaskSource(resolved_yaml(source, {DESCRIPTION_KEY: relative}), ((relative, Path(path).read_bytes()),))
 
 
 def check_simulated(source: str, sim: SimConfig | None, simulated: bool, sync_mode: str) -> None:
