@@ -187,7 +187,7 @@ def test_the_model_and_the_drivers_name_joint_kinds_alike():
 #: function takes parts of (an identification plan, a campaign's plan, its streaming, its drives)
 CONFIG_ENTRY_POINTS = {
     "plan.plan", "plan.check_campaign", "runner.run_campaign", "runner.identify_recordings", "offline.identify",
-    "recordings.gather_recordings", "recordings.load_recording", "recordings.planned_cycles",
+    "recordings.gather_recordings", "recordings.RecordingChecks.of",
     "external.read_external", "folders.new_results_folder", "session.open_session", "session.simulated_rig",
     "session.HostSettings.for_command", "inspection.compare", "campaign_estimator.CampaignEstimator.__init__",
     "inputs.identification_plan", "plan.PlanInputs.of", "runner.CampaignInputs.of", "session.DriveSettings.of",

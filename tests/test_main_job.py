@@ -461,7 +461,7 @@ def test_identify_from_raw_logs_with_late_and_lost_frames_is_right_or_degraded(m
     short squares keep no stretch long enough to filter)."""
     import can
 
-    from ident_hw.experiment.recordings import load_recording
+    from ident_hw.experiment.recordings import RecordingChecks, load_recording
 
     config, folder = main_job
     rng = np.random.default_rng(7)
@@ -492,7 +492,7 @@ def test_identify_from_raw_logs_with_late_and_lost_frames_is_right_or_degraded(m
                 logger.on_message_received(msg)
         shutil.copy(sidecar_path(folder / "data" / f"{name}.log"), sidecar_path(path))   # the run's PDO layout
         # the run's metadata (SYNC period, targets) from its .npz, the samples from the log
-        rec_name, rec = load_recording(path, config)
+        rec_name, rec = load_recording(path, RecordingChecks.of(config))
         recordings[name] = rec
     assert disturbed["lost"] > 20000 * rate and disturbed["late"] > 20000 * rate
     results = identify(without_draws(config), recordings)
@@ -519,7 +519,7 @@ def test_a_run_with_one_percent_of_cycles_incomplete_keeps_its_rows_and_its_accu
     least 80 % of the excitation's rows are used, and every base parameter is well identified and
     within the main job's bounds of the truth (``3 σ + BIAS_BUDGET``, truth from the config)."""
     from drivers.acquisition import master_layouts
-    from ident_hw.experiment.recordings import load_recording
+    from ident_hw.experiment.recordings import RecordingChecks, load_recording
     from lossy_logs import drop_frames
 
     config, folder = main_job
@@ -533,7 +533,7 @@ def test_a_run_with_one_percent_of_cycles_incomplete_keeps_its_rows_and_its_accu
     cycles = len(Recording.load(folder / "data" / "excitation.npz").t)
     dropped = drop_frames(folder / "data" / "excitation.log", tmp_path / "excitation.log",
                           master_layouts(axes), 0.01, cycles, seed=0)
-    name, rec = load_recording(tmp_path / "excitation.log", base_only)
+    name, rec = load_recording(tmp_path / "excitation.log", RecordingChecks.of(base_only))
     assert rec.n_invalid == len(dropped.cycles) == round(0.01 * cycles)
     assert len(dropped.measured) > 20 and len(dropped.others) > 20
     # the rows of a lost velocity frame keep their positions and currents

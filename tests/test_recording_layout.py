@@ -23,7 +23,7 @@ from ident_hw.config import load_config
 from ident_hw.config.to_drivers import axis_config
 from ident_hw.experiment.inputs import Axes
 from ident_hw.experiment.preparation import current_averaging
-from ident_hw.experiment.recordings import load_recording
+from ident_hw.experiment.recordings import RecordingChecks, load_recording
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
 
@@ -66,7 +66,7 @@ def test_a_raw_log_without_its_layout_is_refused_with_how_to_give_it(averaged_ru
                        "--quiet", "--no-report")
         assert out.returncode in (0, 6), out.stderr
     config = load_config(configs["averaged"])
-    _, rec = load_recording(log, config, layout=sidecar_path(run / "data" / "sweep.log"))
+    _, rec = load_recording(log, RecordingChecks.of(config), layout=sidecar_path(run / "data" / "sweep.log"))
     assert rec.metadata.pdo_layout_source == f"given: that of {sidecar_path(run / 'data' / 'sweep.log')}"
     assert rec.metadata.current == "averaged" and {a.current for a in rec.metadata.axes} == {"averaged"}
     recorded = Recording.load(run / "data" / "sweep.npz")
@@ -93,9 +93,9 @@ def test_the_current_and_its_filter_come_from_the_recording_and_a_config_that_di
     for data in (run / "data" / "sweep.npz", run / "data" / "sweep.log"):
         with pytest.raises(RecordingError, match=rf"{data.name} holds the averaged current of theta1 \(node 1\), .*"
                                                  r"says bus.current: instantaneous"):
-            load_recording(data, instantaneous)
+            load_recording(data, RecordingChecks.of(instantaneous))
     averaged = load_config(configs["averaged"])
-    _, rec = load_recording(run / "data" / "sweep.npz", averaged)
+    _, rec = load_recording(run / "data" / "sweep.npz", RecordingChecks.of(averaged))
     assert [a.current_filter for a in rec.metadata.axes] == [EPOS4.current_averaging] * 6
     assert current_averaging(Axes.of(averaged.robot.actuators), rec) == (EPOS4.current_averaging,) * 6
     # a drive whose average is another filter: the identification takes the recording's
@@ -103,5 +103,5 @@ def test_the_current_and_its_filter_come_from_the_recording_and_a_config_that_di
     rec = dataclasses.replace(rec, metadata=dataclasses.replace(
         rec.metadata, axes=tuple(dataclasses.replace(a, current_filter=other) for a in rec.metadata.axes)))
     assert current_averaging(Axes.of(averaged.robot.actuators), rec) == (other,) * 6
-    _, decoded = load_recording(run / "data" / "sweep.log", averaged)
+    _, decoded = load_recording(run / "data" / "sweep.log", RecordingChecks.of(averaged))
     assert [a.current_filter for a in decoded.metadata.axes] == [EPOS4.current_averaging] * 6   # from the sidecar

@@ -36,7 +36,8 @@ from .friction_choice import friction_robot
 from .inputs import IdentificationPlan, identification_plan
 from .preparation import Prepared, prepare, prepare_all, rest_speeds
 from .quality import verdict
-from .recordings import planned_cycles, require_trajectories
+from .plan import cycles_planned, plan as plan_trajectories
+from .recordings import require_trajectories
 from .steps import consistent, run_steps
 from .uncertainty import encoder_draws
 
@@ -59,9 +60,9 @@ def identify(config: Config, recordings: Mapping[str, Recording],
     require_trajectories(config.identification, config.source, recordings)
     ident = config.identification
     needed = dict.fromkeys([n for s in ident.steps for n in s.trajectories] + list(ident.validation))
-    unsaid = {name: planned_cycles(config, name) for name in needed if not recordings[name].metadata.n_targets}
-    plan = identification_plan(config, {name: n for name, n in unsaid.items() if n is not None})
-    return identify_plan(plan, recordings, imported)
+    unsaid = [name for name in needed if not recordings[name].metadata.n_targets]
+    cycles = cycles_planned(plan_trajectories(config, unsaid)) if unsaid else {}
+    return identify_plan(identification_plan(config, cycles), recordings, imported)
 
 
 def _base_step_trajectories(ident: IdentificationConfig) -> tuple[str, ...]:

@@ -187,6 +187,11 @@ def plan(config: Config, names: list[str] | None = None, online: bool = False) -
     return out
 
 
+def cycles_planned(planned: Sequence[PlannedTrajectory]) -> dict[str, int]:
+    """Samples (SYNC cycles) of each trajectory of ``planned`` that could be built, by name."""
+    return {p.config.name: len(p.trajectory.t) for p in planned if p.trajectory is not None}
+
+
 def events_past_the_end(tcfg: TrajectoryConfig, fault: SimFaultConfig | None, duration: float) -> str:
     """What the config sets to happen during trajectory ``tcfg`` (its ``payload``, the simulated
     rig's ``fault``) at or after its end (``duration`` s): it would never happen, and the run

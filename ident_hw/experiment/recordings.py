@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,7 +30,7 @@ from ident_hw.records import ImportSummary
 from ident_hw.config.to_drivers import axis_config, axis_scaling
 
 from .external import read_external
-from .plan import plan
+from .plan import cycles_planned, plan
 
 #: drive-scaling fields compared between a recording and the config (drivers.units.AxisScaling)
 SCALING_FIELDS = ("kind", "counts_per_turn", "torque_constant", "gear_ratio", "screw_lead")
@@ -55,10 +55,28 @@ def require_trajectories(ident: IdentificationConfig, source: str, names: Collec
                              f"{source} needs (given: {sorted(names) or 'none'})")
 
 
-def planned_cycles(config: Config, name: str) -> int | None:
-    """Samples (SYNC cycles) of the config's trajectory ``name``; None if it has none or cannot be built."""
-    planned = plan(config, [name])
-    return len(planned[0].trajectory.t) if planned and planned[0].trajectory is not None else None
+@dataclass(frozen=True)
+class RecordingChecks:
+    """What a recording file is decoded with and checked against, taken from the config once
+    (:meth:`of`): the config file ``source`` (named in errors), its drives (``actuators``), its
+    ``bus.current``, its SYNC period (s; None without a bus section), whether it runs in lockstep
+    (a raw log's row times are then its cycle times) and ``cycles_of``, the samples (SYNC cycles)
+    the config plans for a trajectory name (None if it has none or cannot be built; the trajectory
+    is built when asked, which only a raw log needs)."""
+
+    source: str
+    actuators: tuple[ActuatorConfig, ...]
+    current: str
+    sync_period: float | None
+    lockstep: bool
+    cycles_of: Callable[[str], int | None]
+
+    @classmethod
+    def of(cls, config: Config) -> RecordingChecks:
+        """The checks of ``config``."""
+        period = 1.0 / config.bus.sync_rate if config.bus is not None else None
+        return cls(config.source, config.robot.actuators, config.current, period, config.sync_mode == "lockstep",
+                   lambda name: cycles_planned(plan(config, [name])).get(name))
 
 
 #: what ``--pdo-layout`` may name besides a file: the layout the config's master maps today
@@ -85,9 +103,9 @@ def given_layout(source: str | Path, axes: Sequence[AxisConfig], config_file: st
     return GivenLayout(list(read_layouts(source)), f"that of {source}")
 
 
-def load_recording(path: str | Path, config: Config, layout: str | Path | None = None) -> tuple[str, Recording]:
+def load_recording(path: str | Path, checks: RecordingChecks, layout: str | Path | None = None) -> tuple[str, Recording]:
     """A recording from a decoded ``.npz`` or a raw CAN log (``.log``/``.asc``/``.blf``), checked
-    against ``config``; returns (trajectory name, recording).
+    against the config's ``checks``; returns (trajectory name, recording).
 
     The trajectory name is the recording's ``metadata.trajectory``, else the file stem. A raw
     log is decoded up to the length of the config's trajectory of that name (the SYNC keeps
@@ -105,7 +123,7 @@ def load_recording(path: str | Path, config: Config, layout: str | Path | None =
             the message names the file, the config and the axis.
     """
     path = Path(path)
-    axes = [axis_config(a, current=config.current) for a in config.robot.actuators]
+    axes = [axis_config(a, current=checks.current) for a in checks.actuators]
     if path.suffix.lower() in RAW_LOG_SUFFIXES:
         name = path.stem
         if not sidecar_path(path).is_file() and layout is None:
@@ -113,23 +131,23 @@ def load_recording(path: str | Path, config: Config, layout: str | Path | None =
                 f"raw CAN log {path}: no {sidecar_path(path).name} beside it with the PDO layout it was recorded with "
                 f"(a candump, a log copied without it, or one written before sidecars), and decoded with another "
                 f"layout its frames give wrong values marked valid. Give the layout on the command line: "
-                f"--pdo-layout {CONFIG_LAYOUT} (the layout {Path(config.source).name} maps: bus.current "
-                f"{config.current}), --pdo-layout <run>.log.json (the sidecar of a run with the same drives and "
+                f"--pdo-layout {CONFIG_LAYOUT} (the layout {Path(checks.source).name} maps: bus.current "
+                f"{checks.current}), --pdo-layout <run>.log.json (the sidecar of a run with the same drives and "
                 f"bus.current) or --pdo-layout <recording>.npz (a decoded recording of such a run)")
-        given = given_layout(layout, axes, config.source, config.current) if layout is not None else None
+        given = given_layout(layout, axes, checks.source, checks.current) if layout is not None else None
         layouts, source = (given.layouts, given.source) if given is not None else (None, None)
-        period = 1.0 / config.bus.sync_rate if config.bus is not None else None
-        lockstep_period = period if period is not None and config.sync_mode == "lockstep" else None
-        cycles = planned_cycles(config, name)
+        period = checks.sync_period
+        lockstep_period = period if period is not None and checks.lockstep else None
+        cycles = checks.cycles_of(name)
         meta = RecordingMetadata(trajectory=name, file=str(path), sync_period=period, n_targets=cycles)
         rec = decode_log(path, axes, max_cycles=cycles, metadata=meta, lockstep_period=lockstep_period,
                          layouts=layouts, layout_source=source)
-        check_log_nodes(path, rec, config.robot.actuators, config.source)
+        check_log_nodes(path, rec, checks.actuators, checks.source)
     else:
         rec = Recording.load(path)
         rec = dataclasses.replace(rec, metadata=dataclasses.replace(rec.metadata, file=str(path)))
-        check_axes(path, rec, config.robot.actuators, config.source)
-    check_current(path, rec, config.robot.actuators, config.current, config.source)
+        check_axes(path, rec, checks.actuators, checks.source)
+    check_current(path, rec, checks.actuators, checks.current, checks.source)
     return rec.metadata.trajectory or path.stem, rec
 
 
@@ -164,6 +182,7 @@ def gather_recordings(config: Config, given: Sequence[str], layout: str | Path |
     files: dict[str, str] = {}
     notes: list[str] = []
     recorded = {t.name: t for t in config.trajectories if t.recorded}
+    checks = RecordingChecks.of(config)
 
     def keep(name: str, rec: Recording, path) -> None:
         if name in recordings:
@@ -177,7 +196,7 @@ def gather_recordings(config: Config, given: Sequence[str], layout: str | Path |
             paths, more = recording_paths([path])
             notes += more
             for found in paths:
-                keep(*load_recording(found, config, layout=layout), found)
+                keep(*load_recording(found, checks, layout=layout), found)
             continue
         if name is None and Path(path).suffix.lower() not in RECORDING_SUFFIXES:
             stem = Path(path).stem
@@ -190,7 +209,7 @@ def gather_recordings(config: Config, given: Sequence[str], layout: str | Path |
             imported[name] = external.summary
             keep(name, external.recording, path)
         else:
-            loaded, rec = load_recording(path, config, layout=layout)
+            loaded, rec = load_recording(path, checks, layout=layout)
             keep(name or loaded, rec, path)
     for name, tcfg in recorded.items():
         if name not in recordings:
