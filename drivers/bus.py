@@ -352,6 +352,18 @@ def open_network(config: BusConfig, timing=None) -> BusNetwork:
     return network
 
 
+def notifier_of(network: canopen.Network) -> can.Notifier:
+    """The notifier thread of a connected ``network`` (canopen's ``Network.notifier``), which
+    listeners are added to and removed from.
+
+    Raises:
+        ~drivers.errors.ConfigError: the network is not connected (:func:`open_network` connects it).
+    """
+    if network.notifier is None:
+        raise ConfigError("the CANopen network is not connected (no notifier): open it with drivers.bus.open_network")
+    return network.notifier
+
+
 def frame_bits(n_bytes: int) -> int:
     """Worst-case length in bits of a classic CAN frame with an 11-bit identifier.
 
