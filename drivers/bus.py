@@ -114,6 +114,10 @@ class VirtualBus(can.interfaces.virtual.VirtualBus):
             return None
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        """A new :class:`can.Message` with ``msg``'s fields to this bus's own queue first (with
+        ``receive_own_messages``: the echo), then to every other bus of the channel, stamped with
+        the time it was sent unless ``preserve_timestamps``; :class:`can.CanOperationError` when a
+        receive queue stayed full for ``timeout`` s."""
         self._check_if_open()
         timestamp = msg.timestamp if self.preserve_timestamps else time.time()
         data = bytes(msg.data)

@@ -227,6 +227,14 @@ class DescribedRobot:
     Raises:
         DescriptionError: a joint that is not hinge or slide, an unknown actuated joint or body,
             a closure between unknown bodies, or a mobility other than ``n``.
+
+    Attributes:
+        model: the description's kinematic tree as pinocchio reads it (each loop cut at its
+            closure), with two frames added per closure (:class:`Closure`'s frame ids).
+        body_names: the body moved by each tree joint, in the tree's joint order.
+        parameter_names: ten inertial values per body of :attr:`body_names`
+            (``<body>.<value>``), then each drive term for every actuator (``fv_<actuator>``, ...): the
+            regressor's columns.
     """
 
     def __init__(self, path: str | Path, actuated: Sequence[str], *, actuator_names: Sequence[str] | None = None,
