@@ -32,10 +32,13 @@ def main(n=60_000, repeats=5):
     q, qd, qdd = amp * np.sin(w * t[:, None]), amp * w * np.cos(w * t[:, None]), -amp * w**2 * np.sin(w * t[:, None])
     args = (q[:, :3], qd[:, :3], qdd[:, :3], q[:, 3:], qd[:, 3:], qdd[:, 3:])
     best = {}
+
+    def from_actuated():
+        m = robot.actuated_motion(*args)
+        return robot.regressor_from_actuated(m.q, m.qd, m.qdd, np.zeros(3))
     for name, fn in [("regressor", lambda: robot.regressor(*args)),
                      ("inverse_dynamics", lambda: robot.inverse_dynamics(*args, params)),
-                     ("regressor_from_actuated (FK + regressor)",
-                      lambda: robot.regressor_from_actuated(*robot.actuated_motion(*args), np.zeros(3)))]:
+                     ("regressor_from_actuated (FK + regressor)", from_actuated)]:
         times = []
         for _ in range(repeats):
             t0 = time.perf_counter()
@@ -61,8 +64,8 @@ def simulation_drift(duration=60.0):
 
     def force(t, Theta, Thetad):
         X, Xd = reference(t)
-        target, targetd = robot.actuated_motion(X[:3], Xd[:3], np.zeros(3), X[3:], Xd[3:], np.zeros(3))[:2]
-        return kp * (target[0] - Theta) + kd * (targetd[0] - Thetad)
+        target = robot.actuated_motion(X[:3], Xd[:3], np.zeros(3), X[3:], Xd[3:], np.zeros(3))
+        return kp * (target.q[0] - Theta) + kd * (target.qd[0] - Thetad)
 
     t = np.linspace(0, duration, int(duration * 100) + 1)
     t0 = time.perf_counter()

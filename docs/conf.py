@@ -42,31 +42,15 @@ napoleon_numpy_docstring = False
 
 # every cross-reference resolves (nitpicky), but to the libraries' own objects: their inventories
 # (intersphinx) would be downloaded at each build, so the names of NumPy, SciPy, the standard
-# library, python-can, canopen and PyYAML stay text; so do the type-variable and generic
+# library, python-can, canopen, PyYAML and pinocchio stay text; so do the type-variable and generic
 # fragments autodoc makes of annotations (``tuple[float, ...]`` read as a class name)
 nitpicky = True
 _LIBRARIES = (r"numpy|np|scipy|pathlib|Path|os|collections|typing|enum|contextlib|logging|gc|dataclasses|"
-              r"can|canopen|yaml|jinja2|matplotlib")
+              r"abc|can|canopen|yaml|jinja2|matplotlib|pinocchio")
 nitpick_ignore_regex = [
     (r"py:.*", rf"({_LIBRARIES})(\..*)?"),
     (r"py:.*", r"(tuple|dict|list|set|frozenset|type|Literal|Mapping|Sequence|Callable)\[.*"),
     (r"py:class", r"ident_hw\.storage\.T"),
-]
-# the cross-references that did not resolve when nitpicky was turned on (issue 49): private classes
-# in signatures, attributes and data without a docstring of their own, short names autodoc does not
-# resolve in their module; each leaves the list as it is fixed, the list only shrinks
-nitpick_ignore = [
-    ("py:attr", "DescribedRobot.model"),
-    ("py:attr", "body_names"),
-    ("py:attr", "parameter_names"),
-    ("py:class", "Message"),
-    ("py:class", "abc.ABC"),
-    ("py:class", "drivers.sim.lockstep._CountedHeartbeat"),
-    ("py:class", "drivers.sim.lockstep._SimulatedClock"),
-    ("py:class", "drivers.timing._Periodic"),
-    ("py:class", "ident_hw.identification.online._RecursiveEstimator"),
-    ("py:class", "ident_hw.records._step_kind"),
-    ("py:class", "pinocchio.pinocchio_pywrap_default.Model"),
 ]
 
 html_theme = "alabaster"

@@ -114,6 +114,10 @@ class VirtualBus(can.interfaces.virtual.VirtualBus):
             return None
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        """A new :class:`can.Message` with ``msg``'s fields to this bus's own queue first (with
+        ``receive_own_messages``: the echo), then to every other bus of the channel, stamped with
+        the time it was sent unless ``preserve_timestamps``; :class:`can.CanOperationError` when a
+        receive queue stayed full for ``timeout`` s."""
         self._check_if_open()
         timestamp = msg.timestamp if self.preserve_timestamps else time.time()
         data = bytes(msg.data)
@@ -350,6 +354,18 @@ def open_network(config: BusConfig, timing=None) -> BusNetwork:
     network = BusNetwork(bus, config)
     network.connect()
     return network
+
+
+def notifier_of(network: canopen.Network) -> can.Notifier:
+    """The notifier thread of a connected ``network`` (canopen's ``Network.notifier``), which
+    listeners are added to and removed from.
+
+    Raises:
+        ~drivers.errors.ConfigError: the network is not connected (:func:`open_network` connects it).
+    """
+    if network.notifier is None:
+        raise ConfigError("the CANopen network is not connected (no notifier): open it with drivers.bus.open_network")
+    return network.notifier
 
 
 def frame_bits(n_bytes: int) -> int:

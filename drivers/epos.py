@@ -27,7 +27,7 @@ from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
 
 from drivers.acquisition import PdoFrame, cycle_frame_sizes, master_layouts
 from drivers.axis import AxisConfig, check_setpoints
-from drivers.bus import BusConfig, check_bus_load, frame_bits
+from drivers.bus import BusConfig, check_bus_load, frame_bits, notifier_of
 from drivers.cia import (CW_CHANGE_IMMEDIATELY, CW_ENABLE_OPERATION, CW_FAULT_RESET, CW_NEW_SETPOINT, ERROR_REGISTER,
                          HEARTBEAT_CONSUMER, MODE_HMM, MODE_PPM, NMT_ENTER_PRE_OPERATIONAL, NMT_OPERATIONAL, RPDO_COMM,
                          SW_BIT12, SW_BIT13, SW_FAULT, SW_TARGET_REACHED, is_node_id, state_of)
@@ -499,7 +499,7 @@ class DriveGroup:
         self.supervisor = Supervisor(self.sync.watch_clock(), alive=getattr(network, "alive", None))
         self.drives = [EposDrive(network, a, self.supervisor, sdo_timeout, self.sync, uses) for a in self.axes]
         for drive in self.drives:
-            self.supervisor.watch_heartbeat(drive.label, network, drive.axis.node_id, self.watchdogs.drive_heartbeat)
+            self.supervisor.watch_heartbeat(drive.label, network, drive.axis.node_id, self.watchdogs.drive_timeout)
         self._bus_time_listened = False
         self.layouts = master_layouts(self.axes)
 
@@ -514,12 +514,12 @@ class DriveGroup:
         """Start the master heartbeat, bring every drive up (each then watches the master), start
         them (NMT OPERATIONAL) and watch their heartbeats."""
         if not self._bus_time_listened:
-            self.network.notifier.add_listener(self.supervisor.bus_time)
+            notifier_of(self.network).add_listener(self.supervisor.bus_time)
             self._bus_time_listened = True
         if self._master_heartbeat is None:
             self._master_heartbeat = self.sync.start_heartbeat(
                 self.network, 0x700 + self.master_id, bytes([NMT_OPERATIONAL]), self.heartbeat_period)
-        consumer = self.master_id << 16 | round(self.watchdogs.master_heartbeat * 1e3)
+        consumer = self.master_id << 16 | round(self.watchdogs.master_timeout * 1e3)
         for drive, layout in zip(self.drives, self.layouts):
             drive.bring_up(layout.frames, round(self.heartbeat_period * 1e3), consumer, timeout)
         for drive in self.drives:
@@ -551,7 +551,7 @@ class DriveGroup:
         self.stop_motion()
         self.supervisor.stop_heartbeat_monitoring()
         if self._bus_time_listened:
-            self.network.notifier.remove_listener(self.supervisor.bus_time)
+            notifier_of(self.network).remove_listener(self.supervisor.bus_time)
             self._bus_time_listened = False
         if self._sync_attached:
             self.sync.detach()
@@ -596,7 +596,11 @@ class DriveGroup:
         return np.array([d.position() for d in self.drives])
 
     def enable(self) -> None:
-        self.guarded(lambda: [d.enable() for d in self.drives])
+        """Enable every drive; on any exception the motion is stopped first (:meth:`guarded`)."""
+        def run() -> None:
+            for d in self.drives:
+                d.enable()
+        self.guarded(run)
 
     def disable(self) -> None:
         for d in self.drives:
@@ -621,14 +625,14 @@ class DriveGroup:
 
         Each axis moves at ``speed_fraction`` of its ``max_velocity``, accelerating in 0.5 s.
         """
-        positions = np.asarray(positions, dtype=float)
-        check_setpoints(self.axes, positions[None, :], "move_to target")
+        targets = np.asarray(positions, dtype=float)
+        check_setpoints(self.axes, targets[None, :], "move_to target")
         start = self.positions()
         speeds = [speed_fraction * a.max_velocity for a in self.axes]
-        durations = [abs(p - s) / v + 1.0 for p, s, v in zip(positions, start, speeds)]
+        durations = [abs(p - s) / v + 1.0 for p, s, v in zip(targets, start, speeds)]
 
         def run():
-            for d, p, v in zip(self.drives, positions, speeds):
+            for d, p, v in zip(self.drives, targets, speeds):
                 d.start_move(float(p), v, v / 0.5)
             self._wait_all(EposDrive.move_done, timeout or 2 * max(durations) + 2.0, "move")
         self.guarded(run)

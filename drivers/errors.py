@@ -8,6 +8,8 @@ samples saved up to the fault (or ``None`` when nothing was being recorded).
 
 from __future__ import annotations
 
+import os
+
 
 class DriveError(Exception):
     """Base class of the errors raised by :mod:`drivers`."""
@@ -57,7 +59,7 @@ class DriveFault(DriveError):
         self.node = node
         self.code = code
         self.text = text
-        self.recording: str | None = None  # path of the samples saved before the fault, set by the runner
+        self.recording: str | os.PathLike | None = None  # path of the samples saved before the fault, set by the stream
 
 
 class HeartbeatTimeout(DriveFault):

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import os
 from contextlib import AbstractContextManager, ExitStack, nullcontext
 from typing import Callable, Sequence, TypeVar
 
@@ -112,8 +113,8 @@ class CyclicStream:
     :class:`drivers.epos.DriveGroup`, brought up) at ``period`` s, recorded; the arguments and
     the contract are :meth:`drivers.epos.DriveGroup.run_cyclic`'s."""
 
-    def __init__(self, group, targets, period: float, output: str | None = None,
-                 raw_log: str | None = None, metadata: RecordingMetadata | None = None, queue_size: int = 100_000,
+    def __init__(self, group, targets, period: float, output: str | os.PathLike | None = None,
+                 raw_log: str | os.PathLike | None = None, metadata: RecordingMetadata | None = None, queue_size: int = 100_000,
                  sync_timeout: float | None = None,
                  quiet: Callable[[], AbstractContextManager] = nullcontext):
         self.group = group

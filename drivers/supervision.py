@@ -86,6 +86,23 @@ class Watchdogs:
             if not getattr(self, name) > 0:
                 raise ConfigError(f"{name}: a positive time in s, got {getattr(self, name)!r}")
 
+    @property
+    def drive_timeout(self) -> float:
+        """``drive_heartbeat`` in s, its default filled in (never None once built)."""
+        return _filled(self.drive_heartbeat)
+
+    @property
+    def master_timeout(self) -> float:
+        """``master_heartbeat`` in s, its default filled in (never None once built)."""
+        return _filled(self.master_heartbeat)
+
+
+def _filled(value: float | None) -> float:
+    """A heartbeat timeout :class:`Watchdogs` filled in on construction."""
+    if value is None:
+        raise ConfigError("heartbeat timeout not filled in (Watchdogs.__post_init__ fills both)")
+    return value
+
 
 class WatchClock:
     """The time the master was running and watching, s: wall-clock time of which a gap between

@@ -123,7 +123,7 @@ class StreamReport:
     relay_dropped: int
 
 
-class _Periodic:
+class TimedPeriodic:
     """A frame the timing process sends every ``period`` s: ``stop()``, ``update(data)``."""
 
     def __init__(self, bus: TimedBus, key: int):
@@ -259,14 +259,14 @@ class TimedBus(can.BusABC):
             self._batch.extend(batch)
         return self._batch.popleft(), False
 
-    def periodic(self, can_id: int, data: bytes, period: float) -> _Periodic:
+    def periodic(self, can_id: int, data: bytes, period: float) -> TimedPeriodic:
         """Have the timing process send a frame every ``period`` s, from now on."""
         if not period > 0:
             raise ValueError(f"period must be positive, got {period!r}")
         self._next_key += 1
         self.stopped_after = None
         self._command(("periodic", self._next_key, can_id, bytes(data), period))
-        return _Periodic(self, self._next_key)
+        return TimedPeriodic(self, self._next_key)
 
     def start_stream(self, period: float, sync_cob_id: int, rpdos: list[int], sizes: list[int], table: bytes) -> None:
         """Start a stream: SYNC every ``period`` s; before SYNC 0 and after SYNC k-1 the RPDO frames

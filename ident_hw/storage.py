@@ -112,9 +112,10 @@ def to_json(value: Any) -> Any:
 @dataclasses.dataclass(frozen=True)
 class Chooser:
     """For a union of records annotated ``Annotated[A | B, choose(f)]``: ``f(doc)`` is the record
-    class the document ``doc`` is."""
+    class the document ``doc`` is. ``f`` is left out of the repr, which autodoc shows in the
+    union's annotations (a module's private chooser is no name to link to)."""
 
-    pick: Callable[[Mapping[str, Any]], type]
+    pick: Callable[[Mapping[str, Any]], type] = dataclasses.field(repr=False)
 
 
 def choose(pick: Callable[[Mapping[str, Any]], type]) -> Chooser:

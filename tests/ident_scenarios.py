@@ -111,9 +111,10 @@ def make_motion(spec=RICH, rate=1000.0, duration=10.0, t0=0.0) -> Motion:
     t = t0 + np.arange(int(round(duration * rate))) / rate
     q, qd, qdd = sines(spec, t)
     args = (q[:, :3], qd[:, :3], qdd[:, :3], q[:, 3:], qd[:, 3:], qdd[:, 3:])
-    Theta, Thetad, Thetadd = ROBOT.actuated_motion(*args)
+    actuated = ROBOT.actuated_motion(*args)
     Y = ROBOT.regressor(*args)
-    return Motion(t, q[:, :3], qd[:, :3], q[:, 3:], qd[:, 3:], Theta, Thetad, Thetadd, Y, Y @ TRUE.as_vector())
+    return Motion(t, q[:, :3], qd[:, :3], q[:, 3:], qd[:, 3:], actuated.q, actuated.qd, actuated.qdd, Y,
+                  Y @ TRUE.as_vector())
 
 
 def measure(motion: Motion, rng: np.random.Generator, noise: float = 0.03):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -9,9 +10,11 @@ import numpy as np
 import pytest
 import yaml
 
+import drivers.errors
+
 from ident_hw.config import ConfigError, load_config, resolved_yaml
 from ident_hw.config.robots import initial_parameters, model_of
-from ident_hw.config.to_drivers import axis_scaling
+from ident_hw.config.to_drivers import axis_config, axis_scaling
 from ident_hw.experiment.robot_trajectories import feasibility_limits
 from ident_hw.model import Delta, DeltaGeometry, InertialParams, ThreePRRR
 from ident_hw.model.delta import physical_parameters
@@ -89,6 +92,10 @@ def test_robot_values_map_to_model_and_drive_scaling():
     assert carriage.kind == "prismatic" and carriage.screw_lead == 0.002
     assert carriage.force_per_amp == pytest.approx(0.0603 * 2 * math.pi / 0.002)
     assert feasibility_limits(cfg.robot).carriage_stroke == 0.10
+    # an actuator without its drive (a config of recordings made elsewhere) has no drive settings
+    for key in ("node_id", "profile"):
+        with pytest.raises(drivers.errors.ConfigError, match=rf"actuator .zeta1.: no {key}: a drive on the bus needs"):
+            axis_config(dataclasses.replace(cfg.robot.actuators[3], **{key: None}))
 
 
 def test_homing_offsets_are_the_home_pose_angles():

@@ -57,8 +57,9 @@ def plant_calls(robot, m, params, data):
     """Generator: one ``plant_dynamics`` call per sample, each started from the last pose."""
     q = None
     for Theta, Thetad in zip(m[0], m[1]):
-        M, bias, q = robot.plant_dynamics(Theta, Thetad, params, q, data=data)
-        yield M, bias, q
+        state = robot.plant_dynamics(Theta, Thetad, params, q, data=data)
+        q = state.pose
+        yield state.M, state.bias, q
 
 
 def interleave(*generators):

@@ -433,8 +433,10 @@ def test_3prrr_described_plant_dynamics_is_the_hand_one(prrr, described_prrr):
     for k in range(8):
         params = random_prrr_params(rng, geometry)
         pi = dh.prrr_map(params.as_vector(), geometry, robot.parameter_names)
-        M, bias, q = robot.plant_dynamics(Theta[k], Thetad[k], pi, Q_hand[k])
-        M_hand, bias_hand, X = hand.plant_dynamics(Theta[k], Thetad[k], params, motion.X[k])
+        state, hand_state = (robot.plant_dynamics(Theta[k], Thetad[k], pi, Q_hand[k]),
+                             hand.plant_dynamics(Theta[k], Thetad[k], params, motion.X[k]))
+        M, bias, q = state.M, state.bias, state.pose
+        M_hand, bias_hand = hand_state.M, hand_state.bias
         assert np.abs(wrap(q - Q_hand[k])).max() < POSE_TOL
         M_err = max(M_err, mass_matrix_error(M, M_hand))
         b_out.append(bias)
@@ -516,8 +518,9 @@ def test_delta_described_plant_dynamics_is_the_hand_one(delta, described_delta):
     for k in range(8):
         pi_hand = random_delta_params(rng, delta.geometry)
         pi = dh.delta_map(pi_hand, delta.geometry, robot.parameter_names)
-        M, bias, tree = robot.plant_dynamics(q[k], qd[k], pi, Q_hand[k])
-        M_hand, bias_hand, p = delta.plant_dynamics(q[k], qd[k], pi_hand)
+        state, hand_state = robot.plant_dynamics(q[k], qd[k], pi, Q_hand[k]), delta.plant_dynamics(q[k], qd[k], pi_hand)
+        M, bias, tree = state.M, state.bias, state.pose
+        M_hand, bias_hand = hand_state.M, hand_state.bias
         assert np.abs(wrap(tree - Q_hand[k])).max() < POSE_TOL
         M_err = max(M_err, mass_matrix_error(M, M_hand))
         b_out.append(bias)

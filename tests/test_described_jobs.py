@@ -157,8 +157,10 @@ def exported_forces_match_the_base_fit(results: Path, exported: Path, mujoco_loa
     guess = robot.pose(recording.position[0], robot.pose(robot.home_actuated(), np.zeros(robot.pose_size)))
     for k in range(0, len(recording.t), len(recording.t) // 5):
         Theta, Thetad = recording.position[k], recording.velocity[k]
-        M, bias, guess = robot.plant_dynamics(Theta, Thetad, pi, guess)
-        M0, bias0, _ = original.plant_dynamics(Theta, Thetad, consistent_pi, guess)
+        state = robot.plant_dynamics(Theta, Thetad, pi, guess)
+        M, bias, guess = state.M, state.bias, state.pose
+        reference = original.plant_dynamics(Theta, Thetad, consistent_pi, guess)
+        M0, bias0 = reference.M, reference.bias
         np.testing.assert_allclose(M, M0, rtol=1e-9, atol=1e-12 * np.abs(M0).max())
         np.testing.assert_allclose(bias, bias0, rtol=1e-9, atol=1e-9 * np.abs(bias0).max())
     prepared = prepare(identification_plan(config), robot, "validation", recording)

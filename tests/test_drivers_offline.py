@@ -12,7 +12,7 @@ import pytest
 from drivers.acquisition import (LOOKAHEAD, AxisLayout, CycleAssembler, CycleBooks, PdoFrame, master_layouts,
                                  pdo_layout)
 from drivers.axis import AxisConfig
-from drivers.bus import BusConfig, check_bus_load, frame_bits, max_sync_rate, open_network
+from drivers.bus import BusConfig, check_bus_load, frame_bits, max_sync_rate, notifier_of, open_network
 from drivers.emcy import describe
 from drivers.epos import DriveGroup
 from drivers.errors import BusLoadError, ConfigError, RecordingError
@@ -466,3 +466,19 @@ def test_a_raw_log_closed_while_the_notifier_delivers_a_frame_leaves_it_out(tmp_
     logger.stop()
     logger.on_message_received(frame)
     assert len(path.read_text().splitlines()) == 1
+
+
+def test_watchdog_timeouts_are_filled_in_and_a_network_without_notifier_is_refused():
+    """The heartbeat timeouts a DriveGroup uses: the given ones, else 3.5 heartbeat periods; the
+    notifier listeners are added to: a connected network's, a clear error for one not connected."""
+    filled = Watchdogs(heartbeat_period=0.2)
+    assert (filled.drive_timeout, filled.master_timeout) == (3.5 * 0.2, 3.5 * 0.2)
+    given = Watchdogs(heartbeat_period=0.1, drive_heartbeat=0.5, master_heartbeat=0.45)
+    assert (given.drive_timeout, given.master_timeout) == (0.5, 0.45)
+    with pytest.raises(ConfigError, match="not connected .*open_network"):
+        notifier_of(canopen.Network())
+    network = open_network(BusConfig("virtual", "offline-notifier", ignore_config=True))
+    try:
+        assert notifier_of(network) is network.notifier and network.notifier is not None
+    finally:
+        network.disconnect()

@@ -230,18 +230,9 @@ JSON_DOCUMENTS = {"ident_hw.config.schema.spec", "ident_hw.config.schema.build",
                   "drivers.recording_metadata.RecordedAxis.from_json", "trajectories.fourier.FourierExcitation.to_dict",
                   # a bus section of YAML as written (its unknown keys go on to python-can as options)
                   "drivers.bus.BusConfig.from_mapping"}
-#: the robot model's protocol and a described robot's loader return triples; they are issue 48's
-#: (one model path), which reworks them
-MODEL_PROTOCOL = {"ident_hw.model.interface.RobotModel.plant_dynamics", "ident_hw.model.described.load_description"}
-#: functions of ident_hw without a return annotation that return a tuple of three or more items,
-#: found when the check learnt to read ``return a, b, c`` (with drivers and trajectories): the
-#: robot models' motion and dynamics triples are issue 48's (one model path, the described
-#: model's model/data split), the validation figures the results' own; each for its own change
-UNANNOTATED_TRIPLES = {"ident_hw.model.delta.Delta.plant_dynamics", "ident_hw.model.described.DescribedRobot.tree_motion",
-                       "ident_hw.model.described.DescribedRobot.plant_dynamics",
-                       "ident_hw.model.robot.ThreePRRR.actuated_motion", "ident_hw.model.robot.ThreePRRR.pose_motion",
-                       "ident_hw.model.robot.ThreePRRR.physical_bodies", "ident_hw.model.single.SingleState.reduced_dynamics",
-                       "ident_hw.results.figures.ValidationFigures.of"}
+#: a described robot's loader returns a triple (pinocchio's model, the closures' points and
+#: frames); issue 48's model/data split of the described model reworks it
+MODEL_PROTOCOL = {"ident_hw.model.described.load_description"}
 
 
 def _bare_record(annotation: ast.expr) -> bool:
@@ -272,14 +263,17 @@ def _returns_a_bare_tuple(function: ast.FunctionDef | ast.AsyncFunctionDef) -> b
 
 def _bare_records(path: Path) -> list[str]:
     """Public functions of ``path`` (qualified names) that take or return a bare record: a tuple
-    of more than two items or a dict of text keys in an annotation, or a ``return`` of a tuple
-    of more than two items; a module's own helpers (``_name``) are skipped."""
+    of more than two items or a dict of text keys in an annotation, or, without a return
+    annotation, a ``return`` of a tuple of more than two items (an annotated return is what mypy
+    holds the function to: ``tuple[PhysicalBody, ...]`` is no record in disguise); a module's
+    own helpers (``_name``) are skipped."""
     found = []
     for qualified, node in _functions(ast.parse(path.read_text())):
         if any(part.startswith("_") and part != "__init__" for part in qualified.split(".")):
             continue
         annotations = [node.returns] + [a.annotation for a in node.args.args + node.args.kwonlyargs]
-        if any(a is not None and _bare_record(a) for a in annotations) or _returns_a_bare_tuple(node):
+        if (any(a is not None and _bare_record(a) for a in annotations)
+                or (node.returns is None and _returns_a_bare_tuple(node))):
             found.append(qualified)
     return found
 
@@ -289,12 +283,13 @@ def test_no_tuple_of_more_than_two_items_nor_dict_record_crosses_a_module_bounda
     not a bare tuple of three or more items or a dict of text keys (issue 49); a module's own
     helpers (``_name``) may."""
     found = {f"{name}.{qualified}" for name, path in MODULES.items() for qualified in _bare_records(path)}
-    assert sorted(found - JSON_DOCUMENTS - MODEL_PROTOCOL - UNANNOTATED_TRIPLES) == []
+    assert sorted(found - JSON_DOCUMENTS - MODEL_PROTOCOL) == []
 
 
 def test_the_check_finds_bare_records(tmp_path):
     """The check sees a triple in an annotation, in a callable's, and in an unannotated return;
-    not a pair, a variable-length tuple, a nested helper's return, nor a private function."""
+    not a pair, a variable-length tuple (nor the display an annotated one returns), a nested
+    helper's return, nor a private function."""
     source = tmp_path / "shapes.py"
     source.write_text("def annotated(x) -> tuple[int, int, int]:\n    return x\n"
                       "def takes(f: Callable[[int], tuple[int, int, int]]):\n    return f\n"
@@ -304,5 +299,6 @@ def test_the_check_finds_bare_records(tmp_path):
                       "def pair(x) -> tuple[int, int]:\n    return x, x\n"
                       "def any_length(x) -> tuple[int, ...]:\n    return x\n"
                       "def nested(x):\n    def inner():\n        return x, x, x\n    return inner\n"
+                      "def bodies() -> tuple[int, ...]:\n    return 1, 2, 3\n"
                       "def _private(x):\n    return x, x, x\n")
     assert _bare_records(source) == ["annotated", "takes", "bare", "documents", "C.method"]

@@ -117,7 +117,8 @@ def test_jacobian_matches_finite_differences_of_ik(robot):
 def test_actuated_rates_match_finite_differences():
     robot = ThreePRRR(GEO)
     t = np.linspace(0, 2, 20001)
-    Theta, Thetad, Thetadd = robot.actuated_motion(*smooth_motion(t, seed=2))
+    actuated = robot.actuated_motion(*smooth_motion(t, seed=2))
+    Theta, Thetad, Thetadd = actuated.q, actuated.qd, actuated.qdd
     h = t[1] - t[0]
     fd_v = (Theta[2:] - Theta[:-2]) / (2 * h)
     fd_a = (Theta[2:] - 2 * Theta[1:-1] + Theta[:-2]) / h**2
@@ -142,7 +143,7 @@ def test_energy_balance(robot):
     t = np.linspace(0, 3, 3001)
     X, Xd, Xdd, z, zd, zdd = smooth_motion(t, seed=7)
     tau = robot.inverse_dynamics(X, Xd, Xdd, z, zd, zdd, FRICTIONLESS)
-    _, Thetad, _ = robot.actuated_motion(X, Xd, Xdd, z, zd, zdd)
+    Thetad = robot.actuated_motion(X, Xd, Xdd, z, zd, zdd).qd
     power = (tau * Thetad).sum(1)
     T = robot.kinetic_energy(X, Xd, z, zd, FRICTIONLESS)
     h = t[1] - t[0]
@@ -154,7 +155,8 @@ def test_energy_balance(robot):
 def test_inverse_then_forward_dynamics_reproduces_the_trajectory(robot):
     t = np.linspace(0, 2, 401)
     X, Xd, Xdd, z, zd, zdd = smooth_motion(t, seed=11)
-    Theta, Thetad, _ = robot.actuated_motion(X, Xd, Xdd, z, zd, zdd)
+    actuated = robot.actuated_motion(X, Xd, Xdd, z, zd, zdd)
+    Theta, Thetad = actuated.q, actuated.qd
 
     def force(time, Th, Thd):
         # the forces of inverse dynamics along the reference, evaluated at the reference state
@@ -204,7 +206,8 @@ def test_reduced_mass_matrix_gives_the_kinetic_energy(robot):
     """T = 1/2 Thetad^T M_r Thetad, with T from the body velocities (eqs. 17-20)."""
     t = np.linspace(0, 3, 50)
     X, Xd, Xdd, z, zd, zdd = smooth_motion(t, seed=13)
-    Theta, Thetad, _ = robot.actuated_motion(X, Xd, Xdd, z, zd, zdd)
+    actuated = robot.actuated_motion(X, Xd, Xdd, z, zd, zdd)
+    Theta, Thetad = actuated.q, actuated.qd
     M, c = robot.reduced_dynamics(Theta, Thetad, TRUE, X)
     assert np.allclose(M, np.swapaxes(M, 1, 2), rtol=0, atol=1e-12 * np.abs(M).max())
     assert np.all(np.linalg.eigvalsh(M) > 0)

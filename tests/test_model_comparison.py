@@ -147,7 +147,7 @@ def test_rows_place_friction_and_rotor_terms_at_the_models_own_parameters(robot,
     t, Theta, Thetad, Thetadd = motion(250.0, duration=4.0)
     H = energy_columns(robot, Theta, Thetad)
     # the energy is 1/2 Thetad^T M Thetad with the plant's mass matrix (rotors included)
-    M = np.array([robot.plant_dynamics(q, qd, truth, None)[0] for q, qd in zip(Theta[::50], Thetad[::50])])
+    M = np.array([robot.plant_dynamics(q, qd, truth, None).M for q, qd in zip(Theta[::50], Thetad[::50])])
     np.testing.assert_allclose(H[::50] @ truth, 0.5 * np.einsum("ki,kij,kj->k", Thetad[::50], M, Thetad[::50]),
                                rtol=1e-12)
     tau = np.ones_like(Thetad)
@@ -193,8 +193,8 @@ class EnergyThreePRRR:
         return getattr(self._robot, name)
 
     def energy_regressor(self, Theta, Thetad, guess):
-        X, Xd, _ = self._robot.pose_motion(Theta, Thetad, np.zeros_like(Theta), guess)
-        H = self._robot.energy_regressor(X, Xd, Theta[:, 3:], Thetad[:, 3:])
+        pose = self._robot.pose_motion(Theta, Thetad, np.zeros_like(Theta), guess)
+        H = self._robot.energy_regressor(pose.q, pose.qd, Theta[:, 3:], Thetad[:, 3:])
         return np.concatenate([H, np.zeros((len(Theta), 12))], axis=1)
 
 

@@ -193,7 +193,8 @@ def test_plant_dynamics_equals_the_regressor():
     rng = np.random.default_rng(7)
     for _ in range(20):
         q, qd = rng.uniform(-0.8, 0.8, 3), rng.uniform(-3.0, 3.0, 3)
-        M, bias, pose = ROBOT.plant_dynamics(q, qd, pi)
+        state = ROBOT.plant_dynamics(q, qd, pi)
+        M, bias, pose = state.M, state.bias, state.pose
         static = ROBOT.vectorised_regressor(q, np.zeros(3), np.zeros(3)) @ frictionless
         M_ref = np.stack([ROBOT.vectorised_regressor(q, np.zeros(3), np.eye(3)[j]) @ frictionless - static
                           for j in range(3)], axis=1)

@@ -29,7 +29,8 @@ def test_mass_matrix_and_velocity_terms_equal_the_vectorised_model():
     M_ref, c_ref = ROBOT.reduced_dynamics_of(motion, PARAMS)
     c_ref = c_ref - ROBOT.friction(Thetad, PARAMS)
     for k in range(len(X)):
-        M, c, pose = single.reduced_dynamics(Theta[k], Thetad[k], PARAMS, guess[k])
+        state = single.reduced_dynamics(Theta[k], Thetad[k], PARAMS, guess[k])
+        M, c, pose = state.M, state.bias, state.pose
         np.testing.assert_allclose(pose, X[k], atol=1e-12)
         np.testing.assert_allclose(M, M_ref[k], rtol=1e-11, atol=1e-12 * np.abs(M_ref[k]).max())
         np.testing.assert_allclose(c, c_ref[k], rtol=1e-9, atol=1e-10 * np.abs(c_ref[k]).max())

@@ -101,7 +101,8 @@ def sweep_run():
 def test_reported_current_is_the_lagrange_force_of_the_true_motion_at_the_sync_instant(sweep_run):
     tr = sweep_run["truth"]
     Thetad, Thetadd = central_derivatives(tr["Theta"], tr["t"])
-    X, Xd, Xdd = ROBOT.pose_motion(tr["Theta"], Thetad, Thetadd, tr["X"])
+    pose = ROBOT.pose_motion(tr["Theta"], Thetad, Thetadd, tr["X"])
+    X, Xd, Xdd = pose.q, pose.qd, pose.qdd
     Z = (tr["Theta"][:, 3:], Thetad[:, 3:], Thetadd[:, 3:])
     tau = ROBOT.inverse_dynamics(X, Xd, Xdd, *Z, TRUE)[:, 3:]
     inertial = ROBOT.inverse_dynamics(X, Xd, Xdd, *Z, TRUE.replace(f_v=(0.0,) * 6, f_c=(0.0,) * 6))[:, 3:]

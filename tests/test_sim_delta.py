@@ -83,8 +83,8 @@ def test_a_payload_on_the_platform_raises_the_torques_by_its_weight():
     q = np.array([0.2, -0.1, 0.3])
     zero = np.zeros(3)
     loaded = ROBOT.with_payload(TRUTH, 0.5)
-    _, bias, _ = ROBOT.plant_dynamics(q, zero, TRUTH)
-    _, bias_loaded, _ = ROBOT.plant_dynamics(q, zero, loaded)
+    bias = ROBOT.plant_dynamics(q, zero, TRUTH).bias
+    bias_loaded = ROBOT.plant_dynamics(q, zero, loaded).bias
     J = ROBOT.jacobian(q)
     np.testing.assert_allclose(bias_loaded - bias, J.T @ np.array([0.0, 0.0, 0.5 * 9.81]), rtol=1e-9)
 

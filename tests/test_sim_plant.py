@@ -39,8 +39,8 @@ def run_plant(plant, seconds, period, demand_fn):
 
 
 def lagrange_forces(tr, params):
-    X, Xd, Xdd = ROBOT.pose_motion(tr["Theta"], tr["Thetad"], tr["Thetadd"], tr["X"])
-    return ROBOT.inverse_dynamics(X, Xd, Xdd, tr["Theta"][:, 3:], tr["Thetad"][:, 3:], tr["Thetadd"][:, 3:], params)
+    pose = ROBOT.pose_motion(tr["Theta"], tr["Thetad"], tr["Thetadd"], tr["X"])
+    return ROBOT.inverse_dynamics(pose.q, pose.qd, pose.qdd, tr["Theta"][:, 3:], tr["Thetad"][:, 3:], tr["Thetadd"][:, 3:], params)
 
 
 def test_large_motion_logged_forces_equal_the_lagrange_inverse_dynamics_of_the_logged_motion():
@@ -65,8 +65,8 @@ def test_energy_balance_of_the_integrated_motion_closes_at_second_order():
     misfit = []
     for period in (0.001, 0.002):
         tr = run_plant(Plant(ROBOT, TRUE, Theta0=task_space_demand(0.0)[0]), 0.5, period, task_space_demand)
-        X, Xd, _ = ROBOT.pose_motion(tr["Theta"], tr["Thetad"], tr["Thetadd"], tr["X"])
-        energy = ROBOT.kinetic_energy(X, Xd, tr["Theta"][:, 3:], tr["Thetad"][:, 3:], TRUE)
+        pose = ROBOT.pose_motion(tr["Theta"], tr["Thetad"], tr["Thetadd"], tr["X"])
+        energy = ROBOT.kinetic_energy(pose.q, pose.qd, tr["Theta"][:, 3:], tr["Thetad"][:, 3:], TRUE)
         power = np.einsum("nj,nj->n", tr["force"] - friction(tr["Thetad"], TRUE, ROBOT.coulomb_width), tr["Thetad"])
         work = np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * period)])
         misfit.append(np.abs(energy - energy[0] - work).max())

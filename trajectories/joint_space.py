@@ -105,7 +105,8 @@ class JointHarmonics:
                              "of the same shape, the frequencies positive")
         if actuators is not None and len(arrays[0]) != actuators:
             raise ValueError(f"{path}: {len(arrays[0])} rows of sines, the robot has {actuators} actuators")
-        return cls(*arrays, doc.get("cond_initial"), doc.get("cond_final"), doc.get("optimised_for"))
+        frequencies, phases, weights = arrays
+        return cls(frequencies, phases, weights, doc.get("cond_initial"), doc.get("cond_final"), doc.get("optimised_for"))
 
 
 def fitted_scale(home: np.ndarray, limits: ActuatorLimits, motion: SampledMotion, fraction: float) -> np.ndarray:

@@ -33,7 +33,7 @@ def actuator_map(robot: ThreePRRR) -> ActuatorMap:
     zeta1..3]`` (each ``(N, 6)``)."""
 
     def to_actuators(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> SampledMotion:
-        return SampledMotion(*robot.actuated_motion(q[:, :3], qd[:, :3], qdd[:, :3], q[:, 3:], qd[:, 3:], qdd[:, 3:]))
+        return robot.actuated_motion(q[:, :3], qd[:, :3], qdd[:, :3], q[:, 3:], qd[:, 3:], qdd[:, 3:])
 
     return to_actuators
 
@@ -114,8 +114,8 @@ class Trajectory:
         metadata: dict | None = None,
     ) -> "Trajectory":
         """Build from the six actuator coordinates; the pose follows from the model's forward kinematics."""
-        X, Xd, Xdd = robot.pose_motion(Theta, Thetad, Thetadd, X_guess)
-        return cls(name, t, X, Xd, Xdd, Theta, Thetad, Thetadd, dict(metadata or {}))
+        pose = robot.pose_motion(Theta, Thetad, Thetadd, X_guess)
+        return cls(name, t, pose.q, pose.qd, pose.qdd, Theta, Thetad, Thetadd, dict(metadata or {}))
 
     @property
     def zeta(self) -> np.ndarray:

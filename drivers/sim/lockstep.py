@@ -103,21 +103,21 @@ class LockstepSync(SyncSource, can.Listener):
         self._complete = False
         self._again = False          # the rig's answer calls for asking the cycle again
         self._wake = threading.Event()
-        self._heartbeat: _CountedHeartbeat | None = None
+        self._heartbeat: CountedHeartbeat | None = None
 
     # -- SyncSource -----------------------------------------------------------------------------
-    def watch_clock(self) -> _SimulatedClock:
+    def watch_clock(self) -> SimulatedClock:
         """The simulated time of the cycles completed: the master's watch of the drives'
         heartbeats counts SYNC periods, so that a busy host never stops a simulated run (the rig
         sends its heartbeats by SYNC count too, :mod:`drivers.sim.rig`)."""
-        return _SimulatedClock(self)
+        return SimulatedClock(self)
 
-    def start_heartbeat(self, network: canopen.Network, cob_id: int, data: bytes, period: float) -> _CountedHeartbeat:
+    def start_heartbeat(self, network: canopen.Network, cob_id: int, data: bytes, period: float) -> CountedHeartbeat:
         """The master's heartbeat in simulated time: sent before the SYNC of every cycle that
         starts ``period`` s or more of simulated time after the last one (the first one with the
         first SYNC), never by a wall clock."""
-        self._heartbeat = _CountedHeartbeat(self, can.Message(arbitration_id=cob_id, data=bytes(data),
-                                                               is_extended_id=False), period)
+        self._heartbeat = CountedHeartbeat(self, can.Message(arbitration_id=cob_id, data=bytes(data),
+                                                              is_extended_id=False), period)
         return self._heartbeat
 
     def attach(self, network: canopen.Network, tpdos: Mapping[int, str],
@@ -262,7 +262,7 @@ class LockstepSync(SyncSource, can.Listener):
             self.step()
 
 
-class _SimulatedClock:
+class SimulatedClock:
     """The watch clock of a lockstep run: the simulated time of the cycles completed, s (it
     stands still between streams and while the master does anything else)."""
 
@@ -275,7 +275,7 @@ class _SimulatedClock:
     peek = advance
 
 
-class _CountedHeartbeat:
+class CountedHeartbeat:
     """The master's heartbeat of a lockstep run, due every ``period`` s of simulated time."""
 
     def __init__(self, sync: LockstepSync, msg: can.Message, period: float):

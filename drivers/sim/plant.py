@@ -270,9 +270,10 @@ class Plant:
         try:  # one forward kinematics: the pose and the dynamics of the same state
             robot = self.robot
             if isinstance(robot, DescribedRobot):
-                M, c, self.X = robot.plant_dynamics(self.Theta, self.Thetad, self.params, self.X, data=self._data)
+                state = robot.plant_dynamics(self.Theta, self.Thetad, self.params, self.X, data=self._data)
             else:
-                M, c, self.X = robot.plant_dynamics(self.Theta, self.Thetad, self.params, self.X)
+                state = robot.plant_dynamics(self.Theta, self.Thetad, self.params, self.X)
+            M, c, self.X = state.M, state.bias, state.pose
         except KinematicsError as exc:
             message = f"the simulated robot jammed at Theta = {np.round(self.Theta, 5).tolist()}: {exc}"
             self.Theta, self.X = self._last_valid

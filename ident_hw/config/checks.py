@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import difflib
 import fnmatch
-from typing import Callable
 
 import drivers.errors
 from drivers.units import PRISMATIC, REVOLUTE
@@ -26,7 +25,7 @@ from .robot import RobotConfig
 from .robot_delta import DeltaParametersConfig
 from .robots import COMMON_TRAJECTORY_KINDS, RobotKind, check_parameter_set, kind_of, model_of
 from .scales import check_scales, drive_term, parameter_kind
-from .schema import FieldError, ordered_pair
+from .schema import Check, FieldError, ordered_pair
 from .sim import TRUTH_KEYS
 from .to_drivers import bus_settings, timing_settings, watchdogs
 from .to_identification import filter_settings
@@ -168,6 +167,7 @@ def check_config(config: Config, written: frozenset = frozenset()) -> None:
     _check_filter(config)
     _check_trajectory_kinds(config, kind)
     _check_compare_models(config.identification, model)
+    _check_described_only(config.identification, model, config.robot.kind)
     for i, t in enumerate(config.trajectories):
         if t.payload is not None and (config.sim is None or not config.sim.in_process):
             raise FieldError(f"trajectories[{i}].payload", "a payload is put on by the in-process simulated "
@@ -271,6 +271,26 @@ def _check_compare_models(ident: IdentificationConfig | None, model: RobotModel)
         raise FieldError("identification.compare_models", why)
 
 
+def _check_described_only(ident: IdentificationConfig | None, model: RobotModel, kind: str) -> None:
+    """A ``gains`` step fits the payload's columns of the regressor
+    (:meth:`~ident_hw.model.described.DescribedRobot.payload_indices`) and ``compare_with`` predicts
+    with its set's own friction model
+    (:meth:`~ident_hw.model.described.DescribedRobot.with_friction`): a described robot's model
+    has both, the 3PRRR's and the Delta's own neither."""
+    if ident is None:
+        return
+    keys = [f"identification.steps[{i}].method" for i, s in enumerate(ident.steps) if s.method == "gains"]
+    if ident.compare_with is not None:
+        keys.append("identification.compare_with")
+    if not keys:
+        return
+    from ident_hw.model.described import DescribedRobot    # pinocchio: described robots only
+    if not isinstance(model, DescribedRobot):
+        what = "a 'gains' step" if keys[0].endswith("method") else "compare_with"
+        raise FieldError(keys[0], f"{what} needs a described robot (robot.kind: described, whose model has the "
+                         f"payload's columns and takes any friction model); robot.kind is {kind!r}")
+
+
 def _check_sim(config: Config, model: RobotModel, kind: RobotKind) -> None:
     """The sim section's truth is the robot kind's (``sim.<truth key>``), and its parameters the model's."""
     sim = config.sim
@@ -284,6 +304,9 @@ def _check_sim(config: Config, model: RobotModel, kind: RobotKind) -> None:
             raise FieldError(f"sim.{other}", f"belongs to another robot than robot.kind {config.robot.kind!r} "
                              f"(its true parameters are sim.{key})")
     if sim.parameters is not None:
+        from ident_hw.model.described import DescribedRobot    # pinocchio: described robots only
+        if not isinstance(model, DescribedRobot):   # sim.parameters is only the described kind's truth key (above)
+            raise FieldError("sim.parameters", f"belongs to a described robot, not robot.kind {config.robot.kind!r}")
         try:
             check_parameter_set(sim.parameters, model)
         except FieldError as exc:
@@ -302,27 +325,29 @@ def _check_trajectory_names(config: Config) -> dict[str, int]:
     if ident is None:
         return names
     for s, step in enumerate(ident.steps):
-        for j, t in enumerate(step.trajectories):
-            if t not in names:
+        for j, name in enumerate(step.trajectories):
+            if name not in names:
                 raise FieldError(f"identification.steps[{s}].trajectories[{j}]",
-                                 f"no trajectory named {t!r}; defined: {list(names)}")
-    for j, t in enumerate(ident.validation):
-        if t not in names:
-            raise FieldError(f"identification.validation[{j}]", f"no trajectory named {t!r}; defined: {list(names)}")
+                                 f"no trajectory named {name!r}; defined: {list(names)}")
+    for j, name in enumerate(ident.validation):
+        if name not in names:
+            raise FieldError(f"identification.validation[{j}]",
+                             f"no trajectory named {name!r}; defined: {list(names)}")
     return names
 
 
 def _check_fault(config: Config, names: dict[str, int]) -> None:
     """An injected fault names a trajectory and an actuator of this config, on the in-process rig."""
-    fault = config.sim.fault if config.sim is not None else None
-    if fault is None:
+    sim = config.sim
+    fault = sim.fault if sim is not None else None
+    if sim is None or fault is None:
         return
     if fault.trajectory not in names:
         raise FieldError("sim.fault.trajectory", f"no trajectory named {fault.trajectory!r}; "
                          f"defined: {list(names)}")
     if fault.node_id not in [a.node_id for a in config.robot.actuators]:
         raise FieldError("sim.fault.node_id", f"no actuator with node id {fault.node_id}")
-    if not config.sim.in_process:
+    if not sim.in_process:
         raise FieldError("sim.fault", "fault injection needs the in-process rig (sim.in_process: true)")
 
 
@@ -353,7 +378,7 @@ def _check_parameter_names(ident: IdentificationConfig | None, known: tuple[str,
     for name in ident.bounds:
         if name not in known:
             raise FieldError(f"identification.bounds.{name}", f"unknown parameter; expected one of {list(known)}")
-    kinds = set(known) | {parameter_kind(n) for n in known} | {drive_term(n) for n in known} - {None}
+    kinds = set(known) | {parameter_kind(n) for n in known} | {t for n in known if (t := drive_term(n)) is not None}
     for section in ("online", "physical"):
         for name in getattr(ident, section).scales:
             if name not in kinds:
@@ -362,7 +387,7 @@ def _check_parameter_names(ident: IdentificationConfig | None, known: tuple[str,
 
 
 #: every section's cross-field check, by section class
-CHECKS: dict[type, Callable[[object, frozenset], None]] = {
+CHECKS: dict[type, Check] = {
     DeltaParametersConfig: check_delta_parameters,
     ActuatorConfig: check_actuator,
     RobotConfig: check_robot,

@@ -11,6 +11,7 @@ import numpy as np
 
 import drivers.axis
 import drivers.bus
+import drivers.errors
 import drivers.supervision
 import drivers.timing
 from drivers.units import AxesScaling, AxisScaling
@@ -37,13 +38,23 @@ def axis_config(actuator: ActuatorConfig, base_dir: Path | None = None,
                 current: str = drivers.axis.INSTANTANEOUS) -> drivers.axis.AxisConfig:
     """The drive driver's axis settings (SI) of an actuator; ``base_dir``: the folder its
     ``object_dictionary`` is relative to (the config file's, ``Config.base_dir``; None: the working directory); ``current``: the motor
-    current it streams (``bus.current``)."""
+    current it streams (``bus.current``).
+
+    Raises:
+        drivers.errors.ConfigError: the actuator has no ``node_id`` or no ``profile`` (a config
+            that only identifies recordings made elsewhere may leave them out; a drive needs both).
+    """
+    node_id, profile = actuator.node_id, actuator.profile
+    if node_id is None or profile is None:
+        missing = "node_id" if node_id is None else "profile"
+        raise drivers.errors.ConfigError(f"actuator {actuator.name!r}: no {missing}: a drive on the bus needs its "
+                                         f"node-ID and profile (robot.actuators[].{missing})")
     od_file = actuator.object_dictionary
     if od_file is not None and base_dir is not None:
         od_file = str(Path(base_dir) / od_file)
     limits = actuator.limits
     return drivers.axis.AxisConfig(
-        name=actuator.name, node_id=actuator.node_id, profile=actuator.profile, scaling=axis_scaling(actuator),
+        name=actuator.name, node_id=node_id, profile=profile, scaling=axis_scaling(actuator),
         position_min=limits.position[0], position_max=limits.position[1], max_velocity=limits.velocity,
         max_current=limits.current, following_error_window=limits.following_error,
         product_code=actuator.product_code, homing=actuator.homing, object_dictionary=od_file, current=current)

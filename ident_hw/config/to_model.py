@@ -27,10 +27,11 @@ DEFAULT_PRESLIDING = 5e-4
 DEFAULT_STRIBECK = 0.2
 
 
-def friction_model(robot, presliding: float | None = None, stribeck: float | None = None) -> FrictionModel:
+def friction_model(robot, presliding: float | tuple[float, ...] | None = None,
+                   stribeck: float | tuple[float, ...] | None = None) -> FrictionModel:
     """The friction model of a ``robot`` section (``robot.friction``, smoothing
     ``robot.coulomb_width``); ``presliding``, ``stribeck``: the Dahl distance and the Stribeck
-    velocity to use where the config says ``auto`` (default :data:`DEFAULT_PRESLIDING`,
+    velocity (one, or one per actuator) to use where the config says ``auto`` (default :data:`DEFAULT_PRESLIDING`,
     :data:`DEFAULT_STRIBECK`)."""
     f = robot.friction
     chosen = f.presliding if f.presliding != "auto" else (DEFAULT_PRESLIDING if presliding is None else presliding)

@@ -83,6 +83,9 @@ def compared_model(robot_config: RobotConfig, spec: CompareWithConfig, robot: Ro
                           rest_speed=robot_config.friction.rest_speed, offset="f0" in order,
                           stribeck_velocity=None)
     base = described_model(robot_config) if robot is None else robot
+    from ident_hw.model.described import DescribedRobot      # pinocchio: described robots only
+    if not isinstance(base, DescribedRobot):    # the config's check refuses compare_with for another robot
+        raise ValueError(f"compare_with: needs a described robot's model, not the {robot_config.kind}'s")
     return base.with_friction(model)
 
 

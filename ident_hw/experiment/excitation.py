@@ -35,6 +35,8 @@ def optimised_sines(config: Config, name: str, max_iter: int = 30, samples: int 
     tcfg = next((t for t in config.trajectories if t.name == name), None)
     if tcfg is None or tcfg.kind != "joint_excitation" or tcfg.kind not in kind_of(config.robot).trajectory_kinds:
         raise ValueError(f"{config.source}: trajectories: no joint_excitation named {name!r} of a described robot")
+    if tcfg.duration is None:
+        raise ValueError(f"{config.source}: trajectories: {name!r}: a joint_excitation needs its duration")
     robot = model_of(config.robot)
     return optimise_joint_excitation(robot, actuator_limits(config.robot), tcfg.duration,
                                      excitation_bandwidth(tcfg, config.identification.filter.bandwidth
@@ -55,8 +57,9 @@ def main(argv: list[str] | None = None) -> int:
     sines = optimised_sines(load_config(args.config), args.trajectory, max_iter=args.iterations)
     out = args.out
     sines.save(out)
+    iterations = (sines.optimised_for or {}).get("iterations")    # set by the optimiser, None in no file it writes
     print(f"{out}: scaled condition of the base regressor {sines.cond_initial:.4g} drawn, "
-          f"{sines.cond_final:.4g} optimised ({sines.optimised_for['iterations']} iterations)")
+          f"{sines.cond_final:.4g} optimised ({iterations} iterations)")
     return 0
 
 

@@ -65,6 +65,9 @@ def friction_robot(robot_config: RobotConfig, base: RobotModel, recordings: Mapp
     friction = robot_config.friction
     if friction.default:
         return FrictionRobot(base, None)
+    from ident_hw.model.described import DescribedRobot      # pinocchio: described robots only
+    if not isinstance(base, DescribedRobot):    # the config's check: other friction models are a described robot's
+        raise ValueError(f"robot.friction: a {friction.model} friction model needs a described robot's model")
     free = {"presliding": PRESLIDING_GRID if friction.model == "dahl" and friction.presliding == "auto" else None,
             "stribeck": STRIBECK_GRID if friction.stribeck == "auto" else None}
     chosen: dict[str, tuple[float, ...] | None] = {"presliding": None, "stribeck": None}

@@ -12,6 +12,7 @@ import canopen
 from canopen.nmt import NMT_STATES
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
+from drivers.bus import notifier_of
 from drivers.cia import state_of
 from drivers.epos import DriveGroup
 from drivers.errors import NodeError
@@ -89,10 +90,16 @@ def read_node(network: canopen.Network, node_id: int, heard: int | None = None,
     """Identity, device name, firmware, NMT state (:func:`nmt_state`; ``heard`` = the state byte
     of a heartbeat or boot-up seen from it) and CiA 402 state of a node. A maxon drive's firmware
     is the high word of its revision number ``0x1018:03`` (``0x2126`` in ``0x21260000``; neither
-    EPOS has ``0x100A``), another node's the software version ``0x100A``."""
-    node = network.nodes.get(node_id)
-    if node is None:
-        node = canopen.RemoteNode(node_id, canopen.ObjectDictionary())
+    EPOS has ``0x100A``), another node's the software version ``0x100A``.
+
+    Raises:
+        NodeError: ``node_id`` is a local node of ``network`` (served by this process, not read).
+    """
+    known = network.nodes.get(node_id)
+    if isinstance(known, canopen.LocalNode):
+        raise NodeError(f"node {node_id}", "a local node of this network (served by this process), not a node to read")
+    node = known if known is not None else canopen.RemoteNode(node_id, canopen.ObjectDictionary())
+    if known is None:
         network.add_node(node)
     node.sdo.RESPONSE_TIMEOUT = sdo_timeout
     name = _upload(node, 0x1008)
@@ -100,6 +107,7 @@ def read_node(network: canopen.Network, node_id: int, heard: int | None = None,
     heartbeat = _upload(node, 0x1017)
     answers = name is not None or heartbeat is not None or identity[0] is not None
     status = _upload(node, 0x6041)
+    firmware: str | None
     if identity[0] == VENDOR_ID_MAXON and identity[2] is not None:
         firmware = f"0x{identity[2] >> 16:04X}"
     else:
@@ -114,13 +122,14 @@ def scan(network: canopen.Network, wait: float = 1.0) -> dict[int, int | None]:
     """Nodes on the bus: those that answer an SDO request (canopen's scanner over 1..127) or send
     a heartbeat within ``wait`` s, each with the state byte of its last heartbeat (None: none)."""
     listener = NmtListener()
-    network.notifier.add_listener(listener)
+    notifier = notifier_of(network)
+    notifier.add_listener(listener)
     try:
         network.scanner.reset()
         network.scanner.search()
         time.sleep(wait)
     finally:
-        network.notifier.remove_listener(listener)
+        notifier.remove_listener(listener)
     found = set(network.scanner.nodes) | set(listener.states)
     return {i: listener.states.get(i) for i in sorted(found)}
 
@@ -129,6 +138,9 @@ def compare(config: Config, found: dict[int, NodeInfo]) -> list[str]:
     """Differences between the config's actuators and the nodes found; empty when they match."""
     problems = []
     for act in config.robot.actuators:
+        if act.node_id is None or act.profile is None:
+            problems.append(f"{act.name}: no node_id and profile in the config, no drive to look for")
+            continue
         info = found.get(act.node_id)
         where = f"{act.name} (node {act.node_id})"
         if info is None:
@@ -153,7 +165,7 @@ def snapshot(group: DriveGroup) -> list[dict]:
     for drive in group.drives:
         s, p = drive.axis.scaling, drive.profile
         nmt = drive.node.nmt
-        row = {"drive": drive.label}
+        row: dict[str, str | float] = {"drive": drive.label}
         try:
             row["state"] = drive.state
             row["position"] = drive.position()

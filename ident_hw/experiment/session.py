@@ -195,10 +195,9 @@ def watchdog_lines(bus: BusConfig, sync_mode: str) -> list[str]:
     ``bus.watchdogs``; ``sync_mode``: its SYNC producer, :attr:`ident_hw.config.file.Config.sync_mode`):
     the value, and what it does on this bus."""
     w = watchdogs(bus)
-    lockstep = sync_mode == "lockstep"
-    timing = timing_of(bus, sync_mode)
+    timing = timing_of(bus, sync_mode)          # None: lockstep
     settings = bus_settings(bus)
-    if lockstep:
+    if timing is None:
         where = ("lockstep: the master sends SYNC k+1 once the simulated rig answered SYNC k; the heartbeats go "
                  "out and are watched by SYNC count, in simulated time, both ways")
         unit = " of simulated time"
@@ -216,11 +215,11 @@ def watchdog_lines(bus: BusConfig, sync_mode: str) -> list[str]:
     periods = w.heartbeat_period
     lines = [f"timing: {where}",
              "watchdogs (bus.watchdogs):",
-             f"  drive_heartbeat {w.drive_heartbeat:g} s{unit}: the master stops the run when a drive's heartbeat "
-             f"(every {periods:g} s) is this late ({w.drive_heartbeat / periods:g} periods)",
-             f"  master_heartbeat {w.master_heartbeat:g} s{unit}: every drive faults (EMCY 0x8130) when the "
+             f"  drive_heartbeat {w.drive_timeout:g} s{unit}: the master stops the run when a drive's heartbeat "
+             f"(every {periods:g} s) is this late ({w.drive_timeout / periods:g} periods)",
+             f"  master_heartbeat {w.master_timeout:g} s{unit}: every drive faults (EMCY 0x8130) when the "
              f"master's heartbeat is this late (0x1016:01)"]
-    if lockstep:
+    if timing is None:
         lines.append(f"  sync_progress: not used in lockstep (a cycle the rig does not answer is a fault after "
                      f"bus.lockstep_timeout, {bus.lockstep_timeout:g} s)")
         lines.append("  master_progress: not used in lockstep (without SYNC nothing moves)")
@@ -230,7 +229,7 @@ def watchdog_lines(bus: BusConfig, sync_mode: str) -> list[str]:
     if timing.uses_process(settings):
         lines.append(f"  master_progress {w.master_progress:g} s: the timing process stops the SYNC, the set-points "
                      f"and the heartbeat when the master's loop made no progress for this long: a hung master's "
-                     f"drives fault within {w.master_progress + w.master_heartbeat:g} s, a shorter hold-up is survived")
+                     f"drives fault within {w.master_progress + w.master_timeout:g} s, a shorter hold-up is survived")
     elif has_own_timer(bus.interface):
         lines.append("  master_progress: not watched: the kernel sends the SYNC and the heartbeat on while the "
                      "master's process hangs (the drives hold their last set-point, then get those it owes in a "

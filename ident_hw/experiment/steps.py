@@ -258,6 +258,9 @@ def fit_gains_step(step: StepConfig, robot: RobotModel, prepared: Mapping[str, P
     started from (and reported beside) the config's force per ampere ``configured`` (a,). The
     estimates of the other steps are not changed: a gain the user trusts goes into the config."""
     per_amp = np.asarray(configured, dtype=float)
+    from ident_hw.model.described import DescribedRobot      # pinocchio: described robots only
+    if not isinstance(robot, DescribedRobot):    # the config's check refuses a gains step of another robot
+        raise ValueError(f"step {step.name}: a gains step needs a described robot's model (its payload's columns)")
     payload = list(robot.payload_indices())
     if step.payload is None:
         raise ValueError(f"step {step.name}: a gains step needs its payload runs")

@@ -56,8 +56,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, lapack, solve
 
-class _RecursiveEstimator:
-    """Shared bookkeeping: shapes, scaling, block handling, prediction, warm start.
+class RecursiveEstimator:
+    """The recursive estimators' common part (:class:`RLS`, :class:`DampedRLS`, :class:`SVDDLS`):
+    shapes, scaling, block handling, prediction, warm start.
 
     Args:
         n_params: n. forgetting: lambda in (0, 1].
@@ -91,7 +92,7 @@ class _RecursiveEstimator:
         """Current estimate (n,), physical units."""
         return self._theta * self.scale
 
-    def partial_fit(self, Y: np.ndarray, tau: np.ndarray) -> "_RecursiveEstimator":
+    def partial_fit(self, Y: np.ndarray, tau: np.ndarray) -> "RecursiveEstimator":
         """Update with one sample (``Y`` (k, n), ``tau`` (k,)) or a block (N, k, n), (N, k)."""
         Y = np.asarray(Y, dtype=float)
         tau = np.asarray(tau, dtype=float)
@@ -117,7 +118,7 @@ class _RecursiveEstimator:
         """Predicted outputs ``Y @ coef_``: (k,) for one sample, (N, k) for a block."""
         return np.asarray(Y, dtype=float) @ self.coef_
 
-    def warm_start(self, coef: np.ndarray, information: np.ndarray) -> "_RecursiveEstimator":
+    def warm_start(self, coef: np.ndarray, information: np.ndarray) -> "RecursiveEstimator":
         """Start from an offline estimate ``coef`` (n,) and its information matrix (n, n).
 
         ``information`` is the ``R`` the stream would have built, in physical units (with the
@@ -155,7 +156,7 @@ def offline_information(Y: np.ndarray, forgetting: float, output_std=None) -> np
     return (W.T @ W) / (len(Y) * (1.0 - forgetting))
 
 
-class RLS(_RecursiveEstimator):
+class RLS(RecursiveEstimator):
     """Recursive least squares with exponential forgetting (covariance form).
 
     Args:
@@ -186,7 +187,7 @@ class RLS(_RecursiveEstimator):
         self._P = 0.5 * (P + P.T)
 
 
-class DampedRLS(_RecursiveEstimator):
+class DampedRLS(RecursiveEstimator):
     """Regularised (damped) RLS: bounded covariance ``<= 1/delta``, biased towards a prior.
 
     Args:
@@ -230,7 +231,7 @@ class DampedRLS(_RecursiveEstimator):
         self._theta = self._theta + lapack.dpotrs(c, rhs, lower=1)[0]
 
 
-class SVDDLS(_RecursiveEstimator):
+class SVDDLS(RecursiveEstimator):
     """SVD-based damped recursive least squares (the SVD-DLS paper, eqs. 65–83).
 
     Args:
@@ -334,7 +335,7 @@ class StreamTrace:
     seconds_per_sample: float
 
 
-def run_stream(estimator: _RecursiveEstimator, Y: np.ndarray, tau: np.ndarray) -> StreamTrace:
+def run_stream(estimator: RecursiveEstimator, Y: np.ndarray, tau: np.ndarray) -> StreamTrace:
     """Feed ``Y`` (N, k, n), ``tau`` (N, k) to ``estimator`` one sample at a time, recording
     the a-priori prediction, the estimate and the covariance after each sample."""
     Y = np.asarray(Y, dtype=float)

@@ -15,14 +15,16 @@ inertia about the body frame's origin, in body axes), then the drive terms
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 
 from .base_basis import BaseBasis
 from .dynamics import smooth_sign
-from .interface import REVOLUTE
+from .interface import REVOLUTE, PlantState
 from .pseudo_inertia import SPATIAL, PhysicalBody
 from .errors import KinematicsError, SingularityError
 
@@ -354,9 +356,8 @@ class Delta:
         q, qd, qdd = (c(np.atleast_2d(np.asarray(x, float))) for x in (q, qd, qdd))
         if not q.shape == qd.shape == qdd.shape or q.shape[1] != 3:
             raise ValueError(f"q, qd, qdd must each be (N, 3), got {q.shape}, {qd.shape}, {qdd.shape}")
-        from . import delta_single  # compiled code
         Y = np.zeros((len(q), 3, N_PARAMS))
-        if delta_single.body_regressor(q, qd, qdd, self._single_geo, self._e, self._y, self.g, Y) >= 0:
+        if _compiled().body_regressor(q, qd, qdd, self._single_geo, self._e, self._y, self.g, Y) >= 0:
             Y = self.vectorised_regressor(q, qd, qdd)
         else:
             self._drive_columns(Y, qd, qdd)
@@ -452,21 +453,22 @@ class Delta:
         """Platform position (3,) m: the closed-form forward kinematics needs no guess."""
         return self.fk(np.asarray(Theta, float))
 
-    def plant_dynamics(self, Theta, Thetad, params, guess=None):
+    def plant_dynamics(self, Theta, Thetad, params, guess=None) -> PlantState:
         """``M`` (3, 3) kg·m², bias torques (3,) N·m (gravity and velocity terms, no friction) and
-        the platform position (3,) m, by the compiled one-state path (:mod:`.delta_single`).
+        the platform position (3,) m (a :class:`~ident_hw.model.interface.PlantState`), by the
+        compiled one-state path (:mod:`.delta_single`).
         Where that path fails (no assembly, a singularity) the regressor path raises the error."""
         c = np.ascontiguousarray
         pi = c(params, dtype=float)
         M, bias, p = np.empty((3, 3)), np.empty(3), np.empty(3)
-        from . import delta_single  # compiled code
-        outcome = delta_single.one_state(c(Theta, dtype=float), c(Thetad, dtype=float), pi, pi[N_BODY_PARAMS + 6:],
-                                         self._single_geo, self._e, self._y, self.g, M, bias, p)
-        if outcome != delta_single.OK:
+        compiled = _compiled()
+        outcome = compiled.one_state(c(Theta, dtype=float), c(Thetad, dtype=float), pi, pi[N_BODY_PARAMS + 6:],
+                                     self._single_geo, self._e, self._y, self.g, M, bias, p)
+        if outcome != compiled.OK:
             return self._plant_dynamics_regressor(Theta, Thetad, params)
-        return M, bias, p
+        return PlantState(M, bias, p)
 
-    def _plant_dynamics_regressor(self, Theta, Thetad, params):
+    def _plant_dynamics_regressor(self, Theta, Thetad, params) -> PlantState:
         """:meth:`plant_dynamics` from one regressor evaluation of five stacked samples."""
         q, qd = np.asarray(Theta, float), np.asarray(Thetad, float)
         pi = np.array(params, float)
@@ -475,7 +477,7 @@ class Delta:
         qdd = np.vstack([zero, np.eye(3), zero])
         tau = self.regressor(np.tile(q, (5, 1)), np.vstack([np.zeros((4, 3)), qd]), qdd) @ pi
         M = (tau[1:4] - tau[0]).T
-        return M, tau[4], self.pose(q)
+        return PlantState(M, tau[4], self.pose(q))
 
     def friction_coefficients(self, params):
         """``fv_1..3`` (N·m·s/rad) and ``fc_1..3`` (N·m) from the parameter vector."""
@@ -492,6 +494,16 @@ class Delta:
         return pi
 
 # ---------------------------------------------------------------------- helpers
+@functools.cache
+def _compiled() -> ModuleType:
+    """The compiled code of one state and of a sample loop (:mod:`.delta_single`, numba: compiled
+    or read from its cache when first imported), imported on first use and kept: an import
+    statement in :meth:`Delta.plant_dynamics`, called every SYNC period, costs more than the
+    record it returns."""
+    from . import delta_single
+    return delta_single
+
+
 def _batch(x) -> tuple[np.ndarray, bool]:
     x = np.asarray(x, float)
     return np.atleast_2d(x), x.ndim == 1

@@ -56,7 +56,8 @@ import pinocchio as pin
 from .base_basis import BaseBasis
 from .errors import KinematicsError, SingularityError
 from .friction import FrictionModel
-from .interface import PRISMATIC, REVOLUTE
+from .interface import PRISMATIC, REVOLUTE, PlantState
+from .motion import TreeMotion
 from .pseudo_inertia import SPATIAL, PhysicalBody
 from .tree_kernels import (OK, PRISMATIC_JOINT, REVOLUTE_JOINT, SINGULAR, Workspace, closure_at, motion_batch,
                            tree_arrays, workspace)
@@ -227,6 +228,14 @@ class DescribedRobot:
     Raises:
         DescriptionError: a joint that is not hinge or slide, an unknown actuated joint or body,
             a closure between unknown bodies, or a mobility other than ``n``.
+
+    Attributes:
+        model: the description's kinematic tree as pinocchio reads it (each loop cut at its
+            closure), with two frames added per closure (:class:`Closure`'s frame ids).
+        body_names: the body moved by each tree joint, in the tree's joint order.
+        parameter_names: ten inertial values per body of :attr:`body_names`
+            (``<body>.<value>``), then each drive term for every actuator (``fv_<actuator>``, ...): the
+            regressor's columns.
     """
 
     def __init__(self, path: str | Path, actuated: Sequence[str], *, actuator_names: Sequence[str] | None = None,
@@ -509,15 +518,16 @@ class DescribedRobot:
         s = np.linalg.svd(J[:, self._pas_v], compute_uv=False)
         return float(s[0] / s[-1]) if s[-1] * SINGULAR_CONDITION > s[0] else np.inf
 
-    def tree_motion(self, Theta, Thetad, Thetadd, guess=None, *, data: DescribedData | None = None):
-        """``(q, v, a, W)`` of one sample: the tree's configuration (nq,), rates (nv,) and
-        accelerations (nv,) of an actuated motion (each (n,)), and ``W`` (nv, n). Newton starts
+    def tree_motion(self, Theta, Thetad, Thetadd, guess=None, *, data: DescribedData | None = None) -> TreeMotion:
+        """The :class:`~ident_hw.model.motion.TreeMotion` ``(q, v, a, W)`` of one sample: the
+        tree's configuration (nq,), rates (nv,) and accelerations (nv,) of an actuated motion
+        (each (n,)), and ``W`` (nv, n). Newton starts
         from ``guess`` carried to ``Theta`` by the last sample's velocity map where it is near
         (``data``'s: the caller's, None: the robot's own)."""
         Theta, Thetad, Thetadd = (np.asarray(x, dtype=float).reshape(1, -1) for x in (Theta, Thetad, Thetadd))
         G, has = self._guesses(1, None if guess is None else np.asarray(guess, dtype=float)[None])
         Q, V, A, Ws, _ = self._batch(Theta, Thetad, Thetadd, G, has, False, data)
-        return Q[0], V[0], A[0], Ws[0]
+        return TreeMotion(Q[0], V[0], A[0], Ws[0])
 
     def condition(self, Theta, guess=None, *, data: DescribedData | None = None) -> float:
         """``cond(J_p)`` of the passive joints' closure Jacobian at ``Theta`` (1 for a serial
@@ -649,9 +659,10 @@ class DescribedRobot:
         H[:, self._n_body + 2 * n:self._n_body + 3 * n] = 0.5 * Thetad**2
         return H
 
-    def plant_dynamics(self, Theta, Thetad, params, guess, *, data: DescribedData | None = None):
+    def plant_dynamics(self, Theta, Thetad, params, guess, *, data: DescribedData | None = None) -> PlantState:
         """``M`` (n, n) (rotor inertias included), the bias forces (n,) (velocity terms and
-        gravity, no friction) and the tree configuration (nq,) of one state, compiled
+        gravity, no friction) and the tree configuration (nq,) of one state (a
+        :class:`~ident_hw.model.interface.PlantState`, its pose the tree configuration), compiled
         (:func:`~ident_hw.model.tree_kernels.plant_dynamics`): Newton starts from ``guess`` (the
         plant's last pose) carried to ``Theta`` by the plant's last velocity map (``data``'s
         ``plant`` workspace: the caller's, None: the robot's own). ``params`` (P,) are read,
@@ -669,7 +680,7 @@ class DescribedRobot:
                             np.ascontiguousarray(Thetad, dtype=float), guess, has, np.ascontiguousarray(pi[:b]),
                             np.ascontiguousarray(pi[b + 2 * n:b + 3 * n]), 50, q, M, bias)
         self._raise_status(ws, Theta, False)
-        return M, bias, q
+        return PlantState(M, bias, q)
 
     def friction_coefficients(self, params):
         """``f_v``, ``f_c`` (n,) each from the parameter vector."""

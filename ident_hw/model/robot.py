@@ -8,8 +8,9 @@ from typing import Any
 import numpy as np
 
 from . import dynamics
-from .interface import PRISMATIC, REVOLUTE
+from .interface import PRISMATIC, REVOLUTE, PlantState
 from .kinematics import Kinematics, Motion, SingularityMargins, batch
+from .motion import SampledMotion
 from .parameters import ACTUATOR_NAMES, Geometry, InertialParams
 from .pseudo_inertia import PhysicalBody
 
@@ -81,15 +82,15 @@ class ThreePRRR:
         """Every coordinate with its rates, from measured actuated motion (each (N, 6))."""
         return self.kinematics.motion_from_actuated(Theta, Thetad, Thetadd, X_guess)
 
-    def actuated_motion(self, X, Xd, Xdd, zeta, zetad, zetadd):
-        """``Theta``, ``Thetad``, ``Thetadd`` (each (N, 6)) of a pose and carriage motion, analytically."""
+    def actuated_motion(self, X, Xd, Xdd, zeta, zetad, zetadd) -> SampledMotion:
+        """``Theta`` and its rates (each (N, 6)) of a pose and carriage motion, analytically."""
         m = self.motion(X, Xd, Xdd, zeta, zetad, zetadd)
-        return m.Theta, m.Thetad, m.Thetadd
+        return SampledMotion(m.Theta, m.Thetad, m.Thetadd)
 
-    def pose_motion(self, Theta, Thetad, Thetadd, X_guess):
-        """``X``, ``Xd``, ``Xdd`` (each (N, 3)) of an actuated motion."""
+    def pose_motion(self, Theta, Thetad, Thetadd, X_guess) -> SampledMotion:
+        """The pose ``X`` and its rates (each (N, 3)) of an actuated motion."""
         m = self.motion_from_actuated(Theta, Thetad, Thetadd, X_guess)
-        return m.X, m.Xd, m.Xdd
+        return SampledMotion(m.X, m.Xd, m.Xdd)
 
     # -- dynamics -------------------------------------------------------------------------------
     def regressor(self, X, Xd, Xdd, zeta, zetad, zetadd) -> np.ndarray:
@@ -196,7 +197,7 @@ class ThreePRRR:
         """The pose ``X`` (3,) of one ``Theta`` (6,), continuing from ``guess`` (3,)."""
         return self.forward_kinematics(np.asarray(Theta, dtype=float)[None], guess)[0]
 
-    def plant_dynamics(self, Theta, Thetad, params: InertialParams, guess):
+    def plant_dynamics(self, Theta, Thetad, params: InertialParams, guess) -> PlantState:
         """``M_r`` (6, 6), velocity terms (6,) without friction and ``X`` (3,) of one state (the
         scalar path of :class:`~ident_hw.model.single.SingleState`: what the plant calls every period)."""
         if not isinstance(params, InertialParams):     # the plant's vector: converted once, not every period

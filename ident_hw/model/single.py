@@ -20,6 +20,7 @@ import numba
 import numpy as np
 
 from .errors import KinematicsError, SingularityError
+from .interface import PlantState
 from .kinematics import PARALLEL_SINGULAR, Kinematics
 from .parameters import InertialParams
 
@@ -250,6 +251,9 @@ class SingleState:
         self._modes = np.array(kinematics.modes, dtype=float)
         self._beta_ref = np.array(kinematics._beta_ref, dtype=float)
         self._assembly_sign = float(kinematics._assembly_sign)
+        # the inertial weights of the parameters last given (the plant gives the same object every
+        # period): built once per parameter set, not every call
+        self._weights: tuple[InertialParams, np.ndarray] | None = None
 
     def _raise(self, outcome: int, chain: int, X) -> None:
         if outcome == _NO_CONVERGENCE:
@@ -284,14 +288,17 @@ class SingleState:
             self._raise(outcome, chain, X)
         return X, beta
 
-    def reduced_dynamics(self, Theta, Thetad, params: InertialParams, X_guess):
-        """``M_r`` (6, 6), velocity terms ``c`` (6,) without friction, and the pose ``X`` (3,).
+    def reduced_dynamics(self, Theta, Thetad, params: InertialParams, X_guess) -> PlantState:
+        """``M_r`` (6, 6), velocity terms ``c`` (6,) without friction, and the pose ``X`` (3,): a
+        :class:`~ident_hw.model.interface.PlantState`.
 
         The same as :meth:`ident_hw.model.robot.ThreePRRR.reduced_dynamics_of` of a motion with zero actuated
         acceleration, less the friction.
         """
-        p = params
-        weights = np.array([p.m_c, p.m_l1, p.I_l1, p.m_l2, p.I_l2, p.m_ee, p.I_ee], dtype=float)
+        if self._weights is None or self._weights[0] is not params:
+            p = params
+            self._weights = (p, np.array([p.m_c, p.m_l1, p.I_l1, p.m_l2, p.I_l2, p.m_ee, p.I_ee], dtype=float))
+        weights = self._weights[1]
         M, c, X = np.empty((6, 6)), np.empty(6), np.empty(3)
         contiguous = np.ascontiguousarray
         outcome, chain = _reduced_dynamics(contiguous(Theta, dtype=float), contiguous(Thetad, dtype=float),
@@ -299,4 +306,4 @@ class SingleState:
                                            self._beta_ref, self._assembly_sign, weights, M, c, X)
         if outcome != _OK:
             self._raise(outcome, chain, X)
-        return M, c, X
+        return PlantState(M, c, X)
