@@ -9,9 +9,14 @@ command): each worker is pinned to a CPU of its own (:func:`cpus.pin_worker`); t
 with a module-scoped fixture form one group that runs on one worker (the fixture is built once);
 the ``slow`` tests and groups are handed out first, so that the longest do not start last and
 leave one worker idle at the end.
+
+``--cpu-durations=N`` lists the N tests that took the most CPU time (user + system seconds of the
+test's process and of the processes it started and waited for; setup, call and teardown), and the
+suite's total: on a shared machine, where wall times say mostly how busy the others were.
 """
 
 import os
+import resource
 import subprocess
 from pathlib import Path
 
@@ -26,6 +31,54 @@ from cpus import pin_worker
 from processes import START_TIMEOUT, stop_process, wait_for_line
 
 VCAN_CHANNEL = "vcan0"
+
+
+def pytest_addoption(parser):
+    parser.addoption("--cpu-durations", type=int, default=None, metavar="N",
+                     help="list the N tests that took the most CPU time (user + system, their child processes "
+                          "included) and the suite's total")
+
+
+def _cpu_seconds() -> float:
+    """User + system CPU seconds of this process and of its children waited for, so far."""
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """Each phase's report carries its CPU seconds (``user_properties``: pytest-xdist sends them to
+    the controller, which adds them up for ``--cpu-durations``)."""
+    report = (yield).get_result()
+    if item.config.getoption("cpu_durations") is not None:
+        now = _cpu_seconds()
+        report.user_properties.append(("cpu_seconds", now - getattr(item, "_cpu_mark", now)))
+        item._cpu_mark = now
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    if item.config.getoption("cpu_durations") is not None:
+        item._cpu_mark = _cpu_seconds()
+
+
+def pytest_runtest_logreport(report):
+    seconds = dict(report.user_properties).get("cpu_seconds")
+    if seconds is not None:
+        _CPU_BY_TEST[report.nodeid] = _CPU_BY_TEST.get(report.nodeid, 0.0) + seconds
+
+
+_CPU_BY_TEST: dict[str, float] = {}
+
+
+def pytest_terminal_summary(terminalreporter, config):
+    n = config.getoption("cpu_durations")
+    if n is None or not _CPU_BY_TEST:
+        return
+    terminalreporter.write_sep("=", f"most CPU time: {min(n, len(_CPU_BY_TEST))} of {len(_CPU_BY_TEST)} tests")
+    for nodeid, seconds in sorted(_CPU_BY_TEST.items(), key=lambda kv: -kv[1])[:n]:
+        terminalreporter.write_line(f"{seconds:8.2f}s  {nodeid}")
+    terminalreporter.write_line(f"{sum(_CPU_BY_TEST.values()):8.2f}s  in all (user + system, child processes included)")
 
 
 def pytest_configure(config):

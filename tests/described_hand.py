@@ -219,10 +219,10 @@ def export_for_mujoco(results: Path, exported: Path) -> dict[str, float]:
     """``ident-hw export RESULTS --to EXPORTED --for-mujoco`` (which must succeed); the
     consistent values of the results folder's ``parameters.json`` by name."""
     import json
-    import subprocess
 
-    done = subprocess.run(["ident-hw", "export", str(results), "--to", str(exported), "--for-mujoco"],
-                          capture_output=True, text=True, timeout=300)
+    from cli_runs import ident_hw      # in this process: the export's imports are the test's already
+
+    done = ident_hw("export", results, "--to", exported, "--for-mujoco")
     assert done.returncode == 0, done.stderr
     consistent = json.loads((results / "parameters.json").read_text())["consistent"]
     return {p["name"]: p["value"] for p in consistent["parameters"]}

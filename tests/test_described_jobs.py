@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from cli_runs import CliRun, ident_hw
 from drivers.recording import Recording
 from ident_hw.config import load_config
 from ident_hw.experiment.inputs import identification_plan
@@ -27,9 +27,10 @@ from ident_hw.config.robots import initial_parameters, model_of, true_parameters
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
 
-def run(config: Path, out: Path, *extra: str) -> subprocess.CompletedProcess:
-    done = subprocess.run(["ident-hw", "run", str(config), "--quiet", "--out", str(out), *extra],
-                          capture_output=True, text=True, timeout=900)
+def run(config: Path, out: Path, *extra: str) -> CliRun:
+    """``ident-hw run CONFIG --quiet --out OUT EXTRA...``, in this process (``tests/cli_runs.py``: the
+    pipeline's imports are paid once per test process, not once per run)."""
+    done = ident_hw("run", config, "--quiet", "--out", out, *extra)
     print(done.stdout[-3000:])
     return done
 
@@ -132,8 +133,7 @@ def exported_forces_match_the_base_fit(results: Path, exported: Path, mujoco_loa
     the base fit within 0.5 % d_tau, through the same filters on the same recording. A URDF
     has no rotor inertia: the exported robot takes ``Jm`` from ``parameters.json``.
     ``mujoco_loads`` False: a robot whose file MuJoCo refuses as shipped (point masses)."""
-    done = subprocess.run(["ident-hw", "export", str(results), "--to", str(exported)], capture_output=True, text=True,
-                          timeout=300)
+    done = ident_hw("export", results, "--to", exported)
     assert done.returncode == 0, done.stderr
     config = exported.with_suffix(".yaml")
     config.write_text(f"extends: {results / 'config.yaml'}\nrobot:\n  description: {exported}\n")

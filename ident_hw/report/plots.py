@@ -202,9 +202,12 @@ def plot_online(online: OnlineTrace, params: ParameterTable, plots: Path) -> Pat
 
 
 def render(jobs: list[tuple]) -> list[Path]:
-    """Run the plot functions ``[(function, args), ...]``, on every core where the platform forks
-    (drawing the figures is most of a report's time); returns their paths in order."""
-    workers = min(len(jobs), os.cpu_count() or 1)
+    """Run the plot functions ``[(function, args), ...]``, on every CPU this process may run on
+    where the platform forks (drawing the figures is most of a report's time); returns their paths
+    in order. A process pinned to one CPU (``taskset``, a pytest-xdist worker of the suite) draws
+    them itself: forked plotters would share its one CPU and only add the forks' cost."""
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    workers = min(len(jobs), cpus)
     if workers < 2 or "fork" not in multiprocessing.get_all_start_methods():
         return [function(*args) for function, args in jobs]
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
