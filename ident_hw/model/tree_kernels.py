@@ -47,7 +47,7 @@ index ``j - 1`` here. Everything is SI: rad, m, s, kg, N, N·m.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -60,6 +60,14 @@ OK, NO_ASSEMBLY, SINGULAR = 0, 1, 2
 #: how far (rad, m, any coordinate) a guess may be from the last solved configuration for the
 #: last velocity map to predict from it
 PREDICT_RADIUS = 0.05
+
+
+def _jit(nrt: bool = False, nogil: bool = False) -> Any:
+    """numba's decorator as the kernels use it: compiled once and cached on disk; ``nrt`` False
+    (the kernels and their helpers) without numba's reference counts (the module docstring);
+    ``nogil``: releases the GIL (the kernels Python calls beside other threads)."""
+    options: dict[str, Any] = {"_nrt": nrt}        # numba's option, not in its type stubs
+    return numba.njit(cache=True, nogil=nogil, **options)
 
 
 class TreeArrays(NamedTuple):
@@ -243,12 +251,12 @@ def tree_arrays(model, closures, actuated_v, passive_v, home_q, tolerance: float
 
 
 # ---------------------------------------------------------------------------------- views
-@numba.njit(cache=True, _nrt=True)
+@_jit(nrt=True)
 def _take(buf, offset, size):
     return buf[offset:offset + size], offset + size
 
 
-@numba.njit(cache=True, _nrt=True)
+@_jit(nrt=True)
 def _tree(ti, tf):
     """The named arrays of a compiled tree's flat ``ints`` and ``floats`` (:class:`CompiledTree`)."""
     nj, n, p, nc = ti[0], ti[1], ti[2], ti[3]
@@ -275,21 +283,21 @@ def _tree(ti, tf):
                       c_p.reshape((nc, 2, 3)), c_rigid, c_row, gravity, home_q, tf[f], tf[f + 1], plan)
 
 
-@numba.njit(cache=True, _nrt=True)
+@_jit(nrt=True)
 def _workspace_dims(ti):
     """``nj, n, p, m`` of a workspace (``p`` 0 where there is no closure)."""
     nj, n, m = ti[0], ti[1], ti[4]
     return nj, n, (ti[2] if m else 0), m
 
 
-@numba.njit(cache=True, _nrt=True)
+@_jit(nrt=True)
 def _workspace_size(ti):
     nj, n, p, m = _workspace_dims(ti)
     return (nj + nj * n + m * p + p + 1 + 9 * nj + 3 * nj + 3 * nj + m * nj + 2 * m + p + p * p + 27 + 3
             + 12 * nj + 12 * nj * n + nj + nj * n + 2 * nj + 10 * nj * n + 6 * n)
 
 
-@numba.njit(cache=True, _nrt=True)
+@_jit(nrt=True)
 def _workspace(ti, wf, wi):
     """The named arrays of a workspace's flat ``floats`` and ``ints`` (:class:`Workspace`)."""
     nj, n, p, m = _workspace_dims(ti)
@@ -335,12 +343,12 @@ def _workspace(ti, wf, wi):
 # The helpers take plain arrays, never the named tuples: numba passes a named tuple of arrays by
 # value, its every array's reference counted, about 0.4 µs a call. 3-vectors are scalars: no
 # heap array per product in the per-sample loops.
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _cross(ax, ay, az, bx, by, bz):
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _log3(R, out):
     """The rotation vector (3,) of a rotation matrix (pinocchio's ``log3`` away from pi)."""
     c = min(1.0, max(-1.0, 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)))
@@ -351,7 +359,7 @@ def _log3(R, out):
     out[2] = k * (R[1, 0] - R[0, 1])
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _copy(src, dst):
     """``dst[:] = src`` (1-D, same length) as a loop: numba's slice assignment may allocate a
     temporary (it guards against overlap), which a kernel compiled without NRT cannot."""
@@ -359,7 +367,7 @@ def _copy(src, dst):
         dst[i] = src[i]
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _max_abs(x):
     out = 0.0
     for v in x:
@@ -368,7 +376,7 @@ def _max_abs(x):
 
 
 # ---------------------------------------------------------------------------------- kinematics
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _placements(parent, kind, axis, place_R, place_p, q, oR, op, oa):
     """The world rotation ``oR`` (nj, 3, 3), origin ``op`` (nj, 3) and axis ``oa`` (nj, 3) of
     every joint frame at ``q`` (nj,) (pinocchio's ``oMi``)."""
@@ -416,7 +424,7 @@ def _placements(parent, kind, axis, place_R, place_p, q, oR, op, oa):
             oa[i, a] = oR[i, a, 0] * ux + oR[i, a, 1] * uy + oR[i, a, 2] * uz
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _point(c_joint, c_p, oR, op, c, side):
     """World position of the origin of side ``side`` (0, 1) of closure ``c``."""
     j = c_joint[c, side]
@@ -428,7 +436,7 @@ def _point(c_joint, c_p, oR, op, c, side):
             op[j, 2] + oR[j, 2, 0] * p0 + oR[j, 2, 1] * p1 + oR[j, 2, 2] * p2)
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _frame_rotation(c_joint, c_R, oR, c, side, out):
     j = c_joint[c, side]
     for a in range(3):
@@ -440,7 +448,7 @@ def _frame_rotation(c_joint, c_R, oR, c, side, out):
                     + oR[j, a, 2] * c_R[c, side, 2, b]
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _residual(c_joint, c_R, c_p, c_rigid, c_row, oR, op, r, m3, v3):
     """The closure residuals into ``r`` (m,) at the placed frames; returns their largest
     magnitude. Per point joint the position of frame 1 minus frame 2 (m); per weld also the
@@ -463,7 +471,7 @@ def _residual(c_joint, c_R, c_p, c_rigid, c_row, oR, op, r, m3, v3):
     return _max_abs(r)
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _closure_jacobian(kind, ancestor, c_joint, c_p, c_rigid, c_row, oR, op, oa, J):
     """The closure Jacobian into ``J`` (m, nj) at the placed frames: per closure, frame 1's
     Jacobian minus frame 2's (linear velocity of its origin, then angular velocity for a weld;
@@ -562,7 +570,7 @@ def _plan(order, rows, updates) -> np.ndarray:
     return np.concatenate([np.asarray(x, dtype=np.int64).reshape(-1) for x in flat])
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _householder(plan, A, tau):
     """Householder QR of ``A`` (m, p), m >= p, in place by the elimination ``plan`` (the
     comment above): R on its pivots' rows, each reflector on its rows below its pivot, their
@@ -595,7 +603,7 @@ def _householder(plan, A, tau):
                 A[plan[t], j] -= s * A[plan[t], c]
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _qr_solve(plan, QR, tau, b, x):
     """``x = R^-1 Q^T b`` (p,) of a Householder QR by ``plan`` (:func:`_householder`); ``b``
     (m,) is overwritten."""
@@ -619,7 +627,7 @@ def _qr_solve(plan, QR, tau, b, x):
         x[plan[1 + k]] = s / QR[r0, plan[1 + k]]
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _r_condition(plan, QR, Rinv):
     """``cond_1(R)`` of the triangular factor (inf where a diagonal entry is 0): within a factor
     ``p`` of ``cond_2(J_p)``. ``Rinv`` (p, p) scratch, in elimination order. ``R^-1`` is built
@@ -654,7 +662,7 @@ def _r_condition(plan, QR, Rinv):
     return norm * inorm
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _factor(plan, pas, J, QR, tau):
     """Householder QR of ``J_p`` (the passive columns of ``J``) into ``QR``, ``tau`` by
     ``plan``; False where ``J_p`` loses rank (a diagonal entry of R below 1e-10 of the largest)."""
@@ -672,7 +680,7 @@ def _factor(plan, pas, J, QR, tau):
     return True
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _newton_step(plan, pas, QR, tau, r, b, x, q):
     """``q_p -= J_p^+ r`` with the factors ``QR``, ``tau``; returns the step's largest entry."""
     m, p = QR.shape
@@ -687,7 +695,7 @@ def _newton_step(plan, pas, QR, tau, r, b, x, q):
 
 
 # ---------------------------------------------------------------------------------- rates and forces
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _rates(parent, kind, op, oa, v, qdd, gx, gy, gz, w, dp, al, dd):
     """World angular velocity ``w``, origin velocity ``dp``, angular acceleration ``al`` and
     classical origin acceleration ``dd`` (each (nj, 3)) of every joint frame at the placed
@@ -723,7 +731,7 @@ def _rates(parent, kind, op, oa, v, qdd, gx, gy, gz, w, dp, al, dd):
         dd[i, 0], dd[i, 1], dd[i, 2] = dx, dy, dz
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _drift(c_joint, c_p, c_rigid, c_row, oR, op, w, al, dd, gamma):
     """``gamma = Jdot v`` (m,): the closure frames' relative classical acceleration (and angular
     acceleration, for a weld) from the rates ``w``, ``al``, ``dd`` of :func:`_rates` at zero
@@ -750,7 +758,7 @@ def _drift(c_joint, c_p, c_rigid, c_row, oR, op, w, al, dd, gamma):
                     gamma[row + 3 + k] += sign * al[j, k]
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _actuated_jacobians(parent, kind, oR, op, oa, W, wv, ww, Jv, Jw):
     """Each joint frame's actuated Jacobian at its origin, in its own axes, into ``Jv``
     (linear) and ``Jw`` (angular) (nj, 3, n): the frame moves by ``Jv[i] @ Thetad`` along
@@ -782,7 +790,7 @@ def _actuated_jacobians(parent, kind, oR, op, oa, W, wv, ww, Jv, Jw):
                 Jw[i, k, c] = oR[i, 0, k] * wx + oR[i, 1, k] * wy + oR[i, 2, k] * wz
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _body_rows(oR, w, al, dd, Jv, Jw, rows):
     """The actuated regressor ``W^T Y_tree`` (n, 10 nj) into ``rows`` from the rates of
     :func:`_rates` (gravity in ``dd``) and the actuated Jacobians: ``tau = rows @ pi`` with
@@ -824,7 +832,7 @@ def _body_rows(oR, w, al, dd, Jv, Jw, rows):
 
 
 # ---------------------------------------------------------------------------------- per sample
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _predict(act, last_q, last_W, last_valid, Theta, base, q):
     """The Newton start ``q`` (nj,) for ``Theta`` from ``base`` (a configuration near it): the
     last solved state's velocity map carries ``base`` to ``Theta`` to first order, where the
@@ -847,7 +855,7 @@ def _predict(act, last_q, last_W, last_valid, Theta, base, q):
     return True
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _curvature(parent, kind, act, pas, plan, c_joint, c_p, c_rigid, c_row, oR, op, oa, last_W, QR, tau, b, x, w, dp, al, dd,
                zero, Theta, base, v, q):
     """The second-order term of the prediction (:func:`_predict`) added to ``q``: along the step
@@ -869,7 +877,7 @@ def _curvature(parent, kind, act, pas, plan, c_joint, c_p, c_rigid, c_row, oR, o
         q[pas[k]] -= 0.5 * x[k]
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _close(parent, kind, axis, place_R, place_p, ancestor, pas, plan, c_joint, c_R, c_p, c_rigid, c_row, tolerance, singular,
            QR, tau, residual, oR, op, oa, J, r, b, x, pp, m3, v3, chord, max_iterations, q):
     """Newton on the passive joints of ``q`` (in place) until the closure residual is within
@@ -909,7 +917,7 @@ def _close(parent, kind, axis, place_R, place_p, ancestor, pas, plan, c_joint, c
     return OK
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _velocity_map(act, pas, plan, J, QR, tau, b, x, W):
     """``W`` (nj, n) with ``v = W Thetad``: ``W_a = I``, ``W_p = -J_p^+ J_a`` (the QR of ``J_p``)."""
     n, p, m = act.shape[0], pas.shape[0], J.shape[0]
@@ -925,7 +933,7 @@ def _velocity_map(act, pas, plan, J, QR, tau, b, x, W):
                 W[pas[k], c] = -x[k]
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _state(parent, kind, axis, place_R, place_p, ancestor, act, pas, plan, c_joint, c_R, c_p, c_rigid, c_row, home_q,
            tolerance, singular, last_q, last_W, last_valid, QR, tau, residual, oR, op, oa, J, r, b, x, pp, m3, v3,
            w, dp, al, dd, zero, Theta, Thetad, Thetadd, base, has_base, max_iterations, q, W, v, a):
@@ -978,7 +986,7 @@ def _state(parent, kind, axis, place_R, place_p, ancestor, act, pas, plan, c_joi
     return OK
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _rows(parent, kind, gravity, oR, op, oa, W, v, a, w, dp, al, dd, wv, ww, Jv, Jw, rows):
     """The actuated regressor rows (n, 10 nj) of a solved sample (:func:`_body_rows`)."""
     _rates(parent, kind, op, oa, v, a, -gravity[0], -gravity[1], -gravity[2], w, dp, al, dd)
@@ -986,7 +994,7 @@ def _rows(parent, kind, gravity, oR, op, oa, W, v, a, w, dp, al, dd, wv, ww, Jv,
     _body_rows(oR, w, al, dd, Jv, Jw, rows)
 
 
-@numba.njit(cache=True, _nrt=False, nogil=True)
+@_jit(nogil=True)
 def motion_batch(ti, tf, wf, wi, Theta, Thetad, Thetadd, guess, has_guess, want_rows, max_iterations, Q, V, A, Ws,
                  rows):
     """A batch of samples (N, n each): the tree configurations ``Q`` (N, nj), rates ``V``,
@@ -1012,7 +1020,7 @@ def motion_batch(ti, tf, wf, wi, Theta, Thetad, Thetadd, guess, has_guess, want_
                   s.wv, s.ww, s.Jv, s.Jw, rows[k])
 
 
-@numba.njit(cache=True, _nrt=False)
+@_jit()
 def _mass_matrix(Jv, Jw, pi, Jm, F, M):
     """``M = sum_i (J_i W)^T I_i (J_i W) + diag(Jm)`` (n, n): each body's spatial inertia about
     its joint frame's origin, in its axes (``pi``: ten values per body), seen through its
@@ -1043,7 +1051,7 @@ def _mass_matrix(Jv, Jw, pi, Jm, F, M):
             M[r, c] = M[c, r]
 
 
-@numba.njit(cache=True, _nrt=False, nogil=True)
+@_jit(nogil=True)
 def plant_dynamics(ti, tf, wf, wi, Theta, Thetad, guess, has_guess, pi, Jm, max_iterations, q, M, bias):
     """The actuated dynamics of one state (the plant, once per period): the configuration ``q``
     (nj,), ``M = sum_i (J_i W)^T I_i (J_i W) + diag(Jm)`` (n, n) and ``bias`` (n,) (velocity
@@ -1073,7 +1081,7 @@ def plant_dynamics(ti, tf, wf, wi, Theta, Thetad, guess, has_guess, pi, Jm, max_
     return OK
 
 
-@numba.njit(cache=True, _nrt=False, nogil=True)
+@_jit(nogil=True)
 def closure_at(ti, tf, wf, wi, q):
     """The closure residual ``r`` (m,) and Jacobian ``J`` (m, nj) into the workspace at ``q``
     (nj,), no Newton iterations (a configuration checked as it is)."""
