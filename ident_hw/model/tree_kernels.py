@@ -11,7 +11,13 @@ arrays (integers, floats) that the kernels view as the named arrays of :class:`T
 0.4 µs each (20 µs a call for the two), two flat arrays at once.
 
 The kernels (numba, compiled once and cached on disk) evaluate a batch of samples in one call,
-with no Python per sample:
+with no Python per sample. They and their helpers are compiled without numba's reference counts
+(``_nrt=False``): they allocate nothing (every array is the caller's or a view of the two flat
+ones), and a helper that calls another otherwise updates the count of each of its array
+arguments atomically on entry and on exit, about 400 such updates and 2 µs a Delta sample (a
+quarter of its time, before this). Only the views' makers (``_take``, ``_tree``, ``_workspace``),
+which Python calls too, keep them (``_nrt=True`` explicitly: a callee inherits its caller's
+setting otherwise). A kernel that allocated would fail to compile, not run unsafely.
 
 - the placements of every joint frame in the world (``oR`` (nj, 3, 3), ``op`` (nj, 3));
 - the closure residuals ``r`` (m,) and their Jacobian ``J`` (m, nv), as
@@ -41,7 +47,7 @@ index ``j - 1`` here. Everything is SI: rad, m, s, kg, N, N·m.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -54,6 +60,14 @@ OK, NO_ASSEMBLY, SINGULAR = 0, 1, 2
 #: how far (rad, m, any coordinate) a guess may be from the last solved configuration for the
 #: last velocity map to predict from it
 PREDICT_RADIUS = 0.05
+
+
+def _jit(nrt: bool = False, nogil: bool = False) -> Any:
+    """numba's decorator as the kernels use it: compiled once and cached on disk; ``nrt`` False
+    (the kernels and their helpers) without numba's reference counts (the module docstring);
+    ``nogil``: releases the GIL (the kernels Python calls beside other threads)."""
+    options: dict[str, Any] = {"_nrt": nrt}        # numba's option, not in its type stubs
+    return numba.njit(cache=True, nogil=nogil, **options)
 
 
 class TreeArrays(NamedTuple):
@@ -77,6 +91,7 @@ class TreeArrays(NamedTuple):
     home_q: np.ndarray      #: (nj,): the home configuration, the guess when there is no other
     tolerance: float        #: closure residual (m, rad) at which Newton stops
     singular: float         #: cond of ``J_p`` (1-norm of its R) beyond which a pose is singular
+    plan: np.ndarray        #: int: how ``J_p`` is factored (:func:`elimination_plan`)
 
 
 class TreeWorkspace(NamedTuple):
@@ -121,7 +136,7 @@ class TreeWorkspace(NamedTuple):
 class CompiledTree:
     """The compiled model of a described robot's tree and closures (immutable): two flat
     read-only arrays, ``ints`` (a header ``nj, n, p, nc, m``, then the integer arrays of
-    :class:`TreeArrays`) and ``floats`` (its float arrays, then the tolerance and the singular
+    :class:`TreeArrays`, the elimination plan last) and ``floats`` (its float arrays, then the tolerance and the singular
     condition), which :meth:`views` names."""
 
     ints: np.ndarray
@@ -221,8 +236,14 @@ def tree_arrays(model, closures, actuated_v, passive_v, home_q, tolerance: float
         c_row[c + 1] = c_row[c] + (6 if rigid else 3)
     act, pas = np.array(actuated_v, dtype=np.int64), np.array(passive_v, dtype=np.int64)
     header = np.array([nj, len(act), len(pas), nc, c_row[-1]], dtype=np.int64)
+    p = len(pas) if c_row[-1] else 0          # the passive columns of J_p (none without closures)
+    structure = np.zeros((c_row[-1], p), dtype=bool)        # J_p's entries that can be non-zero
+    for c in range(nc):
+        for j in c_joint[c]:
+            if j >= 0:
+                structure[c_row[c]:c_row[c + 1]] |= ancestor[j, pas[:p]]
     ints = np.concatenate([header, parent, kind, act, pas, c_joint.ravel(), c_row, c_rigid.astype(np.int64),
-                           ancestor.astype(np.int64).ravel()])
+                           ancestor.astype(np.int64).ravel(), elimination_plan(structure, c_row)])
     floats = np.concatenate([axis.ravel(), place_R.ravel(), place_p.ravel(), c_R.ravel(), c_p.ravel(),
                              np.array(model.gravity.linear, dtype=float), np.array(home_q, dtype=float),
                              [float(tolerance), float(singular)]])
@@ -230,12 +251,12 @@ def tree_arrays(model, closures, actuated_v, passive_v, home_q, tolerance: float
 
 
 # ---------------------------------------------------------------------------------- views
-@numba.njit(cache=True)
+@_jit(nrt=True)
 def _take(buf, offset, size):
     return buf[offset:offset + size], offset + size
 
 
-@numba.njit(cache=True)
+@_jit(nrt=True)
 def _tree(ti, tf):
     """The named arrays of a compiled tree's flat ``ints`` and ``floats`` (:class:`CompiledTree`)."""
     nj, n, p, nc = ti[0], ti[1], ti[2], ti[3]
@@ -248,6 +269,7 @@ def _tree(ti, tf):
     c_row, o = _take(ti, o, nc + 1)
     c_rigid, o = _take(ti, o, nc)
     ancestor, o = _take(ti, o, nj * nj)
+    plan = ti[o:]
     f = 0
     axis, f = _take(tf, f, 3 * nj)
     place_R, f = _take(tf, f, 9 * nj)
@@ -258,24 +280,24 @@ def _tree(ti, tf):
     home_q, f = _take(tf, f, nj)
     return TreeArrays(parent, kind, axis.reshape((nj, 3)), place_R.reshape((nj, 3, 3)), place_p.reshape((nj, 3)),
                       ancestor.reshape((nj, nj)), act, pas, c_joint.reshape((nc, 2)), c_R.reshape((nc, 2, 3, 3)),
-                      c_p.reshape((nc, 2, 3)), c_rigid, c_row, gravity, home_q, tf[f], tf[f + 1])
+                      c_p.reshape((nc, 2, 3)), c_rigid, c_row, gravity, home_q, tf[f], tf[f + 1], plan)
 
 
-@numba.njit(cache=True)
+@_jit(nrt=True)
 def _workspace_dims(ti):
     """``nj, n, p, m`` of a workspace (``p`` 0 where there is no closure)."""
     nj, n, m = ti[0], ti[1], ti[4]
     return nj, n, (ti[2] if m else 0), m
 
 
-@numba.njit(cache=True)
+@_jit(nrt=True)
 def _workspace_size(ti):
     nj, n, p, m = _workspace_dims(ti)
     return (nj + nj * n + m * p + p + 1 + 9 * nj + 3 * nj + 3 * nj + m * nj + 2 * m + p + p * p + 27 + 3
             + 12 * nj + 12 * nj * n + nj + nj * n + 2 * nj + 10 * nj * n + 6 * n)
 
 
-@numba.njit(cache=True)
+@_jit(nrt=True)
 def _workspace(ti, wf, wi):
     """The named arrays of a workspace's flat ``floats`` and ``ints`` (:class:`Workspace`)."""
     nj, n, p, m = _workspace_dims(ti)
@@ -321,12 +343,12 @@ def _workspace(ti, wf, wi):
 # The helpers take plain arrays, never the named tuples: numba passes a named tuple of arrays by
 # value, its every array's reference counted, about 0.4 µs a call. 3-vectors are scalars: no
 # heap array per product in the per-sample loops.
-@numba.njit(cache=True)
+@_jit()
 def _cross(ax, ay, az, bx, by, bz):
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
-@numba.njit(cache=True)
+@_jit()
 def _log3(R, out):
     """The rotation vector (3,) of a rotation matrix (pinocchio's ``log3`` away from pi)."""
     c = min(1.0, max(-1.0, 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)))
@@ -337,7 +359,15 @@ def _log3(R, out):
     out[2] = k * (R[1, 0] - R[0, 1])
 
 
-@numba.njit(cache=True)
+@_jit()
+def _copy(src, dst):
+    """``dst[:] = src`` (1-D, same length) as a loop: numba's slice assignment may allocate a
+    temporary (it guards against overlap), which a kernel compiled without NRT cannot."""
+    for i in range(src.shape[0]):
+        dst[i] = src[i]
+
+
+@_jit()
 def _max_abs(x):
     out = 0.0
     for v in x:
@@ -346,7 +376,7 @@ def _max_abs(x):
 
 
 # ---------------------------------------------------------------------------------- kinematics
-@numba.njit(cache=True)
+@_jit()
 def _placements(parent, kind, axis, place_R, place_p, q, oR, op, oa):
     """The world rotation ``oR`` (nj, 3, 3), origin ``op`` (nj, 3) and axis ``oa`` (nj, 3) of
     every joint frame at ``q`` (nj,) (pinocchio's ``oMi``)."""
@@ -394,7 +424,7 @@ def _placements(parent, kind, axis, place_R, place_p, q, oR, op, oa):
             oa[i, a] = oR[i, a, 0] * ux + oR[i, a, 1] * uy + oR[i, a, 2] * uz
 
 
-@numba.njit(cache=True)
+@_jit()
 def _point(c_joint, c_p, oR, op, c, side):
     """World position of the origin of side ``side`` (0, 1) of closure ``c``."""
     j = c_joint[c, side]
@@ -406,7 +436,7 @@ def _point(c_joint, c_p, oR, op, c, side):
             op[j, 2] + oR[j, 2, 0] * p0 + oR[j, 2, 1] * p1 + oR[j, 2, 2] * p2)
 
 
-@numba.njit(cache=True)
+@_jit()
 def _frame_rotation(c_joint, c_R, oR, c, side, out):
     j = c_joint[c, side]
     for a in range(3):
@@ -418,7 +448,7 @@ def _frame_rotation(c_joint, c_R, oR, c, side, out):
                     + oR[j, a, 2] * c_R[c, side, 2, b]
 
 
-@numba.njit(cache=True)
+@_jit()
 def _residual(c_joint, c_R, c_p, c_rigid, c_row, oR, op, r, m3, v3):
     """The closure residuals into ``r`` (m,) at the placed frames; returns their largest
     magnitude. Per point joint the position of frame 1 minus frame 2 (m); per weld also the
@@ -441,7 +471,7 @@ def _residual(c_joint, c_R, c_p, c_rigid, c_row, oR, op, r, m3, v3):
     return _max_abs(r)
 
 
-@numba.njit(cache=True)
+@_jit()
 def _closure_jacobian(kind, ancestor, c_joint, c_p, c_rigid, c_row, oR, op, oa, J):
     """The closure Jacobian into ``J`` (m, nj) at the placed frames: per closure, frame 1's
     Jacobian minus frame 2's (linear velocity of its origin, then angular velocity for a weld;
@@ -477,103 +507,186 @@ def _closure_jacobian(kind, ancestor, c_joint, c_p, c_rigid, c_row, oR, op, oa, 
 
 
 # ---------------------------------------------------------------------------------- linear algebra
-@numba.njit(cache=True)
-def _householder(A, tau):
-    """Householder QR of ``A`` (m, p), m >= p, in place: R on and above the diagonal, the
-    reflectors below (LAPACK's ``geqrf`` layout), their factors in ``tau`` (p,)."""
-    m, p = A.shape
+# ``J_p`` is factored by Householder reflections in the order and on the rows an elimination
+# plan gives (:func:`elimination_plan`): a loop's own passive joints, which no other closure's
+# rows see, are eliminated on that loop's rows alone, then the joints shared by several loops on
+# what is left of all of them (the Delta: two 6 x 4 blocks, then 4 x 4 for the platform's branch,
+# instead of one dense 12 x 12). A plan is an int array: ``p``, then per elimination step ``k``
+# the column ``col[k]`` (a passive position), its pivot row ``piv[k]``, the start of its row list
+# and of its update list (absolute indices into the plan, ``p + 1`` each: the last ends the
+# list), then the row lists (the pivot first, then the rows the reflector mixes into it, in
+# increasing order) and the update lists (the later steps whose columns the reflector changes).
+# R's entry of steps ``(k, j)`` is ``QR[piv[k], col[j]]``; the reflectors are stored on their
+# rows in their column. The dense plan (every row in order, every later column) is LAPACK's
+# ``geqrf`` layout and order, operation for operation.
+
+def dense_plan(m: int, p: int) -> np.ndarray:
+    """The elimination plan of a dense ``J_p`` (m, p): step ``k`` on column ``k``, pivot row
+    ``k``, rows ``k..m-1``, every later column (plain Householder QR)."""
+    return _plan(list(range(p)), [list(range(k, m)) for k in range(p)], [list(range(k + 1, p)) for k in range(p)])
+
+
+def elimination_plan(structure: np.ndarray, closure_rows: np.ndarray) -> np.ndarray:
+    """The elimination plan (module comment above) of a ``J_p`` whose structurally non-zero
+    entries are ``structure`` (m, p) bool, its rows grouped by closure (``closure_rows``
+    (nc + 1,): each closure's first row, then m). Columns seen by one closure's rows only come
+    first, closure by closure, then the others in their order; each step's reflector takes the
+    column's structurally non-zero rows not yet a pivot (the first the pivot), and changes the
+    later columns non-zero on any of them, which then fill in on all of them (symbolic
+    Householder). The dense plan where ``m < p`` or a column runs out of rows (a ``J_p`` that
+    loses rank whatever the state: the factorisation says so at its pivot)."""
+    S = np.array(structure, dtype=bool)
+    m, p = S.shape
+    if m < p:
+        return dense_plan(m, p)
+    closure_of_row = np.searchsorted(np.asarray(closure_rows), np.arange(m), side="right") - 1
+    seen = [set(closure_of_row[S[:, k]].tolist()) for k in range(p)]
+    private = sorted((min(s), k) for k, s in enumerate(seen) if len(s) == 1)
+    order = [k for _, k in private] + [k for k, s in enumerate(seen) if len(s) != 1]
+    free = np.ones(m, dtype=bool)
+    rows, updates = [], []
+    for step, c in enumerate(order):
+        hit = np.flatnonzero(S[:, c] & free)
+        if not len(hit):
+            return dense_plan(m, p)
+        later = [j for j in range(step + 1, p) if S[hit, order[j]].any()]
+        for j in later:
+            S[hit, order[j]] = True
+        free[hit[0]] = False
+        rows.append(hit.tolist())
+        updates.append(later)
+    return _plan(order, rows, updates)
+
+
+def _plan(order, rows, updates) -> np.ndarray:
+    """The plan's int array from the columns in elimination order, each step's rows (pivot first)
+    and its update list (later steps)."""
+    p = len(order)
+    head = 1 + 4 * p + 2
+    rows_at = head + np.concatenate([[0], np.cumsum([len(r) for r in rows])]).astype(np.int64)
+    updates_at = rows_at[-1] + np.concatenate([[0], np.cumsum([len(u) for u in updates])]).astype(np.int64)
+    flat = [np.array([p]), np.array(order), np.array([r[0] for r in rows]), rows_at, updates_at,
+            *[np.array(r) for r in rows], *[np.array(u) for u in updates]]
+    return np.concatenate([np.asarray(x, dtype=np.int64).reshape(-1) for x in flat])
+
+
+@_jit()
+def _householder(plan, A, tau):
+    """Householder QR of ``A`` (m, p), m >= p, in place by the elimination ``plan`` (the
+    comment above): R on its pivots' rows, each reflector on its rows below its pivot, their
+    factors in ``tau`` (p,)."""
+    p = plan[0]
     for k in range(p):
+        c, lo, hi = plan[1 + k], plan[1 + 2 * p + k], plan[2 + 2 * p + k]
+        r0 = plan[lo]
         norm = 0.0
-        for i in range(k, m):
-            norm += A[i, k] * A[i, k]
+        for t in range(lo, hi):
+            norm += A[plan[t], c] * A[plan[t], c]
         norm = np.sqrt(norm)
         if norm == 0.0:
             tau[k] = 0.0
             continue
-        alpha = -norm if A[k, k] >= 0.0 else norm
-        v0 = A[k, k] - alpha
-        for i in range(k + 1, m):
-            A[i, k] /= v0
+        alpha = -norm if A[r0, c] >= 0.0 else norm
+        v0 = A[r0, c] - alpha
+        for t in range(lo + 1, hi):
+            A[plan[t], c] /= v0
         tau[k] = -v0 / alpha
-        A[k, k] = alpha
-        for j in range(k + 1, p):
-            s = A[k, j]
-            for i in range(k + 1, m):
-                s += A[i, k] * A[i, j]
+        A[r0, c] = alpha
+        for u in range(plan[2 + 3 * p + k], plan[3 + 3 * p + k]):
+            j = plan[1 + plan[u]]
+            s = A[r0, j]
+            for t in range(lo + 1, hi):
+                s += A[plan[t], c] * A[plan[t], j]
             s *= tau[k]
-            A[k, j] -= s
-            for i in range(k + 1, m):
-                A[i, j] -= s * A[i, k]
+            A[r0, j] -= s
+            for t in range(lo + 1, hi):
+                A[plan[t], j] -= s * A[plan[t], c]
 
 
-@numba.njit(cache=True)
-def _qr_solve(QR, tau, b, x):
-    """``x = R^-1 Q^T b`` (p,) of a Householder QR (:func:`_householder`); ``b`` (m,) is overwritten."""
-    m, p = QR.shape
+@_jit()
+def _qr_solve(plan, QR, tau, b, x):
+    """``x = R^-1 Q^T b`` (p,) of a Householder QR by ``plan`` (:func:`_householder`); ``b``
+    (m,) is overwritten."""
+    p = plan[0]
     for k in range(p):
-        s = b[k]
-        for i in range(k + 1, m):
-            s += QR[i, k] * b[i]
+        c, lo, hi = plan[1 + k], plan[1 + 2 * p + k], plan[2 + 2 * p + k]
+        r0 = plan[lo]
+        s = b[r0]
+        for t in range(lo + 1, hi):
+            s += QR[plan[t], c] * b[plan[t]]
         s *= tau[k]
-        b[k] -= s
-        for i in range(k + 1, m):
-            b[i] -= s * QR[i, k]
+        b[r0] -= s
+        for t in range(lo + 1, hi):
+            b[plan[t]] -= s * QR[plan[t], c]
     for k in range(p - 1, -1, -1):
-        s = b[k]
-        for i in range(k + 1, p):
-            s -= QR[k, i] * x[i]
-        x[k] = s / QR[k, k]
+        r0 = plan[1 + p + k]
+        s = b[r0]
+        for u in range(plan[2 + 3 * p + k], plan[3 + 3 * p + k]):
+            j = plan[1 + plan[u]]
+            s -= QR[r0, j] * x[j]
+        x[plan[1 + k]] = s / QR[r0, plan[1 + k]]
 
 
-@numba.njit(cache=True)
-def _r_condition(QR, Rinv):
+@_jit()
+def _r_condition(plan, QR, Rinv):
     """``cond_1(R)`` of the triangular factor (inf where a diagonal entry is 0): within a factor
-    ``p`` of ``cond_2(J_p)``. ``Rinv`` (p, p) scratch."""
-    p = QR.shape[1]
+    ``p`` of ``cond_2(J_p)``. ``Rinv`` (p, p) scratch, in elimination order. ``R^-1`` is built
+    row by row from the last (row ``k`` from the rows below it that ``R``'s row ``k`` reaches:
+    its update list), each row's entries independent of one another, not column by column,
+    where each entry waits on the division before it."""
+    p = plan[0]
     for k in range(p):
-        if QR[k, k] == 0.0:
+        if QR[plan[1 + p + k], plan[1 + k]] == 0.0:
             return np.inf
+    for k in range(p - 1, -1, -1):
+        rk = plan[1 + p + k]
+        dk = 1.0 / QR[rk, plan[1 + k]]
+        for j in range(k + 1, p):
+            Rinv[k, j] = 0.0
+        for u in range(plan[2 + 3 * p + k], plan[3 + 3 * p + k]):
+            i = plan[u]
+            rki = QR[rk, plan[1 + i]]
+            for j in range(i, p):
+                Rinv[k, j] += rki * Rinv[i, j]
+        Rinv[k, k] = dk
+        for j in range(k + 1, p):
+            Rinv[k, j] *= -dk
     norm, inorm = 0.0, 0.0
     for j in range(p):
-        Rinv[j, j] = 1.0 / QR[j, j]
-        for k in range(j - 1, -1, -1):
-            s = 0.0
-            for i in range(k + 1, j + 1):
-                s += QR[k, i] * Rinv[i, j]
-            Rinv[k, j] = -s / QR[k, k]
+        cj = plan[1 + j]
         s, t = 0.0, 0.0
         for i in range(j + 1):
-            s += abs(QR[i, j])
+            s += abs(QR[plan[1 + p + i], cj])
             t += abs(Rinv[i, j])
         norm, inorm = max(norm, s), max(inorm, t)
     return norm * inorm
 
 
-@numba.njit(cache=True)
-def _factor(pas, J, QR, tau):
-    """Householder QR of ``J_p`` (the passive columns of ``J``) into ``QR``, ``tau``; False
-    where ``J_p`` loses rank (a diagonal entry of R below 1e-10 of the largest)."""
+@_jit()
+def _factor(plan, pas, J, QR, tau):
+    """Householder QR of ``J_p`` (the passive columns of ``J``) into ``QR``, ``tau`` by
+    ``plan``; False where ``J_p`` loses rank (a diagonal entry of R below 1e-10 of the largest)."""
     m, p = QR.shape
     for i in range(m):
         for k in range(p):
             QR[i, k] = J[i, pas[k]]
-    _householder(QR, tau)
+    _householder(plan, QR, tau)
     top = 0.0
     for k in range(p):
-        top = max(top, abs(QR[k, k]))
+        top = max(top, abs(QR[plan[1 + p + k], plan[1 + k]]))
     for k in range(p):
-        if not abs(QR[k, k]) > 1e-10 * top:
+        if not abs(QR[plan[1 + p + k], plan[1 + k]]) > 1e-10 * top:
             return False
     return True
 
 
-@numba.njit(cache=True)
-def _newton_step(pas, QR, tau, r, b, x, q):
+@_jit()
+def _newton_step(plan, pas, QR, tau, r, b, x, q):
     """``q_p -= J_p^+ r`` with the factors ``QR``, ``tau``; returns the step's largest entry."""
     m, p = QR.shape
     for i in range(m):
         b[i] = -r[i]
-    _qr_solve(QR, tau, b, x)
+    _qr_solve(plan, QR, tau, b, x)
     step = 0.0
     for k in range(p):
         q[pas[k]] += x[k]
@@ -582,7 +695,7 @@ def _newton_step(pas, QR, tau, r, b, x, q):
 
 
 # ---------------------------------------------------------------------------------- rates and forces
-@numba.njit(cache=True)
+@_jit()
 def _rates(parent, kind, op, oa, v, qdd, gx, gy, gz, w, dp, al, dd):
     """World angular velocity ``w``, origin velocity ``dp``, angular acceleration ``al`` and
     classical origin acceleration ``dd`` (each (nj, 3)) of every joint frame at the placed
@@ -618,7 +731,7 @@ def _rates(parent, kind, op, oa, v, qdd, gx, gy, gz, w, dp, al, dd):
         dd[i, 0], dd[i, 1], dd[i, 2] = dx, dy, dz
 
 
-@numba.njit(cache=True)
+@_jit()
 def _drift(c_joint, c_p, c_rigid, c_row, oR, op, w, al, dd, gamma):
     """``gamma = Jdot v`` (m,): the closure frames' relative classical acceleration (and angular
     acceleration, for a weld) from the rates ``w``, ``al``, ``dd`` of :func:`_rates` at zero
@@ -645,7 +758,7 @@ def _drift(c_joint, c_p, c_rigid, c_row, oR, op, w, al, dd, gamma):
                     gamma[row + 3 + k] += sign * al[j, k]
 
 
-@numba.njit(cache=True)
+@_jit()
 def _actuated_jacobians(parent, kind, oR, op, oa, W, wv, ww, Jv, Jw):
     """Each joint frame's actuated Jacobian at its origin, in its own axes, into ``Jv``
     (linear) and ``Jw`` (angular) (nj, 3, n): the frame moves by ``Jv[i] @ Thetad`` along
@@ -677,7 +790,7 @@ def _actuated_jacobians(parent, kind, oR, op, oa, W, wv, ww, Jv, Jw):
                 Jw[i, k, c] = oR[i, 0, k] * wx + oR[i, 1, k] * wy + oR[i, 2, k] * wz
 
 
-@numba.njit(cache=True)
+@_jit()
 def _body_rows(oR, w, al, dd, Jv, Jw, rows):
     """The actuated regressor ``W^T Y_tree`` (n, 10 nj) into ``rows`` from the rates of
     :func:`_rates` (gravity in ``dd``) and the actuated Jacobians: ``tau = rows @ pi`` with
@@ -719,13 +832,13 @@ def _body_rows(oR, w, al, dd, Jv, Jw, rows):
 
 
 # ---------------------------------------------------------------------------------- per sample
-@numba.njit(cache=True)
+@_jit()
 def _predict(act, last_q, last_W, last_valid, Theta, base, q):
     """The Newton start ``q`` (nj,) for ``Theta`` from ``base`` (a configuration near it): the
     last solved state's velocity map carries ``base`` to ``Theta`` to first order, where the
     last state is within :data:`PREDICT_RADIUS` of ``base`` and ``base`` of ``Theta``. Returns whether it did (then the
     last state's factors of ``J_p`` serve Newton too)."""
-    q[:] = base
+    _copy(base, q)
     if not last_valid[0]:
         return False
     for i in range(q.shape[0]):
@@ -742,8 +855,8 @@ def _predict(act, last_q, last_W, last_valid, Theta, base, q):
     return True
 
 
-@numba.njit(cache=True)
-def _curvature(parent, kind, act, pas, c_joint, c_p, c_rigid, c_row, oR, op, oa, last_W, QR, tau, b, x, w, dp, al, dd,
+@_jit()
+def _curvature(parent, kind, act, pas, plan, c_joint, c_p, c_rigid, c_row, oR, op, oa, last_W, QR, tau, b, x, w, dp, al, dd,
                zero, Theta, base, v, q):
     """The second-order term of the prediction (:func:`_predict`) added to ``q``: along the step
     ``d = Theta - base_a`` the passive joints curve by ``q_p'' = -J_p^+ gamma(W d)`` (the closure's
@@ -759,13 +872,13 @@ def _curvature(parent, kind, act, pas, c_joint, c_p, c_rigid, c_row, oR, op, oa,
         v[i] = s
     _rates(parent, kind, op, oa, v, zero, 0.0, 0.0, 0.0, w, dp, al, dd)
     _drift(c_joint, c_p, c_rigid, c_row, oR, op, w, al, dd, b)
-    _qr_solve(QR, tau, b, x)
+    _qr_solve(plan, QR, tau, b, x)
     for k in range(pas.shape[0]):
         q[pas[k]] -= 0.5 * x[k]
 
 
-@numba.njit(cache=True)
-def _close(parent, kind, axis, place_R, place_p, ancestor, pas, c_joint, c_R, c_p, c_rigid, c_row, tolerance, singular,
+@_jit()
+def _close(parent, kind, axis, place_R, place_p, ancestor, pas, plan, c_joint, c_R, c_p, c_rigid, c_row, tolerance, singular,
            QR, tau, residual, oR, op, oa, J, r, b, x, pp, m3, v3, chord, max_iterations, q):
     """Newton on the passive joints of ``q`` (in place) until the closure residual is within
     ``tolerance``: first with the last sample's factors of ``J_p`` (``chord``: a start predicted
@@ -779,7 +892,7 @@ def _close(parent, kind, axis, place_R, place_p, ancestor, pas, c_joint, c_R, c_
     res = _residual(c_joint, c_R, c_p, c_rigid, c_row, oR, op, r, m3, v3)
     if res > tolerance and chord:
         for _ in range(6):
-            step = _newton_step(pas, QR, tau, r, b, x, q)
+            step = _newton_step(plan, pas, QR, tau, r, b, x, q)
             _placements(parent, kind, axis, place_R, place_p, q, oR, op, oa)
             last, res = res, _residual(c_joint, c_R, c_p, c_rigid, c_row, oR, op, r, m3, v3)
             if res <= tolerance or not (step < 10.0 and res < 0.1 * last):
@@ -787,9 +900,9 @@ def _close(parent, kind, axis, place_R, place_p, ancestor, pas, c_joint, c_R, c_
     if res > tolerance and np.isfinite(res):
         for _ in range(max_iterations):
             _closure_jacobian(kind, ancestor, c_joint, c_p, c_rigid, c_row, oR, op, oa, J)
-            if not _factor(pas, J, QR, tau):
+            if not _factor(plan, pas, J, QR, tau):
                 return SINGULAR
-            step = _newton_step(pas, QR, tau, r, b, x, q)
+            step = _newton_step(plan, pas, QR, tau, r, b, x, q)
             _placements(parent, kind, axis, place_R, place_p, q, oR, op, oa)
             res = _residual(c_joint, c_R, c_p, c_rigid, c_row, oR, op, r, m3, v3)
             if res <= tolerance or not np.isfinite(step) or step > 10.0:
@@ -798,14 +911,14 @@ def _close(parent, kind, axis, place_R, place_p, ancestor, pas, c_joint, c_R, c_
         residual[0] = res
         return NO_ASSEMBLY
     _closure_jacobian(kind, ancestor, c_joint, c_p, c_rigid, c_row, oR, op, oa, J)
-    _factor(pas, J, QR, tau)
-    if not _r_condition(QR, pp) < singular:
+    _factor(plan, pas, J, QR, tau)
+    if not _r_condition(plan, QR, pp) < singular:
         return SINGULAR
     return OK
 
 
-@numba.njit(cache=True)
-def _velocity_map(act, pas, J, QR, tau, b, x, W):
+@_jit()
+def _velocity_map(act, pas, plan, J, QR, tau, b, x, W):
     """``W`` (nj, n) with ``v = W Thetad``: ``W_a = I``, ``W_p = -J_p^+ J_a`` (the QR of ``J_p``)."""
     n, p, m = act.shape[0], pas.shape[0], J.shape[0]
     W[:, :] = 0.0
@@ -815,13 +928,13 @@ def _velocity_map(act, pas, J, QR, tau, b, x, W):
         for c in range(n):
             for i in range(m):
                 b[i] = J[i, act[c]]
-            _qr_solve(QR, tau, b, x)
+            _qr_solve(plan, QR, tau, b, x)
             for k in range(p):
                 W[pas[k], c] = -x[k]
 
 
-@numba.njit(cache=True)
-def _state(parent, kind, axis, place_R, place_p, ancestor, act, pas, c_joint, c_R, c_p, c_rigid, c_row, home_q,
+@_jit()
+def _state(parent, kind, axis, place_R, place_p, ancestor, act, pas, plan, c_joint, c_R, c_p, c_rigid, c_row, home_q,
            tolerance, singular, last_q, last_W, last_valid, QR, tau, residual, oR, op, oa, J, r, b, x, pp, m3, v3,
            w, dp, al, dd, zero, Theta, Thetad, Thetadd, base, has_base, max_iterations, q, W, v, a):
     """One sample: ``q`` closed from ``base`` (where ``has_base``, else the last state, else
@@ -835,25 +948,25 @@ def _state(parent, kind, axis, place_R, place_p, ancestor, act, pas, c_joint, c_
         chord = _predict(act, last_q, last_W, last_valid, Theta, last_q, q)
     else:
         chord = False
-        q[:] = home_q
+        _copy(home_q, q)
     for k in range(n):
         q[act[k]] = Theta[k]
     if chord and m:
-        _curvature(parent, kind, act, pas, c_joint, c_p, c_rigid, c_row, oR, op, oa, last_W, QR, tau, b, x, w, dp,
+        _curvature(parent, kind, act, pas, plan, c_joint, c_p, c_rigid, c_row, oR, op, oa, last_W, QR, tau, b, x, w, dp,
                    al, dd, zero, Theta, base if has_base else last_q, v, q)
     last_valid[0] = 0
-    code = _close(parent, kind, axis, place_R, place_p, ancestor, pas, c_joint, c_R, c_p, c_rigid, c_row, tolerance,
+    code = _close(parent, kind, axis, place_R, place_p, ancestor, pas, plan, c_joint, c_R, c_p, c_rigid, c_row, tolerance,
                   singular, QR, tau, residual, oR, op, oa, J, r, b, x, pp, m3, v3, chord, max_iterations, q)
     if code == NO_ASSEMBLY and chord:      # the prediction led astray: Newton from the start as given
-        q[:] = base if has_base else last_q
+        _copy(base if has_base else last_q, q)
         for k in range(n):
             q[act[k]] = Theta[k]
-        code = _close(parent, kind, axis, place_R, place_p, ancestor, pas, c_joint, c_R, c_p, c_rigid, c_row,
+        code = _close(parent, kind, axis, place_R, place_p, ancestor, pas, plan, c_joint, c_R, c_p, c_rigid, c_row,
                       tolerance, singular, QR, tau, residual, oR, op, oa, J, r, b, x, pp, m3, v3, False,
                       max_iterations, q)
     if code != OK:
         return code
-    _velocity_map(act, pas, J, QR, tau, b, x, W)
+    _velocity_map(act, pas, plan, J, QR, tau, b, x, W)
     for i in range(nj):
         s, t = 0.0, 0.0
         for c in range(n):
@@ -863,16 +976,17 @@ def _state(parent, kind, axis, place_R, place_p, ancestor, act, pas, c_joint, c_
     if m:
         _rates(parent, kind, op, oa, v, zero, 0.0, 0.0, 0.0, w, dp, al, dd)
         _drift(c_joint, c_p, c_rigid, c_row, oR, op, w, al, dd, b)
-        _qr_solve(QR, tau, b, x)
+        _qr_solve(plan, QR, tau, b, x)
         for k in range(p):
             a[pas[k]] -= x[k]
-    last_q[:] = q
-    last_W[:, :] = W
+    _copy(q, last_q)
+    for i in range(nj):
+        _copy(W[i], last_W[i])
     last_valid[0] = 1
     return OK
 
 
-@numba.njit(cache=True)
+@_jit()
 def _rows(parent, kind, gravity, oR, op, oa, W, v, a, w, dp, al, dd, wv, ww, Jv, Jw, rows):
     """The actuated regressor rows (n, 10 nj) of a solved sample (:func:`_body_rows`)."""
     _rates(parent, kind, op, oa, v, a, -gravity[0], -gravity[1], -gravity[2], w, dp, al, dd)
@@ -880,7 +994,7 @@ def _rows(parent, kind, gravity, oR, op, oa, W, v, a, w, dp, al, dd, wv, ww, Jv,
     _body_rows(oR, w, al, dd, Jv, Jw, rows)
 
 
-@numba.njit(cache=True, nogil=True)
+@_jit(nogil=True)
 def motion_batch(ti, tf, wf, wi, Theta, Thetad, Thetadd, guess, has_guess, want_rows, max_iterations, Q, V, A, Ws,
                  rows):
     """A batch of samples (N, n each): the tree configurations ``Q`` (N, nj), rates ``V``,
@@ -893,7 +1007,7 @@ def motion_batch(ti, tf, wf, wi, Theta, Thetad, Thetadd, guess, has_guess, want_
     t, s = _tree(ti, tf), _workspace(ti, wf, wi)
     s.status[0] = OK
     for k in range(Theta.shape[0]):
-        code = _state(t.parent, t.kind, t.axis, t.place_R, t.place_p, t.ancestor, t.act, t.pas, t.c_joint, t.c_R,
+        code = _state(t.parent, t.kind, t.axis, t.place_R, t.place_p, t.ancestor, t.act, t.pas, t.plan, t.c_joint, t.c_R,
                       t.c_p, t.c_rigid, t.c_row, t.home_q, t.tolerance, t.singular, s.last_q, s.last_W,
                       s.last_valid, s.QR, s.tau, s.residual, s.oR, s.op, s.oa, s.J, s.r, s.b, s.x, s.pp, s.m3,
                       s.v3, s.omega, s.dp, s.alpha, s.ddp, s.zero, Theta[k], Thetad[k], Thetadd[k], guess[k],
@@ -906,7 +1020,7 @@ def motion_batch(ti, tf, wf, wi, Theta, Thetad, Thetadd, guess, has_guess, want_
                   s.wv, s.ww, s.Jv, s.Jw, rows[k])
 
 
-@numba.njit(cache=True)
+@_jit()
 def _mass_matrix(Jv, Jw, pi, Jm, F, M):
     """``M = sum_i (J_i W)^T I_i (J_i W) + diag(Jm)`` (n, n): each body's spatial inertia about
     its joint frame's origin, in its axes (``pi``: ten values per body), seen through its
@@ -937,7 +1051,7 @@ def _mass_matrix(Jv, Jw, pi, Jm, F, M):
             M[r, c] = M[c, r]
 
 
-@numba.njit(cache=True, nogil=True)
+@_jit(nogil=True)
 def plant_dynamics(ti, tf, wf, wi, Theta, Thetad, guess, has_guess, pi, Jm, max_iterations, q, M, bias):
     """The actuated dynamics of one state (the plant, once per period): the configuration ``q``
     (nj,), ``M = sum_i (J_i W)^T I_i (J_i W) + diag(Jm)`` (n, n) and ``bias`` (n,) (velocity
@@ -947,7 +1061,7 @@ def plant_dynamics(ti, tf, wf, wi, Theta, Thetad, guess, has_guess, pi, Jm, max_
     t, s = _tree(ti, tf), _workspace(ti, wf, wi)
     n = t.act.shape[0]
     s.status[0] = OK
-    code = _state(t.parent, t.kind, t.axis, t.place_R, t.place_p, t.ancestor, t.act, t.pas, t.c_joint, t.c_R,
+    code = _state(t.parent, t.kind, t.axis, t.place_R, t.place_p, t.ancestor, t.act, t.pas, t.plan, t.c_joint, t.c_R,
                   t.c_p, t.c_rigid, t.c_row, t.home_q, t.tolerance, t.singular, s.last_q, s.last_W,
                   s.last_valid, s.QR, s.tau, s.residual, s.oR, s.op, s.oa, s.J, s.r, s.b, s.x, s.pp, s.m3,
                   s.v3, s.omega, s.dp, s.alpha, s.ddp, s.zero, Theta, Thetad, s.zero[:n], guess, has_guess,
@@ -967,7 +1081,7 @@ def plant_dynamics(ti, tf, wf, wi, Theta, Thetad, guess, has_guess, pi, Jm, max_
     return OK
 
 
-@numba.njit(cache=True, nogil=True)
+@_jit(nogil=True)
 def closure_at(ti, tf, wf, wi, q):
     """The closure residual ``r`` (m,) and Jacobian ``J`` (m, nj) into the workspace at ``q``
     (nj,), no Newton iterations (a configuration checked as it is)."""
