@@ -456,7 +456,7 @@ def test_a_massless_body_with_rotational_inertia_only(robots, tmp_path):
     to = write_description(robot, pi, tmp_path / "stewart.xml")
     inertial = next(el for el in ET.parse(to).getroot().iter("body") if el.get("name") == "leg1_cross").find("inertial")
     assert inertial.get("mass") == "0" and inertial.get("pos") == "0 0 0"
-    got = load_description(to)[0].inertias[j + 1].toDynamicParameters()
+    got = load_description(to).model.inertias[j + 1].toDynamicParameters()
     np.testing.assert_allclose(got, pi[10 * j:10 * j + 10], rtol=0, atol=1e-16)
 
 

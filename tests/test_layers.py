@@ -230,10 +230,6 @@ JSON_DOCUMENTS = {"ident_hw.config.schema.spec", "ident_hw.config.schema.build",
                   "drivers.recording_metadata.RecordedAxis.from_json", "trajectories.fourier.FourierExcitation.to_dict",
                   # a bus section of YAML as written (its unknown keys go on to python-can as options)
                   "drivers.bus.BusConfig.from_mapping"}
-#: a described robot's loader returns a triple (pinocchio's model, the closures' points and
-#: frames); issue 48's model/data split of the described model reworks it
-MODEL_PROTOCOL = {"ident_hw.model.described.load_description"}
-
 
 def _bare_record(annotation: ast.expr) -> bool:
     """A tuple of more than two items, or a dict with text keys of anything (a record in disguise)."""
@@ -283,7 +279,7 @@ def test_no_tuple_of_more_than_two_items_nor_dict_record_crosses_a_module_bounda
     not a bare tuple of three or more items or a dict of text keys (issue 49); a module's own
     helpers (``_name``) may."""
     found = {f"{name}.{qualified}" for name, path in MODULES.items() for qualified in _bare_records(path)}
-    assert sorted(found - JSON_DOCUMENTS - MODEL_PROTOCOL) == []
+    assert sorted(found - JSON_DOCUMENTS) == []
 
 
 def test_the_check_finds_bare_records(tmp_path):

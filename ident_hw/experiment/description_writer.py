@@ -718,7 +718,7 @@ def _header(name: str, fmt: str, dropped: list[str], geometry: Sequence[str] = (
 def _read_back(robot: DescribedRobot, params: np.ndarray, path: Path, fmt: str, to: Path) -> None:
     """pinocchio reads ``path`` back as ``params`` (raises :class:`DescriptionError` otherwise)."""
     try:
-        model, _, _ = load_description(path)
+        model = load_description(path).model
     except DescriptionError as exc:
         raise DescriptionError(f"{to}: pinocchio cannot read the written file back: {exc}") from None
     if tuple(model.names) != tuple(robot.model.names):

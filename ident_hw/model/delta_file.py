@@ -86,7 +86,7 @@ class _Reading:
 
     def __init__(self, path: Path):
         self.path = path
-        self.model, _, _ = load_description(path)
+        self.model = load_description(path).model
         m = self.model
         missing = [n for names in LIMB_JOINTS for n in names if not m.existJointName(n)]
         if missing:

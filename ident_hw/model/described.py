@@ -125,9 +125,21 @@ class DescribedData:
     plant: Workspace
 
 
-def load_description(path: str | Path) -> tuple[pin.Model, list, list]:
-    """The pinocchio tree and its closure constraints ``(model, point, frame)`` of an MJCF
-    (``.xml``, ``.mjcf``) or URDF (``.urdf``, no closures) file.
+@dataclass(frozen=True)
+class Description:
+    """A description file as pinocchio reads it (:func:`load_description`): the kinematic tree
+    (``model``, its gravity the file's) and its closure constraints, pinocchio's constraint models
+    of the MJCF ``<equality>`` elements: ``points`` (``<connect>``: a point held to a point) and
+    ``frames`` (``<weld>``: a frame held to a frame); a URDF has none."""
+
+    model: pin.Model
+    points: tuple = ()
+    frames: tuple = ()
+
+
+def load_description(path: str | Path) -> Description:
+    """The tree and closure constraints of an MJCF (``.xml``, ``.mjcf``) or URDF (``.urdf``, no
+    closures) file.
 
     Raises:
         DescriptionError: an unknown suffix, or a file pinocchio cannot read.
@@ -140,9 +152,9 @@ def load_description(path: str | Path) -> tuple[pin.Model, list, list]:
         if suffix in (".xml", ".mjcf"):
             model, points, frames = pin.buildModelAndConstraintsFromMJCF(str(path))
             model.gravity.linear = mjcf_gravity(path)
-            return model, list(points), list(frames)
+            return Description(model, tuple(points), tuple(frames))
         if suffix == ".urdf":
-            return pin.buildModelFromUrdf(str(path)), [], []
+            return Description(pin.buildModelFromUrdf(str(path)))
     except (RuntimeError, ValueError) as exc:
         raise DescriptionError(f"{path}: pinocchio cannot read it: {exc}") from exc
     raise DescriptionError(f"{path}: unknown description format {suffix!r}; expected MJCF (.xml, .mjcf) or URDF (.urdf)")
@@ -248,8 +260,8 @@ class DescribedRobot:
         self.coulomb_width = float(coulomb_width)
         self.friction = FrictionModel(width=self.coulomb_width) if friction is None else friction
         self.tolerance = float(tolerance)
-        model, points, frames = load_description(self.path)
-        self.model = model
+        description = load_description(self.path)
+        self.model = model = description.model
         where = str(self.path)
         kinds = _joint_kinds(model, where)
         self.joint_names = tuple(model.names[j] for j in range(1, model.njoints))
@@ -257,7 +269,7 @@ class DescribedRobot:
         actuated = tuple(actuated)
         self._set_actuated(actuated, actuator_names, kinds, where)
 
-        self.closures = tuple(self._closures(points, frames))
+        self.closures = tuple(self._closures(description.points, description.frames))
         self._rows = sum(c.rows for c in self.closures)
         n = len(actuated)
         self.pose_size = model.nq

@@ -79,7 +79,7 @@ def read_values(path: str | Path, modes=(1, 1, 1)) -> tuple[Geometry, InertialPa
         DescriptionError: a joint or the site missing, or values no 3PRRR has, naming the file.
     """
     path = Path(path)
-    model, _, _ = load_description(path)
+    model = load_description(path).model
     ids = {name: _joint(model, name, path) for chain in CHAIN_JOINTS for name in chain}
     ids[EE_JOINT] = _joint(model, EE_JOINT, path)
     if not model.existFrame(EE_SITE):
@@ -124,7 +124,7 @@ def described_parameters(path: str | Path, hand_parameters, described: Described
     """
     import pinocchio as pin
 
-    model, _, _ = load_description(Path(path))
+    model = load_description(Path(path)).model
     hand = InertialParams.from_vector(hand_parameters)
     bodies = {}
     for j in range(1, model.njoints):
