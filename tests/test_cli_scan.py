@@ -69,3 +69,15 @@ def test_scan_sees_boot_ups_sdo_answers_and_a_stopped_node(tmp_path):
     finally:
         network.disconnect()
         rig.stop()
+
+
+def test_the_monitor_s_table_shows_a_drive_that_gave_no_answer_without_values():
+    """A drive whose SDO reads failed shows its state text (why) and no values; one that answered
+    shows them in SI, rounded as the header's columns say."""
+    from ident_hw.experiment.inspection import DriveSnapshot, format_snapshot
+    table = format_snapshot([DriveSnapshot("zeta1 (node 1)", "OPERATIONAL", "OPERATION ENABLED", 0.1234567, -0.5, 1.25),
+                             DriveSnapshot("theta1 (node 4)", "PRE-OPERATIONAL", "no answer (SDO timeout)")])
+    header, answered, silent = table.splitlines()
+    assert header.split()[:4] == ["drive", "NMT", "CiA", "402"]
+    assert answered.split()[-3:] == ["0.123457", "-0.50000", "1.250"] and "OPERATION ENABLED" in answered
+    assert silent.endswith("PRE-OPERATIONAL                no answer (SDO timeout)") and "0." not in silent

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import struct
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import can
@@ -159,34 +160,49 @@ def compare(config: Config, found: dict[int, NodeInfo]) -> list[str]:
     return problems
 
 
-def snapshot(group: DriveGroup) -> list[dict]:
+@dataclass(frozen=True)
+class DriveSnapshot:
+    """One drive as the monitor shows it (:func:`snapshot`): its label, NMT state (heard, or
+    guessed from whether it answered), CiA 402 state (or why it gave no answer) and, where it
+    answered, its position (rad or m), velocity (rad/s or m/s), current (A) and error text."""
+
+    drive: str
+    nmt: str
+    state: str
+    position: float | None = None
+    velocity: float | None = None
+    current: float | None = None
+    error: str = ""
+
+
+def snapshot(group: DriveGroup) -> list[DriveSnapshot]:
     """One row per drive: NMT and CiA 402 state, position, velocity, current (SI), error (SDO reads)."""
     rows = []
     for drive in group.drives:
         s, p = drive.axis.scaling, drive.profile
         nmt = drive.node.nmt
-        row: dict[str, str | float] = {"drive": drive.label}
+        position = velocity = current = None
         try:
-            row["state"] = drive.state
-            row["position"] = drive.position()
-            row["velocity"] = s.velocity_from_rpm(drive.read(p.velocity_actual))
-            row["current"] = s.current_from_ma(drive.read(p.current_actual))
-            row["error"] = drive.error_text()
+            state = drive.state
+            position = drive.position()
+            velocity = s.velocity_from_rpm(drive.read(p.velocity_actual))
+            current = s.current_from_ma(drive.read(p.current_actual))
+            error = drive.error_text()
         except NodeError as exc:
-            row["state"] = f"no answer ({exc})"
+            state, error = f"no answer ({exc})", ""
         heard = nmt.state if nmt.timestamp is not None else None
-        row["nmt"] = heard or nmt_state(None, "position" in row, None).split(" (")[0]
-        rows.append(row)
+        guessed = nmt_state(None, position is not None, None).split(" (")[0]
+        rows.append(DriveSnapshot(drive.label, heard or guessed, state, position, velocity, current, error))
     return rows
 
 
-def format_snapshot(rows: list[dict]) -> str:
+def format_snapshot(rows: Sequence[DriveSnapshot]) -> str:
     """The monitor's table (units: rad or m, rad/s or m/s, A)."""
     lines = [f"{'drive':<18} {'NMT':<30} {'CiA 402':<24} {'position':>11} {'velocity':>10} {'current':>8}  error"]
     for r in rows:
-        if "position" not in r:
-            lines.append(f"{r['drive']:<18} {r['nmt']:<30} {r['state']}")
+        if r.position is None or r.velocity is None or r.current is None:
+            lines.append(f"{r.drive:<18} {r.nmt:<30} {r.state}")
             continue
-        lines.append(f"{r['drive']:<18} {r['nmt']:<30} {r['state']:<24} {r['position']:>11.6f} "
-                     f"{r['velocity']:>10.5f} {r['current']:>8.3f}  {r['error']}")
+        lines.append(f"{r.drive:<18} {r.nmt:<30} {r.state:<24} {r.position:>11.6f} "
+                     f"{r.velocity:>10.5f} {r.current:>8.3f}  {r.error}")
     return "\n".join(lines)
