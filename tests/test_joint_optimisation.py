@@ -91,7 +91,7 @@ def test_a_config_reads_the_optimised_sines(optimised, tmp_path, capsys):
     # the tool writes what the optimisation gives (here: the config's own excitation of 20 s)
     assert optimise_main([str(config), "validation", str(tmp_path / "v.json"), "--iterations", "2"]) == 0
     written = JointHarmonics.load(tmp_path / "v.json", 2)
-    assert written.optimised_for["seed"] == 2 and written.cond_final <= written.cond_initial
+    assert written.optimised_for is not None and written.optimised_for.seed == 2 and written.cond_final <= written.cond_initial
     assert "optimised" in capsys.readouterr().out
 
     # a file for another robot, or with sines above the trajectory's bandwidth: refused, naming it
@@ -110,3 +110,17 @@ def test_a_config_reads_the_optimised_sines(optimised, tmp_path, capsys):
     config.write_text(config.read_text().replace("path: fast.json", "path: bad.json"))
     (p,) = plan(load_config(config), names=["excitation"])
     assert not p.ok and "bad.json: not a joint excitation file" in p.describe()
+
+
+def test_an_excitation_file_whose_optimised_for_is_not_the_optimiser_s_is_refused_naming_it(tmp_path):
+    """The record of what a set was optimised for is read back field by field; a file whose
+    ``optimised_for`` lacks one (or has another) is an error naming the file, not a half record."""
+    from pathlib import Path
+
+    from trajectories.joint_space import JointHarmonics
+    doc = json.loads((Path(__file__).parents[1] / "configs" / "excitations" / "2r.json").read_text())
+    doc["optimised_for"] = {"seed": 1}
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match=r"bad\.json: optimised_for is not what the optimiser writes"):
+        JointHarmonics.load(bad)

@@ -228,6 +228,7 @@ JSON_DOCUMENTS = {"ident_hw.config.schema.spec", "ident_hw.config.schema.build",
                   # beside its raw log, a recorded axis in a recording's metadata, an excitation's file
                   "drivers.acquisition.layout_record", "drivers.recording_metadata.RecordedAxis.to_json",
                   "drivers.recording_metadata.RecordedAxis.from_json", "trajectories.fourier.FourierExcitation.to_dict",
+                  "trajectories.joint_space.OptimisedFor.from_json",
                   # a bus section of YAML as written (its unknown keys go on to python-can as options)
                   "drivers.bus.BusConfig.from_mapping"}
 

@@ -27,7 +27,7 @@ from ident_hw.model import KinematicsError
 
 from .delta_paper import faded
 from .feasibility import ActuatorLimits
-from .joint_space import JointHarmonics, fitted_scale
+from .joint_space import JointHarmonics, OptimisedFor, fitted_scale
 
 #: fraction of ``max_condition`` above which the assembly penalty starts
 PENALTY_START = 0.9
@@ -143,9 +143,8 @@ def optimise_joint_excitation(robot, limits: ActuatorLimits, duration: float, ba
     best = result.x if problem.cost(result.x) <= problem.cost(v0) else v0
     cond1, _ = problem.evaluate(best)
     sines = problem.sines(best)
+    amplitudes = tuple(float(a) for a in np.broadcast_to(problem.amplitude, home.shape))
     return JointHarmonics(sines.frequencies, sines.phases, sines.weights, cond0, cond1,
-                          {"duration_s": duration, "bandwidth_hz": bandwidth, "harmonics": harmonics,
-                           "fraction": fraction, "fade_s": fade, "seed": seed,
-                           "amplitude": np.broadcast_to(problem.amplitude, home.shape).tolist(),
-                           "max_condition": max_condition if np.isfinite(max_condition) else None, "samples": samples,
-                           "iterations": int(result.nit)})
+                          OptimisedFor(duration, bandwidth, harmonics, fraction, fade, seed, amplitudes,
+                                       max_condition if np.isfinite(max_condition) else None, samples,
+                                       int(result.nit)))

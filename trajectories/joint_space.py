@@ -22,8 +22,11 @@ condition number of the passive joints' closure Jacobian).
 
 from __future__ import annotations
 
+import dataclasses
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +44,32 @@ CLOSED = 1e-9
 
 
 @dataclass(frozen=True)
+class OptimisedFor:
+    """What an optimised joint excitation was optimised for (:mod:`trajectories.joint_optimisation`),
+    the arguments a config must repeat to get the same trajectory: its ``duration_s`` (s),
+    ``bandwidth_hz`` (Hz), ``harmonics`` per actuator, the limits' ``fraction``, ``fade_s`` (s), the
+    draw's ``seed``, the relative ``amplitude`` per actuator, the closure's ``max_condition`` (None:
+    none), the criterion's ``samples``, and the optimiser's ``iterations`` done. Stored in the
+    excitation's JSON file under these names."""
+
+    duration_s: float
+    bandwidth_hz: float
+    harmonics: int
+    fraction: float
+    fade_s: float
+    seed: int
+    amplitude: tuple[float, ...]
+    max_condition: float | None
+    samples: int
+    iterations: int
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> OptimisedFor:
+        """The record of its JSON form (:meth:`JointHarmonics.save`)."""
+        return cls(**{**doc, "amplitude": tuple(doc["amplitude"])})
+
+
+@dataclass(frozen=True)
 class JointHarmonics:
     """The sines of a joint excitation, per actuator and harmonic (n, K) each: angular
     ``frequencies`` (rad/s), ``phases`` (rad) and relative velocity ``weights`` (1: the drawn
@@ -53,7 +82,7 @@ class JointHarmonics:
     weights: np.ndarray
     cond_initial: float | None = None
     cond_final: float | None = None
-    optimised_for: dict | None = None
+    optimised_for: OptimisedFor | None = None
 
     @classmethod
     def drawn(cls, n: int, bandwidth: float, harmonics: int, seed: int) -> "JointHarmonics":
@@ -81,7 +110,7 @@ class JointHarmonics:
         doc = {"kind": "joint_harmonics", "frequencies_rad_s": self.frequencies.tolist(),
                "phases_rad": self.phases.tolist(), "weights": self.weights.tolist(),
                "cond_initial": self.cond_initial, "cond_final": self.cond_final,
-               "optimised_for": self.optimised_for}
+               "optimised_for": dataclasses.asdict(self.optimised_for) if self.optimised_for else None}
         path.write_text(json.dumps(doc, indent=1) + "\n")
         return path
 
@@ -106,7 +135,11 @@ class JointHarmonics:
         if actuators is not None and len(arrays[0]) != actuators:
             raise ValueError(f"{path}: {len(arrays[0])} rows of sines, the robot has {actuators} actuators")
         frequencies, phases, weights = arrays
-        return cls(frequencies, phases, weights, doc.get("cond_initial"), doc.get("cond_final"), doc.get("optimised_for"))
+        try:
+            optimised_for = OptimisedFor.from_json(doc["optimised_for"]) if doc.get("optimised_for") else None
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"{path}: optimised_for is not what the optimiser writes ({type(exc).__name__}: {exc})") from None
+        return cls(frequencies, phases, weights, doc.get("cond_initial"), doc.get("cond_final"), optimised_for)
 
 
 def fitted_scale(home: np.ndarray, limits: ActuatorLimits, motion: SampledMotion, fraction: float) -> np.ndarray:

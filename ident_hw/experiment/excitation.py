@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     sines = optimised_sines(load_config(args.config), args.trajectory, max_iter=args.iterations)
     out = args.out
     sines.save(out)
-    iterations = (sines.optimised_for or {}).get("iterations")    # set by the optimiser, None in no file it writes
+    iterations = sines.optimised_for.iterations if sines.optimised_for else None   # set by the optimiser
     print(f"{out}: scaled condition of the base regressor {sines.cond_initial:.4g} drawn, "
           f"{sines.cond_final:.4g} optimised ({iterations} iterations)")
     return 0
