@@ -7,7 +7,8 @@ by orders of magnitude (kg next to kg·m², as the robots' regressors do)."""
 import numpy as np
 import pytest
 
-from ident_hw.identification.base_params import Triangle, base_parameters, column_scale
+from ident_hw.identification.base_params import Triangle, base_parameters, column_scale, scaled_condition
+from ident_hw.identification.least_squares import check_regression_data, stack
 from ident_hw.identification.least_squares import estimate, estimate_columns, ols, wls
 
 
@@ -111,3 +112,19 @@ def test_one_triangle_serves_the_base_parameters_at_any_scale():
     s = np.linalg.svd(W * cad, compute_uv=False)
     np.testing.assert_allclose(shared.singular_values[:4], s[:4], rtol=1e-12)
     assert np.all(shared.singular_values[4:] < 1e-8 * s[0])
+
+
+def test_the_triangle_gives_the_scaled_condition_of_any_columns():
+    """The scaled condition of some of a regressor's columns from the triangle of all of them
+    (factorised at another column scale, with rows left out) against NumPy's SVD of the tall
+    stacked columns scaled to unit RMS over the rows kept: within 1e-9."""
+    Y, tau, names = _data(seed=3, N=500, k=3, n=7)
+    tau[40:60, 2] = np.nan
+    W, _ = stack(*check_regression_data(Y, tau))
+    triangle = Triangle.of(W, np.logspace(0, 2, 7))
+    for columns in ([0, 1, 2, 3, 4, 5, 6], [6, 1, 3], [2]):
+        tall = W[:, columns][np.any(W[:, columns] != 0, axis=1)]
+        tall = tall / np.sqrt(np.mean(tall ** 2, axis=0))
+        s = np.linalg.svd(tall, compute_uv=False)
+        assert triangle.scaled_condition(columns) == pytest.approx(s[0] / s[-1], rel=1e-9)
+        assert triangle.scaled_condition(columns) == pytest.approx(scaled_condition(Y[:, :, columns], tau), rel=1e-9)
