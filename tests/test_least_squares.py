@@ -9,6 +9,7 @@ import pytest
 
 from ident_hw.identification.base_params import Triangle, base_parameters, column_scale, scaled_condition
 from ident_hw.identification.least_squares import check_regression_data, stack
+from ident_hw.identification import least_squares
 from ident_hw.identification.least_squares import estimate, estimate_columns, ols, wls
 
 
@@ -128,3 +129,27 @@ def test_the_triangle_gives_the_scaled_condition_of_any_columns():
         s = np.linalg.svd(tall, compute_uv=False)
         assert triangle.scaled_condition(columns) == pytest.approx(s[0] / s[-1], rel=1e-9)
         assert triangle.scaled_condition(columns) == pytest.approx(scaled_condition(Y[:, :, columns], tau), rel=1e-9)
+
+
+def test_a_refit_near_a_fit_iterates_on_its_triangle_to_lstsq(monkeypatch):
+    """Data read again (the regressor moved by noise 1e-3 of each column's size, columns over
+    four decades, a row left out) refitted on the first fit's triangle (``estimate(near=)``):
+    NumPy's lstsq of the moved data within 1e-9, weighted and not, in a few iterations; with
+    too few iterations allowed, the refit falls back to a factorisation of its own, still lstsq's."""
+    Y, tau, names = _data(seed=8, N=2000)
+    std = np.array([0.01, 0.1, 1.0])
+    rng = np.random.default_rng(9)
+    moved = Y * (1.0 + 1e-3 * rng.standard_normal(Y.shape))
+    monkeypatch.setattr(least_squares, "PRECONDITIONED_FROM", 1)      # these 7 columns iterate too
+    for output_std in (std, None):
+        fit = wls(Y, tau, names, output_std=std) if output_std is not None else ols(Y, tau, names)
+        assert fit.triangle is not None
+        W, y = _stacked(moved, tau, np.ones(3) if output_std is None else 1.0 / std)
+        expected = np.linalg.lstsq(W, y, rcond=None)[0]
+        _close(estimate(moved, tau, names, output_std, near=fit.triangle), expected)
+        monkeypatch.setattr(least_squares, "PRECONDITIONED_ITERATIONS", 6)
+        _close(least_squares._preconditioned(W, y, fit.triangle), expected)
+        monkeypatch.setattr(least_squares, "PRECONDITIONED_ITERATIONS", 1)
+        assert least_squares._preconditioned(W, y, fit.triangle) is None
+        _close(estimate(moved, tau, names, output_std, near=fit.triangle), expected)
+        monkeypatch.setattr(least_squares, "PRECONDITIONED_ITERATIONS", 40)
