@@ -185,8 +185,8 @@ def _outside_columns(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, int]:
 
     From one Householder triangle of ``[A B]`` (Q not formed): ``[A B] = Q [[R11, R12],
     [0, R22]]``; with ``R11 = U S Vᵀ`` and ``U⊥`` the left singular vectors of the zero singular
-    values, ``L = [U⊥ᵀ R12; R22]``. At the Stewart's 30,000 rows x 228 columns, a tenth of the
-    thin SVD of ``A`` and its projections, which this replaced."""
+    values, ``L = [U⊥ᵀ R12; R22]``: no (rows, rank) basis of ``A``'s columns is formed (a thin
+    SVD of ``A`` forms one, and projecting ``B`` on it costs as much again)."""
     norm = np.linalg.norm(A, axis=0)
     scaled = A[:, norm > 0] / norm[norm > 0]
     m = scaled.shape[1]

@@ -90,10 +90,11 @@ class Triangle:
         return self.R * (np.asarray(scale, dtype=float) / self.scale)
 
     def scaled_condition(self, columns: Sequence[int]) -> float:
-        """:func:`scaled_condition` of the regressor's ``columns`` (indices among its n), from the
-        triangle instead of the tall ``W``: ``R[:, columns] / scale[columns]`` has the singular
-        values of ``W[:, columns]``, and its column norms are the columns' RMS times one factor
-        for all (the rows counted), which no condition number sees."""
+        """:func:`~ident_hw.identification.base_params.scaled_condition` of the regressor's
+        ``columns`` (indices among its n), from the triangle instead of the tall ``W``:
+        ``R[:, columns] / scale[columns]`` has the singular values of ``W[:, columns]``, and its
+        column norms are the columns' RMS times one factor for all (the rows counted), which no
+        condition number sees."""
         R = self.R[:, list(columns)] / self.scale[list(columns)]
         if not R.size or not np.any(R):
             return float("inf")

@@ -225,7 +225,7 @@ def estimate(Y: np.ndarray, tau: np.ndarray, names, output_std: np.ndarray | Non
     nobody reads). ``near``: the triangle R (n, n) of a regressor near this one, weighted alike
     (:attr:`LeastSquaresResult.triangle` of the fit of the data before they were read again):
     the least squares of :data:`PRECONDITIONED_FROM` columns or more are then solved by
-    iterations preconditioned by it (:func:`_preconditioned`) instead of a factorisation of their
+    iterations preconditioned by it (``_preconditioned``) instead of a factorisation of their
     own, to the same solution within rounding (where they do not converge: by the factorisation)."""
     Y, tau = check_regression_data(Y, tau, names)
     w = np.ones(Y.shape[1]) if output_std is None else 1.0 / _checked_std(output_std, Y.shape[1])
@@ -237,7 +237,7 @@ def estimate(Y: np.ndarray, tau: np.ndarray, names, output_std: np.ndarray | Non
     return _solve(Yw, tauw, names).coef
 
 
-#: :func:`_preconditioned`: iterations at most, and the decrease of the preconditioned normal
+#: ``_preconditioned``: iterations at most, and the decrease of the preconditioned normal
 #: equations' residual (||R⁻ᵀ Wᵀ r||) at which the solution is taken (rounding level)
 PRECONDITIONED_ITERATIONS = 40
 PRECONDITIONED_RTOL = 1e-15
