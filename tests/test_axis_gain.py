@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ident_hw.identification.axis_gain import SIGMAS, axis_gains, sharing_axes
+from ident_hw.identification.axis_gain import RANK_RTOL, SIGMAS, _outside_columns, _with_gains, axis_gains, sharing_axes
 
 AXES = ("a1", "a2", "a3")
 
@@ -117,3 +117,36 @@ def test_sharing_axes_by_their_columns():
     Y, _ = three_axes()
     assert sharing_axes(Y, range(8), AXES) == {"a1": ("a2", "a3"), "a2": ("a1", "a3"), "a3": ("a1", "a2")}
     assert sharing_axes(Y, range(2, 8), AXES) == {"a1": (), "a2": (), "a3": ()}
+
+
+@pytest.mark.parametrize("rows", [4000, 18])
+def test_the_part_outside_the_parameters_columns_is_the_svd_projections(rows):
+    """``_outside_columns`` (one triangle of ``[A B]``) against the projection written out with
+    NumPy's thin SVD of the column-scaled ``A``: on a tall ``A`` whose columns span eight
+    decades, with a zero column and two columns combinations of others (rank 13 of 16), and on
+    one with fewer rows than columns, the same rank, the same Gram matrix of what is left of
+    ``B`` (rows, 4), and the same gains, residual and standard errors of ``_with_gains``."""
+    rng = np.random.default_rng(7)
+    A = rng.normal(size=(rows, 16)) * np.logspace(-4, 4, 16)
+    A[:, 3] = 0.0
+    A[:, 7] = 2.0 * A[:, 1] - 1e-3 * A[:, 9]
+    A[:, 12] = A[:, 0] + A[:, 15]
+    B = rng.normal(size=(rows, 4))
+    B[:, 1] += A @ rng.normal(size=16) * 1e-2         # a column mostly inside A's space
+    B[:, 2] = 1e3 * B[:, 2] + A[:, 5]
+    norm = np.linalg.norm(A, axis=0)
+    U, s, _ = np.linalg.svd(A[:, norm > 0] / norm[norm > 0], full_matrices=False)
+    basis = U[:, s > RANK_RTOL * s[0]]
+    left = B - basis @ (basis.T @ B)                   # (rows, 4): the projection itself
+    outside, rank = _outside_columns(A, B)
+    assert rank == basis.shape[1] == min(13, rows)
+    gram, expected = outside.T @ outside, left.T @ left
+    assert np.allclose(gram, expected, rtol=0, atol=1e-11 * np.linalg.norm(B, axis=0).max() ** 2)
+    if rows > 100:
+        assert np.allclose(gram, expected, rtol=1e-9, atol=0)
+        G_norm = np.linalg.norm(B[:, 1:], axis=0)
+        for which in ([0], [1, 2], [2, 0, 1]):
+            mine = _with_gains(outside[:, 1:], G_norm, outside[:, 0], which, rows - rank)
+            theirs = _with_gains(left[:, 1:], G_norm, left[:, 0], which, rows - rank)
+            for a, b in zip(mine, theirs):
+                assert np.allclose(a, b, rtol=1e-9, atol=0)

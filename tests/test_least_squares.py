@@ -7,7 +7,9 @@ by orders of magnitude (kg next to kg·m², as the robots' regressors do)."""
 import numpy as np
 import pytest
 
-from ident_hw.identification.base_params import Triangle, base_parameters, column_scale
+from ident_hw.identification.base_params import Triangle, base_parameters, column_scale, scaled_condition
+from ident_hw.identification.least_squares import check_regression_data, stack
+from ident_hw.identification import least_squares
 from ident_hw.identification.least_squares import estimate, estimate_columns, ols, wls
 
 
@@ -111,3 +113,43 @@ def test_one_triangle_serves_the_base_parameters_at_any_scale():
     s = np.linalg.svd(W * cad, compute_uv=False)
     np.testing.assert_allclose(shared.singular_values[:4], s[:4], rtol=1e-12)
     assert np.all(shared.singular_values[4:] < 1e-8 * s[0])
+
+
+def test_the_triangle_gives_the_scaled_condition_of_any_columns():
+    """The scaled condition of some of a regressor's columns from the triangle of all of them
+    (factorised at another column scale, with rows left out) against NumPy's SVD of the tall
+    stacked columns scaled to unit RMS over the rows kept: within 1e-9."""
+    Y, tau, names = _data(seed=3, N=500, k=3, n=7)
+    tau[40:60, 2] = np.nan
+    W, _ = stack(*check_regression_data(Y, tau))
+    triangle = Triangle.of(W, np.logspace(0, 2, 7))
+    for columns in ([0, 1, 2, 3, 4, 5, 6], [6, 1, 3], [2]):
+        tall = W[:, columns][np.any(W[:, columns] != 0, axis=1)]
+        tall = tall / np.sqrt(np.mean(tall ** 2, axis=0))
+        s = np.linalg.svd(tall, compute_uv=False)
+        assert triangle.scaled_condition(columns) == pytest.approx(s[0] / s[-1], rel=1e-9)
+        assert triangle.scaled_condition(columns) == pytest.approx(scaled_condition(Y[:, :, columns], tau), rel=1e-9)
+
+
+def test_a_refit_near_a_fit_iterates_on_its_triangle_to_lstsq(monkeypatch):
+    """Data read again (the regressor moved by noise 1e-3 of each column's size, columns over
+    four decades, a row left out) refitted on the first fit's triangle (``estimate(near=)``):
+    NumPy's lstsq of the moved data within 1e-9, weighted and not, in a few iterations; with
+    too few iterations allowed, the refit falls back to a factorisation of its own, still lstsq's."""
+    Y, tau, names = _data(seed=8, N=2000)
+    std = np.array([0.01, 0.1, 1.0])
+    rng = np.random.default_rng(9)
+    moved = Y * (1.0 + 1e-3 * rng.standard_normal(Y.shape))
+    monkeypatch.setattr(least_squares, "PRECONDITIONED_FROM", 1)      # these 7 columns iterate too
+    for output_std in (std, None):
+        fit = wls(Y, tau, names, output_std=std) if output_std is not None else ols(Y, tau, names)
+        assert fit.triangle is not None
+        W, y = _stacked(moved, tau, np.ones(3) if output_std is None else 1.0 / std)
+        expected = np.linalg.lstsq(W, y, rcond=None)[0]
+        _close(estimate(moved, tau, names, output_std, near=fit.triangle), expected)
+        monkeypatch.setattr(least_squares, "PRECONDITIONED_ITERATIONS", 6)
+        _close(least_squares._preconditioned(W, y, fit.triangle), expected)
+        monkeypatch.setattr(least_squares, "PRECONDITIONED_ITERATIONS", 1)
+        assert least_squares._preconditioned(W, y, fit.triangle) is None
+        _close(estimate(moved, tau, names, output_std, near=fit.triangle), expected)
+        monkeypatch.setattr(least_squares, "PRECONDITIONED_ITERATIONS", 40)

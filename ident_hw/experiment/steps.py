@@ -149,7 +149,8 @@ def fit_base(step: StepConfig, free_names: Sequence[str], names: tuple[str, ...]
     spread = encoder_spread(draws, encoder)
     record = BaseStep(name=step.name, trajectories=tuple(step.trajectories), free=tuple(free_names),
                       method=fit.method, eliminated=tuple(base.eliminated), **_least_squares_figures(fit),
-                      cond_scaled=scaled_condition(Y[:, :, kept], tau), encoder_draws=spread.draws,
+                      cond_scaled=triangle.scaled_condition([list(free_names).index(k) for k in base.kept]),
+                      encoder_draws=spread.draws,
                       encoder_sigma=spread.sigma,
                       encoder_shift=tuple((fit.coef - plain).tolist()) if len(draws) > 1 else ())
     every = free == list(range(len(names)))        # the triangle is then of the whole regressor's columns

@@ -24,8 +24,10 @@ logger = logging.getLogger(__name__)
 
 def refit(fit: LeastSquaresResult, Y: np.ndarray, tau: np.ndarray) -> np.ndarray:
     """The estimate of ``fit``'s method on ``Y`` (N, a, m), ``tau`` (N, a): WLS with ``fit``'s
-    output weights, else OLS (the estimate alone: :func:`~ident_hw.identification.least_squares.estimate`)."""
-    return estimate(Y, tau, fit.names, fit.output_std)
+    output weights, else OLS (the estimate alone: :func:`~ident_hw.identification.least_squares.estimate`),
+    for data near ``fit``'s (its recordings read again): iterations preconditioned by ``fit``'s
+    triangle, not a factorisation of its own."""
+    return estimate(Y, tau, fit.names, fit.output_std, near=fit.triangle)
 
 
 @dataclass(frozen=True)

@@ -123,18 +123,18 @@ def axis_gains(Y: np.ndarray, tau: np.ndarray, coef: np.ndarray, free: Sequence[
         return AxisGains(gains={})
     b = residual[rows, cols] * weight[cols]
     A = Y[rows, cols][:, list(free)] * weight[cols, None]
-    basis = _orthonormal_columns(A)
-    b_left = b - basis @ (basis.T @ b)
-    total = float(b_left @ b_left)
-    # one column per axis: its prediction on its own rows, weighted, less what the parameters can take
+    # one column per axis: its prediction on its own rows, weighted
     G = np.zeros((len(b), len(axes)))
     for j in range(len(axes)):
         mine = cols == j
         G[mine, j] = predicted[rows[mine], j] * weight[j]
-    G_left = G - basis @ (basis.T @ G)
+    # what the parameters cannot take of the residual and of each gain column
+    outside, rank = _outside_columns(A, np.column_stack([b, G]))
+    b_left, G_left = outside[:, 0], outside[:, 1:]
+    total = float(b_left @ b_left)
     G_norm = np.linalg.norm(G, axis=0)
     candidates = [j for j, name in enumerate(axes) if name in judged and np.any(cols == j)]
-    dof = len(b) - basis.shape[1]
+    dof = len(b) - rank
     named: list[NamedGain] = []
     chosen: list[int] = []
     while True:
@@ -163,7 +163,7 @@ def axis_gains(Y: np.ndarray, tau: np.ndarray, coef: np.ndarray, free: Sequence[
             g, left, sigma = _with_gains(G_left, G_norm, b_left, chosen + [j], dof)
             gains[axes[j]] = AxisGain(float(100 * g[-1]), float(100 * sigma[-1]), _share(end[1] - left, total))
     return AxisGains(gains={name: gains[name] for name in axes if name in gains}, named=tuple(named),
-                     rows=len(b), rank=basis.shape[1])
+                     rows=len(b), rank=rank)
 
 
 def sharing_axes(Y: np.ndarray, free: Sequence[int], axes: Sequence[str]) -> dict[str, tuple[str, ...]]:
@@ -175,17 +175,28 @@ def sharing_axes(Y: np.ndarray, free: Sequence[int], axes: Sequence[str]) -> dic
             for j, name in enumerate(axes)}
 
 
-def _orthonormal_columns(A: np.ndarray) -> np.ndarray:
-    """(rows, rank) orthonormal basis of the column space of ``A`` (rows, m), its columns scaled
-    to unit norm first (a zero column counts for nothing)."""
-    if A.shape[1] == 0:
-        return np.zeros((A.shape[0], 0))
+def _outside_columns(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, int]:
+    """The part of the columns of ``B`` (rows, p) outside the column space of ``A`` (rows, m),
+    its columns scaled to unit norm first (a zero column counts for nothing; singular values
+    below :data:`RANK_RTOL` of the largest count as zero), in coordinates of an orthonormal
+    basis of that complement: ``(L (k, p), rank of A)`` with ``Lᵀ L`` the Gram matrix of
+    ``(I − P_A) B``. What is made of those parts by their norms, inner products and singular
+    values (:func:`_with_gains`) is the same as of the (rows, p) parts themselves.
+
+    From one Householder triangle of ``[A B]`` (Q not formed): ``[A B] = Q [[R11, R12],
+    [0, R22]]``; with ``R11 = U S Vᵀ`` and ``U⊥`` the left singular vectors of the zero singular
+    values, ``L = [U⊥ᵀ R12; R22]``: no (rows, rank) basis of ``A``'s columns is formed (a thin
+    SVD of ``A`` forms one, and projecting ``B`` on it costs as much again)."""
     norm = np.linalg.norm(A, axis=0)
     scaled = A[:, norm > 0] / norm[norm > 0]
-    if scaled.shape[1] == 0:
-        return np.zeros((A.shape[0], 0))
-    U, s, _ = np.linalg.svd(scaled, full_matrices=False)
-    return U[:, s > RANK_RTOL * s[0]]
+    m = scaled.shape[1]
+    if m == 0:
+        return np.array(B, dtype=float), 0
+    R = np.asarray(np.linalg.qr(np.concatenate([scaled, B], axis=1), mode="r"))
+    top = min(m, R.shape[0])
+    U, s, _ = np.linalg.svd(R[:top, :m])
+    rank = int(np.sum(s > RANK_RTOL * s[0])) if s[0] > 0 else 0
+    return np.concatenate([U[:, rank:].T @ R[:top, m:], R[top:, m:]]), rank
 
 
 def _with_gains(G_left: np.ndarray, G_norm: np.ndarray, b_left: np.ndarray, which: list[int], dof: int

@@ -14,6 +14,7 @@ for the null space.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,6 +88,17 @@ class Triangle:
     def rescaled(self, scale: np.ndarray) -> np.ndarray:
         """The triangle of ``W diag(scale)`` (min(r, n), n)."""
         return self.R * (np.asarray(scale, dtype=float) / self.scale)
+
+    def scaled_condition(self, columns: Sequence[int]) -> float:
+        """:func:`~ident_hw.identification.base_params.scaled_condition` of the regressor's
+        ``columns`` (indices among its n), from the triangle instead of the tall ``W``:
+        ``R[:, columns] / scale[columns]`` has the singular values of ``W[:, columns]``, and its
+        column norms are the columns' RMS times one factor for all (the rows counted), which no
+        condition number sees."""
+        R = self.R[:, list(columns)] / self.scale[list(columns)]
+        if not R.size or not np.any(R):
+            return float("inf")
+        return float(np.linalg.cond(R * _inverse_rms(np.linalg.norm(R, axis=0))))
 
 
 def base_parameters(W: np.ndarray, names, rtol: float = DEFAULT_RTOL, scale=None,
@@ -188,7 +200,11 @@ def column_scale(Y: np.ndarray) -> np.ndarray:
     """(n,) inverse RMS of each regressor column over all samples and outputs (1 for a zero
     column, or one below :data:`NUMERICALLY_ZERO` of the largest): scaling by it makes the rank
     decision of the base parameters unit-free without lifting rounding to unit size."""
-    rms = np.sqrt(np.mean(Y.reshape(-1, Y.shape[-1]) ** 2, axis=0))
+    return _inverse_rms(np.sqrt(np.mean(Y.reshape(-1, Y.shape[-1]) ** 2, axis=0)))
+
+
+def _inverse_rms(rms: np.ndarray) -> np.ndarray:
+    """:func:`column_scale` of columns whose RMS (or any one multiple of it) is ``rms`` (n,)."""
     real = rms > NUMERICALLY_ZERO * (rms.max() if rms.size else 0.0)     # never a zero column
     return np.divide(1.0, rms, out=np.ones_like(rms), where=real)
 
