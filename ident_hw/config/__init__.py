@@ -54,11 +54,15 @@ def load_config(path: str | Path) -> Config:
 def resolved_yaml(path: str | Path, replace: dict[str, str] | None = None) -> str:
     """The config as one self-contained YAML text, with every ``extends:`` merged in
     (what a results folder keeps as its copy of the config); ``replace``: text values by dotted
-    key (``robot.description``), e.g. a file path that the copy must point elsewhere."""
+    key (``robot.description``; a list's item by its index: ``trajectories.2.path``), e.g. a file
+    path that the copy must point elsewhere."""
     node = compose_file(path)
     for dotted, value in (replace or {}).items():
         target = node
         for key in dotted.split("."):
-            target = next(v for k, v in target.value if k.value == key)
+            if isinstance(target, yaml.SequenceNode):      # a list's item by its index
+                target = target.value[int(key)]
+            else:
+                target = next(v for k, v in target.value if k.value == key)
         target.value = value
     return yaml.serialize(node, Dumper=yaml.SafeDumper)

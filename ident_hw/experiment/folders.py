@@ -14,6 +14,8 @@ from ident_hw.results import STATUS_FILE, mark_status
 
 #: the folder of a results folder that holds the robot's description file (a described robot)
 DESCRIPTION_DIR = "description"
+#: where a results folder keeps copies of the files its trajectories are read from
+TRAJECTORY_DIR = "trajectories"
 
 
 def new_results_folder(config: Config, out: str | Path | None, label: str) -> Path:
@@ -22,7 +24,9 @@ def new_results_folder(config: Config, out: str | Path | None, label: str) -> Pa
 
     The folder is claimed by creating its STATUS exclusively, so two runs started at once never
     share one. Writes STATUS ``running`` and ``config.yaml`` (the config with its bases merged in;
-    a described robot's description file copied to ``description/``, the copy's path in it).
+    a described robot's description file copied to ``description/``, and the files its streamed
+    trajectories are read from (``file``, a ``joint_excitation``'s sines) to ``trajectories/``,
+    the copies' paths in it: the folder's config is then self-contained).
 
     Raises:
         FileExistsError: ``out`` holds results (a STATUS) already.
@@ -46,6 +50,12 @@ def new_results_folder(config: Config, out: str | Path | None, label: str) -> Pa
         (folder / DESCRIPTION_DIR).mkdir(exist_ok=True)
         shutil.copyfile(path, folder / copy)
         replace[DESCRIPTION_KEY] = copy.as_posix()
+    for index, trajectory in enumerate(config.trajectories):
+        if trajectory.path is not None and not trajectory.recorded and Path(trajectory.path).is_file():
+            copy = Path(TRAJECTORY_DIR) / f"{trajectory.name}{Path(trajectory.path).suffix}"
+            (folder / TRAJECTORY_DIR).mkdir(exist_ok=True)
+            shutil.copyfile(trajectory.path, folder / copy)
+            replace[f"trajectories.{index}.path"] = copy.as_posix()
     (folder / "config.yaml").write_text(resolved_yaml(config.source, replace))
     return folder
 
@@ -62,7 +72,7 @@ def _claim(folder: Path) -> bool:
 
 def discard_unused(folder: Path) -> bool:
     """Remove what :func:`new_results_folder` wrote into ``folder`` (STATUS, config.yaml, an
-    empty data/) and the folder if that leaves it empty: a run that could not start (its bus
+    empty data/, the copies of the description and trajectory files) and the folder if that leaves it empty: a run that could not start (its bus
     would not open) leaves no results folder behind. Anything else in it stays. True if the
     folder is gone."""
     folder = Path(folder)
@@ -71,7 +81,8 @@ def discard_unused(folder: Path) -> bool:
         return False
     for name in ("STATUS", "config.yaml"):
         (folder / name).unlink(missing_ok=True)
-    shutil.rmtree(folder / DESCRIPTION_DIR, ignore_errors=True)
+    for copies in (DESCRIPTION_DIR, TRAJECTORY_DIR):
+        shutil.rmtree(folder / copies, ignore_errors=True)
     for path in (data, folder):
         try:
             path.rmdir()
