@@ -290,3 +290,25 @@ def test_a_study_continued_with_another_perturbation_is_refused(tmp_path):
     (folder / "study.json").write_text(json.dumps({"config": "short.yaml", "runs_asked": 2, "perturb": 0.05}))
     with pytest.raises(StudyError, match=r"holds a study with --perturb 0\.05, not 0\.0"):
         run_study(config, folder, runs=2, workers=0)
+
+
+def test_a_study_s_runs_carry_the_files_the_config_reads(tmp_path):
+    """A worker on another machine gets the config as text and the files it names: the Stewart's
+    description and its excitation's sines, under the names the text gives them; the config
+    written with them into an empty folder loads and names those copies."""
+    from ident_hw.experiment.study import study_task_source
+    config = load_config(Path(__file__).parents[1] / "configs" / "sim-stewart.yaml")
+    task = study_task_source(config.source, config.robot, config.trajectories)
+    given = dict(task.files)
+    excitation = config.trajectory("excitation")
+    assert excitation is not None and excitation.path is not None and config.robot.description is not None
+    assert given == {"description/stewart.xml": Path(config.robot.description).read_bytes(),
+                     "trajectories/excitation.json": Path(excitation.path).read_bytes()}
+    for relative, data in task.files:
+        (tmp_path / relative).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / relative).write_bytes(data)
+    (tmp_path / "config.yaml").write_text(task.config_yaml)
+    copy = load_config(tmp_path / "config.yaml")
+    copied = copy.trajectory("excitation")
+    assert copied is not None and Path(str(copied.path)) == tmp_path / "trajectories" / "excitation.json"
+    assert Path(str(copy.robot.description)) == tmp_path / "description" / "stewart.xml"

@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import shutil
 import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
-from ident_hw.config import Config, resolved_yaml
+from ident_hw.config import Config, RobotConfig, TrajectoryConfig, resolved_yaml
 from ident_hw.config.robots import DESCRIPTION_KEY
 from ident_hw.results import STATUS_FILE, mark_status
 
@@ -43,21 +45,43 @@ def new_results_folder(config: Config, out: str | Path | None, label: str) -> Pa
             folder = base.with_name(f"{base.name}-{n}")
     (folder / "data").mkdir(exist_ok=True)
     mark_status(folder, "running")
-    replace = {}
-    path = config.robot.description
-    if path is not None:                 # the robot's description file travels with its config
-        copy = Path(DESCRIPTION_DIR) / Path(path).name
-        (folder / DESCRIPTION_DIR).mkdir(exist_ok=True)
-        shutil.copyfile(path, folder / copy)
-        replace[DESCRIPTION_KEY] = copy.as_posix()
-    for index, trajectory in enumerate(config.trajectories):
-        if trajectory.path is not None and not trajectory.recorded and Path(trajectory.path).is_file():
-            copy = Path(TRAJECTORY_DIR) / f"{trajectory.name}{Path(trajectory.path).suffix}"
-            (folder / TRAJECTORY_DIR).mkdir(exist_ok=True)
-            shutil.copyfile(trajectory.path, folder / copy)
-            replace[f"trajectories.{index}.path"] = copy.as_posix()
-    (folder / "config.yaml").write_text(resolved_yaml(config.source, replace))
+    copies = file_copies(config.robot, config.trajectories)
+    for relative, original in copies.files:
+        (folder / relative).parent.mkdir(exist_ok=True)
+        shutil.copyfile(original, folder / relative)
+    (folder / "config.yaml").write_text(resolved_yaml(config.source, dict(copies.replace)))
     return folder
+
+
+@dataclass(frozen=True)
+class FileCopies:
+    """The files a config reads that a copy of it elsewhere (a results folder, a study's run) must
+    carry, so that the copy is self-contained (:func:`file_copies`): ``files`` as (path relative to
+    the copy's folder, the original's path), ``replace`` the config's dotted keys to rewrite to
+    those relative paths (:func:`ident_hw.config.resolved_yaml`)."""
+
+    files: tuple[tuple[str, str], ...]
+    replace: Mapping[str, str]
+
+
+def file_copies(robot: RobotConfig, trajectories: Sequence[TrajectoryConfig]) -> FileCopies:
+    """What a copy of a config with this ``robot`` section and these ``trajectories`` carries:
+    the robot's description file (``description/``) and the files its streamed trajectories are
+    read from (``trajectories/<name><suffix>``: a ``file`` trajectory, a ``joint_excitation``'s
+    sines), those that exist. A ``recorded`` trajectory's file, a recording made elsewhere, stays
+    where it is."""
+    files: list[tuple[str, str]] = []
+    replace: dict[str, str] = {}
+    if robot.description is not None:
+        relative = (Path(DESCRIPTION_DIR) / Path(robot.description).name).as_posix()
+        files.append((relative, str(robot.description)))
+        replace[DESCRIPTION_KEY] = relative
+    for index, trajectory in enumerate(trajectories):
+        if trajectory.path is not None and not trajectory.recorded and Path(trajectory.path).is_file():
+            relative = (Path(TRAJECTORY_DIR) / f"{trajectory.name}{Path(trajectory.path).suffix}").as_posix()
+            files.append((relative, str(trajectory.path)))
+            replace[f"trajectories.{index}.path"] = relative
+    return FileCopies(tuple(files), replace)
 
 
 def _claim(folder: Path) -> bool:

@@ -39,19 +39,19 @@ import shutil
 import socket
 import tempfile
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Iterator
 
-from ident_hw.config import RobotConfig, SimConfig, load_config, resolved_yaml
-from ident_hw.config.robots import DESCRIPTION_KEY
+from ident_hw.config import RobotConfig, SimConfig, TrajectoryConfig, load_config, resolved_yaml
 from ident_hw.progress import report_progress
 from ident_hw.results import read_status
 from ident_hw.results.study import (Estimate, RunOutcome, Study, StudyFile, SummaryRow, estimates_of,
                                     summarize)
 from ident_hw.storage import read_file, write_file
 
-from .folders import DESCRIPTION_DIR, new_results_folder
+from .folders import file_copies, new_results_folder
 
 logger = logging.getLogger(__name__)
 
@@ -139,15 +139,14 @@ class TaskSource:
     files: tuple[tuple[str, bytes], ...] = ()
 
 
-def study_task_source(source: str, robot: RobotConfig) -> TaskSource:
+def study_task_source(source: str, robot: RobotConfig, trajectories: Sequence[TrajectoryConfig] = ()) -> TaskSource:
     """The config file ``source`` as one YAML text and the files it names (``robot``: its robot
-    section, whose description file goes under ``description/``), as a worker on any machine
-    needs them."""
-    path = robot.description
-    if path is None:
-        return TaskSource(resolved_yaml(source))
-    relative = (Path(DESCRIPTION_DIR) / Path(path).name).as_posix()
-    return TaskSource(resolved_yaml(source, {DESCRIPTION_KEY: relative}), ((relative, Path(path).read_bytes()),))
+    section, whose description file goes under ``description/``; ``trajectories``: its
+    trajectories, whose files go under ``trajectories/``: :func:`~ident_hw.experiment.folders.file_copies`),
+    as a worker on any machine needs them."""
+    copies = file_copies(robot, trajectories)
+    return TaskSource(resolved_yaml(source, dict(copies.replace)),
+                      tuple((relative, Path(original).read_bytes()) for relative, original in copies.files))
 
 
 def check_simulated(source: str, sim: SimConfig | None, simulated: bool, sync_mode: str) -> None:
@@ -230,7 +229,7 @@ def run_study(config_path: str | Path, folder: str | Path, runs: int, *, workers
     check_simulated(config.source, config.sim, config.simulated, config.sync_mode)
     assert config.sim is not None
     folder = Path(folder)
-    source = study_task_source(config.source, config.robot)
+    source = study_task_source(config.source, config.robot, config.trajectories)
     _prepare_folder(folder, config.source, source.config_yaml, runs, perturb)
     tasks = [RunTask(i, config.sim.seed + i, source.config_yaml, source.files, perturb)
              for i in range(runs) if not finished(folder, i)]
