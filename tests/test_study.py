@@ -286,7 +286,7 @@ def test_a_study_continued_with_another_perturbation_is_refused(tmp_path):
     folder.mkdir()
     from ident_hw.experiment.study import study_task_source
     loaded = load_config(config)
-    (folder / "config.yaml").write_text(study_task_source(loaded.source, loaded.robot).config_yaml)
+    (folder / "config.yaml").write_text(study_task_source(loaded.source, loaded.robot, loaded.trajectories).config_yaml)
     (folder / "study.json").write_text(json.dumps({"config": "short.yaml", "runs_asked": 2, "perturb": 0.05}))
     with pytest.raises(StudyError, match=r"holds a study with --perturb 0\.05, not 0\.0"):
         run_study(config, folder, runs=2, workers=0)

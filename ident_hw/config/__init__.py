@@ -17,6 +17,7 @@ its kind (:mod:`.robots`). The config imports nothing of the trajectories (the r
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import yaml
@@ -51,7 +52,7 @@ def load_config(path: str | Path) -> Config:
     return build(Config, compose_file(path), CHECKS, given={"source": str(path), "base_dir": Path(path).parent})
 
 
-def resolved_yaml(path: str | Path, replace: dict[str, str] | None = None) -> str:
+def resolved_yaml(path: str | Path, replace: Mapping[str, str] | None = None) -> str:
     """The config as one self-contained YAML text, with every ``extends:`` merged in
     (what a results folder keeps as its copy of the config); ``replace``: text values by dotted
     key (``robot.description``; a list's item by its index: ``trajectories.2.path``), e.g. a file

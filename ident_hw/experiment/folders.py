@@ -49,7 +49,7 @@ def new_results_folder(config: Config, out: str | Path | None, label: str) -> Pa
     for relative, original in copies.files:
         (folder / relative).parent.mkdir(exist_ok=True)
         shutil.copyfile(original, folder / relative)
-    (folder / "config.yaml").write_text(resolved_yaml(config.source, dict(copies.replace)))
+    (folder / "config.yaml").write_text(resolved_yaml(config.source, copies.replace))
     return folder
 
 
@@ -96,9 +96,9 @@ def _claim(folder: Path) -> bool:
 
 def discard_unused(folder: Path) -> bool:
     """Remove what :func:`new_results_folder` wrote into ``folder`` (STATUS, config.yaml, an
-    empty data/, the copies of the description and trajectory files) and the folder if that leaves it empty: a run that could not start (its bus
-    would not open) leaves no results folder behind. Anything else in it stays. True if the
-    folder is gone."""
+    empty data/, the copies of the description and trajectory files) and the folder if that
+    leaves it empty: a run that could not start (its bus would not open) leaves no results
+    folder behind. Anything else in it stays. True if the folder is gone."""
     folder = Path(folder)
     data = folder / "data"
     if data.is_dir() and any(data.iterdir()):

@@ -139,13 +139,13 @@ class TaskSource:
     files: tuple[tuple[str, bytes], ...] = ()
 
 
-def study_task_source(source: str, robot: RobotConfig, trajectories: Sequence[TrajectoryConfig] = ()) -> TaskSource:
+def study_task_source(source: str, robot: RobotConfig, trajectories: Sequence[TrajectoryConfig]) -> TaskSource:
     """The config file ``source`` as one YAML text and the files it names (``robot``: its robot
     section, whose description file goes under ``description/``; ``trajectories``: its
     trajectories, whose files go under ``trajectories/``: :func:`~ident_hw.experiment.folders.file_copies`),
     as a worker on any machine needs them."""
     copies = file_copies(robot, trajectories)
-    return TaskSource(resolved_yaml(source, dict(copies.replace)),
+    return TaskSource(resolved_yaml(source, copies.replace),
                       tuple((relative, Path(original).read_bytes()) for relative, original in copies.files))
 
 

@@ -183,7 +183,9 @@ def identify_base(
     :class:`Triangle` of the stacked ``Y`` (its rows left out zeroed), when already computed.
     """
     Y, tau = check_regression_data(Y, tau, names)
-    base = base_parameters(stack(Y, tau)[0], names, rtol=rtol, scale=scale, triangle=triangle)
+    # given the triangle, base_parameters reads only the regressor's shape: no stacked copy of it
+    base = base_parameters(Y if triangle is not None else stack(Y, tau)[0], names, rtol=rtol, scale=scale,
+                           triangle=triangle)
     if basis is not None:
         base = with_basis(base, basis) or base
     cols = [base.names.index(k) for k in base.kept]

@@ -228,13 +228,14 @@ def estimate(Y: np.ndarray, tau: np.ndarray, names, output_std: np.ndarray | Non
     iterations preconditioned by it (``_preconditioned``) instead of a factorisation of their
     own, to the same solution within rounding (where they do not converge: by the factorisation)."""
     Y, tau = check_regression_data(Y, tau, names)
-    w = np.ones(Y.shape[1]) if output_std is None else 1.0 / _checked_std(output_std, Y.shape[1])
-    Yw, tauw = (Y, tau) if output_std is None else (Y * w[None, :, None], tau * w)
+    if output_std is not None:
+        w = 1.0 / _checked_std(output_std, Y.shape[1])
+        Y, tau = Y * w[None, :, None], tau * w
     if near is not None and Y.shape[2] >= PRECONDITIONED_FROM:
-        coef = _preconditioned(*stack(Yw, tauw), near)
+        coef = _preconditioned(*stack(Y, tau), near)
         if coef is not None:
             return coef
-    return _solve(Yw, tauw, names).coef
+    return _solve(Y, tau, names).coef
 
 
 #: ``_preconditioned``: iterations at most, and the decrease of the preconditioned normal
