@@ -139,6 +139,23 @@ class VirtualBus(can.interfaces.virtual.VirtualBus):
         if not all_sent:
             raise can.CanOperationError("Could not send message to one or more recipients")
 
+    def send_data(self, arbitration_id: int, data: bytes) -> None:
+        """:meth:`send` of a standard (11-bit) data frame given by its COB-ID and data, each
+        receiver's copy built at once, without a message for the sender first: what
+        :class:`FrameSending` networks send through (a lockstep cycle of the simulated rig carries
+        some twenty frames). A full bounded receive queue blocks, as :meth:`send` without a time-out."""
+        self._check_if_open()
+        timestamp = 0.0 if self.preserve_timestamps else time.time()   # a new message's time stamp is 0
+        data = bytes(data)
+        own, channel = self.queue, self.channel_id
+        if self.receive_own_messages:
+            own.put(can.Message(timestamp=timestamp, arbitration_id=arbitration_id, is_extended_id=False,
+                                channel=channel, dlc=len(data), data=bytearray(data), is_rx=False))
+        for bus_queue in self.channel:
+            if bus_queue is not own:
+                bus_queue.put(can.Message(timestamp=timestamp, arbitration_id=arbitration_id, is_extended_id=False,
+                                          channel=channel, dlc=len(data), data=bytearray(data)))
+
 
 def is_local(interface: str, channel: str | int) -> bool:
     """True for a bus that cannot reach hardware, where only a simulated rig can answer:
@@ -230,7 +247,21 @@ def _socketcan_hint(config: BusConfig, exc: BaseException) -> str:
 NOTIFIER_CYCLE = 0.1
 
 
-class BusNetwork(canopen.Network):
+class FrameSending(canopen.Network):
+    """A :class:`canopen.Network` whose standard data frames on a :class:`VirtualBus` (unbounded)
+    go out through :meth:`VirtualBus.send_data` (the same frames, without canopen's message made
+    only to be copied); any other frame or bus as canopen sends it."""
+
+    def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
+        bus = self.bus
+        if remote or can_id > 0x7FF or type(bus) is not VirtualBus or type(bus.queue) is not queue.SimpleQueue:
+            return super().send_message(can_id, data, remote)
+        with self.send_lock:
+            bus.send_data(can_id, data)
+        self.check()
+
+
+class BusNetwork(FrameSending):
     """A :class:`canopen.Network` that keeps the :class:`BusConfig` it was opened from.
 
     The bus settings (bitrate for the bus-load budget, interface) then have one source: the

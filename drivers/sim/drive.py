@@ -16,7 +16,6 @@ import logging
 import struct
 
 import canopen
-import numpy as np
 from canopen.sdo import SdoAbortedError
 
 from drivers.cia import (CW_FAULT_RESET, CW_HALT, CW_NEW_SETPOINT, CW_RELATIVE, DISABLED, EMCY_COB_ID, ENABLED,
@@ -456,6 +455,11 @@ class EmulatedDrive:
         self._homed = True
         self._mode_bits = SW_BIT12 | SW_TARGET_REACHED
 
+    def _quick_stop_option(self) -> int:
+        """The quick stop option code: ``0x605A``, or the fixed behaviour of a drive without it."""
+        option_code = self.profile.quick_stop_option_code
+        return FIXED_QUICK_STOP_OPTION if option_code is None else self.store[option_code]
+
     @property
     def powered(self) -> bool:
         """The position loop is closed (also while quick-stopping and during the fault reaction)."""
@@ -475,22 +479,22 @@ class EmulatedDrive:
         lowest, highest = self.profile.current_averaged.value_range
         return min(max(int(round(self._averaged)), lowest), highest)
 
-    def plan(self, period: float) -> np.ndarray:
-        """The position demand over the coming period: ``(4,)`` coefficients ``c0 .. c3`` of
+    def plan(self, period: float) -> tuple[float, float, float, float]:
+        """The position demand over the coming period: the coefficients ``c0 .. c3`` of
         ``q_d(t) = c0 + c1 t + c2 t^2 + c3 t^3`` (counts, ``t`` in s from the period start)."""
         prof, store, d = self.profile, self.store, self._demand
         d.curve = (0.0, 0.0)
         history, self._last_cyclic = self._last_cyclic, None     # kept only while streaming
-        if not self.powered:
+        if self.state not in POWERED:
             d.position, d.velocity = float(self.actual), 0.0
-            return np.array((d.position, 0.0, 0.0, 0.0))
+            return d.position, 0.0, 0.0, 0.0
         mode = store[prof.modes_of_operation]
         counts_per_s = self.scaling.counts_per_turn / 60.0       # per rpm
         if self.state in (QUICK_STOP, FAULT_REACTION):
             modes.ramp_down(d, max(store[prof.quick_stop_deceleration], 1) * counts_per_s, period)
         elif mode == prof.cyclic_mode:
-            lo, hi = (store[ref] for ref in prof.software_position_limit)
-            target = min(max(store[prof.cyclic_target], lo), hi)
+            low, high = prof.software_position_limit
+            target = min(max(store[prof.cyclic_target], store[low]), store[high])
             self._last_cyclic = modes.cyclic_segment(d, float(target), period, history)
             self._mode_bits = SW_BIT12  # "drive follows the command value"
         elif self._move is not None and not self._cw & CW_HALT:
@@ -519,24 +523,24 @@ class EmulatedDrive:
         measures, mA, before its 1 mA resolution), the ``period`` (s) since the last ones;
         advance the demand; check the following error."""
         prof, store, d = self.profile, self.store, self._demand
+        values = store.values                   # the live values, written straight in
+        powered = self.state in POWERED
         self.actual = counts
-        store[prof.position_actual] = counts
-        store[prof.velocity_actual] = rpm
-        store[prof.current_actual] = int(round(milliamps))
-        store[prof.current_averaged] = self._average(milliamps, period)
-        store[prof.position_demand] = int(round(d.position))
-        error = int(round(d.position - counts)) if self.powered else 0
+        values[prof.position_actual.key] = counts
+        values[prof.velocity_actual.key] = rpm
+        values[prof.current_actual.key] = int(round(milliamps))
+        values[prof.current_averaged.key] = self._average(milliamps, period)
+        values[prof.position_demand.key] = int(round(d.position))
+        error = int(round(d.position - counts)) if powered else 0
         lowest, highest = prof.following_error_actual.value_range   # the EPOS2's 0x20F4 is 16 bits
-        store[prof.following_error_actual] = min(max(error, lowest), highest)
+        values[prof.following_error_actual.key] = min(max(error, lowest), highest)
         window = store[prof.following_error_window]
         lo, hi = prof.software_position_limit
         if self.state == ENABLED and 0 < window < 0xFFFFFFFF and abs(error) > window:
             self.emcy(EMCY_FOLLOWING_ERROR)
-        elif self.powered and not store[lo] <= counts <= store[hi]:
+        elif powered and not store[lo] <= counts <= store[hi]:
             self.emcy(prof.software_limit_error)
-        option_code = prof.quick_stop_option_code
-        option = FIXED_QUICK_STOP_OPTION if option_code is None else store[option_code]
-        if self.state == QUICK_STOP and rpm == 0 and option <= 4:
+        if self.state == QUICK_STOP and rpm == 0 and self._quick_stop_option() <= 4:
             self._enter(DISABLED)
         elif self.state == FAULT_REACTION and abs(d.velocity) < 1e-6:
             self._enter(FAULT)                              # ramp done: power off

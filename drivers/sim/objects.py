@@ -14,6 +14,7 @@ class ObjectStore:
     def __init__(self, dictionary: ObjectDictionary):
         self.dictionary = dictionary
         self.values: dict[tuple[int, int], object] = {}
+        self._defined: dict[tuple[int, int], bool] = {}   # has()'s answers (the dictionary is fixed)
 
     def get(self, index: int, subindex: int = 0):
         """Current value of an object (written value, live value or default)."""
@@ -46,4 +47,8 @@ class ObjectStore:
 
     def has(self, index: int, subindex: int = 0) -> bool:
         """The dictionary defines ``index:subindex`` (a sub-index an array lacks is absent)."""
-        return find_variable(self.dictionary, index, subindex) is not None
+        try:
+            return self._defined[(index, subindex)]
+        except KeyError:
+            defined = self._defined[(index, subindex)] = find_variable(self.dictionary, index, subindex) is not None
+            return defined

@@ -132,8 +132,12 @@ class PdoEngine:
 
     # -- TPDOs ----------------------------------------------------------------------------------
     def _send(self, pdo: Pdo, now: float) -> bytes:
-        get = self.store.get
-        data = pdo.layout.pack(*[get(i, s) for i, s in pdo.entries])
+        values = self.store.values
+        try:                      # the mapped objects' values (a streaming drive's live ones)
+            data = pdo.layout.pack(*[values[key] for key in pdo.entries])
+        except KeyError:          # one not written yet: its default
+            get = self.store.get
+            data = pdo.layout.pack(*[get(i, s) for i, s in pdo.entries])
         pdo.last_sent = now
         self.network.send_message(pdo.cob_id, data)
         return data

@@ -56,7 +56,7 @@ import canopen
 import numpy as np
 
 from drivers.axis import AxisConfig
-from drivers.bus import NOTIFIER_CYCLE, BusConfig, open_bus
+from drivers.bus import NOTIFIER_CYCLE, BusConfig, FrameSending, open_bus
 from drivers.cia import FAULT, FAULT_REACTION, SYNC_COB_ID
 from drivers.gc_freeze import frozen_gc
 from drivers.sim.lockstep import ANSWER_COB_ID, answer_frame
@@ -75,7 +75,7 @@ MAX_PERIOD = 0.02      # s, longest plant step taken from a measured SYNC interv
 STEP_LOG_LENGTH = 100_000  # SYNC cycles whose duration is kept in SimulatedRig.step_seconds
 
 
-class _RigNetwork(canopen.Network):
+class _RigNetwork(FrameSending):
     """A ``canopen.Network`` whose PDO frames can be dropped or delayed (fault injection).
 
     A share ``delayed_share`` of the frames (drawn at random; 1: all) is held for ``delay`` plus
@@ -362,16 +362,19 @@ class SimulatedRig:
 
     def _cycle(self, period: float, sync_count=None) -> None:
         """One period: RPDOs, demands, sensor sampling, TPDOs (if ``sync_count``), plant step."""
-        demand = np.empty((4, len(self.drives)))     # q_d(t) = sum_i demand[i] t^i over the period
         nominal = (self._nominal_period() or period) if sync_count is not None else period
-        for j, drive in enumerate(self.drives):
+        coefficients, offset_counts, on, limit_ma = [], [], [], []
+        for drive in self.drives:      # each drive's set-points, demand and state: its own alone
             drive.apply_pending_rpdos()
-            demand[:, j] = drive.plan(nominal)
-        offsets = np.array([d.offset for d in self.drives], dtype=float)
+            coefficients.append(drive.plan(nominal))
+            offset_counts.append(drive.offset)
+            on.append(drive.powered)
+            limit_ma.append(drive.store[drive.profile.current_limit])
+        demand = np.array(coefficients).T     # (4, n): q_d(t) = sum_i demand[i] t^i over the period
+        offsets = np.array(offset_counts, dtype=float)
         demand[0] += offsets
         demand = self._units.position_from_counts(demand)
-        powered = np.array([d.powered for d in self.drives])
-        limit_ma = [d.get(d.profile.current_limit.index, d.profile.current_limit.subindex) for d in self.drives]
+        powered = np.array(on)
         limit = self._units.force_from_current(self._units.current_from_ma(limit_ma))
         plant = self.plant
         enabled = powered
@@ -383,8 +386,8 @@ class SimulatedRig:
             milliamps += self._rng.normal(0.0, self.current_noise_ma, len(self.drives))
         counts = self._units.counts_from_position(plant.Theta + self._edge_shift) - offsets.astype(np.int64)
         rpm = self._units.rpm_from_velocity(plant.Thetad)
-        for j, drive in enumerate(self.drives):     # each drive rounds to whole mA (and averages)
-            drive.update(int(counts[j]), int(rpm[j]), float(milliamps[j]), period)
+        for drive, c, r, ma in zip(self.drives, counts.tolist(), rpm.tolist(), milliamps.tolist()):
+            drive.update(c, r, ma, period)     # each drive rounds to whole mA (and averages)
         if sync_count is not None:
             for drive in self.drives:
                 drive.send_sync_tpdos(sync_count)
