@@ -479,15 +479,14 @@ class EmulatedDrive:
         lowest, highest = self.profile.current_averaged.value_range
         return min(max(int(round(self._averaged)), lowest), highest)
 
-    def plan(self, period: float) -> tuple[float, float, float, float]:
-        """The position demand over the coming period: the coefficients ``c0 .. c3`` of
-        ``q_d(t) = c0 + c1 t + c2 t^2 + c3 t^3`` (counts, ``t`` in s from the period start)."""
+    def plan(self, period: float) -> modes.Cubic:
+        """The position demand over the coming period (counts, :class:`~drivers.sim.modes.Cubic`)."""
         prof, store, d = self.profile, self.store, self._demand
         d.curve = (0.0, 0.0)
         history, self._last_cyclic = self._last_cyclic, None     # kept only while streaming
         if self.state not in POWERED:
             d.position, d.velocity = float(self.actual), 0.0
-            return d.position, 0.0, 0.0, 0.0
+            return modes.Cubic(d.position, 0.0, 0.0, 0.0)
         mode = store[prof.modes_of_operation]
         counts_per_s = self.scaling.counts_per_turn / 60.0       # per rpm
         if self.state in (QUICK_STOP, FAULT_REACTION):

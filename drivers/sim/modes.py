@@ -18,6 +18,17 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 
+class Cubic(NamedTuple):
+    """A position demand over one period, ``q_d(t) = c0 + c1 t + c2 t^2 + c3 t^3`` (``t`` in s
+    from the period start): its coefficients by ascending power (NumPy's polynomial order). A
+    named tuple, so that the rig stacks the drives' cubics into one array at once."""
+
+    c0: float     #: position at the period start, counts
+    c1: float     #: velocity at the period start, counts/s
+    c2: float     #: counts/s²
+    c3: float     #: counts/s³
+
+
 @dataclass
 class Demand:
     """``position`` (counts) and ``velocity`` (counts/s) at the period start, ``curve`` = the
@@ -29,11 +40,10 @@ class Demand:
     curve: tuple[float, float] = (0.0, 0.0)
     end: float | None = None
 
-    def coefficients(self) -> tuple[float, float, float, float]:
-        """The cubic's ``c0 .. c3`` by ascending power (NumPy's polynomial order): counts,
-        counts/s, counts/s², counts/s³."""
+    def coefficients(self) -> Cubic:
+        """The cubic over the period (:class:`Cubic`)."""
         c2, c3 = self.curve
-        return self.position, self.velocity, c2, c3
+        return Cubic(self.position, self.velocity, c2, c3)
 
     def advance(self, period: float) -> None:
         """To the end of the period."""
@@ -48,17 +58,11 @@ class Demand:
 class CyclicTargets(NamedTuple):
     """The last three cyclic targets a drive received (counts), newest first: the B-spline's
     control points before the next target (:func:`cyclic_segment`). A named tuple: immutable as
-    a frozen dataclass, made in half its time (a streaming drive makes one every SYNC).
+    a frozen dataclass, made in half its time (a streaming drive makes one every SYNC)."""
 
-    Attributes:
-        last: the target of the period just begun, counts.
-        before: the one before it, counts.
-        oldest: the one before that, counts.
-    """
-
-    last: float
-    before: float
-    oldest: float
+    last: float       #: the target of the period just begun, counts
+    before: float     #: the one before it, counts
+    oldest: float     #: the one before that, counts
 
 
 def cyclic_segment(demand: Demand, target: float, period: float, history: CyclicTargets | None) -> CyclicTargets:
