@@ -198,6 +198,10 @@ class SimulatedRig:
         if edges.shape != (len(nodes),) or np.any(np.abs(edges) > 0.5):
             raise ValueError(f"encoder_edges: one value in [-0.5, 0.5] counts per drive, got {encoder_edges}")
         self._edge_shift = edges / np.array([n[2].counts_per_unit for n in nodes])   # SI: rad, m
+        # the scalings as Python floats, for the per-drive arithmetic of every cycle
+        self._counts_per_unit = self._units.counts_per_unit.tolist()
+        self._rpm_per_unit = self._units.rpm_per_unit_velocity.tolist()
+        self._force_per_amp = self._units.force_per_amp.tolist()
         self.sync_count = 0             # SYNC frames received
         self.syncs_done = 0             # SYNC cycles finished (the TPDOs sent, the plant stepped)
         self.sync_retries = 0           # repeated SYNCs answered (lockstep)
@@ -363,31 +367,35 @@ class SimulatedRig:
     def _cycle(self, period: float, sync_count=None) -> None:
         """One period: RPDOs, demands, sensor sampling, TPDOs (if ``sync_count``), plant step."""
         nominal = (self._nominal_period() or period) if sync_count is not None else period
-        coefficients, offset_counts, on, limit_ma = [], [], [], []
-        for drive in self.drives:      # each drive's set-points, demand and state: its own alone
-            drive.apply_pending_rpdos()
-            coefficients.append(drive.plan(nominal))
-            offset_counts.append(drive.offset)
+        # a few drives: each one's conversions in Python floats (the same IEEE operations, in the
+        # same order, as AxesScaling's on arrays; round() rounds half to even as np.rint), the
+        # arrays built once for the plant
+        counts_per_unit, force_per_amp = self._counts_per_unit, self._force_per_amp
+        rows, offsets, on, limits = [], [], [], []
+        for drive, k, f in zip(self.drives, counts_per_unit, force_per_amp):
+            drive.apply_pending_rpdos()      # each drive's set-points, demand and state: its own alone
+            c = drive.plan(nominal)
+            offset = drive.offset
+            rows.append(((c.c0 + offset) / k, c.c1 / k, c.c2 / k, c.c3 / k))
+            offsets.append(offset)
             on.append(drive.powered)
-            limit_ma.append(drive.store[drive.profile.current_limit])
-        demand = np.array(coefficients).T     # (4, n): q_d(t) = sum_i demand[i] t^i over the period
-        offsets = np.array(offset_counts, dtype=float)
-        demand[0] += offsets
-        demand = self._units.position_from_counts(demand)
+            limits.append(drive.store[drive.profile.current_limit] / MA_PER_AMP * f)
+        demand = np.array(rows).T            # (4, n) rad|m: q_d(t) = sum_i demand[i] t^i over the period
         powered = np.array(on)
-        limit = self._units.force_from_current(self._units.current_from_ma(limit_ma))
+        limit = np.array(limits)             # the current limits as forces, N·m|N
         plant = self.plant
         enabled = powered
         if self.brakes:
             demand, enabled, limit = self._brake(demand, powered, limit)
-        force = np.where(powered, plant.control(demand[0], demand[1], enabled, limit), 0.0)
-        milliamps = self._units.current_from_force(force) * MA_PER_AMP     # before noise and rounding
+        force = plant.control(demand[0], demand[1], enabled, limit).tolist()
+        milliamps = [(F if p else 0.0) / f * MA_PER_AMP for F, f, p in zip(force, force_per_amp, on)]   # before noise, rounding
         if self.current_noise_ma:
-            milliamps += self._rng.normal(0.0, self.current_noise_ma, len(self.drives))
-        counts = self._units.counts_from_position(plant.Theta + self._edge_shift) - offsets.astype(np.int64)
-        rpm = self._units.rpm_from_velocity(plant.Thetad)
-        for drive, c, r, ma in zip(self.drives, counts.tolist(), rpm.tolist(), milliamps.tolist()):
-            drive.update(c, r, ma, period)     # each drive rounds to whole mA (and averages)
+            noise = self._rng.normal(0.0, self.current_noise_ma, len(self.drives)).tolist()
+            milliamps = [ma + e for ma, e in zip(milliamps, noise)]
+        for drive, x, e, k, offset, v, r, ma in zip(self.drives, plant.Theta.tolist(), self._edge_shift.tolist(),
+                                                    counts_per_unit, offsets, plant.Thetad.tolist(),
+                                                    self._rpm_per_unit, milliamps):
+            drive.update(round((x + e) * k) - offset, round(v * r), ma, period)   # each drive rounds to whole mA
         if sync_count is not None:
             for drive in self.drives:
                 drive.send_sync_tpdos(sync_count)
