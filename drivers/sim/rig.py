@@ -376,6 +376,8 @@ class SimulatedRig:
             drive.apply_pending_rpdos()      # each drive's set-points, demand and state: its own alone
             c = drive.plan(nominal)
             offset = drive.offset
+            if offset is None:
+                raise RuntimeError(f"node {drive.id}: its encoder has no offset yet (start() sets it)")
             rows.append(((c.c0 + offset) / k, c.c1 / k, c.c2 / k, c.c3 / k))
             offsets.append(offset)
             on.append(drive.powered)
