@@ -5,10 +5,14 @@ current quantisation and noise) and the canopen master in one process on the in-
 ``virtual`` bus, in lockstep (``bus.sync: lockstep``): the master streams a sinusoid on every
 axis for ``seconds`` of simulated time at ``rate_hz`` SYNC, as fast as the host lets it.
 
-Prints the cycles per wall-clock second and the split of one cycle's wall time:
-* rig: the rig's SYNC handler (plant step, six drives' demand and TPDOs), median;
-* of which the plant step (forward kinematics, reduced dynamics, Heun substeps), timed alone;
-* the rest: the master (set-points, decoding, recording), the bus and the threads' hand-offs.
+Prints the cycles per wall-clock second and what a cycle costs:
+* the CPU time of each thread per cycle (Linux, ``/proc``): the rig's notifier (its drives' RPDOs,
+  the SYNC handler: demands, sensors, TPDOs, plant step), the master's notifier (echoes and the
+  drives' frames: cycle assembly, the lockstep's count), the master's own thread (set-points,
+  SYNC) and the rig's clock;
+* the plant step (forward kinematics, reduced dynamics, Heun substeps), timed alone;
+* the rig's SYNC handler in wall time, median: it includes what the master's threads ran while
+  the plant step left the GIL.
 
 As in the main job, the threads run on one CPU (:func:`drivers.affinity.one_cpu`); ``spread``
 lets them run on every CPU, for comparison.
@@ -24,11 +28,14 @@ such cycle again.
 from __future__ import annotations
 
 import dataclasses
+import os
 import sys
+import threading
 import timeit
 from contextlib import nullcontext
 from pathlib import Path
 
+import can
 import numpy as np
 
 from drivers.affinity import one_cpu
@@ -71,9 +78,17 @@ def run(seconds: float, rate_hz: float, path: Path = CONFIG, drop: float = 0.0) 
         targets = start + np.sin(2 * np.pi * 0.5 * t)[:, None] * np.sin(np.pi * t / t[-1])[:, None] * amplitude
         rig.frame_faults(drop_probability=drop)
         rig.step_seconds.clear()
+        threads = {"rig's notifier": ThreadOf(), "master's notifier": ThreadOf()}
+        rig.network.notifier.add_listener(threads["rig's notifier"])
+        network.notifier.add_listener(threads["master's notifier"])
+        threads["master's thread"] = ThreadOf(threading.get_native_id())
+        cpu_before = thread_cpu()
         began = timeit.default_timer()
         rec = group.run_cyclic(targets, period)
         wall = timeit.default_timer() - began
+        cpu = {tid: used - cpu_before.get(tid, 0.0) for tid, used in thread_cpu().items()}
+        clock = next((t.native_id for t in threading.enumerate() if t.name == "sim-rig-clock"), None)
+        threads["rig's clock"] = ThreadOf(clock)
         rig_us = float(np.median(rig.step_seconds)) * 1e6
     finally:
         group.close()
@@ -91,8 +106,38 @@ def run(seconds: float, rate_hz: float, path: Path = CONFIG, drop: float = 0.0) 
           f"{cycles / wall:.0f} cycles/s ({cycles / wall * period:.2f}x real time); "
           f"{rec.n_invalid} incomplete, {rec.metadata.sync_report.lockstep_retries} asked again "
           f"({rec.metadata.sync_report.lockstep_waited_out} after waiting; {rig.network.dropped} frames dropped)")
-    print(f"per cycle {per_cycle_us:.0f} us: rig {rig_us:.0f} us (plant step {plant_us:.0f} us, drives "
-          f"{rig_us - plant_us:.0f} us), master + bus + hand-offs {per_cycle_us - rig_us:.0f} us")
+    if cpu:
+        print(f"per cycle {per_cycle_us:.0f} us wall; CPU by thread: " + ", ".join(
+            f"{name} {cpu.get(thread.native_id, 0.0) / cycles * 1e6:.0f} us" for name, thread in threads.items()))
+    print(f"plant step alone {plant_us:.0f} us; the rig's SYNC handler {rig_us:.0f} us wall (median)")
+
+
+class ThreadOf(can.Listener):
+    """The native ID of the thread a notifier calls its listeners in (or the one given)."""
+
+    def __init__(self, native_id: int | None = None):
+        self.native_id = native_id
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if self.native_id is None:
+            self.native_id = threading.get_native_id()
+
+
+def thread_cpu() -> dict[int, float]:
+    """User + system CPU seconds of each thread of this process by native ID (Linux ``/proc``;
+    empty elsewhere)."""
+    tasks = Path("/proc/self/task")
+    if not tasks.is_dir():
+        return {}
+    ticks = os.sysconf("SC_CLK_TCK")
+    used = {}
+    for task in tasks.iterdir():
+        try:
+            fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:          # the thread ended meanwhile
+            continue
+        used[int(task.name)] = (int(fields[11]) + int(fields[12])) / ticks
+    return used
 
 
 if __name__ == "__main__":
