@@ -20,8 +20,9 @@ the drives' heartbeat consumer faults them (EMCY 0x8130) as it does when the mas
 hold-up shorter than the limit is survived; a hang longer than it stops the drives within the
 limit plus their consumer time. The timers stay stopped until the master starts one again.
 
-Real-time priority (``SCHED_FIFO``) where the operating system grants it; what it got is in
-the ``ready`` answer and so in every recording's metadata.
+Real-time priority (``SCHED_FIFO``) where the operating system grants it, while it serves (its
+start-up and its ending run at normal priority); what it got is in the ``ready`` answer and so
+in every recording's metadata.
 
 The protocol (``python -m drivers.timing_server``, started by :class:`drivers.timing.TimedBus`):
 on stdin the master's messages, each a 4-byte length and a pickled tuple, the first one the set-up
@@ -378,12 +379,20 @@ def raise_priority(priority: int) -> str:
     return f"real-time, SCHED_FIFO {priority}"
 
 
+def drop_priority() -> None:
+    """Back to normal scheduling (``SCHED_OTHER``) for the calling thread, where it had more."""
+    if hasattr(os, "sched_setscheduler"):
+        try:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        except (OSError, ValueError):
+            pass
+
+
 def serve(commands, out) -> None:
     """The timing process: the set-up from ``commands`` (binary stdin), open the bus, answer
     ``("ready", pid, scheduling)`` (or ``("failed", why)``) on ``out`` (binary stdout), then act
     on the master's messages until it closes the bus or is gone."""
     config, limit, priority = read_message(commands)
-    scheduling = raise_priority(priority)
     try:
         bus = open_bus(config)
     except Exception as exc:   # noqa: BLE001 - whatever opening the adapter raises goes to the master
@@ -391,6 +400,11 @@ def serve(commands, out) -> None:
         out.write(RECORD.pack(ANSWER, len(data)) + data)
         out.flush()
         return
+    # real-time only while it serves: its start-up (opening the bus imports its interface) and its
+    # ending are CPU-bound work that, at SCHED_FIFO, held the CPU from any other real-time process
+    # of its priority on it, e.g. another master's timing process in the middle of its stream,
+    # which then skipped its SYNC slots (~30 ms each time; tests/test_timing_process.py)
+    scheduling = raise_priority(priority)
     server = _Server(bus, out, limit)
     server.start()
     server.answer(("ready", os.getpid(), scheduling))
@@ -404,6 +418,7 @@ def serve(commands, out) -> None:
                 break
             server.handle(command)
     finally:
+        drop_priority()            # the ending (threads joined, the interpreter torn down) as any process's
         server.stop()
         bus.shutdown()
 
