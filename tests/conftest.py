@@ -4,8 +4,9 @@
 they are skipped with the reason. ``tools/vcan-vm`` runs them in a guest that has it (``.ci/run``
 does so after the host suite).
 
-On both cores (``pytest -n 2 --dist loadgroup --no-loadscope-reorder``, the README's test
-command): each worker is pinned to a CPU of its own (:func:`cpus.pin_worker`); the tests of a file
+On every core (``pytest -n auto``, the README's test command, with ``--dist loadgroup
+--no-loadscope-reorder`` from pyproject.toml): two workers per CPU (:data:`WORKERS_PER_CPU`), each
+pinned to its CPU (:func:`cpus.pin_worker`); the tests of a file
 with a module-scoped fixture form one group that runs on one worker (the fixture is built once);
 the ``slow`` tests and groups are handed out first, so that the longest do not start last and
 leave one worker idle at the end.
@@ -27,7 +28,7 @@ try:                                  # pytest >= 9.2: structured node IDs
 except ImportError:                   # before: xdist's own rewrite of the node ID works
     coerce_node_id = None
 
-from cpus import pin_worker
+from cpus import ALL_CPUS, pin_worker
 from processes import START_TIMEOUT, stop_process, wait_for_line
 
 VCAN_CHANNEL = "vcan0"
@@ -79,6 +80,18 @@ def pytest_terminal_summary(terminalreporter, config):
     for nodeid, seconds in sorted(_CPU_BY_TEST.items(), key=lambda kv: -kv[1])[:n]:
         terminalreporter.write_line(f"{seconds:8.2f}s  {nodeid}")
     terminalreporter.write_line(f"{sum(_CPU_BY_TEST.values()):8.2f}s  in all (user + system, child processes included)")
+
+
+#: pytest-xdist workers per CPU under ``-n auto``: the real-time tests (a run on a periodic SYNC,
+#: a HIL campaign in another process, a disturbed SYNC) leave their worker's CPU idle most of the
+#: time they take (a disturbed-SYNC try: 3 s of CPU in 14 s); a second worker on each CPU fills it
+WORKERS_PER_CPU = 2
+
+
+def pytest_xdist_auto_num_workers(config):
+    """``-n auto``: :data:`WORKERS_PER_CPU` workers on each CPU this process may use (each pinned
+    to its CPU, :func:`cpus.pin_worker`); pytest-xdist's own count on a machine that cannot tell."""
+    return WORKERS_PER_CPU * len(ALL_CPUS) if len(ALL_CPUS) > 1 else None
 
 
 def pytest_configure(config):
