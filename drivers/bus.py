@@ -248,13 +248,13 @@ NOTIFIER_CYCLE = 0.1
 
 
 class FrameSending(canopen.Network):
-    """A :class:`canopen.Network` whose standard data frames on a :class:`VirtualBus` (unbounded)
-    go out through :meth:`VirtualBus.send_data` (the same frames, without canopen's message made
-    only to be copied); any other frame or bus as canopen sends it."""
+    """A :class:`canopen.Network` whose standard data frames on a :class:`VirtualBus` go out
+    through :meth:`VirtualBus.send_data` (the same frames, without canopen's message made only to
+    be copied); any other frame or bus as canopen sends it."""
 
     def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
         bus = self.bus
-        if remote or can_id > 0x7FF or type(bus) is not VirtualBus or type(bus.queue) is not queue.SimpleQueue:
+        if remote or can_id > 0x7FF or type(bus) is not VirtualBus:
             return super().send_message(can_id, data, remote)
         with self.send_lock:
             bus.send_data(can_id, data)

@@ -484,9 +484,9 @@ class EmulatedDrive:
         prof, store, d = self.profile, self.store, self._demand
         d.curve = (0.0, 0.0)
         history, self._last_cyclic = self._last_cyclic, None     # kept only while streaming
-        if self.state not in POWERED:
+        if not self.powered:
             d.position, d.velocity = float(self.actual), 0.0
-            return modes.Cubic(d.position, 0.0, 0.0, 0.0)
+            return d.coefficients()
         mode = store[prof.modes_of_operation]
         counts_per_s = self.scaling.counts_per_turn / 60.0       # per rpm
         if self.state in (QUICK_STOP, FAULT_REACTION):
@@ -523,7 +523,7 @@ class EmulatedDrive:
         advance the demand; check the following error."""
         prof, store, d = self.profile, self.store, self._demand
         values = store.values                   # the live values, written straight in
-        powered = self.state in POWERED
+        powered = self.powered
         self.actual = counts
         values[prof.position_actual.key] = counts
         values[prof.velocity_actual.key] = rpm
